@@ -1,0 +1,12 @@
+"""Batch measurement of movies on disk (TIFF, Zarr, OME-Zarr) with dask.
+
+- :func:`open_movie`, :func:`find_movies`, :func:`pair_movies`: lazy reading and pairing;
+- :func:`measure_dask`: one movie, frames in parallel (threads, processes or a
+  dask.distributed cluster), same table as :func:`napari_pfsdm.measure`;
+- :func:`run_batch`: many movies into one CSV, resumable per movie.
+"""
+
+from .io import Movie, find_movies, open_movie, pair_movies
+from .run import measure_dask, run_batch
+
+__all__ = ["Movie", "find_movies", "measure_dask", "open_movie", "pair_movies", "run_batch"]

@@ -1,0 +1,359 @@
+"""Reading label and intensity movies from disk, lazily.
+
+Supported inputs (each one movie, 2-D ``(Y, X)`` or 3-D ``(T, Y, X)``):
+
+- TIFF files (``.tif``, ``.tiff``, incl. ImageJ and OME-TIFF), read with tifffile;
+- Zarr arrays (v2 or v3), e.g. ``movie.zarr`` or ``store.zarr/labels``;
+- multiscale OME-Zarr images: the full-resolution level (``datasets[0]``) is used and singleton
+  channel / z axes are dropped.
+
+:func:`open_movie` returns a dask array whose chunks are read only when needed, inside the
+worker that needs them (the file is re-opened there, so nothing big travels through the
+scheduler). :func:`find_movies` expands a file, folder or glob into movie paths, and
+:func:`pair_movies` matches label movies with intensity movies by name.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import dask.array as da
+import numpy as np
+
+__all__ = [
+    "Movie",
+    "find_movies",
+    "movie_name",
+    "open_movie",
+    "pair_movies",
+]
+
+TIFF_SUFFIXES = (".tif", ".tiff")
+_ZARR_MARKERS = (".zarray", ".zgroup", "zarr.json")
+
+
+def _is_zarr(path: Path) -> bool:
+    return path.is_dir() and (
+        path.suffix.lower() == ".zarr" or any((path / m).exists() for m in _ZARR_MARKERS)
+    )
+
+
+def _is_tiff(path: Path) -> bool:
+    return path.is_file() and path.suffix.lower() in TIFF_SUFFIXES
+
+
+def movie_name(path: str | os.PathLike) -> str:
+    """Name of a movie for the ``movie`` column: the file name without ``.ome.tif`` etc."""
+    name = Path(path).name
+    for suffix in (".ome.tiff", ".ome.tif", ".ome.zarr", ".tiff", ".tif", ".zarr"):
+        if name.lower().endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+class _Frames:
+    """Picklable, lazily opened view of a movie as a (T, Y, X) or (Y, X) array.
+
+    Only the path travels when pickled; the file is (re)opened on first access in each
+    process. ``axes`` maps the stored array onto the output: for each stored axis either
+    ``None`` (kept) or an integer index (a dropped singleton axis such as c or z).
+    """
+
+    def __init__(self, path: str, shape: tuple[int, ...], dtype: np.dtype, drop: tuple):
+        self.path = path
+        self.shape = shape
+        self.dtype = np.dtype(dtype)
+        self.ndim = len(shape)
+        self._drop = drop
+        self._handle: Any = None
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_handle"] = None
+        return state
+
+    def _open(self) -> Any:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        if not isinstance(key, tuple):
+            key = (key,)
+        key = key + (slice(None),) * (self.ndim - len(key))
+        full: list[Any] = []
+        it = iter(key)
+        for d in self._drop:
+            full.append(next(it) if d is None else d)
+        if self._handle is None:
+            self._handle = self._open()
+        return np.asarray(self._handle[tuple(full)])
+
+
+class _ZarrFrames(_Frames):
+    def __init__(self, path: str, component: str, shape, dtype, drop):
+        super().__init__(path, shape, dtype, drop)
+        self.component = component
+
+    def _open(self) -> Any:
+        import zarr
+
+        return zarr.open_array(self.path, path=self.component or None, mode="r")
+
+
+class _TiffFrames(_Frames):
+    def __init__(self, path: str, series: int, shape, dtype, drop):
+        super().__init__(path, shape, dtype, drop)
+        self.series = series
+
+    def _open(self) -> Any:
+        import tifffile
+        import zarr
+
+        store = tifffile.imread(self.path, aszarr=True, series=self.series, level=0)
+        return zarr.open_array(store, mode="r")
+
+
+def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str) -> tuple:
+    """Decide which stored axes to keep to obtain (T, Y, X) or (Y, X)."""
+    ndim = len(shape)
+    if axes is not None and len(axes) == ndim:
+        axes = [a.lower() for a in axes]
+        drop: list[int | None] = []
+        for a, n in zip(axes, shape, strict=True):
+            if a in ("t", "y", "x"):
+                drop.append(None)
+            elif n == 1:
+                drop.append(0)
+            else:
+                raise ValueError(
+                    f"{where} has a {a!r} axis of size {n} (axes {''.join(axes)}); "
+                    "pfsdm measures 2-D objects over time: give one channel / z-plane per file"
+                )
+        if drop.count(None) in (2, 3):
+            return tuple(drop)
+    # No usable axis names: drop leading singleton axes until 3-D.
+    drop = [None] * ndim
+    i = 0
+    while ndim - i > 3 and shape[i] == 1:
+        drop[i] = 0
+        i += 1
+    if drop.count(None) not in (2, 3):
+        raise ValueError(
+            f"{where} has shape {shape}; expected a 2-D image (Y, X) or a time-lapse (T, Y, X)"
+        )
+    return tuple(drop)
+
+
+def _open_zarr(path: Path) -> _ZarrFrames:
+    import zarr
+
+    try:
+        node = zarr.open(str(path), mode="r")
+    except Exception as exc:  # zarr raises many kinds of errors on bad stores
+        raise ValueError(f"cannot open {path} as Zarr: {exc}") from exc
+    component = ""
+    axes = None
+    if isinstance(node, zarr.Group):
+        attrs = dict(node.attrs)
+        ms = attrs.get("multiscales") or attrs.get("ome", {}).get("multiscales")
+        if ms:
+            first = ms[0]
+            component = first["datasets"][0]["path"]
+            axes_meta = first.get("axes")
+            if axes_meta:
+                axes = [a["name"] if isinstance(a, dict) else str(a) for a in axes_meta]
+        else:
+            arrays = sorted(name for name, _ in node.arrays())
+            if len(arrays) != 1:
+                raise ValueError(
+                    f"{path} is a Zarr group with arrays {arrays or 'none'} and no OME-Zarr "
+                    "multiscales metadata; point to one array, e.g. "
+                    f"{path / (arrays[0] if arrays else 'ARRAY')}"
+                )
+            component = arrays[0]
+        arr = zarr.open_array(str(path), path=component, mode="r")
+    else:
+        arr = node
+    if axes is None:
+        dims = arr.metadata.dimension_names if hasattr(arr.metadata, "dimension_names") else None
+        if dims and all(dims):
+            axes = list(dims)
+    shape = tuple(int(n) for n in arr.shape)
+    drop = _drop_axes(shape, axes, str(path))
+    out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
+    frames = _ZarrFrames(str(path), component, out_shape, arr.dtype, drop)
+    frames.chunks_t = int(arr.chunks[drop.index(None)]) if len(out_shape) == 3 else 1
+    return frames
+
+
+def _open_tiff(path: Path) -> _TiffFrames:
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(str(path)) as tif:
+            series = tif.series[0]
+            shape = tuple(int(n) for n in series.shape)
+            dtype = series.dtype
+            axes = list(series.axes.lower())
+    except Exception as exc:
+        raise ValueError(f"cannot read {path} as TIFF: {exc}") from exc
+    # tifffile names a plain stack of pages "q" / "i"; treat it as time.
+    axes = ["t" if a in ("q", "i") else a for a in axes]
+    drop = _drop_axes(shape, axes, str(path))
+    out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
+    frames = _TiffFrames(str(path), 0, out_shape, dtype, drop)
+    frames.chunks_t = 1
+    return frames
+
+
+def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None) -> da.Array:
+    """Open a TIFF or Zarr movie lazily as a dask array of shape (T, Y, X) or (Y, X).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A ``.tif``/``.tiff`` file, a Zarr array, a Zarr group holding exactly one array, or a
+        multiscale OME-Zarr image (its full-resolution level is used).
+    frames_per_chunk : int, optional
+        Frames per dask chunk (whole frames in Y and X). Default: the Zarr chunking along T,
+        or 1 for TIFF.
+
+    Returns
+    -------
+    dask.array.Array
+        Nothing is read until the array (or a slice of it) is computed.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ValueError(f"{p}: no such file or folder")
+    if _is_zarr(p):
+        frames: _Frames = _open_zarr(p)
+    elif _is_tiff(p):
+        frames = _open_tiff(p)
+    else:
+        raise ValueError(
+            f"{p}: not a TIFF file (.tif/.tiff) or a Zarr store (.zarr folder); "
+            "convert the movie to one of these"
+        )
+    if frames.ndim == 3:
+        k = frames_per_chunk or frames.chunks_t
+        chunks: tuple = (max(1, min(k, frames.shape[0])), *frames.shape[1:])
+    else:
+        chunks = frames.shape
+    from dask.base import tokenize
+
+    name = "pfsdm-read-" + tokenize(str(p.resolve()), os.path.getmtime(p), frames.shape)
+    meta = np.empty((0,) * frames.ndim, dtype=frames.dtype)
+    return da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
+
+
+def find_movies(spec: str | os.PathLike | list) -> list[Path]:
+    """Expand a file, a folder, a glob pattern or a list of these into movie paths.
+
+    A folder that is itself a Zarr store is one movie; any other folder contributes the
+    TIFF files and Zarr stores directly inside it. The result is sorted by name.
+    """
+    if isinstance(spec, (list, tuple)):
+        out: list[Path] = []
+        for s in spec:
+            out.extend(find_movies(s))
+        return out
+    text = str(spec)
+    p = Path(text)
+    if any(ch in text for ch in "*?["):
+        hits = [Path(h) for h in sorted(glob.glob(text))]
+        movies = [h for h in hits if _is_zarr(h) or _is_tiff(h)]
+        if not movies:
+            raise ValueError(f"no TIFF or Zarr movie matches {text}")
+        return movies
+    if not p.exists():
+        raise ValueError(f"{p}: no such file or folder")
+    if _is_zarr(p) or p.is_file():
+        return [p]
+    movies = sorted(c for c in p.iterdir() if _is_zarr(c) or _is_tiff(c))
+    if not movies:
+        raise ValueError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
+    return movies
+
+
+_ROLE_WORDS = (
+    "labels", "label", "masks", "mask", "segmentation", "seg", "intensity", "image", "img",
+    "reporter", "raw",
+)
+_ROLE_RE = re.compile(r"(^|[_\-. ])(" + "|".join(_ROLE_WORDS) + r")(?=$|[_\-. ])", re.IGNORECASE)
+
+
+def _pair_key(path: Path) -> str:
+    return _ROLE_RE.sub(r"\1", movie_name(path)).strip("_-. ").lower()
+
+
+@dataclass(frozen=True)
+class Movie:
+    """One movie of a batch: its name, its labels and (optionally) its intensity file."""
+
+    name: str
+    labels: Path
+    intensity: Path | None = None
+
+
+def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list[Movie]:
+    """Match label movies with intensity movies.
+
+    One label movie pairs with one intensity movie whatever their names. Otherwise movies
+    pair by name, ignoring words such as ``labels``, ``mask``, ``seg``, ``intensity``,
+    ``image`` (``gastruloid01_labels.tif`` ↔ ``gastruloid01_reporter.tif``).
+    """
+    names = [movie_name(p) for p in labels]
+    if len(set(names)) != len(names):
+        # keep names unique (e.g. same file name in two folders)
+        names = [str(p.with_suffix("")).replace(os.sep, "/") for p in labels]
+    if not intensity:
+        return [Movie(n, p) for n, p in zip(names, labels, strict=True)]
+    if len(labels) == 1 and len(intensity) == 1:
+        return [Movie(names[0], labels[0], intensity[0])]
+    by_key: dict[str, Path] = {}
+    for q in intensity:
+        k = _pair_key(q)
+        if k in by_key:
+            raise ValueError(f"two intensity movies have the same name: {by_key[k]} and {q}")
+        by_key[k] = q
+    out = []
+    missing = []
+    for n, p in zip(names, labels, strict=True):
+        q = by_key.pop(_pair_key(p), None)
+        if q is None:
+            missing.append(p.name)
+        out.append(Movie(n, p, q))
+    if missing or by_key:
+        extra = ", ".join(sorted(q.name for q in by_key.values()))
+        raise ValueError(
+            "cannot pair labels with intensity movies by name: "
+            + (f"no intensity for {', '.join(missing)}" if missing else "")
+            + ("; " if missing and extra else "")
+            + (f"no labels for {extra}" if extra else "")
+            + " (name them alike, e.g. movie01_labels.tif and movie01_intensity.tif)"
+        )
+    return out
+
+
+def check_labels(labels: Any, intensity: Any = None, where: str = "labels") -> None:
+    """Raise a plain-language ValueError if labels/intensity cannot be measured together."""
+    dtype = np.dtype(labels.dtype)
+    if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_):
+        raise ValueError(
+            f"{where} is not a label image (its pixels are {dtype}, not integers): give the "
+            "segmentation (one integer id per object, 0 = background), not the raw image"
+        )
+    if labels.ndim not in (2, 3):
+        raise ValueError(
+            f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X)"
+        )
+    if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
+        raise ValueError(
+            f"labels and intensity have different shapes {tuple(labels.shape)} and "
+            f"{tuple(intensity.shape)}; they must be the same movie, frame for frame"
+        )

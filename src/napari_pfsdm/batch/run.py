@@ -1,0 +1,439 @@
+"""Measure movies in parallel with dask, on this machine or on any dask.distributed cluster.
+
+:func:`measure_dask` splits a (T, Y, X) movie into chunks of whole frames and runs the core's
+:func:`napari_pfsdm.measure` on each chunk in parallel, then concatenates the tables in frame
+order (so the result is the same whichever scheduler ran it). Each task reads its own frames
+(from the file, inside the worker), so memory stays bounded by a few chunks per worker even for
+a movie larger than RAM.
+
+:func:`run_batch` measures a list of movies into one table with a ``movie`` column. It writes
+one part file per finished movie (Parquet when pyarrow is installed, else CSV) into a parts
+folder next to the output; a re-run skips movies whose part exists (for the same input files
+and options), so a killed run loses at most the movie in progress. The final CSV is written
+atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import re
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..io_csv import _to_jsonable, atomic_write, write_table_csv
+from .io import Movie, check_labels, open_movie
+
+__all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
+
+LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
+
+
+class _Slice:
+    """Frames ``start:stop`` of an array, loaded only when the task runs (in the worker).
+
+    Hides dask arrays from the dask graph of the task on purpose: the worker computes its own
+    slice with the synchronous scheduler, so the frames are read where they are measured and
+    never travel through the scheduler or the client.
+    """
+
+    def __init__(self, array: Any, start: int, stop: int):
+        self.array = array[start:stop]
+
+    def load(self) -> np.ndarray:
+        arr = self.array
+        if hasattr(arr, "dask") and hasattr(arr, "compute"):
+            return np.asarray(arr.compute(scheduler="sync"))
+        return np.asarray(arr)
+
+
+def _measure_chunk(
+    labels: _Slice, intensity: _Slice | None, start: int, options: dict
+) -> pd.DataFrame:
+    """Worker task: read frames, measure them, shift ``frame`` to the movie's numbering."""
+    from napari_pfsdm import measure
+
+    lab = labels.load()
+    img = intensity.load() if intensity is not None else None
+    table = measure(lab, img, **options)
+    table = table.copy()
+    table["frame"] = table["frame"].astype(np.int64) + int(start)
+    return table
+
+
+def _frame_chunks(n_frames: int, frames_per_task: int) -> list[tuple[int, int]]:
+    step = max(1, int(frames_per_task))
+    return [(s, min(s + step, n_frames)) for s in range(0, n_frames, step)]
+
+
+def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, Any]:
+    """Normalise the scheduler choice into ``(kind, object)``.
+
+    Returns ``("distributed", Client)``, ``("address", str)`` (a client is opened on demand)
+    or ``("local", name)`` with name in threads / processes / sync.
+    """
+    if client is not None:
+        return "distributed", client
+    if scheduler is None:
+        return "local", "threads"
+    if isinstance(scheduler, str):
+        s = scheduler.strip()
+        if s in LOCAL_SCHEDULERS:
+            return "local", {"synchronous": "sync", "single-threaded": "sync"}.get(s, s)
+        if "://" in s or re.fullmatch(r"[\w.\-]+:\d+", s):
+            return "address", s
+        raise ValueError(
+            f"unknown scheduler {scheduler!r}: use threads, processes, sync, or the address "
+            "of a dask scheduler such as tcp://10.0.0.5:8786"
+        )
+    # a distributed.Client passed as scheduler
+    if hasattr(scheduler, "submit") and hasattr(scheduler, "gather"):
+        return "distributed", scheduler
+    raise ValueError(f"unknown scheduler {scheduler!r}")
+
+
+
+@contextlib.contextmanager
+def _client_for(kind: str, obj: Any) -> Iterator[Any]:
+    if kind == "address":
+        from distributed import Client
+
+        try:
+            client = Client(obj, timeout="20s")
+        except OSError as exc:
+            raise ValueError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
+        try:
+            yield client
+        finally:
+            client.close()
+    else:
+        yield obj
+
+
+def measure_dask(
+    labels: Any,
+    intensity: Any = None,
+    *,
+    client: Any = None,
+    scheduler: Any = None,
+    num_workers: int | None = None,
+    frames_per_task: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    pool: Any = None,
+    **options: Any,
+) -> pd.DataFrame:
+    """PF-SDM feature table of a movie, frames computed in parallel with dask.
+
+    Same result as :func:`napari_pfsdm.measure` (same rows, same order, same numbers), but
+    chunks of frames run in parallel, on this machine or on a dask.distributed cluster.
+
+    Parameters
+    ----------
+    labels : array-like
+        Integer label image (Y, X) or movie (T, Y, X): numpy, Zarr, or a lazy dask array (e.g.
+        from :func:`napari_pfsdm.batch.io.open_movie`); frames are read by the workers.
+    intensity : array-like, optional
+        Reporter image of the same shape.
+    client : distributed.Client, optional
+        Run on this cluster.
+    scheduler : str or distributed.Client, optional
+        ``"threads"`` (default), ``"processes"``, ``"sync"``, or a scheduler address such as
+        ``"tcp://10.0.0.5:8786"`` (a client is opened and closed for this call).
+    num_workers : int, optional
+        Workers of the local threads/processes scheduler (default: the number of cores).
+    frames_per_task : int, optional
+        Frames per task. Default: the dask chunking along T of ``labels`` if it is a dask
+        array, else 1.
+    progress : callable, optional
+        ``progress(frames_done, n_frames)``, called in the calling process as chunks finish.
+    pool : concurrent.futures.Executor, optional
+        Re-use this process pool for the ``"processes"`` scheduler (saves start-up time when
+        measuring many movies).
+    **options
+        Passed to :func:`napari_pfsdm.measure` (``n_fourier``, ``mapping``, ``sdf``, ...).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (frame, label), ``frame`` numbered from 0 over the whole movie;
+        ``attrs["pfsdm"]`` holds the options.
+    """
+    check_labels(labels, intensity)
+    kind, obj = resolve_scheduler(scheduler, client)
+    if labels.ndim == 2:  # one image: frame 0 of a one-frame movie
+        labels = labels[None]
+        intensity = intensity[None] if intensity is not None else None
+    n_frames = int(labels.shape[0])
+    if frames_per_task is None:
+        chunks = getattr(labels, "chunks", None)
+        frames_per_task = int(chunks[0][0]) if chunks and isinstance(chunks[0], tuple) else 1
+    spans = _frame_chunks(n_frames, frames_per_task)
+    args = [
+        (
+            _Slice(labels, s, e),
+            _Slice(intensity, s, e) if intensity is not None else None,
+            s,
+            options,
+        )
+        for s, e in spans
+    ]
+    sizes = [e - s for s, e in spans]
+
+    if kind == "local":
+        tables = _run_local(args, sizes, obj, num_workers, progress, pool)
+    else:
+        with _client_for(kind, obj) as cl:
+            tables = _run_distributed(args, sizes, cl, progress)
+
+    if tables:
+        attrs = tables[0].attrs.copy()
+        for t in tables:  # pandas compares attrs on concat, which fails on numpy arrays
+            t.attrs = {}
+        table = pd.concat(tables, ignore_index=True)
+        table.attrs = attrs
+    else:  # pragma: no cover - no frames at all
+        table = pd.DataFrame()
+    return table
+
+
+def _run_local(
+    args: list[tuple], sizes: list[int], name: str, num_workers: int | None,
+    progress: Callable | None, pool: Any,
+) -> list[pd.DataFrame]:
+    import dask
+    from dask.callbacks import Callback
+
+    tasks = [
+        dask.delayed(_measure_chunk, pure=False)(*a, dask_key_name=f"pfsdm-chunk-{i}")
+        for i, a in enumerate(args)
+    ]
+    total = sum(sizes)
+    done = [0]
+
+    class _Progress(Callback):
+        def _posttask(self, key, result, dsk, state, worker_id):
+            if isinstance(key, str) and key.startswith("pfsdm-chunk-") and progress:
+                done[0] += sizes[int(key.rsplit("-", 1)[1])]
+                progress(done[0], total)
+
+    kwargs: dict[str, Any] = {"scheduler": name}
+    if name != "sync":
+        kwargs["num_workers"] = num_workers or os.cpu_count() or 1
+    if name == "processes" and pool is not None:
+        kwargs["pool"] = pool
+    with _Progress():
+        return list(dask.compute(*tasks, **kwargs))
+
+
+def _run_distributed(
+    args: list[tuple], sizes: list[int], client: Any, progress: Callable | None
+) -> list[pd.DataFrame]:
+    from distributed import as_completed
+
+    futures = [
+        client.submit(_measure_chunk, *a, pure=False, key=f"pfsdm-chunk-{i}-{os.urandom(4).hex()}")
+        for i, a in enumerate(args)
+    ]
+    index = {f.key: i for i, f in enumerate(futures)}
+    results: list[pd.DataFrame | None] = [None] * len(futures)
+    total = sum(sizes)
+    done = 0
+    try:
+        for fut in as_completed(futures):
+            i = index[fut.key]
+            results[i] = fut.result()
+            fut.release()
+            done += sizes[i]
+            if progress:
+                progress(done, total)
+    finally:
+        for f in futures:
+            f.release()
+    return [r for r in results if r is not None]
+
+
+# ---------------------------------------------------------------------------------------------
+# Resumable batches over many movies
+# ---------------------------------------------------------------------------------------------
+
+def _have_parquet() -> bool:
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _part_name(movie: Movie, options: dict) -> str:
+    """Stable file name of a movie's part: its name plus a hash of its inputs and options."""
+    def stamp(p: Path | None) -> Any:
+        if p is None:
+            return None
+        p = Path(p).resolve()
+        return [str(p), os.path.getmtime(p)]
+
+    key = json.dumps(
+        [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(options)], sort_keys=True
+    )
+    digest = hashlib.sha1(key.encode()).hexdigest()[:10]
+    safe = re.sub(r"[^\w.\-]+", "_", movie.name)[:80]
+    return f"{safe}-{digest}"
+
+
+def _write_part(table: pd.DataFrame, path: Path) -> None:
+    out = table.copy()
+    out.attrs = {}
+    if path.suffix == ".parquet":
+        tmp = path.with_name(f".{path.name}.tmp")
+        try:
+            out.to_parquet(tmp, index=False)
+            os.replace(tmp, path)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+    else:
+        atomic_write(path, lambda h: out.to_csv(h, index=False, lineterminator="\n"))
+
+
+def _read_part(path: Path) -> pd.DataFrame:
+    if path.suffix == ".parquet":
+        return pd.read_parquet(path)
+    df = pd.read_csv(path, float_precision="round_trip", dtype={"error": str, "movie": str})
+    for col in ("error", "movie"):
+        if col in df.columns:
+            df[col] = df[col].fillna("")
+    return df
+
+
+def default_parts_dir(output: str | os.PathLike) -> Path:
+    """Where :func:`run_batch` keeps per-movie parts for ``output``: ``<output>.parts/``."""
+    output = Path(output)
+    return output.with_name(output.name + ".parts")
+
+
+def run_batch(
+    movies: Sequence[Movie],
+    output: str | os.PathLike,
+    *,
+    client: Any = None,
+    scheduler: Any = None,
+    num_workers: int | None = None,
+    frames_per_task: int | None = None,
+    parts_dir: str | os.PathLike | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+    log: Callable[[str], None] | None = None,
+    **options: Any,
+) -> pd.DataFrame:
+    """Measure many movies into one CSV with a ``movie`` column, resumably.
+
+    Parameters
+    ----------
+    movies : sequence of Movie
+        From :func:`napari_pfsdm.batch.io.pair_movies`.
+    output : str or PathLike
+        Final CSV (written atomically, with the options in a ``# pfsdm:`` header line).
+    client, scheduler, num_workers, frames_per_task
+        As in :func:`measure_dask`.
+    parts_dir : str or PathLike, optional
+        Folder of per-movie parts (default ``<output>.parts``). A movie whose part is there
+        (same files, same modification times, same options) is not measured again.
+    progress : callable, optional
+        ``progress(movie_name, frames_done, n_frames)``.
+    log : callable, optional
+        Receives one-line messages (e.g. ``"skipped movie01 (already measured)"``).
+    **options
+        Passed to :func:`napari_pfsdm.measure`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The concatenated table (also written to ``output``).
+    """
+    output = Path(output)
+    out_dir = output.parent if str(output.parent) else Path(".")
+    if not out_dir.is_dir():
+        raise ValueError(f"cannot write {output}: the folder {out_dir} does not exist")
+    if not os.access(out_dir, os.W_OK):
+        raise ValueError(f"cannot write {output}: the folder {out_dir} is not writable")
+    parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
+    parts.mkdir(parents=True, exist_ok=True)
+    suffix = ".parquet" if _have_parquet() else ".csv"
+    say = log or (lambda msg: None)
+
+    # Open and check every movie first: a bad file fails the run before any long work.
+    opened = []
+    for m in movies:
+        lab = open_movie(m.labels, frames_per_chunk=frames_per_task)
+        img = open_movie(m.intensity, frames_per_chunk=frames_per_task) if m.intensity else None
+        check_labels(lab, img, where=str(m.labels))
+        if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
+            raise ValueError(f"{m.labels} and {m.intensity} have different shapes")
+        opened.append((m, lab, img))
+
+    kind, obj = resolve_scheduler(scheduler, client)
+    pool_cm: Any = contextlib.nullcontext(None)
+    if kind == "local" and obj == "processes":
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool_cm = ProcessPoolExecutor(
+            max_workers=num_workers or os.cpu_count() or 1,
+            mp_context=multiprocessing.get_context("spawn"),
+        )
+    tables = []
+    attrs: dict = {}
+    with pool_cm as pool, _client_for(kind, obj) as cl:
+        for m, lab, img in opened:
+            part = parts / (_part_name(m, options) + suffix)
+            side = part.with_suffix(".json")
+            if part.exists():
+                say(f"skipped {m.name} (already measured: {part.name})")
+                table = _read_part(part)
+                if side.exists() and not attrs:
+                    attrs = json.loads(side.read_text())
+            else:
+                def _prog(done: int, total: int, _name: str = m.name) -> None:
+                    if progress:
+                        progress(_name, done, total)
+
+                table = measure_dask(
+                    lab, img,
+                    client=cl if kind != "local" else None,
+                    scheduler=obj if kind == "local" else None,
+                    num_workers=num_workers, frames_per_task=frames_per_task,
+                    progress=_prog, pool=pool, **options,
+                )
+                attrs = _to_jsonable(table.attrs.get("pfsdm") or attrs)
+                table = table.copy()
+                table.insert(0, "movie", m.name)
+                # side-car options first: the part itself appearing marks the movie as done
+                text = json.dumps(attrs)
+                atomic_write(side, lambda h, _t=text: h.write(_t))
+                _write_part(table, part)
+                say(f"measured {m.name}: {len(table)} objects")
+            tables.append(table)
+
+    for t in tables:
+        t.attrs = {}
+    result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+    if not attrs:
+        attrs = dict(options)
+    result.attrs["pfsdm"] = attrs
+    write_table_csv(result, output, attrs)
+    return result
+
+
+def _stderr_progress(name: str, done: int, total: int) -> None:  # pragma: no cover - cosmetic
+    width = 30
+    fill = int(width * done / max(total, 1))
+    sys.stderr.write(f"\r{name[:30]:30s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}")
+    if done >= total:
+        sys.stderr.write("\n")
+    sys.stderr.flush()

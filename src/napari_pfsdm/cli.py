@@ -1,0 +1,560 @@
+"""The ``pfsdm`` command line: measure movies, compare shapes, plot trajectories, classify.
+
+Run ``pfsdm --help`` or ``pfsdm COMMAND --help``. Every command runs without a display.
+Errors a user can fix (a missing file, labels and intensity of different sizes, a raw image
+given as labels, an output folder that cannot be written) print one line starting with
+``pfsdm: error:`` and exit with status 2; no partial output file is left behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["build_parser", "main"]
+
+EXIT_USAGE = 2
+
+
+class UserError(ValueError):
+    """An error the user can fix; printed as one line."""
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------
+
+def _say(msg: str, quiet: bool = False) -> None:
+    if not quiet:
+        print(msg, flush=True)
+
+
+def _check_output(path: str | os.PathLike, what: str = "output") -> Path:
+    """Fail early (before any long work) when ``path`` cannot be written."""
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    if p.is_dir():
+        raise UserError(f"the {what} {p} is a folder; give a file name such as {p / 'out.csv'}")
+    if not folder.is_dir():
+        raise UserError(f"cannot write the {what} {p}: the folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"cannot write the {what} {p}: the folder {folder} is not writable")
+    return p
+
+
+def _progress_printer(quiet: bool):
+    if quiet:
+        return None
+    state = {"last": 0.0}
+    tty = sys.stderr.isatty()
+
+    def show(name: str, done: int, total: int) -> None:
+        now = time.monotonic()
+        if done < total and now - state["last"] < (0.2 if tty else 5.0):
+            return
+        state["last"] = now
+        width = 30
+        fill = int(width * done / max(total, 1))
+        bar = f"{name[:28]:28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total} frames"
+        if tty:
+            sys.stderr.write("\r" + bar + ("\n" if done >= total else ""))
+        else:
+            sys.stderr.write(bar + "\n")
+        sys.stderr.flush()
+
+    return show
+
+
+def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
+    names = ("n_fourier", "n_radii", "n_angles", "sdf", "viscosity", "mapping",
+             "normalization", "radii", "ring_weighting", "components", "min_area")
+    return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
+
+
+def _add_method_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(
+        "method options (the same as in the napari widget; leave them out for the defaults)"
+    )
+    g.add_argument("--n-fourier", dest="n_fourier", type=int, metavar="N",
+                   help="how much outline detail is kept: Fourier modes per ring (default 10)")
+    g.add_argument("--n-radii", dest="n_radii", type=int, metavar="N",
+                   help="rings sampled from the object's centre to its outline (default 16)")
+    g.add_argument("--n-angles", dest="n_angles", type=int, metavar="N",
+                   help="samples around each ring (default 64)")
+    g.add_argument("--sdf", choices=("exact", "viscous"),
+                   help="distance to the outline: 'exact' (fast, default) or 'viscous' "
+                        "(the paper's smoothed version, ~5x slower)")
+    g.add_argument("--viscosity", type=float, metavar="NU",
+                   help="smoothing of the viscous distance, in object sizes (default 0.05)")
+    g.add_argument("--mapping", choices=("harmonic", "bijective", "radial"),
+                   help="how the unit disk is laid onto the object: 'harmonic' (fast, default), "
+                        "'bijective' (never folds; for snake-like or branched objects), "
+                        "'radial' (the paper's; round, star-shaped objects only)")
+    g.add_argument("--normalization", choices=("none", "ring"),
+                   help="'ring' rescales each ring's modes to unit length as in the paper "
+                        "(unstable for near-round objects); default 'none'")
+    g.add_argument("--radii", choices=("uniform", "boundary"),
+                   help="ring placement: 'uniform' (default) or 'boundary' (packed toward "
+                        "the outline, where shapes differ most)")
+    g.add_argument("--ring-weighting", dest="ring_weighting", choices=("none", "boundary"),
+                   help="extra weight of the outer rings in distances (default 'none')")
+    g.add_argument("--components", choices=("largest", "raise"),
+                   help="an object in several pieces: keep the 'largest' (default) or report "
+                        "an error for it ('raise')")
+    g.add_argument("--min-area", dest="min_area", type=int, metavar="PIXELS",
+                   help="objects smaller than this get an error instead of features (default 20)")
+
+
+def _add_compute_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("where the work runs")
+    g.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="'processes' (default: one process per core of this machine), "
+                        "'threads', 'sync' (one at a time, for debugging), or the address of a "
+                        "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
+    g.add_argument("--workers", type=int, metavar="N",
+                   help="local workers (default: the number of cores)")
+    g.add_argument("--frames-per-task", dest="frames_per_task", type=int, metavar="N",
+                   help="frames measured per task (default: the file's chunking, else 1)")
+
+
+# --------------------------------------------------------------------------------------------
+# commands
+# --------------------------------------------------------------------------------------------
+
+def cmd_measure(args: argparse.Namespace) -> int:
+    from .batch.io import find_movies, pair_movies
+    from .batch.run import default_parts_dir, run_batch
+
+    out = _check_output(args.output)
+    labels = find_movies(args.labels)
+    intensity = find_movies(args.intensity) if args.intensity else None
+    movies = pair_movies(labels, intensity)
+    options = _measure_options(args)
+    _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
+    t0 = time.perf_counter()
+    table = run_batch(
+        movies, out,
+        scheduler=args.scheduler, num_workers=args.workers,
+        frames_per_task=args.frames_per_task,
+        parts_dir=args.parts,
+        progress=_progress_printer(args.quiet),
+        log=lambda m: _say("  " + m, args.quiet),
+        **options,
+    )
+    dt = time.perf_counter() - t0
+    n_err = int(table["error"].fillna("").ne("").sum()) if "error" in table else 0
+    _say(
+        f"wrote {out}: {len(table)} objects from {len(movies)} movie(s) in {dt:.1f} s"
+        + (f" ({n_err} with an error: see the 'error' column)" if n_err else ""),
+        args.quiet,
+    )
+    parts = Path(args.parts) if args.parts else default_parts_dir(out)
+    _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
+    return 0
+
+
+def _select_frames(table, frames: str | None):
+    if frames is None:
+        return table
+    from .analysis.classification import parse_frames
+
+    sel = parse_frames(frames)
+    sub = table[table["frame"].isin(sel)]
+    if sub.empty:
+        raise UserError(f"no rows in frames {frames}; the table has frames "
+                        f"{int(table['frame'].min())}-{int(table['frame'].max())}")
+    return sub
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .batch.reports import (
+        attach_groups,
+        distance_table,
+        load_features,
+        mds_coordinates,
+        plot_mds,
+        read_groups,
+    )
+    from .io_csv import write_table_csv
+
+    out = _check_output(args.output)
+    if args.mds:
+        _check_output(args.mds, "plot")
+    table = load_features(args.features)
+    table = _select_frames(table, args.frames).reset_index(drop=True)
+    if args.groups:
+        table = attach_groups(table, read_groups(args.groups))
+    if len(table) > args.max_objects:
+        raise UserError(
+            f"{len(table)} objects would give a {len(table)}x{len(table)} matrix; choose frames "
+            f"with --frames (e.g. --frames 0) or raise --max-objects"
+        )
+    dist = distance_table(table, intensity_weight=args.intensity_weight)
+    opts = dict(table.attrs.get("pfsdm", {}))
+    opts["intensity_weight"] = args.intensity_weight
+    write_table_csv(dist, out, opts, index=True)
+    _say(f"wrote {out}: {len(dist)} x {len(dist)} PF-SDM distances", args.quiet)
+    if args.mds:
+        coords = mds_coordinates(dist.to_numpy())
+        plot_mds(coords, table, args.mds)
+        _say(f"wrote {args.mds}", args.quiet)
+    return 0
+
+
+def cmd_trajectories(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from .batch.reports import (
+        attach_groups,
+        load_features,
+        pca_scores,
+        plot_trajectories,
+        read_groups,
+    )
+    from .io_csv import write_table_csv
+
+    out = _check_output(args.output)
+    if args.plot:
+        _check_output(args.plot, "plot")
+    table = load_features(args.features)
+    if args.groups:
+        table = attach_groups(table, read_groups(args.groups))
+    has_int = any(c.startswith("intensity_r") for c in table.columns)
+    channels = {"shape": ["shape"], "intensity": ["intensity"],
+                "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
+    if "intensity" in channels and not has_int:
+        raise UserError("the table has no intensity features; measure with --intensity IMAGE")
+    scores = None
+    explained = {}
+    for ch in channels:
+        s, ev = pca_scores(table, ch, n_components=args.components)
+        explained[ch] = ev
+        scores = s if scores is None else pd.concat(
+            [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
+    opts = dict(table.attrs.get("pfsdm", {}))
+    opts["explained_variance"] = {ch: ev.tolist() for ch, ev in explained.items()}
+    write_table_csv(scores, out, opts)
+    ev_txt = ", ".join(
+        f"{ch}: " + " ".join(f"{100 * v:.0f}%" for v in ev) for ch, ev in explained.items()
+    )
+    _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
+    if args.plot:
+        for ch, ev in explained.items():
+            scores.attrs[f"{ch}_explained"] = ev
+        plot_trajectories(scores, args.plot, components=tuple(args.show))
+        _say(f"wrote {args.plot}", args.quiet)
+    return 0
+
+
+def cmd_classify(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .analysis import classification as clf
+    from .batch.reports import attach_groups, load_features, object_ids, read_groups
+    from .io_csv import write_table_csv
+
+    if args.output:
+        _check_output(args.output)
+    table = load_features(args.features)
+    table = attach_groups(table, read_groups(args.groups))
+    table = table[table["group"] != ""].copy()
+    table["object"] = object_ids(table)
+    names = sorted(table["group"].unique())
+    if len(names) != 2:
+        raise UserError(f"classify needs exactly two groups, the groups file gives {names}")
+    positive = args.positive or names[1]
+    if positive not in names:
+        raise UserError(f"--positive {positive!r} is not one of the groups {names}")
+    frames = args.frames
+    xs, objects = clf.feature_matrix(table, "shape", frames, object_col="object")
+    has_int = any(c.startswith("intensity_r") for c in table.columns)
+    xi = clf.feature_matrix(table, "intensity", frames, object_col="object")[0] if has_int else xs
+    group_of = table.drop_duplicates("object").set_index("object")["group"]
+    y = (group_of.loc[objects].to_numpy() == positive).astype(int)
+    splits = clf.make_splits(y, n_splits=args.splits, test_size=args.test_size,
+                             n_repeats=args.repeats, seed=args.seed)
+    scores = clf.evaluate(clf.logistic_model(xs, xi, y), y, splits, seed=args.seed)
+    summary = clf.summarize(scores)
+    if not has_int:
+        summary = summary.loc[["shape"]]
+    n1 = int(y.sum())
+    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} other), frames {frames}, "
+         f"{len(splits)} stratified splits ({args.test_size:.0%} test)", args.quiet)
+    with np.printoptions(precision=3):
+        import pandas as pd
+
+        with pd.option_context("display.width", 120, "display.precision", 3):
+            print(summary.to_string())
+    if "fusion (optimistic, test-tuned)" in summary.index:
+        _say("note: 'optimistic' tunes the fusion weight on the test split as the paper did; "
+             "'nested' is the honest estimate", args.quiet)
+    if args.output:
+        out = summary.reset_index().rename(columns={"index": "features"})
+        write_table_csv(out, args.output, {"frames": frames, "positive": positive,
+                                           "splits": len(splits)})
+        _say(f"wrote {args.output}", args.quiet)
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    import numpy as np
+    import pandas as pd
+    import tifffile
+
+    out = Path(args.output)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
+    _check_output(out / "features.csv")
+    failed = []
+
+    steps = [
+        ("synthetic five-shape benchmark", "napari_pfsdm.analysis.synthetic_benchmark"),
+        ("gastruloid axis-number report", "napari_pfsdm.analysis.gastruloid_report"),
+    ]
+    if args.quick_only:
+        steps = []
+    import importlib
+
+    for title, modname in steps:
+        _say(f"== {title} ({modname}.run) ==")
+        try:
+            mod = importlib.import_module(modname)
+        except ImportError as exc:
+            _say(f"   skipped: {modname} is not available ({exc})")
+            continue
+        try:
+            mod.run(out, quick=True)
+        except Exception as exc:  # keep going: the other parts of the demo still run
+            print(f"pfsdm: warning: {title} failed: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
+            failed.append(title)
+
+    _say("== synthetic gastruloid time-lapse: measure, trajectories, distances ==")
+    try:
+        from .data.gastruloids import make_timelapse_montage
+    except ImportError as exc:
+        raise UserError(f"the bundled synthetic data is not available ({exc})") from exc
+    labels, intensity, groups = make_timelapse_montage(seed=0)
+    tifffile.imwrite(out / "montage_labels.tif", labels, compression="zlib")
+    tifffile.imwrite(out / "montage_intensity.tif", intensity, compression="zlib")
+    pd.DataFrame({"label": list(groups), "group": list(groups.values())}).to_csv(
+        out / "groups.csv", index=False)
+    _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
+         f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
+    common = ["--quiet"] if args.quiet else []
+    rc = main(["measure", str(out / "montage_labels.tif"),
+               "--intensity", str(out / "montage_intensity.tif"),
+               "-o", str(out / "features.csv"), "--scheduler", args.scheduler, *common])
+    last = int(labels.shape[0] - 1)
+    rc = rc or main(["trajectories", str(out / "features.csv"), "-o", str(out / "pca.csv"),
+                     "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"),
+                     *common])
+    rc = rc or main(["compare", str(out / "features.csv"), "-o", str(out / "distances.csv"),
+                     "--frames", str(last), "--mds", str(out / "mds.png"),
+                     "--groups", str(out / "groups.csv"), "--intensity-weight", "0.5",
+                     *common])
+    if rc:
+        return rc
+    files = sorted(p.name for p in out.iterdir() if p.is_file())
+    _say(f"demo done: {out} holds {', '.join(files)}")
+    _ = np  # numpy imported for symmetry with the other commands
+    if failed:
+        print(f"pfsdm: error: demo parts failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# parser
+# --------------------------------------------------------------------------------------------
+
+DESCRIPTION = """\
+PF-SDM shape analysis of segmented objects, from the command line.
+
+Typical session (a folder of label movies, one TIFF or Zarr per movie):
+
+  pfsdm measure movies/ -o features.csv               one row per movie, frame and object
+  pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
+  pfsdm compare features.csv --frames 0 -o distances.csv --mds mds.png
+  pfsdm classify features.csv --groups groups.csv --frames 0-10
+  pfsdm demo -o results/                               all of it on bundled synthetic data
+
+A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
+  movie,group
+  gastruloid01,single-axis
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser of ``pfsdm`` (used by :func:`main` and for the docs)."""
+    from . import __version__
+
+    fmt = argparse.RawDescriptionHelpFormatter
+    parser = argparse.ArgumentParser(prog="pfsdm", description=DESCRIPTION, formatter_class=fmt)
+    parser.add_argument("--version", action="version", version=f"pfsdm {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the full Python traceback on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser(
+        "measure", formatter_class=fmt,
+        help="measure the shape (and reporter) of every object in label movies",
+        description="""\
+Measure every object of every frame of label movies into one CSV table.
+
+LABELS are segmentations: each object one whole number, 0 = background; a 2-D image (Y, X) or
+a time-lapse (T, Y, X). Give TIFF files (.tif/.tiff), Zarr arrays (.zarr) or OME-Zarr images
+(the full-resolution level is read), a folder of these, or a glob such as 'plate1/*.tif'
+(quote it). Several movies give one table with a 'movie' column (the file name).
+
+The optional --intensity images (e.g. a Brachyury::mCherry reporter) must have the same size
+as the labels; with several movies they pair by name: movie01_labels.tif <-> movie01_intensity.tif.
+
+Long runs can be resumed: each finished movie is saved in FEATURES.csv.parts/; run the same
+command again after an interruption and finished movies are skipped.
+
+examples:
+  pfsdm measure embryo01_labels.tif --intensity embryo01_reporter.tif -o features.csv
+  pfsdm measure 'plate1/*_labels.zarr' --intensity 'plate1/*_reporter.zarr' -o plate1.csv
+  pfsdm measure archive/ -o archive.csv --scheduler tcp://10.0.0.5:8786
+""")
+    p.add_argument("labels", nargs="+", metavar="LABELS",
+                   help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
+    p.add_argument("-i", "--intensity", nargs="+", metavar="IMAGE",
+                   help="reporter movie(s) of the same size as the labels")
+    p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
+                   help="the feature table to write (CSV; the options are in its first line)")
+    p.add_argument("--parts", metavar="DIR",
+                   help="folder for per-movie results (default: FEATURES.csv.parts)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    _add_method_options(p)
+    _add_compute_options(p)
+    p.set_defaults(func=cmd_measure)
+
+    p = sub.add_parser(
+        "compare", formatter_class=fmt,
+        help="pairwise shape distances between objects (and a 2-D map of them)",
+        description="""\
+Pairwise PF-SDM distances between the objects of a feature table: 0 = same shape whatever its
+position, size, rotation or mirror image. Writes a square CSV (rows and columns named
+movie/t<frame>/l<label>) and, with --mds, a 2-D map where close points are similar shapes.
+
+examples:
+  pfsdm compare features.csv --frames 0 -o distances.csv --mds mds.png
+  pfsdm compare features.csv --frames 20-24 --intensity-weight 0.5 -o d.csv --groups groups.csv
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv")
+    p.add_argument("--mds", metavar="PNG", help="also draw the 2-D MDS map of the distances")
+    p.add_argument("--frames", metavar="RANGE",
+                   help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
+    p.add_argument("--intensity-weight", type=float, default=0.0, metavar="W",
+                   help="weight of the reporter pattern in the distance (default 0: shape only)")
+    p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
+    p.add_argument("--max-objects", type=int, default=5000, metavar="N",
+                   help="refuse larger matrices (default 5000)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser(
+        "trajectories", formatter_class=fmt,
+        help="PCA of all objects over time: one trajectory per object",
+        description="""\
+Principal component analysis of every (movie, frame, object) row. Each object becomes a
+trajectory through shape space over time. Writes the PC scores (CSV) and, with --plot, a
+figure with one line per object, coloured by time or by --groups (shape and reporter side by
+side when the table has reporter features). Rings are weighted as in the distance, so
+distances in the PCA space are PF-SDM distances.
+
+example:
+  pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
+    p.add_argument("--plot", metavar="PNG", help="draw the trajectories")
+    p.add_argument("--groups", metavar="GROUPS.csv",
+                   help="CSV with a 'group' column and 'label' and/or 'movie' columns")
+    p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
+                   help="features to analyse (default both when the table has reporter ones)")
+    p.add_argument("--components", type=int, default=3, metavar="K",
+                   help="principal components to keep (default 3)")
+    p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
+                   help="components drawn on the plot (default 1 2)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_trajectories)
+
+    p = sub.add_parser(
+        "classify", formatter_class=fmt,
+        help="predict a later outcome (two groups) from early frames",
+        description="""\
+Predict each object's group (e.g. single-axis vs multi-axes) from its features at chosen
+(early) frames, as in the paper: logistic regression with balanced class weights on shape and
+on reporter features, and their late fusion, scored by repeated stratified shuffle splits.
+Every object must be present, without error, in every chosen frame.
+
+example:
+  pfsdm classify features.csv --groups groups.csv --frames 0-10
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
+                   help="CSV with a 'group' column (two groups) and 'label'/'movie' columns")
+    p.add_argument("--frames", required=True, metavar="RANGE",
+                   help="frames whose features are used, e.g. 0-10 or 0,5,10")
+    p.add_argument("--positive", metavar="GROUP",
+                   help="the group to detect (default: the second name alphabetically)")
+    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
+    p.add_argument("--test-size", type=float, default=0.2, help="test fraction (default 0.2)")
+    p.add_argument("--repeats", type=int, default=3, help="repeats (default 3)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_classify)
+
+    p = sub.add_parser(
+        "demo", formatter_class=fmt,
+        help="run everything on bundled synthetic data (no display needed)",
+        description="""\
+Run the whole analysis on bundled synthetic data and write tables and plots into a folder:
+the five-shape benchmark, the gastruloid axis-number report, and a synthetic gastruloid
+time-lapse measured from TIFF files -> features.csv, pca.csv/pca.png, distances.csv/mds.png.
+""")
+    p.add_argument("-o", "--output", default="results", metavar="DIR",
+                   help="output folder (default: results)")
+    p.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="as for 'pfsdm measure' (default processes)")
+    p.add_argument("--quick-only", action="store_true",
+                   help="skip the two benchmark reports; only the time-lapse part")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``pfsdm`` with ``argv`` (default: the command line); return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, OSError, ImportError) as exc:
+        if args.debug:
+            raise
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if isinstance(exc, OSError) and exc.filename and exc.filename not in msg:
+            msg = f"{exc.filename}: {msg}"
+        print(f"pfsdm: error: {msg}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("pfsdm: interrupted (finished movies are kept; run again to resume)",
+              file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
