@@ -1,0 +1,388 @@
+"""The paper's synthetic benchmark: five base shapes under similarity transforms.
+
+Two sets of ``5 × n_per_class`` masks (:func:`napari_pfsdm.data.shapes.make_benchmark_set`):
+``"exact"`` (exact copies of each base shape under random translation, rotation, reflection
+and 0.5×–2× scaling) and ``"perturbed"`` (each copy also mildly and randomly deformed). For
+every method, the pairwise distance matrix of each set is scored by
+
+- the **silhouette** (scikit-learn, ``metric="precomputed"``) with the 5 true classes: from −1
+  to 1, high when each class is a tight cluster far from the others;
+- the **leave-one-out 1-NN accuracy**: the fraction of objects whose nearest other object is
+  of the same class.
+
+Methods: PF-SDM (every ``mapping`` × ``sdf`` × ``normalization`` × ring placement, and both
+``invariance`` modes of the distance; ``quick=True`` keeps the default only), normalised EFA
+with 10 harmonics, mirror-aware EFA and GPA (:mod:`napari_pfsdm.analysis.baselines`).
+
+:func:`run` prints a table, writes ``synthetic_benchmark.csv`` and ``synthetic_mds.png`` (2-D
+MDS of PF-SDM default, EFA and GPA side by side, coloured by class) and returns the table.
+This is what ``pfsdm demo`` runs.
+
+Examples
+--------
+>>> table = run("results", quick=True)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",
+]
+
+#: Method name of the PF-SDM with the library's default options.
+DEFAULT_LABEL = "PF-SDM (default)"
+
+SETS = ("exact", "perturbed")
+
+_RADII = {
+    "uniform": {"radii": "uniform", "ring_weighting": "none"},
+    "boundary": {"radii": "boundary", "ring_weighting": "boundary"},
+}
+
+
+def pfsdm_variants(quick: bool = False) -> list[dict]:
+    """PF-SDM option sets of the benchmark.
+
+    Parameters
+    ----------
+    quick : bool
+        Only the library's defaults (``{}``).
+
+    Returns
+    -------
+    list of dict
+        Keyword arguments for :func:`napari_pfsdm.pfsdm`; ``{}`` first. The full grid is every
+        ``mapping`` × ``sdf`` × ``normalization`` × ring placement (``radii`` with the matching
+        ``ring_weighting``) that the core offers.
+    """
+    if quick:
+        return [{}]
+    out: list[dict] = [{}]
+    for mapping, sdf, norm, radii in itertools.product(
+        ("harmonic", "bijective", "radial"), ("exact", "viscous"), ("none", "ring"), _RADII
+    ):
+        out.append({"mapping": mapping, "sdf": sdf, "normalization": norm, **_RADII[radii]})
+    return out
+
+
+def _full_options(options: dict) -> dict:
+    from napari_pfsdm import DEFAULTS
+
+    return {**DEFAULTS, **options}
+
+
+def _variant_label(options: dict, invariance: str) -> str:
+    opts = _full_options(options)
+    radii = "boundary" if opts["radii"] == "boundary" else "uniform"
+    return (f"PF-SDM {opts['mapping']}/{opts['sdf']}/norm={opts['normalization']}/"
+            f"rings={radii}/{invariance}")
+
+
+def nn_accuracy(dist: np.ndarray, labels: np.ndarray) -> float:
+    """Leave-one-out 1-nearest-neighbour accuracy of a distance matrix.
+
+    Parameters
+    ----------
+    dist : ndarray, shape (n, n)
+        Pairwise distances (the diagonal is ignored).
+    labels : ndarray, shape (n,)
+        True classes.
+
+    Returns
+    -------
+    float
+        Fraction of objects whose nearest other object has the same label (ties: the first).
+
+    Examples
+    --------
+    >>> d = np.array([[0, 1, 5], [1, 0, 4], [5, 4, 0.0]])
+    >>> nn_accuracy(d, np.array([0, 0, 1]))
+    0.6666666666666666
+    """
+    d = np.array(dist, float)
+    np.fill_diagonal(d, np.inf)
+    labels = np.asarray(labels)
+    return float(np.mean(labels[np.argmin(d, axis=1)] == labels))
+
+
+def scores(dist: np.ndarray, labels: np.ndarray) -> tuple[float, float]:
+    """Silhouette (precomputed distances) and leave-one-out 1-NN accuracy.
+
+    Returns ``(nan, nan)`` when the matrix holds NaN (an object could not be described).
+    """
+    from sklearn.metrics import silhouette_score
+
+    dist = np.asarray(dist, float)
+    if not np.all(np.isfinite(dist)):
+        return float("nan"), float("nan")
+    d = 0.5 * (dist + dist.T)
+    np.fill_diagonal(d, 0.0)
+    return float(silhouette_score(d, labels, metric="precomputed")), nn_accuracy(d, labels)
+
+
+def _pfsdm_results(masks: Sequence[np.ndarray], options: dict) -> tuple[list, float, str]:
+    from napari_pfsdm import pfsdm
+
+    results, errors = [], []
+    start = time.perf_counter()
+    for i, mask in enumerate(masks):
+        try:
+            results.append(pfsdm(mask, **options))
+        except ValueError as err:
+            results.append(None)
+            errors.append(f"object {i}: {err}")
+    per_object = (time.perf_counter() - start) / max(len(masks), 1)
+    return results, per_object, "; ".join(errors)
+
+
+def _pfsdm_matrix(results: list, invariance: str) -> np.ndarray:
+    from napari_pfsdm import distance_matrix
+
+    n = len(results)
+    ok = [i for i, r in enumerate(results) if r is not None]
+    dist = np.full((n, n), np.nan)
+    if ok:
+        dist[np.ix_(ok, ok)] = distance_matrix([results[i] for i in ok], invariance=invariance)
+    return dist
+
+
+def run(
+    out_dir: str | Path,
+    *,
+    seed: int = 0,
+    variants: Iterable[dict] | None = None,
+    quick: bool = False,
+    n_per_class: int = 10,
+    size: int = 256,
+    sets: Sequence[str] = SETS,
+    invariances: Sequence[str] | None = None,
+    plot: bool = True,
+    verbose: bool = True,
+    progress: Callable[[str], None] | None = None,
+) -> pd.DataFrame:
+    """Run the synthetic benchmark, print the table and write the CSV and MDS plot.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Folder for ``synthetic_benchmark.csv`` and ``synthetic_mds.png`` (created).
+    seed : int
+        Seed of both shape sets.
+    variants : iterable of dict, optional
+        PF-SDM option sets (keyword arguments of :func:`napari_pfsdm.pfsdm`). Default:
+        :func:`pfsdm_variants` — the full grid, or only the defaults with ``quick``.
+    quick : bool
+        Defaults only: PF-SDM default, EFA, mirror-aware EFA and GPA (runs in seconds).
+    n_per_class : int
+        Copies of each base shape per set (the paper: 10).
+    size : int
+        Masks are ``size × size`` pixels.
+    sets : sequence of {"exact", "perturbed"}
+        Which sets to build.
+    invariances : sequence of {"magnitude", "align"}, optional
+        Distance modes of the PF-SDM rows. Default: the core's default with ``quick``,
+        both otherwise.
+    plot : bool
+        Write the MDS figure.
+    verbose : bool
+        Print the summary table.
+    progress : callable, optional
+        Called with a short message before each step.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Long format, one row per (set, method): ``set``, ``method``, ``family``,
+        ``mapping``, ``sdf``, ``normalization``, ``rings``, ``invariance``, ``is_default``,
+        ``silhouette``, ``nn_accuracy``, ``ms_per_object``, ``error``.
+    """
+    from napari_pfsdm.analysis import baselines
+    from napari_pfsdm.data.shapes import make_benchmark_set
+
+    unknown = set(sets) - set(SETS)
+    if unknown:
+        raise ValueError(f"Unknown set(s) {sorted(unknown)}; choose from {SETS}.")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    variants = pfsdm_variants(quick) if variants is None else [dict(v) for v in variants]
+    if invariances is None:
+        invariances = ("magnitude",) if quick else ("magnitude", "align")
+    say = progress or ((lambda msg: print(msg, flush=True)) if verbose else (lambda msg: None))
+
+    rows: list[dict] = []
+    matrices: dict[tuple[str, str], np.ndarray] = {}
+    labels_by_set: dict[str, np.ndarray] = {}
+    names: tuple[str, ...] = ()
+    seen: set[tuple] = set()
+    for set_name in sets:
+        say(f"[{set_name}] building {5 * n_per_class} shapes ...")
+        masks, labels, names = make_benchmark_set(
+            n_per_class, perturb=set_name == "perturbed", seed=seed, size=size
+        )
+        labels_by_set[set_name] = labels
+
+        def add(method: str, family: str, dist: np.ndarray, ms: float, error: str = "",
+                set_name: str = set_name, labels: np.ndarray = labels, **info) -> None:
+            sil, nn = scores(dist, labels)
+            matrices[(set_name, method)] = dist
+            rows.append({"set": set_name, "method": method, "family": family, **info,
+                         "silhouette": sil, "nn_accuracy": nn, "ms_per_object": ms,
+                         "error": error})
+
+        seen.clear()
+        for options in variants:
+            key = tuple(sorted(_full_options(options).items()))
+            if key in seen:
+                continue
+            seen.add(key)
+            opts = _full_options(options)
+            is_default = key == tuple(sorted(_full_options({}).items()))
+            say(f"[{set_name}] PF-SDM {opts['mapping']}/{opts['sdf']}/{opts['normalization']}"
+                f"/{opts['radii']} ...")
+            results, per_obj, err = _pfsdm_results(masks, options)
+            for inv in invariances:
+                method = (DEFAULT_LABEL if is_default and inv == invariances[0]
+                          else _variant_label(options, inv))
+                add(method, "PF-SDM", _pfsdm_matrix(results, inv), 1e3 * per_obj, err,
+                    mapping=opts["mapping"], sdf=opts["sdf"],
+                    normalization=opts["normalization"],
+                    rings="boundary" if opts["radii"] == "boundary" else "uniform",
+                    invariance=inv, is_default=is_default and inv == invariances[0])
+
+        say(f"[{set_name}] EFA and GPA ...")
+        t0 = time.perf_counter()
+        contours = [baselines.mask_contour(m) for m in masks]
+        t_contour = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        desc = baselines.efa_descriptors(contours, contours=True)
+        t_efa = t_contour + time.perf_counter() - t0
+        t0 = time.perf_counter()
+        mirrored = baselines.efa_descriptors(contours, contours=True, mirror=True)
+        t_mirror = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        outlines = baselines.efa_outlines(contours, contours=True)
+        t_gpa = t_contour + time.perf_counter() - t0
+        n = len(masks)
+        add("EFA", "EFA", baselines.efa_distance_matrix(descriptors=desc), 1e3 * t_efa / n,
+            is_default=False)
+        add("EFA (mirror-aware)", "EFA",
+            baselines.efa_distance_matrix(descriptors=desc, mirrored=mirrored, mirror_aware=True),
+            1e3 * (t_efa + t_mirror) / n, is_default=False)
+        add("GPA", "GPA", baselines.gpa_distance_matrix(outlines=outlines), 1e3 * t_gpa / n,
+            is_default=False)
+
+    table = pd.DataFrame(rows)
+    for col in ("mapping", "sdf", "normalization", "rings", "invariance"):
+        if col not in table:
+            table[col] = ""
+        table[col] = table[col].fillna("")
+    table["is_default"] = table["is_default"].fillna(False).astype(bool)
+    cols = ["set", "method", "family", "mapping", "sdf", "normalization", "rings",
+            "invariance", "is_default", "silhouette", "nn_accuracy", "ms_per_object", "error"]
+    table = table[cols]
+    table.attrs["matrices"] = matrices
+    table.to_csv(out / "synthetic_benchmark.csv", index=False)
+    if plot:
+        _plot_mds(out / "synthetic_mds.png", matrices, labels_by_set, names, sets, seed)
+        say(f"wrote {out / 'synthetic_mds.png'}")
+    if verbose:
+        print()
+        print(summary(table).to_string(float_format=lambda v: f"{v:.3f}"))
+        print(f"\nwrote {out / 'synthetic_benchmark.csv'}")
+    return table
+
+
+def summary(table: pd.DataFrame) -> pd.DataFrame:
+    """One row per method, silhouette and 1-NN accuracy per set side by side.
+
+    Sorted by the silhouette on the perturbed set (or the first set), best first, with the
+    PF-SDM default and the baselines kept in the table whatever their rank.
+    """
+    wide = table.pivot_table(index="method", columns="set",
+                             values=["silhouette", "nn_accuracy"], sort=False)
+    sets = [s for s in SETS if s in table["set"].unique()]
+    wide = wide.reindex(columns=[(v, s) for s in sets for v in ("silhouette", "nn_accuracy")])
+    wide.columns = [f"{s} {'sil' if v == 'silhouette' else '1-NN'}" for v, s in wide.columns]
+    ms = table.groupby("method", sort=False)["ms_per_object"].mean()
+    wide["ms/object"] = ms.reindex(wide.index)
+    key = f"{sets[-1]} sil"
+    return wide.sort_values(key, ascending=False, na_position="last")
+
+
+def mds_embedding(dist: np.ndarray, seed: int = 0) -> np.ndarray:
+    """2-D metric MDS of a precomputed distance matrix (scikit-learn), reproducible.
+
+    Uses the classical-MDS start where scikit-learn offers it (≥ 1.8), four random starts
+    otherwise.
+    """
+    import inspect
+
+    from sklearn.manifold import MDS
+
+    params = inspect.signature(MDS).parameters
+    if "metric_mds" in params:
+        mds = MDS(n_components=2, metric="precomputed", metric_mds=True, init="classical_mds",
+                  random_state=seed)
+    else:  # scikit-learn < 1.8
+        mds = MDS(n_components=2, dissimilarity="precomputed", random_state=seed, n_init=4)
+    return mds.fit_transform(np.asarray(dist, float))
+
+
+def _plot_mds(path: Path, matrices: dict, labels_by_set: dict, names: Sequence[str],
+              sets: Sequence[str], seed: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from sklearn.metrics import silhouette_score
+
+    from napari_pfsdm.data.shapes import base_shapes
+
+    methods = (DEFAULT_LABEL, "EFA", "GPA")
+    colors = plt.get_cmap("tab10").colors
+    fig, axes = plt.subplots(len(sets), len(methods) + 1, figsize=(4.2 * (len(methods) + 1),
+                             4.0 * len(sets)), squeeze=False,
+                             gridspec_kw={"width_ratios": [1] * len(methods) + [0.55]})
+    for row, set_name in enumerate(sets):
+        labels = labels_by_set[set_name]
+        for col, method in enumerate(methods):
+            ax = axes[row, col]
+            dist = matrices.get((set_name, method))
+            if dist is None or not np.all(np.isfinite(dist)):
+                ax.set_axis_off()
+                continue
+            d = 0.5 * (dist + dist.T)
+            np.fill_diagonal(d, 0.0)
+            xy = mds_embedding(d, seed)
+            for k, name in enumerate(names):
+                sel = labels == k
+                ax.scatter(xy[sel, 0], xy[sel, 1], s=28, color=colors[k], label=name,
+                           edgecolors="k", linewidths=0.3)
+            sil = silhouette_score(d, labels, metric="precomputed")
+            ax.set_title(f"{method} — {set_name}\nsilhouette {sil:.2f}", fontsize=10)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_aspect("equal", adjustable="datalim")
+        legend_ax = axes[row, -1]
+        legend_ax.set_axis_off()
+        for k, outline in enumerate(base_shapes(200)):
+            cy = 1.0 - k * 0.42
+            closed = np.vstack([outline, outline[:1]])
+            legend_ax.fill(0.17 * closed[:, 1] + 0.2, 0.17 * closed[:, 0] + cy,
+                           color=colors[k], ec="k", lw=0.5)
+            legend_ax.text(0.45, cy, names[k], va="center", fontsize=9)
+        legend_ax.set_xlim(0, 1.2)
+        legend_ax.set_ylim(1.0 - 4 * 0.42 - 0.25, 1.25)
+        legend_ax.set_aspect("equal")
+    fig.suptitle("2-D MDS of the distance matrices (colours: true classes)", fontsize=12)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
