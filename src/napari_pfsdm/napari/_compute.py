@@ -1,0 +1,307 @@
+"""The analysis behind the widget, as plain arrays (no Qt, no napari).
+
+The widget runs :func:`run_analysis` in a worker thread. It walks the objects with
+:func:`napari_pfsdm.iter_objects`, yields ``(done, total, frame, label)`` after each object so that
+the GUI can show progress and stop early, and finally returns an :class:`AnalysisOutput` whose
+arrays are ready to be handed to napari layers: the GUI thread only adds layers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+#: Side length (pixels) of one rendered unit disk.
+DISK_SIZE = 96
+#: The columns before the features, as in :func:`napari_pfsdm.measure`.
+BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
+                "n_components", "n_holes", "folded_fraction", "error"]
+#: Margin around an object's bounding box (fraction of its larger side) for the SDF patch.
+SDF_MARGIN = 0.25
+
+
+@dataclass
+class AnalysisOutput:
+    """Everything one run produced, as arrays in the Labels layer's data coordinates.
+
+    Attributes
+    ----------
+    table
+        One row per (frame, label): the feature table of :func:`napari_pfsdm.measure`.
+    options
+        The options of the run (``table.attrs["pfsdm"]`` plus the widget's own).
+    objects
+        ``(frame, label)`` of every object, in the order of the disk stack's object axis
+        (sorted by label, then frame).
+    object_labels
+        Sorted distinct labels; index ``o`` of the disk stack's first axis is ``object_labels[o]``.
+    time_lapse
+        True when the labels were (T, Y, X).
+    disk, intensity_disk
+        (O, T, S, S) float32 stacks of the pushed-forward SDF / intensity (NaN outside the
+        disk and where an object is absent); ``(O, S, S)`` for a 2-D image.
+        ``intensity_disk`` is None without an intensity image.
+    disk_skeleton
+        Same shape as ``disk``, uint32: the skeleton pushed onto the disk (value = label).
+    skeleton
+        Same shape as the labels, uint32: the skeleton of every object in image space.
+    sdf_patches
+        ``{(frame, label): (row0, col0, patch)}``: the SDF (pixels, negative inside) on the object's
+        bounding box plus a margin.
+    pca
+        ``{"shape": scores, "intensity": scores}``: DataFrames with ``frame``, ``label``,
+        ``PC1``... and ``attrs["explained_variance_ratio"]``.
+    """
+
+    table: pd.DataFrame
+    options: dict
+    objects: list[tuple[int, int]]
+    object_labels: np.ndarray
+    time_lapse: bool
+    disk: np.ndarray
+    intensity_disk: np.ndarray | None
+    disk_skeleton: np.ndarray
+    skeleton: np.ndarray
+    sdf_patches: dict = field(default_factory=dict)
+    pca: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return self.skeleton.shape[0] if self.time_lapse else 1
+
+    def object_index(self, label: int) -> int | None:
+        """Index of ``label`` on the disk stack's object axis (None if absent)."""
+        idx = int(np.searchsorted(self.object_labels, label))
+        if idx < len(self.object_labels) and self.object_labels[idx] == label:
+            return idx
+        return None
+
+    def sdf_stack(self, label: int) -> np.ndarray:
+        """SDF of ``label`` in every frame, shaped like the labels (NaN away from the object)."""
+        out = np.full(self.skeleton.shape, np.nan, dtype=np.float32)
+        frames = out if self.time_lapse else out[None]
+        for (frame, lab), (r0, c0, patch) in self.sdf_patches.items():
+            if lab == label:
+                h, w = patch.shape
+                frames[frame, r0:r0 + h, c0:c0 + w] = patch
+        return out
+
+
+def validate_layers_data(labels: np.ndarray, intensity: np.ndarray | None) -> None:
+    """Refuse label/intensity combinations the analysis cannot use.
+
+    Raises
+    ------
+    ValueError
+        With a sentence saying what is wrong and what to do.
+    """
+    if labels.ndim not in (2, 3):
+        raise ValueError(
+            f"The Labels layer has {labels.ndim} dimensions {tuple(labels.shape)}; PF-SDM needs a "
+            "2-D image (Y, X) or a time-lapse (T, Y, X). Split channels or z first."
+        )
+    if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
+        raise ValueError("The Labels layer must hold integer labels (one number per object).")
+    if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
+        raise ValueError(
+            f"The Image layer's shape {tuple(intensity.shape)} does not match the Labels layer's "
+            f"{tuple(labels.shape)}: choose an image recorded on the same grid, or none."
+        )
+
+
+def list_objects(labels) -> list[tuple[int, int]]:
+    """``(frame, label)`` of every object, frame by frame (dask arrays: one frame at a time)."""
+    frames = [labels] if labels.ndim == 2 else (labels[t] for t in range(labels.shape[0]))
+    out = []
+    for t, frame in enumerate(frames):
+        labs = np.unique(np.asarray(frame))
+        out.extend((t, int(lab)) for lab in labs if lab != 0)
+    return out
+
+
+def _rasterize(points: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Integer (row, col) of ``points`` that fall inside ``shape``."""
+    if points is None or len(points) == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    rc = np.rint(np.asarray(points, dtype=float)).astype(int)
+    ok = (rc[:, 0] >= 0) & (rc[:, 0] < shape[0]) & (rc[:, 1] >= 0) & (rc[:, 1] < shape[1])
+    return rc[ok, 0], rc[ok, 1]
+
+
+def disk_pixels(uv: np.ndarray, size: int) -> np.ndarray:
+    """Pixel (row, col) of unit-disk points (u, v) in a :func:`render_disk` image of ``size``.
+
+    ``render_disk`` puts u along the rows and v along the columns, pixel centres at
+    ``(i + 0.5) / size * 2 - 1``.
+    """
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    return (uv + 1.0) * 0.5 * size - 0.5
+
+
+def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
+    """The object's SDF in pixels on its bounding box plus a margin.
+
+    ``bbox`` is ``(row slice, col slice)`` in the frame; the result's contour is in frame pixels.
+    Returns ``(row0, col0, patch)``.
+    """
+    r0, r1, c0, c1 = bbox[0].start, bbox[0].stop, bbox[1].start, bbox[1].stop
+    m = int(np.ceil(SDF_MARGIN * max(r1 - r0, c1 - c0))) + 2
+    r0, c0 = max(r0 - m, 0), max(c0 - m, 0)
+    r1, c1 = min(r1 + m, frame_shape[0]), min(c1 + m, frame_shape[1])
+    rr, cc = np.mgrid[r0:r1, c0:c1]
+    pts = np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float)
+    contour = result.contour
+    normalized = (pts - np.asarray(contour.center, float)) / float(contour.scale)
+    values = np.asarray(result.sdf(normalized), dtype=float) * float(contour.scale)
+    return r0, c0, values.reshape(r1 - r0, c1 - c0).astype(np.float32)
+
+
+def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) -> pd.DataFrame:
+    """PCA of the ``{kind}_*`` feature columns over all (frame, label) rows without error.
+
+    Features are centred, not scaled (they share units). Returns ``frame``, ``label`` and
+    ``PC1``... columns; ``attrs["explained_variance_ratio"]`` holds the ratios.
+    """
+    cols = [c for c in table.columns if c.startswith(f"{kind}_")]
+    if not cols:
+        return pd.DataFrame(columns=["frame", "label"])
+    ok = table["error"].fillna("").astype(str).eq("") if "error" in table else True
+    sub = table.loc[ok & table[cols].notna().all(axis=1)]
+    x = sub[cols].to_numpy(dtype=float)
+    k = int(min(n_components, x.shape[0], x.shape[1]))
+    out = sub[["frame", "label"]].reset_index(drop=True).copy()
+    if k < 1:
+        out.attrs["explained_variance_ratio"] = []
+        return out
+    x = x - x.mean(axis=0)
+    u, s, vt = np.linalg.svd(x, full_matrices=False)
+    # deterministic signs: the largest loading of each component is positive
+    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
+    signs[signs == 0] = 1
+    scores = (u * s) * signs
+    var = s**2
+    total = var.sum() if var.sum() > 0 else 1.0
+    for i in range(k):
+        out[f"PC{i + 1}"] = scores[:, i]
+    out.attrs["explained_variance_ratio"] = list(var[:k] / total)
+    return out
+
+
+def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:
+    """Classical (Torgerson) MDS of a distance matrix: (n, n_components) coordinates."""
+    d = np.asarray(d, dtype=float)
+    n = d.shape[0]
+    if n == 0:
+        return np.zeros((0, n_components))
+    j = np.eye(n) - 1.0 / n
+    b = -0.5 * j @ (d**2) @ j
+    w, v = np.linalg.eigh(b)
+    order = np.argsort(w)[::-1][:n_components]
+    coords = v[:, order] * np.sqrt(np.clip(w[order], 0, None))
+    if coords.shape[1] < n_components:
+        coords = np.hstack([coords, np.zeros((n, n_components - coords.shape[1]))])
+    return coords
+
+
+def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:
+    """The feature table of :func:`napari_pfsdm.measure` from already computed objects."""
+    from napari_pfsdm.analysis import features as _features
+
+    builder = getattr(_features, "table_from_objects", None)
+    if builder is not None:
+        return builder(objects, with_intensity=with_intensity, **options)
+    opts = _features.resolved_options(**options)
+    shape_cols = _features.feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
+    int_cols = (_features.feature_columns(opts["n_radii"], opts["n_fourier"], "intensity")
+                if with_intensity else [])
+    nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
+    base, shape_rows, int_rows = [], [], []
+    for obj in objects:
+        res = obj.result
+        diag = res.diagnostics if res is not None else {}
+        base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
+                     obj.touches_border, diag.get("n_components", np.nan),
+                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error))
+        shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
+        if int_cols:
+            emb = None if res is None else res.intensity_embedding
+            int_rows.append(emb.ravel() if emb is not None else nan_i)
+    table = pd.DataFrame(base, columns=BASE_COLUMNS)
+    blocks = [table, pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)),
+                                  columns=shape_cols)]
+    if int_cols:
+        blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
+                                   columns=int_cols))
+    table = pd.concat(blocks, axis=1)
+    table.attrs["pfsdm"] = opts
+    return table
+
+
+def run_analysis(
+    labels,
+    intensity=None,
+    options: dict | None = None,
+    disk_size: int = DISK_SIZE,
+) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
+    """Analyse every (frame, label) object; a generator for worker threads.
+
+    Yields ``(done, total, frame, label)`` after each object; returns an :class:`AnalysisOutput`.
+    Closing the generator (or the worker stopping at a yield) stops the work and keeps nothing.
+    """
+    import napari_pfsdm as core
+
+    options = dict(options or {})
+    validate_layers_data(labels, intensity)
+    time_lapse = labels.ndim == 3
+    n_frames = labels.shape[0] if time_lapse else 1
+    frame_shape = tuple(labels.shape[-2:])
+    objects = list_objects(labels)
+    if not objects:
+        raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
+                         "segmentation first.")
+    total = len(objects)
+    object_labels = np.unique([lab for _, lab in objects])
+    n_obj = len(object_labels)
+    disk = np.full((n_obj, n_frames, disk_size, disk_size), np.nan, dtype=np.float32)
+    idisk = disk.copy() if intensity is not None else None
+    dskel = np.zeros(disk.shape, dtype=np.uint32)
+    skel = np.zeros((n_frames, *frame_shape), dtype=np.uint32)
+    patches: dict = {}
+    collected = []
+    done = 0
+    for obj in core.iter_objects(labels, intensity, **options):
+        collected.append(obj)
+        frame, label = int(obj.frame), int(obj.label)
+        res = obj.result
+        if res is not None and not obj.error:
+            o = int(np.searchsorted(object_labels, label))
+            disk[o, frame] = core.render_disk(res, size=disk_size)
+            if idisk is not None and getattr(res, "intensity_disk", None) is not None:
+                idisk[o, frame] = core.render_disk(res, size=disk_size, channel="intensity")
+            try:
+                sk = res.skeleton
+                rr, cc = _rasterize(np.asarray(sk.points), frame_shape)
+                skel[frame, rr, cc] = label
+                rr, cc = _rasterize(disk_pixels(sk.disk_points, disk_size), (disk_size,) * 2)
+                dskel[o, frame, rr, cc] = label
+            except Exception:  # a skeleton failure must not lose the features
+                pass
+            patches[(frame, label)] = sdf_patch(res, obj.bbox, frame_shape)
+        done += 1
+        yield done, total, frame, label
+    table = table_from_objects(collected, options, with_intensity=intensity is not None)
+    pca = {"shape": pca_scores(table, "shape")}
+    if intensity is not None:
+        pca["intensity"] = pca_scores(table, "intensity")
+    opts = dict(table.attrs.get("pfsdm", options))
+    if not time_lapse:
+        disk, dskel, skel = disk[:, 0], dskel[:, 0], skel[0]
+        idisk = idisk[:, 0] if idisk is not None else None
+    return AnalysisOutput(
+        table=table, options=opts, objects=[(f, lab) for f, lab in objects],
+        object_labels=object_labels, time_lapse=time_lapse, disk=disk, intensity_disk=idisk,
+        disk_skeleton=dskel, skeleton=skel, sdf_patches=patches, pca=pca,
+    )

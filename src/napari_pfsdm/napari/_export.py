@@ -1,0 +1,67 @@
+"""CSV export of one analysis: features, PCA scores, distance matrix (no Qt).
+
+Every file is written atomically by :func:`napari_pfsdm.io_csv.write_table_csv` (a temporary file
+in the same folder, then ``os.replace``), so an error never leaves a half-written CSV. The options
+of the run go into the ``# pfsdm: {json}`` header line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+from ._compute import AnalysisOutput
+
+#: Largest number of objects for which the all-pairs distance matrix is exported.
+MAX_DISTANCE_ROWS = 3000
+
+
+def write_csv(table: pd.DataFrame, path, options: dict | None = None) -> Path:
+    """Write ``table`` atomically with ``options`` in the ``# pfsdm:`` header line."""
+    return write_table_csv(table, Path(path), options)
+
+
+def read_csv(path) -> pd.DataFrame:
+    """Read a CSV written by :func:`write_csv` (options in ``attrs["pfsdm"]``)."""
+    return read_table_csv(path)
+
+
+def distance_table(output: AnalysisOutput, intensity_weight: float | None = None) -> pd.DataFrame:
+    """All-pairs PF-SDM distances of the analysed objects (columns ``t<frame>_l<label>``)."""
+    from napari_pfsdm import distance_matrix
+
+    table = output.table
+    if len(table) > MAX_DISTANCE_ROWS:
+        raise ValueError(f"{len(table)} objects are too many for an all-pairs distance matrix in "
+                         f"the viewer (limit {MAX_DISTANCE_ROWS}); use the command line instead.")
+    w = intensity_weight
+    if w is None:
+        w = output.options.get("intensity_weight", 0.0)
+    if not any(c.startswith("intensity_") for c in table.columns):
+        w = 0.0
+    d = np.asarray(distance_matrix(table, intensity_weight=w))
+    pairs = zip(table["frame"], table["label"], strict=True)
+    names = [f"t{int(f)}_l{int(lab)}" for f, lab in pairs]
+    out = pd.DataFrame(d, columns=names)
+    out.insert(0, "label", table["label"].to_numpy())
+    out.insert(0, "frame", table["frame"].to_numpy())
+    return out
+
+
+def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
+    """Write ``<prefix>_features.csv``, ``<prefix>_pca_<kind>.csv``, ``<prefix>_distances.csv``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    opts = dict(output.options)
+    written = [write_csv(output.table, folder / f"{prefix}_features.csv", opts)]
+    for kind, scores in output.pca.items():
+        ratios = scores.attrs.get("explained_variance_ratio", [])
+        h = dict(opts, pca_features=kind, explained_variance_ratio=list(ratios))
+        written.append(write_csv(scores, folder / f"{prefix}_pca_{kind}.csv", h))
+    dist = distance_table(output)
+    written.append(write_csv(dist, folder / f"{prefix}_distances.csv", opts))
+    return written

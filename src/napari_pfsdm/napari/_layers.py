@@ -1,0 +1,145 @@
+"""Result layers: add or replace them, and keep them linked to the selected object and frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._compute import AnalysisOutput
+
+#: Layer-name suffixes, after the source Labels layer's name.
+SUFFIXES = {
+    "disk": "PF-SDF disk",
+    "intensity_disk": "intensity disk",
+    "disk_skeleton": "skeleton on disk",
+    "skeleton": "skeleton",
+    "sdf": "SDF",
+}
+
+
+def layer_names(source: str) -> dict[str, str]:
+    """Names of the result layers of the Labels layer called ``source``."""
+    return {key: f"{source} {suffix}" for key, suffix in SUFFIXES.items()}
+
+
+def frame_axis(viewer, labels_layer) -> int | None:
+    """World axis of the frames (None for a 2-D Labels layer)."""
+    if labels_layer.ndim != 3:
+        return None
+    return viewer.dims.ndim - 3
+
+
+def current_frame(viewer, labels_layer) -> int:
+    """Frame index that the time slider shows for ``labels_layer``."""
+    ax = frame_axis(viewer, labels_layer)
+    if ax is None:
+        return 0
+    world = viewer.dims.point[ax]
+    t = (world - labels_layer.translate[0]) / labels_layer.scale[0]
+    return int(np.clip(np.rint(t), 0, labels_layer.data.shape[0] - 1))
+
+
+def go_to(viewer, labels_layer, output: AnalysisOutput, frame: int, label: int) -> None:
+    """Move the time slider to ``frame`` and select ``label`` (disk stack follows)."""
+    ax = frame_axis(viewer, labels_layer)
+    if ax is not None:
+        viewer.dims.set_point(ax, labels_layer.translate[0] + frame * labels_layer.scale[0])
+    labels_layer.selected_label = int(label)
+    _show_object(viewer, output, label)
+
+
+def _show_object(viewer, output: AnalysisOutput, label: int) -> None:
+    idx = output.object_index(label)
+    if idx is not None and viewer.dims.ndim > (3 if output.time_lapse else 2):
+        viewer.dims.set_point(0, idx)
+
+
+def _disk_geometry(labels_layer, output: AnalysisOutput, slot: int):
+    """Scale and translate that put a disk image beside the labels (slot 0, 1, ...)."""
+    ny, nx = labels_layer.data.shape[-2:]
+    sy, sx = labels_layer.scale[-2:]
+    ty, tx = labels_layer.translate[-2:]
+    size = output.disk.shape[-1]
+    height = ny * sy
+    s = height / size
+    gap = 0.05 * height
+    lead = output.disk.ndim - 2  # object (+ frame) axes
+    scale = [1.0] * lead + [s, s]
+    translate = [0.0] * lead + [ty, tx + nx * sx + gap + slot * (height + gap)]
+    if output.time_lapse:
+        scale[1], translate[1] = labels_layer.scale[0], labels_layer.translate[0]
+    return scale, translate
+
+
+def _replace(viewer, name: str, kind: str, data, **kwargs):
+    """Replace the layer called ``name`` (same kind) or add it."""
+    if name in viewer.layers:
+        old = viewer.layers[name]
+        same = type(old).__name__.lower() == kind and old.data.shape == data.shape
+        if same:
+            for key, value in kwargs.items():
+                if key in ("scale", "translate", "colormap", "contrast_limits", "opacity",
+                           "blending"):
+                    setattr(old, key, value)
+            old.data = data
+            return old
+        viewer.layers.remove(old)
+    return getattr(viewer, f"add_{kind}")(data, name=name, **kwargs)
+
+
+def _limits(a: np.ndarray) -> tuple[float, float]:
+    finite = a[np.isfinite(a)]
+    if finite.size == 0:
+        return (-1.0, 1.0)
+    m = float(np.abs(finite).max()) or 1.0
+    return (-m, m)
+
+
+def show_results(viewer, labels_layer, output: AnalysisOutput) -> list:
+    """Add (or replace) the result layers of one run; return them."""
+    names = layer_names(labels_layer.name)
+    layers = []
+    scale, translate = _disk_geometry(labels_layer, output, 0)
+    layers.append(_replace(viewer, names["disk"], "image", output.disk, colormap="PiYG",
+                           contrast_limits=_limits(output.disk), scale=scale,
+                           translate=translate))
+    layers.append(_replace(viewer, names["disk_skeleton"], "labels", output.disk_skeleton,
+                           scale=scale, translate=translate))
+    if output.intensity_disk is not None:
+        scale2, translate2 = _disk_geometry(labels_layer, output, 1)
+        finite = output.intensity_disk[np.isfinite(output.intensity_disk)]
+        hi = float(finite.max()) if finite.size else 1.0
+        lo = float(finite.min()) if finite.size else 0.0
+        layers.append(_replace(viewer, names["intensity_disk"], "image", output.intensity_disk,
+                               colormap="magma", contrast_limits=(lo, hi if hi > lo else lo + 1),
+                               scale=scale2, translate=translate2))
+    elif names["intensity_disk"] in viewer.layers:
+        viewer.layers.remove(names["intensity_disk"])
+    geo = {"scale": tuple(labels_layer.scale), "translate": tuple(labels_layer.translate)}
+    layers.append(_replace(viewer, names["skeleton"], "labels", output.skeleton, **geo))
+    label = labels_layer.selected_label
+    if output.object_index(label) is None:
+        label = int(output.object_labels[0])
+    sdf = output.sdf_stack(label)
+    layers.append(_replace(viewer, names["sdf"], "image", sdf, colormap="RdBu_r",
+                           contrast_limits=_limits(sdf), opacity=0.6, **geo))
+    layers[-1].metadata["pfsdm_label"] = label
+    table = output.table.copy()
+    table.attrs = {}
+    labels_layer.features = table
+    labels_layer.selected_label = label
+    viewer.layers.selection.active = labels_layer
+    return layers
+
+
+def update_sdf(viewer, labels_layer, output: AnalysisOutput, label: int) -> None:
+    """Show the SDF of ``label`` in the SDF layer (if that layer is still there)."""
+    name = layer_names(labels_layer.name)["sdf"]
+    if name not in viewer.layers or output.object_index(label) is None:
+        return
+    layer = viewer.layers[name]
+    if layer.metadata.get("pfsdm_label") == label:
+        return
+    sdf = output.sdf_stack(label)
+    layer.data = sdf
+    layer.contrast_limits = _limits(sdf)
+    layer.metadata["pfsdm_label"] = label

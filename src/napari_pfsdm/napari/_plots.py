@@ -1,0 +1,475 @@
+"""Plots linked to the viewer: PCA trajectories and the shape comparison (distances + MDS).
+
+Both read the last analysis of a Labels layer from the store. Clicking a point moves the time
+slider to that frame and selects that label; moving the slider or selecting a label highlights
+the matching points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+from matplotlib.figure import Figure
+from napari.layers import Labels
+from napari.utils.notifications import show_error
+from qtpy.QtWidgets import (
+    QComboBox,
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+import napari
+
+from . import _layers
+from ._compute import classical_mds
+from ._store import STORE
+
+#: A click selects the nearest point closer than this (screen pixels).
+PICK_RADIUS_PX = 12
+
+
+def read_groups_csv(path) -> dict[int, str]:
+    """Label → group from a CSV with a ``label`` column and a ``group`` column.
+
+    Without those names, the first two columns are used.
+    """
+    table = pd.read_csv(path, comment="#")
+    cols = [c.lower() for c in table.columns]
+    if "label" in cols and "group" in cols:
+        lab = table.iloc[:, cols.index("label")]
+        grp = table.iloc[:, cols.index("group")]
+    elif table.shape[1] >= 2:
+        lab, grp = table.iloc[:, 0], table.iloc[:, 1]
+    else:
+        raise ValueError("The group file needs two columns: label and group (e.g. 3,multi-axes).")
+    try:
+        labels = lab.astype(int)
+    except (TypeError, ValueError) as err:
+        raise ValueError("The 'label' column of the group file must hold whole numbers.") from err
+    return dict(zip(labels.tolist(), grp.astype(str).tolist(), strict=True))
+
+
+class _LinkedPlot(QWidget):
+    """A themed matplotlib canvas bound to one analysed Labels layer."""
+
+    def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
+        super().__init__()
+        self.viewer = napari_viewer
+        self.layer_combo = QComboBox(toolTip="The analysed Labels layer whose results are shown.")
+        self.figure = Figure(figsize=(4, 3.2), constrained_layout=True)
+        self.canvas = FigureCanvasQTAgg(self.figure)
+        self.canvas.setMinimumHeight(240)
+        self.info = QLabel("Run the PF-SDM analysis to fill this plot.", wordWrap=True)
+        self.controls = QHBoxLayout()
+        top = QHBoxLayout()
+        top.addWidget(QLabel("Layer"))
+        top.addWidget(self.layer_combo, 1)
+        layout = QVBoxLayout(self)
+        layout.addLayout(top)
+        layout.addLayout(self.controls)
+        layout.addWidget(self.canvas, 1)
+        layout.addWidget(self.info)
+        self._layer: Labels | None = None
+        self._points = np.zeros((0, 2))  # data coordinates of clickable points
+        self._keys: list[tuple[int, int]] = []  # (frame, label) of each clickable point
+        self._axes_points = None
+        self.canvas.mpl_connect("button_press_event", self._on_click)
+        self.layer_combo.currentIndexChanged.connect(self._on_layer_choice)
+        STORE.results_changed.connect(self._on_results)
+        for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed):
+            event.connect(self._refresh_layers)
+        napari_viewer.dims.events.current_step.connect(self._on_step)
+        napari_viewer.events.theme.connect(lambda e: self.redraw())
+        self.destroyed.connect(self._disconnect)
+        self._refresh_layers()
+
+    def _disconnect(self, *args) -> None:
+        try:
+            STORE.results_changed.disconnect(self._on_results)
+        except (TypeError, ValueError, RuntimeError):
+            pass
+
+    # --------------------------------------------------------------- layers
+    def _analysed(self) -> list[Labels]:
+        return [lay for lay in self.viewer.layers
+                if isinstance(lay, Labels) and STORE.get(lay) is not None]
+
+    def _refresh_layers(self, event=None) -> None:
+        names = [lay.name for lay in self._analysed()]
+        current = self.layer_combo.currentText()
+        self.layer_combo.blockSignals(True)
+        self.layer_combo.clear()
+        self.layer_combo.addItems(names)
+        if current in names:
+            self.layer_combo.setCurrentText(current)
+        self.layer_combo.blockSignals(False)
+        self._on_layer_choice()
+
+    def _on_results(self, layer) -> None:
+        try:
+            self._refresh_layers()
+            if layer is not None and layer.name in [self.layer_combo.itemText(i)
+                                                    for i in range(self.layer_combo.count())]:
+                self.layer_combo.setCurrentText(layer.name)
+                self._bind(layer, force=True)
+        except RuntimeError:  # the Qt widget is gone
+            self._disconnect()
+
+    def _on_layer_choice(self, *args) -> None:
+        name = self.layer_combo.currentText()
+        layer = self.viewer.layers[name] if name in self.viewer.layers else None
+        self._bind(layer)
+
+    def _bind(self, layer: Labels | None, force: bool = False) -> None:
+        if layer is self._layer and not force:
+            return
+        if self._layer is not None:
+            try:
+                self._layer.events.selected_label.disconnect(self._on_selection)
+            except (TypeError, ValueError, RuntimeError):
+                pass
+        self._layer = layer
+        if layer is not None:
+            layer.events.selected_label.connect(self._on_selection)
+        self.redraw()
+
+    @property
+    def output(self):
+        return STORE.get(self._layer)
+
+    # ------------------------------------------------------------- linking
+    def current(self) -> tuple[int, int]:
+        """(frame, selected label) that the viewer shows."""
+        if self._layer is None:
+            return 0, 0
+        return _layers.current_frame(self.viewer, self._layer), int(self._layer.selected_label)
+
+    def _on_step(self, event=None) -> None:
+        self.highlight()
+
+    def _on_selection(self, event=None) -> None:
+        self.highlight()
+
+    def select_point(self, index: int) -> None:
+        """Go to the frame and label of clickable point ``index``."""
+        frame, label = self._keys[index]
+        _layers.go_to(self.viewer, self._layer, self.output, frame, label)
+        self.highlight()
+
+    def _on_click(self, event) -> None:
+        if event.inaxes is None or event.inaxes is not self._axes_points or not len(self._points):
+            return
+        xy = event.inaxes.transData.transform(self._points)
+        d = np.hypot(xy[:, 0] - event.x, xy[:, 1] - event.y)
+        i = int(np.nanargmin(d))
+        if d[i] <= PICK_RADIUS_PX * self.canvas.device_pixel_ratio:
+            self.select_point(i)
+
+    def click_display_position(self, index: int) -> tuple[float, float]:
+        """Canvas display coordinates of clickable point ``index`` (for tests and scripting)."""
+        return tuple(self._axes_points.transData.transform(self._points[index]))
+
+    # -------------------------------------------------------------- drawing
+    def _theme(self) -> dict:
+        try:
+            from napari.utils.theme import get_theme
+
+            theme = get_theme(self.viewer.theme)
+            return {"bg": str(theme.canvas), "panel": str(theme.background),
+                    "fg": str(theme.text), "grid": str(theme.foreground),
+                    "accent": str(theme.current)}
+        except Exception:
+            return {"bg": "#262930", "panel": "#262930", "fg": "#f0f1f2", "grid": "#414851",
+                    "accent": "#007acc"}
+
+    def _style(self, ax) -> None:
+        c = self._theme()
+        ax.set_facecolor(c["panel"])
+        for spine in ax.spines.values():
+            spine.set_color(c["fg"])
+        ax.tick_params(colors=c["fg"], labelsize=8)
+        ax.xaxis.label.set_color(c["fg"])
+        ax.yaxis.label.set_color(c["fg"])
+        ax.title.set_color(c["fg"])
+
+    def redraw(self) -> None:
+        c = self._theme()
+        self.figure.clear()
+        self.figure.set_facecolor(c["panel"])
+        self._points = np.zeros((0, 2))
+        self._keys = []
+        self._axes_points = None
+        try:
+            self.draw_plot()
+        except ValueError as err:
+            self.info.setText(str(err))
+        self.highlight(draw=False)
+        self.canvas.draw_idle()
+
+    def draw_plot(self) -> None:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def highlight(self, draw: bool = True) -> None:  # pragma: no cover - overridden
+        pass
+
+
+class TrajectoryPlotWidget(_LinkedPlot):
+    """PCA of all (frame, label) rows; one line per object through time.
+
+    Points are coloured by time or by a group (from the Labels layer's ``metadata["groups"]`` or
+    a CSV of label → group). Shape and intensity features have separate views.
+    """
+
+    def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
+        self.view = QComboBox(toolTip="Which features: the outline (shape) or the reporter "
+                                      "pattern (intensity, when an image was analysed).")
+        self.view.addItems(["shape", "intensity"])
+        self.pc_x = QSpinBox(minimum=1, maximum=5, value=1, toolTip="Component on the x axis")
+        self.pc_y = QSpinBox(minimum=1, maximum=5, value=2, toolTip="Component on the y axis")
+        self.color_by = QComboBox(toolTip="Colour the points by time (frame) or by group.")
+        self.color_by.addItems(["time", "group"])
+        self.groups_button = QPushButton("Groups CSV…", toolTip="Load a CSV with columns "
+                                         "label,group (e.g. 3,multi-axes) to colour by group.")
+        self.groups: dict[int, str] = {}
+        super().__init__(napari_viewer)
+        for w in (self.view, QLabel("PC"), self.pc_x, QLabel("vs"), self.pc_y, self.color_by,
+                  self.groups_button):
+            self.controls.addWidget(w)
+        for box in (self.view, self.color_by):
+            box.currentIndexChanged.connect(lambda *a: self.redraw())
+        for box in (self.pc_x, self.pc_y):
+            box.valueChanged.connect(lambda *a: self.redraw())
+        self.groups_button.clicked.connect(self._groups_dialog)
+        self._highlight_artists: list = []
+
+    def load_groups(self, path) -> None:
+        """Colour by the groups of a CSV (label → group)."""
+        self.groups = read_groups_csv(path)
+        self.color_by.setCurrentText("group")
+        self.redraw()
+
+    def _groups_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Groups CSV (label,group)", "",
+                                              "CSV (*.csv);;All files (*)")
+        if path:
+            try:
+                self.load_groups(path)
+            except (ValueError, OSError) as err:
+                show_error(f"Could not read the group file: {err}")
+
+    def _group_of(self) -> dict[int, str]:
+        if self.groups:
+            return self.groups
+        if self._layer is not None:
+            meta = self._layer.metadata.get("groups") or {}
+            return {int(k): str(v) for k, v in meta.items()}
+        return {}
+
+    def draw_plot(self) -> None:
+        output = self.output
+        if output is None:
+            self.info.setText("Run the PF-SDM analysis to fill this plot.")
+            return
+        kind = self.view.currentText()
+        scores = output.pca.get(kind)
+        if scores is None or "PC1" not in scores:
+            raise ValueError(f"No {kind} features: analyse with an intensity image first."
+                             if kind == "intensity" else "Not enough objects for a PCA.")
+        n_pc = sum(c.startswith("PC") for c in scores.columns)
+        i, j = min(self.pc_x.value(), n_pc), min(self.pc_y.value(), n_pc)
+        ratios = scores.attrs.get("explained_variance_ratio", [])
+        c = self._theme()
+        ax = self.figure.add_subplot(111)
+        self._style(ax)
+        x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
+        frames, labels = scores["frame"].to_numpy(), scores["label"].to_numpy()
+        groups = self._group_of()
+        by_group = self.color_by.currentText() == "group" and groups
+        names = sorted(set(groups.values())) if by_group else []
+        cmap = self.figure.colorbar if False else None  # noqa: F841 - keep the namespace small
+        import matplotlib
+
+        tab = matplotlib.colormaps["tab10"]
+        for lab in np.unique(labels):
+            sel = labels == lab
+            order = np.argsort(frames[sel])
+            color = (tab(names.index(groups[lab]) % 10) if by_group and lab in groups
+                     else c["grid"])
+            ax.plot(x[sel][order], y[sel][order], "-", color=color, lw=1.0, alpha=0.8, zorder=1)
+        if by_group:
+            colors = [tab(names.index(groups[lab]) % 10) if lab in groups else c["grid"]
+                      for lab in labels]
+            ax.scatter(x, y, c=colors, s=18, zorder=2, edgecolors="none")
+            for k, name in enumerate(names):
+                ax.scatter([], [], color=tab(k % 10), s=18, label=name)
+            leg = ax.legend(fontsize=7, facecolor=c["panel"], edgecolor=c["grid"],
+                            labelcolor=c["fg"], loc="best")
+            leg.set_zorder(5)
+        else:
+            sc = ax.scatter(x, y, c=frames, cmap="viridis", s=18, zorder=2, edgecolors="none")
+            if output.time_lapse:
+                cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
+                cb.set_label("frame", color=c["fg"])
+                cb.ax.tick_params(colors=c["fg"], labelsize=7)
+        ax.set_xlabel(f"PC{i}" + (f" ({100 * ratios[i - 1]:.0f} %)" if len(ratios) >= i else ""))
+        ax.set_ylabel(f"PC{j}" + (f" ({100 * ratios[j - 1]:.0f} %)" if len(ratios) >= j else ""))
+        ax.set_title(f"{kind} trajectories", fontsize=9)
+        self._points = np.column_stack([x, y])
+        self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
+        self._axes_points = ax
+        self.info.setText("Click a point to go to that object and frame.")
+
+    def highlight(self, draw: bool = True) -> None:
+        for artist in getattr(self, "_highlight_artists", []):
+            try:
+                artist.remove()
+            except (ValueError, NotImplementedError):
+                pass
+        self._highlight_artists = []
+        ax = self._axes_points
+        if ax is None or not len(self._points):
+            return
+        frame, label = self.current()
+        keys = np.asarray(self._keys)
+        c = self._theme()
+        in_frame = keys[:, 0] == frame
+        if in_frame.any():
+            self._highlight_artists.append(ax.scatter(
+                *self._points[in_frame].T, s=60, facecolors="none", edgecolors=c["fg"], lw=0.8,
+                zorder=3))
+        mine = keys[:, 1] == label
+        if mine.any():
+            order = np.argsort(keys[mine, 0])
+            (line,) = ax.plot(*self._points[mine][order].T, "-", color=c["accent"], lw=2.2,
+                              zorder=3)
+            self._highlight_artists.append(line)
+        both = in_frame & mine
+        if both.any():
+            self._highlight_artists.append(ax.scatter(
+                *self._points[both].T, s=140, marker="*", color=c["accent"], edgecolors=c["fg"],
+                zorder=4))
+        if draw:
+            self.canvas.draw_idle()
+
+    def highlighted_keys(self) -> list[tuple[int, int]]:
+        """(frame, label) of the points currently marked as the selected object and frame."""
+        frame, label = self.current()
+        return [k for k in self._keys if k == (frame, label)]
+
+
+class ShapeComparisonWidget(_LinkedPlot):
+    """PF-SDM distance matrix of the objects of one frame and its 2-D MDS map."""
+
+    def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
+        self.frame_choice = QComboBox(toolTip="Compare the objects of the frame shown by the "
+                                              "time slider, or of all frames together.")
+        self.frame_choice.addItems(["current frame", "all frames"])
+        super().__init__(napari_viewer)
+        self.controls.addWidget(QLabel("Objects of"))
+        self.controls.addWidget(self.frame_choice, 1)
+        self.frame_choice.currentIndexChanged.connect(lambda *a: self.redraw())
+        self._shown_frame: int | None = None
+        self._highlight_artists: list = []
+        self._matrix_keys: list[tuple[int, int]] = []
+        self._ax_matrix = None
+
+    def _on_step(self, event=None) -> None:
+        if self.frame_choice.currentText() == "current frame" and self._layer is not None:
+            if self.current()[0] != self._shown_frame:
+                self.redraw()
+                return
+        self.highlight()
+
+    def draw_plot(self) -> None:
+        from napari_pfsdm import distance_matrix
+
+        output = self.output
+        if output is None:
+            self.info.setText("Run the PF-SDM analysis to fill this view.")
+            return
+        table = output.table
+        ok = table["error"].astype(str).eq("")
+        frame = self.current()[0]
+        if self.frame_choice.currentText() == "current frame":
+            sub = table.loc[ok & (table["frame"] == frame)]
+            self._shown_frame = frame
+            title = f"frame {frame}"
+        else:
+            sub = table.loc[ok]
+            self._shown_frame = None
+            title = "all frames"
+        if len(sub) < 2:
+            raise ValueError("Fewer than two measured objects here: nothing to compare.")
+        w = output.options.get("intensity_weight", 0.0)
+        if not any(col.startswith("intensity_") for col in sub.columns):
+            w = 0.0
+        d = np.asarray(distance_matrix(sub, intensity_weight=w))
+        xy = classical_mds(d, 2)
+        c = self._theme()
+        ax_m = self.figure.add_subplot(121)
+        ax_p = self.figure.add_subplot(122)
+        for ax in (ax_m, ax_p):
+            self._style(ax)
+        ax_m.imshow(d, cmap="viridis", interpolation="nearest")
+        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        if len(keys) <= 20:
+            ticks = [str(lb) if self._shown_frame is not None else f"{f}:{lb}" for f, lb in keys]
+            ax_m.set_xticks(range(len(keys)), ticks, fontsize=6, rotation=90)
+            ax_m.set_yticks(range(len(keys)), ticks, fontsize=6)
+        ax_m.set_title(f"distances, {title}", fontsize=9)
+        ax_p.scatter(xy[:, 0], xy[:, 1], s=30, color=c["grid"], edgecolors=c["fg"], lw=0.5)
+        if len(keys) <= 30:
+            for (_f, lb), (px, py) in zip(keys, xy, strict=True):
+                ax_p.annotate(str(lb), (px, py), fontsize=7, color=c["fg"],
+                              xytext=(3, 3), textcoords="offset points")
+        ax_p.set_title("MDS map", fontsize=9)
+        ax_p.set_xticks([])
+        ax_p.set_yticks([])
+        self._points = xy
+        self._keys = keys
+        self._axes_points = ax_p
+        self._ax_matrix = ax_m
+        self._matrix_keys = keys
+        self.distances = d
+        self.info.setText("Close points = similar shapes. Click a point or a matrix row to "
+                          "select that object.")
+
+    def _on_click(self, event) -> None:
+        if event.inaxes is not None and event.inaxes is self._ax_matrix and event.ydata is not None:
+            i = int(np.rint(event.ydata))
+            if 0 <= i < len(self._keys):
+                self.select_point(i)
+            return
+        super()._on_click(event)
+
+    def highlight(self, draw: bool = True) -> None:
+        for artist in getattr(self, "_highlight_artists", []):
+            try:
+                artist.remove()
+            except (ValueError, NotImplementedError):
+                pass
+        self._highlight_artists = []
+        ax = self._axes_points
+        if ax is None or not len(self._points):
+            return
+        frame, label = self.current()
+        keys = np.asarray(self._keys)
+        sel = keys[:, 1] == label
+        if self._shown_frame is None:
+            sel &= keys[:, 0] == frame
+        c = self._theme()
+        if sel.any():
+            self._highlight_artists.append(ax.scatter(
+                *self._points[sel].T, s=120, marker="*", color=c["accent"], edgecolors=c["fg"],
+                zorder=4))
+            for i in np.flatnonzero(sel):
+                self._highlight_artists.append(self._ax_matrix.axhline(
+                    i, color=c["accent"], lw=1.0, alpha=0.8))
+        if draw:
+            self.canvas.draw_idle()

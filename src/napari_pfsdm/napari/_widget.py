@@ -1,0 +1,399 @@
+"""The PF-SDM analysis dock widget: pick layers and options, run in a worker, show results."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from napari.layers import Image, Labels
+from napari.qt.threading import GeneratorWorker, thread_worker
+from napari.utils.notifications import show_error, show_info
+from qtpy.QtCore import Signal
+from qtpy.QtWidgets import (
+    QComboBox,
+    QDoubleSpinBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+import napari
+
+from . import _layers
+from ._compute import AnalysisOutput, run_analysis, validate_layers_data
+from ._export import export_results
+from ._store import STORE
+
+NONE = "(none)"
+
+TIPS = {
+    "labels": "The segmentation: one integer label per object (0 = background). A 2-D image or a "
+              "time-lapse (frames × height × width); the same label number is the same object "
+              "through time.",
+    "image": "Optional reporter image (e.g. Brachyury::mCherry) recorded on the same grid as "
+             "the labels. Its pattern inside each object is analysed like the shape. Only images "
+             "of the same size as the labels are offered.",
+    "n_fourier": "How much outline detail is kept: the number of 'waves' around the object that "
+                 "are measured. Low (3-5): only elongation and big lobes. High (15+): finer bumps, "
+                 "and more segmentation noise.",
+    "mapping": "How each object is unrolled onto a standard disk. 'harmonic': fast and smooth, "
+               "may fold on very wiggly shapes. 'bijective': never folds, a bit slower. 'radial': "
+               "the original paper's map, only for roughly round (star-shaped) objects.",
+    "sdf": "The distance map inside and outside the outline. 'exact': true distance to the "
+           "outline. 'viscous': the paper's smoothed distance, less sensitive to small bumps.",
+    "viscosity": "Only for the 'viscous' distance: how much it is smoothed (fraction of the object "
+                 "size). Larger = smoother, ignores small bumps; 0.05 is a good start.",
+    "intensity_weight": "When comparing objects: how much the reporter pattern counts next to the "
+                        "shape (0 = shape only, 1 = equal weight). Needs an intensity image.",
+    "run": "Measure every object in every frame. The viewer stays usable; Cancel stops it.",
+    "export": "Save the feature table, the PCA scores and the distance matrix as CSV files "
+              "(with the options used in the first line).",
+    "plots": "Open the PCA trajectory plot and the shape comparison view.",
+}
+
+
+def _fits(image: Image, labels: Labels) -> bool:
+    same = tuple(image.data.shape) == tuple(labels.data.shape)
+    return same and not getattr(image, "rgb", False)
+
+
+class AnalysisWidget(QWidget):
+    """Dock widget that runs PF-SDM on a Labels layer (and optional Image) and shows the results.
+
+    Parameters
+    ----------
+    napari_viewer
+        The viewer (injected by napari).
+    """
+
+    #: Emitted with the Labels layer once the results are shown.
+    finished = Signal(object)
+    #: Emitted when a run stopped without results (cancel or error).
+    stopped = Signal(str)
+
+    def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
+        super().__init__()
+        self.viewer = napari_viewer
+        self.worker: GeneratorWorker | None = None
+        self.last_output: AnalysisOutput | None = None
+        self.last_error: str = ""
+        self.run_seconds: float = float("nan")
+        self._syncing = False
+        self._linked_layer: Labels | None = None
+
+        self.labels_combo = QComboBox(toolTip=TIPS["labels"])
+        self.image_combo = QComboBox(toolTip=TIPS["image"])
+        self.n_fourier = QSpinBox(minimum=1, maximum=32, value=10, toolTip=TIPS["n_fourier"])
+        self.mapping = QComboBox(toolTip=TIPS["mapping"])
+        self.mapping.addItems(["harmonic", "bijective", "radial"])
+        self.sdf = QComboBox(toolTip=TIPS["sdf"])
+        self.sdf.addItems(["exact", "viscous"])
+        self.viscosity = QDoubleSpinBox(minimum=0.005, maximum=0.5, singleStep=0.01, decimals=3,
+                                        value=0.05, toolTip=TIPS["viscosity"])
+        self.intensity_weight = QDoubleSpinBox(minimum=0.0, maximum=10.0, singleStep=0.1,
+                                               value=1.0, toolTip=TIPS["intensity_weight"])
+        self.run_button = QPushButton("Run", toolTip=TIPS["run"])
+        self.cancel_button = QPushButton("Cancel", enabled=False)
+        self.progress = QProgressBar(minimum=0, maximum=1, value=0)
+        self.progress.setFormat("%v / %m objects")
+        self.status = QLabel("", wordWrap=True)
+        self.export_button = QPushButton("Export CSV…", enabled=False, toolTip=TIPS["export"])
+        self.plots_button = QPushButton("Open plots", toolTip=TIPS["plots"])
+
+        form = QFormLayout()
+        form.addRow("Labels", self.labels_combo)
+        form.addRow("Intensity image", self.image_combo)
+        form.addRow("Fourier harmonics", self.n_fourier)
+        form.addRow("Disk map", self.mapping)
+        form.addRow("Distance map", self.sdf)
+        form.addRow("Viscosity", self.viscosity)
+        form.addRow("Intensity weight", self.intensity_weight)
+        for row in range(form.rowCount()):
+            item = form.itemAt(row, QFormLayout.ItemRole.LabelRole)
+            field = form.itemAt(row, QFormLayout.ItemRole.FieldRole)
+            if item is not None and field is not None:
+                item.widget().setToolTip(field.widget().toolTip())
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.run_button)
+        buttons.addWidget(self.cancel_button)
+        after = QHBoxLayout()
+        after.addWidget(self.export_button)
+        after.addWidget(self.plots_button)
+        layout = QVBoxLayout(self)
+        layout.addLayout(form)
+        layout.addLayout(buttons)
+        layout.addWidget(self.progress)
+        layout.addWidget(self.status)
+        layout.addLayout(after)
+        layout.addStretch(1)
+
+        self.sdf.currentTextChanged.connect(self._on_sdf_changed)
+        self._on_sdf_changed(self.sdf.currentText())
+        self.run_button.clicked.connect(self.run)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.export_button.clicked.connect(self._export_dialog)
+        self.plots_button.clicked.connect(self.open_plots)
+        self.labels_combo.currentIndexChanged.connect(self._refresh_images)
+        self.labels_combo.currentIndexChanged.connect(self._link_selected_layer)
+        for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed,
+                      napari_viewer.layers.events.reordered):
+            event.connect(self._refresh_layers)
+        napari_viewer.dims.events.current_step.connect(self._on_step)
+        self._refresh_layers()
+
+    # ------------------------------------------------------------------ layers
+    def _layers_of(self, kind) -> list:
+        return [layer for layer in self.viewer.layers if isinstance(layer, kind)]
+
+    def _refresh_layers(self, event=None) -> None:
+        current = self.labels_combo.currentText()
+        names = [layer.name for layer in self._layers_of(Labels) if not self._is_result(layer)]
+        self.labels_combo.blockSignals(True)
+        self.labels_combo.clear()
+        self.labels_combo.addItems(names)
+        if current in names:
+            self.labels_combo.setCurrentText(current)
+        self.labels_combo.blockSignals(False)
+        self._refresh_images()
+        self._link_selected_layer()
+
+    def _is_result(self, layer) -> bool:
+        return any(layer.name.endswith(" " + s) for s in _layers.SUFFIXES.values())
+
+    def _refresh_images(self, *args) -> None:
+        labels = self.labels_layer
+        current = self.image_combo.currentText()
+        names = [NONE]
+        if labels is not None:
+            names += [layer.name for layer in self._layers_of(Image)
+                      if _fits(layer, labels) and not self._is_result(layer)]
+        self.image_combo.clear()
+        self.image_combo.addItems(names)
+        if current in names and current != NONE:
+            self.image_combo.setCurrentText(current)
+        elif len(names) > 1 and current == "":
+            self.image_combo.setCurrentIndex(1)  # first fitting image by default
+        elif current in names:
+            self.image_combo.setCurrentText(current)
+
+    @property
+    def labels_layer(self) -> Labels | None:
+        name = self.labels_combo.currentText()
+        return self.viewer.layers[name] if name in self.viewer.layers else None
+
+    @property
+    def image_layer(self) -> Image | None:
+        name = self.image_combo.currentText()
+        if name == NONE or name not in self.viewer.layers:
+            return None
+        return self.viewer.layers[name]
+
+    def options(self) -> dict:
+        """The method options chosen in the widget (keyword arguments of ``iter_objects``)."""
+        opts = {"n_fourier": self.n_fourier.value(), "mapping": self.mapping.currentText(),
+                "sdf": self.sdf.currentText()}
+        if opts["sdf"] == "viscous":
+            opts["viscosity"] = self.viscosity.value()
+        return opts
+
+    def _on_sdf_changed(self, text: str) -> None:
+        self.viscosity.setEnabled(text == "viscous")
+
+    # -------------------------------------------------------------------- run
+    def validate(self, labels: Labels | None, image: Image | None) -> None:
+        """Raise ``ValueError`` (plain words) when the layers cannot be analysed together."""
+        if labels is None:
+            raise ValueError("Choose a Labels layer (the segmentation) first.")
+        if not isinstance(labels, Labels):
+            raise ValueError(f"'{labels.name}' is not a Labels layer.")
+        if image is not None and not isinstance(image, Image):
+            raise ValueError(f"'{image.name}' is not an Image layer.")
+        if image is not None and getattr(image, "rgb", False):
+            raise ValueError(f"'{image.name}' is an RGB image: pick a single-channel image.")
+        validate_layers_data(labels.data, None if image is None else image.data)
+
+    def _message(self, text: str, error: bool = False) -> None:
+        self.status.setText(text)
+        self.status.setStyleSheet("color: #e05050;" if error else "")
+
+    def run(
+        self, labels: Labels | None = None, image: Image | None = None
+    ) -> GeneratorWorker | None:
+        """Start the analysis in a worker thread; returns the worker (None when refused)."""
+        if self.worker is not None:
+            return self.worker
+        labels = labels if isinstance(labels, Labels) else self.labels_layer
+        image = image if image is not None else self.image_layer
+        try:
+            self.validate(labels, image)
+        except ValueError as err:
+            self.last_error = str(err)
+            self._message(str(err), error=True)
+            show_error(str(err))
+            self.stopped.emit(str(err))
+            return None
+        options = self.options()
+        weight = self.intensity_weight.value() if image is not None else 0.0
+        self.last_error = ""
+        self.progress.setRange(0, 0)  # busy until the objects are counted
+        self._message(f"Analysing '{labels.name}'…")
+        self.run_button.setEnabled(False)
+        self.cancel_button.setEnabled(True)
+        self._last_progress = 0.0
+        self._t0 = time.perf_counter()
+        # errors are shown by _on_error (not re-raised into the event loop)
+        worker = _analysis_worker(labels.data, None if image is None else image.data, options,
+                                  _ignore_errors=True)
+        worker.yielded.connect(self._on_progress)
+        worker.returned.connect(lambda out: self._on_returned(labels, out, weight))
+        worker.errored.connect(self._on_error)
+        worker.aborted.connect(self._on_aborted)
+        worker.finished.connect(self._on_finished)
+        self.worker = worker
+        worker.start()
+        return worker
+
+    def cancel(self) -> None:
+        """Stop the running analysis at the next object; nothing is kept."""
+        if self.worker is not None:
+            self._message("Cancelling…")
+            self.worker.quit()
+
+    def _on_progress(self, value) -> None:
+        done, total, frame, label = value
+        now = time.perf_counter()
+        if done < total and now - self._last_progress < 0.05:
+            return  # at most 20 updates a second
+        self._last_progress = now
+        self.progress.setRange(0, total)
+        self.progress.setValue(done)
+        self.progress.setFormat(f"%v / %m objects (frame {frame}, label {label})")
+
+    def _on_returned(self, labels: Labels, output: AnalysisOutput, weight: float) -> None:
+        output.options["intensity_weight"] = weight
+        self.run_seconds = time.perf_counter() - self._t0
+        if labels not in self.viewer.layers:
+            self._message("The Labels layer was removed during the run; nothing shown.", True)
+            return
+        _layers.show_results(self.viewer, labels, output)
+        self.last_output = output
+        STORE.set(labels, output)
+        self._link(labels)
+        n_err = int((output.table["error"].astype(str) != "").sum())
+        msg = f"{len(output.table)} objects in {self.run_seconds:.1f} s."
+        if n_err:
+            msg += f" {n_err} could not be measured (see the 'error' column)."
+        self._message(msg)
+        self.export_button.setEnabled(True)
+        self.finished.emit(labels)
+
+    def _on_error(self, err: Exception) -> None:
+        self.last_error = str(err)
+        self._message(f"The analysis stopped: {err}", error=True)
+        show_error(f"PF-SDM analysis failed: {err}")
+        self.stopped.emit(str(err))
+
+    def _on_aborted(self) -> None:
+        self._message("Cancelled; no results were kept.")
+        self.stopped.emit("cancelled")
+
+    def _on_finished(self) -> None:
+        self.worker = None
+        self.run_button.setEnabled(True)
+        self.cancel_button.setEnabled(False)
+        if self.progress.maximum() == 0:
+            self.progress.setRange(0, 1)
+            self.progress.setValue(0)
+
+    # ---------------------------------------------------------------- linking
+    def _link_selected_layer(self, *args) -> None:
+        layer = self.labels_layer
+        if layer is not None and STORE.get(layer) is not None:
+            self._link(layer)
+
+    def _link(self, labels: Labels) -> None:
+        if self._linked_layer is labels:
+            return
+        if self._linked_layer is not None:
+            try:
+                self._linked_layer.events.selected_label.disconnect(self._on_selected_label)
+            except (TypeError, ValueError, RuntimeError):
+                pass
+        self._linked_layer = labels
+        labels.events.selected_label.connect(self._on_selected_label)
+
+    def _on_selected_label(self, event=None) -> None:
+        labels = self._linked_layer
+        output = STORE.get(labels)
+        if output is None or self._syncing:
+            return
+        self._syncing = True
+        try:
+            _layers._show_object(self.viewer, output, labels.selected_label)
+            _layers.update_sdf(self.viewer, labels, output, labels.selected_label)
+        finally:
+            self._syncing = False
+
+    def _on_step(self, event=None) -> None:
+        labels = self._linked_layer
+        output = STORE.get(labels)
+        if output is None or self._syncing or labels not in self.viewer.layers:
+            return
+        if self.viewer.dims.ndim <= labels.ndim or len(output.object_labels) == 0:
+            return
+        idx = int(np.clip(np.rint(self.viewer.dims.point[0]), 0, len(output.object_labels) - 1))
+        label = int(output.object_labels[idx])
+        if label != labels.selected_label:
+            self._syncing = True
+            try:
+                labels.selected_label = label
+                _layers.update_sdf(self.viewer, labels, output, label)
+            finally:
+                self._syncing = False
+
+    # ------------------------------------------------------------ export/plots
+    def export(self, folder) -> list:
+        """Write the last results as CSV files into ``folder``; returns the paths."""
+        labels = self._linked_layer
+        output = STORE.get(labels) if labels is not None else self.last_output
+        if output is None:
+            raise ValueError("Run the analysis first: there is nothing to export yet.")
+        prefix = labels.name if labels is not None else "pfsdm"
+        return export_results(output, folder, prefix.replace(" ", "_"))
+
+    def _export_dialog(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Export PF-SDM results to folder")
+        if not folder:
+            return
+        try:
+            paths = self.export(folder)
+        except (ValueError, OSError) as err:
+            show_error(f"Export failed: {err}")
+            self._message(f"Export failed: {err}", error=True)
+            return
+        show_info(f"Wrote {len(paths)} CSV files to {folder}")
+        self._message(f"Wrote {', '.join(p.name for p in paths)}")
+
+    def open_plots(self) -> None:
+        """Dock the PCA trajectory plot and the shape comparison view."""
+        from ._plots import ShapeComparisonWidget, TrajectoryPlotWidget
+
+        window = self.viewer.window
+        for cls, name in ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
+                          (ShapeComparisonWidget, "PF-SDM shape comparison")):
+            if name in getattr(window, "_dock_widgets", {}):
+                continue
+            window.add_dock_widget(cls(self.viewer), name=name, area="right")
+
+
+@thread_worker(start_thread=False)
+def _analysis_worker(labels, intensity, options):
+    """Worker generator: the analysis, stoppable at each object."""
+    output = yield from run_analysis(labels, intensity, options)
+    return output

@@ -1,0 +1,27 @@
+"""Fixtures for the napari plugin tests (run on a virtual X screen: pytest-xvfb or xvfb-run)."""
+
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("napari")
+pytest.importorskip("pytestqt")
+
+@pytest.fixture
+def sample_layers():
+    from napari_pfsdm.napari._sample_data import gastruloid_timelapse
+
+    return gastruloid_timelapse()
+
+
+@pytest.fixture
+def viewer_widget(make_napari_viewer, sample_layers):
+    """A viewer with the gastruloid sample and the analysis widget docked."""
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = AnalysisWidget(viewer)
+    viewer.window.add_dock_widget(widget, name="PF-SDM analysis")
+    return viewer, widget

@@ -1,0 +1,32 @@
+"""Helpers for the napari plugin tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+RUN_TIMEOUT_MS = 180_000
+
+
+def run_and_wait(qtbot, widget, **kwargs):
+    """Run the analysis and wait until the results are shown."""
+    with qtbot.waitSignal(widget.finished, timeout=RUN_TIMEOUT_MS):
+        worker = widget.run(**kwargs)
+        assert worker is not None, widget.status.text()
+    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
+    return widget.last_output
+
+
+def many_objects(n_rows: int = 10, n_cols: int = 20, cell: int = 24) -> np.ndarray:
+    """A 2-D label image with n_rows × n_cols small ellipses (labels 1 … n)."""
+    yy, xx = np.mgrid[0:cell, 0:cell] - (cell - 1) / 2
+    labels = np.zeros((n_rows * cell, n_cols * cell), dtype=np.uint16)
+    rng = np.random.default_rng(0)
+    for i in range(n_rows * n_cols):
+        r, c = divmod(i, n_cols)
+        a, b = rng.uniform(5, 10), rng.uniform(4, 7)
+        th = rng.uniform(0, np.pi)
+        u = xx * np.cos(th) + yy * np.sin(th)
+        v = -xx * np.sin(th) + yy * np.cos(th)
+        mask = (u / a) ** 2 + (v / b) ** 2 <= 1
+        labels[r * cell:(r + 1) * cell, c * cell:(c + 1) * cell][mask] = i + 1
+    return labels
