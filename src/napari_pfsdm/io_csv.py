@@ -26,6 +26,12 @@ import pandas as pd
 
 __all__ = ["HEADER_PREFIX", "atomic_write", "read_table_csv", "write_table_csv"]
 
+# pandas < 3 needs float_precision="round_trip" to read floats back exactly; pandas 3 does
+# it by default and deprecates the argument.
+_FLOAT_KW: dict[str, Any] = (
+    {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+)
+
 #: The comment line that carries the options starts with this.
 HEADER_PREFIX = "# pfsdm: "
 
@@ -175,7 +181,7 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     df = pd.read_csv(
         path,
         skiprows=1 if options is not None else 0,
-        float_precision="round_trip",
+        **_FLOAT_KW,
         index_col=index_col,
         dtype={"error": str, "movie": str},
     )

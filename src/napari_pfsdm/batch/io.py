@@ -201,8 +201,12 @@ def _open_tiff(path: Path) -> _TiffFrames:
             axes = list(series.axes.lower())
     except Exception as exc:
         raise ValueError(f"cannot read {path} as TIFF: {exc}") from exc
-    # tifffile names a plain stack of pages "q" / "i"; treat it as time.
+    # tifffile names a plain stack of pages "q" / "i"; treat it as time. A (3 or 4, Y, X)
+    # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"):
+    # for a label movie these planes are frames too.
     axes = ["t" if a in ("q", "i") else a for a in axes]
+    if axes[0] == "s" and "t" not in axes and np.issubdtype(np.dtype(dtype), np.integer):
+        axes[0] = "t"
     drop = _drop_axes(shape, axes, str(path))
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _TiffFrames(str(path), 0, out_shape, dtype, drop)

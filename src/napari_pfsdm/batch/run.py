@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..io_csv import _to_jsonable, atomic_write, write_table_csv
+from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
 from .io import Movie, check_labels, open_movie
 
 __all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
@@ -305,7 +305,7 @@ def _write_part(table: pd.DataFrame, path: Path) -> None:
 def _read_part(path: Path) -> pd.DataFrame:
     if path.suffix == ".parquet":
         return pd.read_parquet(path)
-    df = pd.read_csv(path, float_precision="round_trip", dtype={"error": str, "movie": str})
+    df = pd.read_csv(path, **_FLOAT_KW, dtype={"error": str, "movie": str})
     for col in ("error", "movie"):
         if col in df.columns:
             df[col] = df[col].fillna("")

@@ -1,0 +1,288 @@
+"""Batch path: lazy TIFF/Zarr/OME-Zarr reading, dask measurement, resumable runs, CSV I/O."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import tifffile
+import zarr
+
+import napari_pfsdm
+from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
+from napari_pfsdm.batch.io import check_labels
+from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+
+def make_movie(n_frames: int = 4, shape=(64, 80)) -> tuple[np.ndarray, np.ndarray]:
+    """Two objects changing over time, plus a third appearing at frame 2."""
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    labels = np.zeros((n_frames, *shape), np.uint16)
+    for t in range(n_frames):
+        labels[t][((yy - 20) / (10 + t)) ** 2 + ((xx - 20) / 8) ** 2 < 1] = 1
+        labels[t][(abs(yy - 45) < 6 + t) & (abs(xx - 55) < 15 - t)] = 3
+        if t >= 2:
+            labels[t][((yy - 52) ** 2 + (xx - 15) ** 2) < 49] = 7
+    intensity = (yy[None] * 0.5 + xx[None] + 10.0 * np.arange(n_frames)[:, None, None])
+    return labels, intensity.astype(np.float32)
+
+
+def fake_measure(labels, intensity=None, *, progress=None, **options):
+    """Stand-in for the core: frame, label, area, mean intensity (monkeypatched only)."""
+    labels = np.asarray(labels)
+    if labels.ndim == 2:
+        labels = labels[None]
+        intensity = None if intensity is None else np.asarray(intensity)[None]
+    rows = []
+    for t in range(labels.shape[0]):
+        for lab in np.unique(labels[t])[1:]:
+            m = labels[t] == lab
+            rows.append({"frame": t, "label": int(lab), "area": float(m.sum()),
+                         "mean": float(np.asarray(intensity[t])[m].mean())
+                         if intensity is not None else np.nan, "error": ""})
+    df = pd.DataFrame(rows)
+    df.attrs["pfsdm"] = {**options, "radii": np.array([0.25, 0.75])}
+    return df
+
+
+def write_zarr(path: Path, data: np.ndarray, zarr_format: int = 3, chunks=None) -> Path:
+    z = zarr.create_array(str(path), shape=data.shape, dtype=data.dtype,
+                          chunks=chunks or (1, *data.shape[1:]), zarr_format=zarr_format)
+    z[:] = data
+    return path
+
+
+def write_ome_zarr(path: Path, data: np.ndarray) -> Path:
+    """A two-level multiscale OME-Zarr (v0.4 layout, axes t c z y x)."""
+    g = zarr.open_group(str(path), mode="w", zarr_format=2)
+    full = data[:, None, None]
+    a0 = g.create_array("0", shape=full.shape, dtype=data.dtype, chunks=(1, 1, 1, *data.shape[1:]))
+    a0[:] = full
+    half = full[..., ::2, ::2]
+    a1 = g.create_array("1", shape=half.shape, dtype=data.dtype, chunks=(1, 1, 1, *half.shape[3:]))
+    a1[:] = half
+    axes = [{"name": "t", "type": "time"}, {"name": "c", "type": "channel"},
+            {"name": "z", "type": "space"}, {"name": "y", "type": "space"},
+            {"name": "x", "type": "space"}]
+    g.attrs["multiscales"] = [{"version": "0.4", "axes": axes,
+                               "datasets": [{"path": "0"}, {"path": "1"}]}]
+    return path
+
+
+# ------------------------------------------------------------------------------------------
+# CSV with options header
+# ------------------------------------------------------------------------------------------
+
+def test_table_csv_round_trip_is_exact(tmp_path):
+    rng = np.random.default_rng(1)
+    df = pd.DataFrame({
+        "movie": ["a", "a", "b"], "frame": [0, 1, 0], "label": [1, 1, 4],
+        "area": rng.random(3) * 1e3, "shape_r00_n00": [rng.random(), np.nan, -1e-17],
+        "error": ["", "object too small (12 px)", ""],
+    })
+    options = {"n_fourier": 10, "mapping": "harmonic", "radii": np.linspace(0.1, 0.9, 5),
+               "weights": np.full(5, 0.2), "viscosity": np.float64(0.05)}
+    path = write_table_csv(df, tmp_path / "t.csv", options)
+    assert path.read_text().startswith('# pfsdm: {"n_fourier": 10')
+    back = read_table_csv(path)
+    pd.testing.assert_frame_equal(back, df, check_exact=True)
+    assert back.attrs["pfsdm"]["radii"] == pytest.approx(np.linspace(0.1, 0.9, 5).tolist(),
+                                                         rel=0, abs=0)
+    assert back.attrs["pfsdm"]["mapping"] == "harmonic"
+    # options default to df.attrs["pfsdm"]
+    df.attrs["pfsdm"] = {"n_radii": 8}
+    write_table_csv(df, tmp_path / "u.csv")
+    assert read_table_csv(tmp_path / "u.csv").attrs["pfsdm"] == {"n_radii": 8}
+
+
+def test_table_csv_is_atomic(tmp_path, monkeypatch):
+    target = tmp_path / "features.csv"
+    target.write_text("old content\n")
+    df = pd.DataFrame({"frame": [0], "label": [1]})
+
+    def broken(self, handle, **kwargs):
+        handle.write("frame,label\n0,")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", broken)
+    with pytest.raises(RuntimeError):
+        write_table_csv(df, target, {"a": 1})
+    assert target.read_text() == "old content\n"
+    assert sorted(os.listdir(tmp_path)) == ["features.csv"]  # no temp file left
+    monkeypatch.undo()
+    with pytest.raises(ValueError, match="does not exist"):
+        write_table_csv(df, tmp_path / "missing" / "t.csv")
+
+
+# ------------------------------------------------------------------------------------------
+# reading movies
+# ------------------------------------------------------------------------------------------
+
+def test_open_movie_tiff_zarr_ome_zarr(tmp_path):
+    labels, _ = make_movie()
+    tifffile.imwrite(tmp_path / "m.tif", labels, photometric="minisblack")
+    write_zarr(tmp_path / "v3.zarr", labels, zarr_format=3, chunks=(2, 64, 80))
+    write_zarr(tmp_path / "v2.zarr", labels, zarr_format=2)
+    write_ome_zarr(tmp_path / "ome.zarr", labels)
+    for name, t_chunk in [("m.tif", 1), ("v3.zarr", 2), ("v2.zarr", 1), ("ome.zarr", 1)]:
+        arr = open_movie(tmp_path / name)
+        assert arr.shape == labels.shape, name
+        assert arr.chunks[0][0] == t_chunk, name
+        assert arr.dtype == labels.dtype
+        np.testing.assert_array_equal(arr[1:3].compute(), labels[1:3])
+    assert open_movie(tmp_path / "v2.zarr", frames_per_chunk=3).chunks[0] == (3, 1)
+    # 3 or 4 frames saved with tifffile's defaults are stored as planar RGB(A): still frames
+    with warnings.catch_warnings():  # tifffile warns that this default will change
+        warnings.simplefilter("ignore", DeprecationWarning)
+        tifffile.imwrite(tmp_path / "rgb.tif", labels)
+    np.testing.assert_array_equal(open_movie(tmp_path / "rgb.tif").compute(), labels)
+    # a single 2-D image stays 2-D
+    tifffile.imwrite(tmp_path / "one.tif", labels[0])
+    assert open_movie(tmp_path / "one.tif").shape == labels.shape[1:]
+
+
+def test_find_and_pair_movies(tmp_path):
+    labels, intensity = make_movie(2)
+    for name in ("e01", "e02"):
+        tifffile.imwrite(tmp_path / f"{name}_labels.tif", labels)
+        tifffile.imwrite(tmp_path / f"{name}_reporter.tif", intensity)
+    (tmp_path / "notes.txt").write_text("not a movie")
+    found = find_movies(tmp_path)
+    assert [p.name for p in found] == ["e01_labels.tif", "e01_reporter.tif",
+                                       "e02_labels.tif", "e02_reporter.tif"]
+    lab = find_movies(str(tmp_path / "*_labels.tif"))
+    img = find_movies(str(tmp_path / "*_reporter.tif"))
+    movies = pair_movies(lab, img)
+    assert [(m.name, m.intensity.name) for m in movies] == [
+        ("e01_labels", "e01_reporter.tif"), ("e02_labels", "e02_reporter.tif")]
+    with pytest.raises(ValueError, match="no intensity for e02_labels.tif"):
+        pair_movies(lab, img[:1])
+    with pytest.raises(ValueError, match="no such file"):
+        find_movies(tmp_path / "absent.tif")
+    with pytest.raises(ValueError, match="no TIFF or Zarr movie matches"):
+        find_movies(str(tmp_path / "*.zarr"))
+
+
+def test_check_labels_refuses_bad_inputs():
+    labels, intensity = make_movie(2)
+    check_labels(labels, intensity)
+    with pytest.raises(ValueError, match="not a label image"):
+        check_labels(intensity)
+    with pytest.raises(ValueError, match="different shapes"):
+        check_labels(labels, intensity[:, :32])
+
+
+# ------------------------------------------------------------------------------------------
+# dask measurement
+# ------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("scheduler", ["threads", "sync"])
+@pytest.mark.parametrize("frames_per_task", [1, 2, 3])
+def test_measure_dask_offsets_frames(monkeypatch, scheduler, frames_per_task):
+    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    labels, intensity = make_movie(5)
+    ref = fake_measure(labels, intensity)
+    seen = []
+    got = measure_dask(labels, intensity, scheduler=scheduler, frames_per_task=frames_per_task,
+                       progress=lambda d, n: seen.append((d, n)))
+    assert got.attrs["pfsdm"]["radii"].tolist() == [0.25, 0.75]
+    got.attrs, ref.attrs = {}, {}
+    pd.testing.assert_frame_equal(got, ref)
+    assert seen[-1] == (5, 5) and len(seen) == -(-5 // frames_per_task)
+
+
+def test_measure_dask_matches_core_measure(tmp_path):
+    labels, intensity = make_movie(4)
+    ref = napari_pfsdm.measure(labels, intensity, n_fourier=6, n_radii=8)
+    lab = open_movie(write_zarr(tmp_path / "l.zarr", labels, chunks=(3, 64, 80)))
+    img = open_movie(write_zarr(tmp_path / "i.zarr", intensity))
+    got = measure_dask(lab, img, scheduler="threads", n_fourier=6, n_radii=8)
+    assert got["frame"].tolist() == ref["frame"].tolist()
+    assert set(got["label"]) == {1, 3, 7}
+    pd.testing.assert_frame_equal(got, ref, check_exact=False, rtol=1e-12, atol=1e-12)
+    assert got.attrs["pfsdm"]["n_radii"] == 8
+
+
+def test_local_cluster_gives_the_in_process_table(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    labels, intensity = make_movie(4)
+    path = write_zarr(tmp_path / "movie.zarr", labels)
+    ref = napari_pfsdm.measure(labels, n_fourier=6, n_radii=8)
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        done = []
+        got = measure_dask(open_movie(path), client=client, n_fourier=6, n_radii=8,
+                           progress=lambda d, n: done.append(d))
+        # the work really ran in the two worker processes
+        pids = client.run(os.getpid)
+        assert len(pids) == 2 and os.getpid() not in pids.values()
+        # same table through a scheduler address (a client opened for the call)
+        again = measure_dask(open_movie(path), scheduler=cluster.scheduler_address,
+                             n_fourier=6, n_radii=8)
+    assert sorted(done) == done and done[-1] == 4
+    pd.testing.assert_frame_equal(got, ref, check_exact=False, rtol=1e-12, atol=1e-12)
+    pd.testing.assert_frame_equal(again, ref, check_exact=False, rtol=1e-12, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# resumable batches
+# ------------------------------------------------------------------------------------------
+
+def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
+    labels, intensity = make_movie(3)
+    write_zarr(tmp_path / "a.zarr", labels)
+    write_zarr(tmp_path / "b.zarr", labels[:, ::-1])
+    movies = pair_movies(find_movies(tmp_path))
+    out = tmp_path / "out" / "features.csv"
+    out.parent.mkdir()
+    calls = []
+
+    def dies_on_b(lab, img=None, **kw):
+        calls.append(np.asarray(lab).shape)
+        if len(calls) > 3:  # a: 3 frames measured, then b's first frame: "killed"
+            raise KeyboardInterrupt
+        return fake_measure(lab, img, **kw)
+
+    monkeypatch.setattr(napari_pfsdm, "measure", dies_on_b)
+    with pytest.raises(KeyboardInterrupt):
+        run_batch(movies, out, scheduler="sync", n_fourier=5)
+    assert not out.exists()  # no final CSV from a killed run
+    parts = sorted(p.name for p in out.with_name("features.csv.parts").iterdir())
+    assert len(parts) == 2 and parts[0].startswith("a-") and parts[1].startswith("a-")
+
+    calls.clear()
+    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    log = []
+    table = run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=5)
+    assert log[0].startswith("skipped a") and log[1].startswith("measured b")
+    n = len(fake_measure(labels))
+    assert n == 7 and table["movie"].tolist() == ["a"] * n + ["b"] * n
+    back = read_table_csv(out)
+    assert back.attrs["pfsdm"]["n_fourier"] == 5
+    pd.testing.assert_frame_equal(back.drop(columns="mean"), table.drop(columns="mean"),
+                                  check_exact=False)
+
+    # a third run measures nothing; other options measure again
+    log.clear()
+    run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=5)
+    assert all(m.startswith("skipped") for m in log)
+    log.clear()
+    run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=6)
+    assert all(m.startswith("measured") for m in log)
+
+
+def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
+    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    labels, intensity = make_movie(2)
+    write_zarr(tmp_path / "good.zarr", labels)
+    write_zarr(tmp_path / "raw.zarr", intensity)
+    movies = [Movie("good", tmp_path / "good.zarr"), Movie("raw", tmp_path / "raw.zarr")]
+    with pytest.raises(ValueError, match="not a label image"):
+        run_batch(movies, tmp_path / "f.csv", scheduler="sync")
+    parts = tmp_path / "f.csv.parts"
+    assert not (tmp_path / "f.csv").exists() and not any(parts.iterdir())
