@@ -1,0 +1,21 @@
+"""The PF-SDM method on arrays: contour, SDF, push-forward, morphometric, skeleton, distances.
+
+Pure numpy/scipy/scikit-image; never imports Qt or napari.
+"""
+
+from .distance import INVARIANCES, distance, distance_matrix, embeddings_from_table
+from .pfsdm import DEFAULTS, PFSDMResult, pfsdm, render_disk
+from .skeleton import Skeleton, skeleton
+
+__all__ = [
+    "DEFAULTS",
+    "INVARIANCES",
+    "PFSDMResult",
+    "Skeleton",
+    "distance",
+    "distance_matrix",
+    "embeddings_from_table",
+    "pfsdm",
+    "render_disk",
+    "skeleton",
+]

@@ -1,0 +1,242 @@
+"""Signed distance functions of a closed contour, evaluable at any point with their gradient.
+
+Step 2 of the method (DESIGN.md §2.2). Both functions work in the contour's normalised
+coordinates and follow the convention φ < 0 inside, φ = 0 on the boundary, φ > 0 outside.
+
+* :class:`ExactSDF` — the Euclidean distance to the sub-pixel polygon, signed. Cheap (a KD-tree
+  query and two segment projections per point) and exact for the polygon; its gradient jumps
+  across the medial axis (the skeleton).
+* :class:`ViscousSDF` — the paper's regularised distance: the solution of the viscous Eikonal
+  equation |∇φ|² − ν Δ|φ| = 1 with φ = 0 on the boundary. The Hopf–Cole substitution
+  |φ| = −ν log w turns it into the linear screened Poisson problem ν² Δw = w, w = 1 on the
+  boundary, solved here as a boundary integral: a double-layer potential with the kernel
+  K₀(|x − y|/ν)/2π, a second-kind Nyström system on the contour nodes (spectrally accurate for
+  smooth outlines), and near the boundary an 8× refined quadrature. It is smooth across the
+  skeleton (rounded over a width ~ν) and within ~ν·κ·d of the exact distance elsewhere.
+  Inside a disk of radius R the exact solution is w = I₀(ρ/ν)/I₀(R/ν).
+
+Use the exact SDF by default (it is 5–10× cheaper and the benchmarks find no loss); use the
+viscous one when you need a φ that is differentiable everywhere (e.g. gradients near the
+skeleton), or to reproduce the paper.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.special import k1e
+from skimage.measure import points_in_poly
+
+__all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
+
+SDF_KINDS = ("exact", "viscous")
+
+
+class ExactSDF:
+    """Signed Euclidean distance to a closed polygon.
+
+    Parameters
+    ----------
+    polygon : ndarray, shape (M, 2)
+        Vertices of a closed, non-self-intersecting polygon (no repeated closing vertex).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    >>> sdf = ExactSDF(np.column_stack([np.cos(t), np.sin(t)]))
+    >>> np.round(sdf(np.array([[0.0, 0.0], [2.0, 0.0]])), 3)
+    array([-1.,  1.])
+    """
+
+    def __init__(self, polygon: np.ndarray) -> None:
+        self.polygon = np.ascontiguousarray(polygon, dtype=float)
+        self._tree = cKDTree(self.polygon)
+        self._next = np.roll(np.arange(len(self.polygon)), -1)
+        self._prev = np.roll(np.arange(len(self.polygon)), 1)
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest boundary point of each query point.
+
+        Returns
+        -------
+        closest : ndarray, shape (K, 2)
+        distance : ndarray, shape (K,)
+            Unsigned distance.
+        arc : ndarray, shape (K,)
+            Position of the closest point along the polygon, in vertex units (0 … M).
+        """
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        _, k = self._tree.query(pts)
+        best_d = np.full(len(pts), np.inf)
+        best_c = np.empty_like(pts)
+        best_s = np.empty(len(pts))
+        for a, b, base in ((self._prev[k], k, self._prev[k]), (k, self._next[k], k)):
+            pa, pb = self.polygon[a], self.polygon[b]
+            e = pb - pa
+            t = np.clip(np.einsum("ij,ij->i", pts - pa, e) / np.einsum("ij,ij->i", e, e), 0, 1)
+            c = pa + t[:, None] * e
+            d = np.linalg.norm(pts - c, axis=1)
+            better = d < best_d
+            best_d[better], best_c[better] = d[better], c[better]
+            best_s[better] = (base + t)[better]
+        return best_c, best_d, np.mod(best_s, len(self.polygon))
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """Boolean: which points lie inside the polygon."""
+        return points_in_poly(np.asarray(points, float).reshape(-1, 2), self.polygon)
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance at ``points`` (K, 2): negative inside."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        _, d, _ = self.closest_points(pts)
+        return np.where(self.inside(pts), -d, d)
+
+    def gradient(self, points: np.ndarray) -> np.ndarray:
+        """Gradient ∇φ at ``points`` (K, 2): the unit vector away from the closest point,
+        pointing outward; undefined (returned as 0) on the boundary itself."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        c, d, _ = self.closest_points(pts)
+        sign = np.where(self.inside(pts), -1.0, 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = sign[:, None] * (pts - c) / d[:, None]
+        return np.nan_to_num(g)
+
+
+def _spectral_geometry(nodes: np.ndarray, refine: int = 1):
+    """Nodes, outward normals, quadrature weights and curvature of a smooth closed curve given
+    by equispaced samples, optionally refined by trigonometric interpolation."""
+    m = len(nodes)
+    coef = np.fft.fft(nodes[:, 0] + 1j * nodes[:, 1])
+    n_fine = m * refine
+    pad = np.zeros(n_fine, complex)
+    pad[: m // 2] = coef[: m // 2]
+    pad[n_fine - (m - m // 2):] = coef[m // 2:]
+    kf = np.fft.fftfreq(n_fine, 1.0 / n_fine)
+    z = np.fft.ifft(pad) * refine
+    dz = np.fft.ifft(1j * kf * pad) * refine
+    ddz = np.fft.ifft(-(kf**2) * pad) * refine
+    speed = np.abs(dz)
+    tangent = dz / speed
+    normal = np.column_stack([tangent.imag, -tangent.real])
+    curvature = (dz.real * ddz.imag - dz.imag * ddz.real) / speed**3
+    weights = speed * 2 * np.pi / n_fine
+    return np.column_stack([z.real, z.imag]), normal, weights, curvature
+
+
+def _double_layer(targets: np.ndarray, nodes: np.ndarray, normals: np.ndarray,
+                  weights: np.ndarray, k: float, shift: np.ndarray | None = None) -> np.ndarray:
+    """Matrix of the double-layer kernel (k/2π) K₁(k r) (x − y)·n_y / r · w_y, rows scaled by
+    exp(k · shift) to stay in floating-point range."""
+    diff = targets[:, None, :] - nodes[None, :, :]
+    r = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
+    r = np.maximum(r, 1e-300)
+    e = r if shift is None else r - shift[:, None]
+    return (k / (2 * np.pi)) * k1e(k * r) * np.exp(-k * e) * (
+        np.einsum("ijk,jk->ij", diff, normals) / r) * weights[None, :]
+
+
+class ViscousSDF:
+    """Viscous (regularised) signed distance of a smooth closed curve.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (M, 2)
+        Counter-clockwise curve, equispaced in arc length (a :class:`Contour`'s ``normalized``).
+    viscosity : float
+        ν, in the contour's normalised units (1 = the largest centroid distance). The skeleton is
+        rounded over a width ~ν; 0.05 by default.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 2 * np.pi, 128, endpoint=False)
+    >>> sdf = ViscousSDF(np.column_stack([np.cos(t), np.sin(t)]), viscosity=0.1)
+    >>> from scipy.special import i0e
+    >>> rho = 0.5; expected = 0.1 * (np.log(i0e(rho / 0.1) / i0e(1 / 0.1)) + (rho - 1) / 0.1)
+    >>> bool(abs(sdf(np.array([[rho, 0.0]]))[0] - expected) < 1e-8)
+    True
+    """
+
+    def __init__(self, nodes: np.ndarray, viscosity: float = 0.05, refine: int = 8) -> None:
+        if not viscosity > 0:
+            raise ValueError(f"viscosity must be positive, got {viscosity}.")
+        self.nu = float(viscosity)
+        self.k = 1.0 / self.nu
+        self.exact = ExactSDF(nodes)
+        pts, normal, w, kappa = _spectral_geometry(np.asarray(nodes, float))
+        self._coarse = (pts, normal, w)
+        self.h = float(w.max())
+        a = _double_layer(pts, pts, normal, w, self.k)
+        np.fill_diagonal(a, -kappa * w / (4 * np.pi))
+        eye = 0.5 * np.eye(len(pts))
+        one = np.ones(len(pts))
+        self._mu_in = np.linalg.solve(a - eye, one)
+        self._mu_out = np.linalg.solve(a + eye, one)
+        self._refine = refine
+        self._fine = None
+
+    def _fine_geometry(self):
+        if self._fine is None:
+            pts, normal, w, _ = _spectral_geometry(self._coarse[0], self._refine)
+            n = len(self._coarse[0])
+
+            def upsample(mu):
+                c = np.fft.fft(mu)
+                pad = np.zeros(n * self._refine, complex)
+                pad[: n // 2] = c[: n // 2]
+                pad[len(pad) - (n - n // 2):] = c[n // 2:]
+                return np.real(np.fft.ifft(pad)) * self._refine
+
+            self._fine = (pts, normal, w, upsample(self._mu_in), upsample(self._mu_out))
+        return self._fine
+
+    def _log_w(self, pts: np.ndarray, d: np.ndarray, inside: np.ndarray) -> np.ndarray:
+        """log w at points at distance d from the boundary, by the coarse or refined rule."""
+        out = np.empty(len(pts))
+        near = d < 3 * self.h
+        for sel, (nodes, normal, w, mu_in, mu_out) in (
+            (~near, (*self._coarse, self._mu_in, self._mu_out)),
+            (near, self._fine_geometry() if near.any() else (None,) * 5),
+        ):
+            if not sel.any():
+                continue
+            for side, mu in ((inside, mu_in), (~inside, mu_out)):
+                s = sel & side
+                if s.any():
+                    val = _double_layer(pts[s], nodes, normal, w, self.k, shift=d[s]) @ mu
+                    out[s] = np.log(np.maximum(val, 1e-300)) - self.k * d[s]
+        return out
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        """Viscous signed distance at ``points`` (K, 2): negative inside."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        _, d, _ = self.exact.closest_points(pts)
+        inside = self.exact.inside(pts)
+        phi = np.where(inside, -d, d)
+        # Within a fraction of the refined node spacing the quadrature is not resolved; there
+        # the viscous and exact distances agree to O(d·ν·κ), far below the sampling error.
+        far = d > 0.5 * self.h / self._refine
+        if far.any():
+            lw = self._log_w(pts[far], d[far], inside[far])
+            phi[far] = np.where(inside[far], self.nu * lw, -self.nu * lw)
+        return phi
+
+    def gradient(self, points: np.ndarray, step: float = 1e-4) -> np.ndarray:
+        """∇φ at ``points`` (K, 2) by central differences of the (smooth) viscous φ."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        g = np.empty_like(pts)
+        for axis in range(2):
+            e = np.zeros(2)
+            e[axis] = step
+            g[:, axis] = (self(pts + e) - self(pts - e)) / (2 * step)
+        return g
+
+
+def make_sdf(kind: str, nodes: np.ndarray, viscosity: float = 0.05) -> ExactSDF | ViscousSDF:
+    """Build the SDF named ``kind`` ("exact" or "viscous") of a normalised contour."""
+    if kind == "exact":
+        return ExactSDF(nodes)
+    if kind == "viscous":
+        return ViscousSDF(nodes, viscosity=viscosity)
+    raise ValueError(f"sdf must be one of {SDF_KINDS}, got {kind!r}.")

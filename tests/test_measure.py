@@ -1,0 +1,93 @@
+"""Feature tables over frames and labels."""
+
+import numpy as np
+import pytest
+
+import napari_pfsdm as P
+
+
+def stack(n_frames=3):
+    labels = np.zeros((n_frames, 96, 96), np.uint16)
+    yy, xx = np.mgrid[:96, :96]
+    for t in range(n_frames):
+        labels[t][((yy - 30) / (15 + t)) ** 2 + ((xx - 30) / 10) ** 2 < 1] = 1
+        labels[t][(yy - 65) ** 2 + (xx - 65) ** 2 < (12 + 2 * t) ** 2] = 7
+    return labels
+
+
+def test_measure_gives_one_row_per_frame_and_label():
+    table = P.measure(stack())
+    assert len(table) == 6
+    assert table[["frame", "label"]].to_numpy().tolist() == [
+        [0, 1], [0, 7], [1, 1], [1, 7], [2, 1], [2, 7]]
+    assert "shape_r03_n05" in table.columns and "intensity_r00_n00" not in table.columns
+    assert (table["error"] == "").all()
+    assert table["area"].iloc[1] == np.count_nonzero(stack()[0] == 7)
+    assert table["centroid_y"].iloc[1] == pytest.approx(65, abs=0.5)
+    opts = table.attrs["pfsdm"]
+    assert len(opts["radii"]) == opts["n_radii"] == 16 and len(opts["weights"]) == 16
+
+
+def test_measure_matches_pfsdm_on_each_object_and_takes_intensity():
+    labels = stack()
+    inten = np.random.default_rng(0).uniform(1, 2, labels.shape)
+    table = P.measure(labels, inten, n_fourier=6)
+    res = P.pfsdm(labels[1] == 7, inten[1], n_fourier=6)
+    row = table[(table.frame == 1) & (table.label == 7)]
+    cols = [c for c in table.columns if c.startswith("shape_")]
+    np.testing.assert_allclose(row[cols].to_numpy().ravel(), res.embedding.ravel(), atol=1e-9)
+    icols = [c for c in table.columns if c.startswith("intensity_")]
+    np.testing.assert_allclose(row[icols].to_numpy().ravel(), res.intensity_embedding.ravel(),
+                               atol=1e-9)
+
+
+def test_measure_reports_progress_and_accepts_2d_and_dask():
+    calls = []
+    table = P.measure(stack()[0], progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(1, 2), (2, 2)] and (table.frame == 0).all()
+    da = pytest.importorskip("dask.array")
+    lazy = da.from_array(stack(), chunks=(1, 96, 96))
+    np.testing.assert_allclose(P.measure(lazy).iloc[:, 10:].to_numpy(float),
+                               P.measure(stack()).iloc[:, 10:].to_numpy(float))
+
+
+def test_tiny_objects_become_nan_rows_with_a_reason():
+    labels = stack(1)
+    labels[0, 90, 90] = 3
+    table = P.measure(labels)
+    bad = table[table.label == 3].iloc[0]
+    assert "too small" in bad["error"]
+    assert np.isnan(bad["shape_r00_n00"])
+    assert bad["area"] == 1
+    d = P.distance_matrix(table)
+    i = int(np.flatnonzero(table.label == 3)[0])
+    assert np.isnan(d[i]).all() and np.isnan(d[:, i]).all()
+    ok = np.flatnonzero(table.label != 3)
+    assert np.isfinite(d[np.ix_(ok, ok)]).all()
+
+
+def test_border_objects_are_flagged():
+    labels = stack(1)
+    labels[0, 0:10, 40:60] = 5
+    table = P.measure(labels)
+    assert table.set_index("label")["touches_border"].to_dict() == {1: False, 5: True, 7: False}
+
+
+@pytest.mark.parametrize(
+    ("labels", "intensity", "message"),
+    [
+        (np.zeros((2, 3, 8, 8), int), None, "2-D"),
+        (np.zeros((8, 8), float), None, "integer"),
+        (np.zeros((2, 8, 8), int), np.zeros((2, 8, 9)), "same frames"),
+    ],
+)
+def test_measure_refuses_malformed_input(labels, intensity, message):
+    with pytest.raises(ValueError, match=message):
+        P.measure(labels, intensity)
+
+
+def test_distance_matrix_of_table_equals_that_of_results():
+    labels = stack()
+    table = P.measure(labels)
+    results = [o.result for o in P.iter_objects(labels)]
+    np.testing.assert_allclose(P.distance_matrix(table), P.distance_matrix(results), atol=1e-12)

@@ -1,0 +1,69 @@
+"""The pipeline's pieces: maps, folding, disk rendering, distances."""
+
+import numpy as np
+import pytest
+
+import napari_pfsdm as P
+from shapes_fixture import BASE_SHAPES, raster
+
+
+@pytest.mark.parametrize("mapping", ["harmonic", "bijective", "radial"])
+def test_maps_send_the_circle_to_the_outline_and_the_disk_inside(mapping):
+    res = P.pfsdm(raster(BASE_SHAPES["folded"], 200), mapping=mapping)
+    theta = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    edge = res.mapping(np.column_stack([np.cos(theta), np.sin(theta)]) * 0.9999)
+    tol = 0.03 if mapping == "radial" else 0.01  # the radial fit is a degree-16 polynomial
+    assert np.abs(res.sdf(edge)).max() < tol
+    folded = res.diagnostics["folded_fraction"]
+    assert folded == 0.0 if mapping == "bijective" else folded < 0.05
+    assert (res.disk < 0).mean() > 0.95
+
+
+def test_pf_sdf_of_a_disk_is_radial_and_analytic():
+    yy, xx = np.mgrid[:200, :200]
+    res = P.pfsdm((yy - 100) ** 2 + (xx - 100) ** 2 < 80**2)
+    # a disk maps to itself: phi*(r, theta) = r - 1
+    np.testing.assert_allclose(res.disk, (res.radii - 1)[:, None] * np.ones((1, 64)), atol=0.01)
+    assert np.abs(res.embedding[:, 1:]).max() < 0.005
+
+
+def test_harmonic_map_folds_on_a_snake_and_the_bijective_map_does_not():
+    yy, xx = np.mgrid[:200, :260]
+    snake = np.zeros((200, 260), bool)
+    for k in range(4):  # a meander of four bars joined at alternate ends
+        snake[30:170, 20 + 60 * k : 45 + 60 * k] = True
+    for k in range(3):
+        top = k % 2 == 0
+        snake[(30 if top else 145):(55 if top else 170), 20 + 60 * k : 105 + 60 * k] = True
+    harm = P.pfsdm(snake, mapping="harmonic")
+    bij = P.pfsdm(snake, mapping="bijective")
+    assert harm.diagnostics["folded_fraction"] > 0.5
+    # linear interpolation across the crowded far ends of the bars leaves a few percent
+    assert bij.diagnostics["folded_fraction"] < 0.05
+
+
+def test_render_disk_shows_the_pf_sdf_and_intensity():
+    yy, xx = np.mgrid[:128, :128]
+    mask = ((yy - 64) / 50) ** 2 + ((xx - 64) / 20) ** 2 < 1
+    res = P.pfsdm(mask, 1.0 + yy / 128.0)
+    img = P.render_disk(res, 64)
+    assert img.shape == (64, 64)
+    assert np.isnan(img[0, 0]) and np.isfinite(img[32, 32])
+    assert img[32, 32] < -0.3 and np.nanmax(img) <= 0.0
+    inten = P.render_disk(res, 64, channel="intensity")
+    # the reporter grows with the row; the disk keeps the image's orientation (row = u)
+    assert np.nanmean(inten[48:, 28:36]) > np.nanmean(inten[:16, 28:36])
+    with pytest.raises(ValueError, match="no intensity"):
+        P.render_disk(P.pfsdm(mask), channel="intensity")
+
+
+def test_distance_properties():
+    shapes = [P.pfsdm(raster(v, 160)) for v in BASE_SHAPES.values()]
+    for inv in ("magnitude", "align", "combined"):
+        d = P.distance_matrix(shapes, invariance=inv)
+        np.testing.assert_allclose(d, d.T, atol=1e-12)
+        assert np.all(np.diag(d) == 0) and np.all(d[np.triu_indices(5, 1)] > 0)
+    mag = P.distance_matrix(shapes)
+    ali = P.distance_matrix(shapes, invariance="align")
+    assert np.all(ali >= mag - 1e-9)  # magnitudes are a lower bound of the aligned distance
+    assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1])
