@@ -3,7 +3,10 @@
 - **EFA** (elliptic Fourier analysis, Kuhl & Giardina 1982): the normalised coefficients of
   the first 10 harmonics of the outline (``pyefd.elliptic_fourier_descriptors(...,
   normalize=True)``), compared by Euclidean distance. The normalisation removes translation,
-  scale, rotation and the start point, but not reflection.
+  scale, rotation and the start point up to a two-fold ambiguity each (the direction and the
+  end of the first harmonic's major axis): :func:`efa_descriptors` fixes the first and
+  :func:`efa_distance_matrix` minimises over the second (``canonical=False,
+  resolve_start=False`` gives the raw ``pyefd`` behaviour). Reflection is not removed.
 - **Mirror-aware EFA**: the same, with the distance minimised over the outline and its mirror
   image.
 - **GPA** (Procrustes on landmarks, as in the paper): ``n_points`` points equally spaced in arc
@@ -82,6 +85,7 @@ def efa_descriptors(
     *,
     order: int = 10,
     mirror: bool = False,
+    canonical: bool = True,
     contours: bool = False,
 ) -> np.ndarray:
     """Normalised elliptic Fourier descriptors of each object.
@@ -95,14 +99,20 @@ def efa_descriptors(
     mirror : bool
         Describe the mirror images of the outlines instead (column axis flipped, orientation
         kept counter-clockwise).
+    canonical : bool
+        Rotate by 180° where needed so that ``a_1 = +1``. ``pyefd``'s normalisation aligns the
+        first harmonic's major axis but leaves its direction (a rotation by π, which negates
+        every coefficient) to chance; this removes that. The other half of the ambiguity, the
+        start point at either end of the major axis (which negates the even harmonics), is
+        handled by :func:`efa_distance_matrix`.
     contours : bool
         ``masks`` are already ``(K, 2)`` outlines.
 
     Returns
     -------
     ndarray, shape (n, 4 * order)
-        Flattened ``(a_n, b_n, c_n, d_n)`` per harmonic, as ``pyefd`` normalises them (the
-        first harmonic's ``a_1 = 1``, ``b_1 = c_1 = 0``).
+        Flattened ``(a_n, b_n, c_n, d_n)`` per harmonic, normalised as ``pyefd`` does
+        (``a_1 = ±1``, ``b_1 = c_1 = 0``).
     """
     pyefd = _pyefd()
     out = np.empty((len(masks), 4 * order))
@@ -110,7 +120,16 @@ def efa_descriptors(
         if mirror:
             c = (c * np.array([1.0, -1.0]))[::-1]
         out[i] = pyefd.elliptic_fourier_descriptors(c, order=order, normalize=True).ravel()
+    if canonical:
+        out *= np.where(out[:, :1] < 0, -1.0, 1.0)
     return out
+
+
+def _even_flip(desc: np.ndarray) -> np.ndarray:
+    """Descriptors of the same outline started at the other end of the major axis."""
+    order = desc.shape[1] // 4
+    sign = np.repeat(np.where(np.arange(1, order + 1) % 2 == 0, -1.0, 1.0), 4)
+    return desc * sign
 
 
 def _pairwise_euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -123,6 +142,7 @@ def efa_distance_matrix(
     *,
     order: int = 10,
     mirror_aware: bool = False,
+    resolve_start: bool = True,
     descriptors: np.ndarray | None = None,
     mirrored: np.ndarray | None = None,
     contours: bool = False,
@@ -139,6 +159,11 @@ def efa_distance_matrix(
     mirror_aware : bool
         Take for each pair the smaller of the distances to the other outline and to its mirror
         image, which makes EFA reflection invariant.
+    resolve_start : bool
+        Also minimise over the two start points that the normalisation cannot tell apart (the
+        two ends of the first harmonic's major axis: even harmonics change sign). Without it
+        (and with ``canonical=False`` descriptors) this is plain ``pyefd`` normalised EFA,
+        whose distance jumps when a rotation of the object flips either choice.
     descriptors, mirrored : ndarray, optional
         Precomputed :func:`efa_descriptors` (``mirror=False`` and ``mirror=True``).
     contours : bool
@@ -153,14 +178,17 @@ def efa_distance_matrix(
         if masks is None:
             raise ValueError("Give the masks or their precomputed EFA descriptors.")
         descriptors = efa_descriptors(masks, order=order, contours=contours)
-    dist = _pairwise_euclidean(descriptors, descriptors)
+    others = [descriptors]
     if mirror_aware:
         if mirrored is None:
             if masks is None:
                 raise ValueError("mirror_aware needs the masks or the mirrored descriptors.")
             mirrored = efa_descriptors(masks, order=order, mirror=True, contours=contours)
-        dm = _pairwise_euclidean(descriptors, mirrored)
-        dist = np.minimum(dist, np.minimum(dm, dm.T))
+        others.append(mirrored)
+    if resolve_start:
+        others += [_even_flip(o) for o in others]
+    dist = np.min([_pairwise_euclidean(descriptors, o) for o in others], axis=0)
+    dist = np.minimum(dist, dist.T)
     np.fill_diagonal(dist, 0.0)
     return dist
 

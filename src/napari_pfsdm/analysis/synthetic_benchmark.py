@@ -11,8 +11,11 @@ every method, the pairwise distance matrix of each set is scored by
   of the same class.
 
 Methods: PF-SDM (every ``mapping`` × ``sdf`` × ``normalization`` × ring placement, and both
-``invariance`` modes of the distance; ``quick=True`` keeps the default only), normalised EFA
-with 10 harmonics, mirror-aware EFA and GPA (:mod:`napari_pfsdm.analysis.baselines`).
+``invariance`` modes of the distance; ``quick=True`` keeps the default only), and the
+baselines of :mod:`napari_pfsdm.analysis.baselines`: normalised EFA with 10 harmonics as
+``pyefd`` gives it (``"EFA (raw pyefd)"``, as in the paper), the same with its 180° ambiguities
+removed (``"EFA"``), mirror-aware EFA, and GPA (Procrustes on 100 equidistant points of the
+EFA outline, best start point and mirror image).
 
 :func:`run` prints a table, writes ``synthetic_benchmark.csv`` and ``synthetic_mds.png`` (2-D
 MDS of PF-SDM default, EFA and GPA side by side, coloured by class) and returns the table.
@@ -180,7 +183,7 @@ def run(
         PF-SDM option sets (keyword arguments of :func:`napari_pfsdm.pfsdm`). Default:
         :func:`pfsdm_variants` — the full grid, or only the defaults with ``quick``.
     quick : bool
-        Defaults only: PF-SDM default, EFA, mirror-aware EFA and GPA (runs in seconds).
+        Defaults only: PF-SDM default and the four baselines (runs in seconds).
     n_per_class : int
         Copies of each base shape per set (the paper: 10).
     size : int
@@ -262,8 +265,9 @@ def run(
         contours = [baselines.mask_contour(m) for m in masks]
         t_contour = time.perf_counter() - t0
         t0 = time.perf_counter()
-        desc = baselines.efa_descriptors(contours, contours=True)
+        raw = baselines.efa_descriptors(contours, contours=True, canonical=False)
         t_efa = t_contour + time.perf_counter() - t0
+        desc = raw * np.where(raw[:, :1] < 0, -1.0, 1.0)  # = efa_descriptors(canonical=True)
         t0 = time.perf_counter()
         mirrored = baselines.efa_descriptors(contours, contours=True, mirror=True)
         t_mirror = time.perf_counter() - t0
@@ -271,6 +275,9 @@ def run(
         outlines = baselines.efa_outlines(contours, contours=True)
         t_gpa = t_contour + time.perf_counter() - t0
         n = len(masks)
+        add("EFA (raw pyefd)", "EFA",
+            baselines.efa_distance_matrix(descriptors=raw, resolve_start=False),
+            1e3 * t_efa / n, is_default=False)
         add("EFA", "EFA", baselines.efa_distance_matrix(descriptors=desc), 1e3 * t_efa / n,
             is_default=False)
         add("EFA (mirror-aware)", "EFA",

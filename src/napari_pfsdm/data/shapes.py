@@ -114,7 +114,7 @@ def folded(n: int = N_VERTICES) -> np.ndarray:
     mirror symmetry.
     """
     t = _angles(n)
-    fold = 0.5 * np.exp(-(_wrap(t - 1.9) ** 2) / (2 * 0.32**2))
+    fold = 0.6 * np.exp(-(_wrap(t - 1.9) ** 2) / (2 * 0.32**2))
     radius = 1.0 + 0.22 * np.cos(t) + 0.10 * np.cos(2 * t + 0.6) - fold
     return _unit(_from_polar(radius, t))
 
@@ -280,7 +280,7 @@ def random_similarity(
     high = np.array(shape, float) - 0.5 - margin - placed.max(axis=0)
     if np.any(high < low):
         raise ValueError(
-            f"An outline {placed.ptp(axis=0).round(1).tolist()} pixels across does not fit in "
+            f"An outline {np.ptp(placed, axis=0).round(1).tolist()} pixels across does not fit in "
             f"an image of {shape} with a margin of {margin} pixels; use a larger image or a "
             "smaller base_scale."
         )
