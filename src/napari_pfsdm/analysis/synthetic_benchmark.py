@@ -131,6 +131,12 @@ def scores(dist: np.ndarray, labels: np.ndarray) -> tuple[float, float]:
     return float(silhouette_score(d, labels, metric="precomputed")), nn_accuracy(d, labels)
 
 
+def _have_pyefd() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pyefd") is not None
+
+
 def _pfsdm_results(masks: Sequence[np.ndarray], options: dict) -> tuple[list, float, str]:
     from napari_pfsdm import pfsdm
 
@@ -260,6 +266,10 @@ def run(
                     rings="boundary" if opts["radii"] == "boundary" else "uniform",
                     invariance=inv, is_default=is_default and inv == invariances[0])
 
+        if not _have_pyefd():
+            say(f"[{set_name}] EFA and GPA skipped: the optional package 'pyefd' is missing "
+                "(pip install 'napari-pfsdm[bench]').")
+            continue
         say(f"[{set_name}] EFA and GPA ...")
         t0 = time.perf_counter()
         contours = [baselines.mask_contour(m) for m in masks]

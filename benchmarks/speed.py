@@ -1,0 +1,149 @@
+"""Speed of PF-SDM against EFA per object, and ``measure`` throughput on a label stack.
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/speed.py
+    .venv/bin/python benchmarks/speed.py --n-masks 10 --reps 1     # quicker, noisier
+
+Per object: ``pfsdm`` on 256 × 256 masks of the synthetic five-shape set (every
+``mapping`` × ``sdf``), and the EFA baseline on the same masks in the same run — the
+marching-squares contour of the whole 256 × 256 mask (``skimage.measure.find_contours``) plus
+``pyefd.elliptic_fourier_descriptors(order=10, normalize=True)``. Each method runs over all
+masks ``--reps`` times (fewer for methods slower than 2 s a pass) and the fastest pass is
+kept, as ms per object and as a ratio to EFA.
+
+Throughput: ``measure`` (default options) on a 25-frame × 4-object label stack (512 × 512
+frames, one object of the five-shape set per 256 × 256 quadrant), in objects per second.
+
+Single-threaded BLAS/FFT (``*_NUM_THREADS=1``) so that the numbers are per core. Writes
+``speed.csv`` to ``--out``. Targets (issue 2): default ``pfsdm`` ≤ 3× EFA per object,
+``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+import napari_pfsdm as P  # noqa: E402
+from napari_pfsdm.data import shapes as S  # noqa: E402
+
+TARGET_RATIO = 3.0
+TARGET_BIJECTIVE_MS = 50.0
+TARGET_MEASURE = 150.0
+
+
+def efa_object(mask: np.ndarray):
+    """The EFA baseline for one mask, contour extraction included."""
+    import pyefd
+    from skimage.measure import find_contours
+
+    contour = max(find_contours(mask.astype(np.float32), 0.5), key=len)
+    return pyefd.elliptic_fourier_descriptors(contour, order=10, normalize=True)
+
+
+def best_pass(fn: Callable[[np.ndarray], object], masks: list[np.ndarray], reps: int) -> float:
+    """Fastest of up to ``reps`` passes over the masks, in seconds per object."""
+    fn(masks[0])  # warm-up (imports, caches)
+    times = []
+    for _ in range(reps):
+        start = time.perf_counter()
+        for m in masks:
+            fn(m)
+        times.append(time.perf_counter() - start)
+        if times[-1] > 2.0:
+            break
+    return min(times) / len(masks)
+
+
+def label_stack(n_frames: int = 25, seed: int = 0) -> np.ndarray:
+    """(T, 512, 512) labels with 4 objects per frame, one per 256 × 256 quadrant."""
+    rng = np.random.default_rng(seed)
+    outlines = S.base_shapes()
+    stack = np.zeros((n_frames, 512, 512), np.uint16)
+    for t in range(n_frames):
+        for q in range(4):
+            k = int(rng.integers(0, len(outlines)))
+            outline = S.perturb(outlines[k], rng)
+            tr = S.random_similarity(rng, size=256, points=outline)
+            mask = S.rasterize(outline, (256, 256), transform=tr)
+            r0, c0 = 256 * (q // 2), 256 * (q % 2)
+            stack[t, r0:r0 + 256, c0:c0 + 256][mask] = q + 1
+    return stack
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default="benchmarks/out", help="output folder")
+    parser.add_argument("--n-masks", type=int, default=20,
+                        help="masks (a multiple of 5: the five shapes in turn)")
+    parser.add_argument("--reps", type=int, default=3, help="passes per method (best kept)")
+    parser.add_argument("--frames", type=int, default=25, help="frames of the measure stack")
+    args = parser.parse_args(argv)
+
+    masks, _, _ = S.make_benchmark_set(max(1, args.n_masks // 5), perturb=True, seed=0, size=256)
+    print(f"{len(masks)} masks of 256 x 256 (perturbed five-shape set), best of "
+          f"{args.reps} passes; threads per process: 1")
+    rows = []
+    efa = best_pass(efa_object, masks, args.reps)
+    rows.append({"method": "EFA (find_contours + pyefd, 10 harmonics)", "ms_per_object": 1e3 * efa})
+    variants = [("default", {})] + [
+        (f"{m}/{s}", {"mapping": m, "sdf": s})
+        for m in ("harmonic", "bijective", "radial") for s in ("exact", "viscous")
+    ]
+    for name, opts in variants:
+        sec = best_pass(lambda m, opts=opts: P.pfsdm(m, **opts), masks, args.reps)
+        rows.append({"method": f"pfsdm {name}", "ms_per_object": 1e3 * sec})
+        print(f"  pfsdm {name}: {1e3 * sec:.1f} ms", flush=True)
+    table = pd.DataFrame(rows)
+    table["x EFA"] = table["ms_per_object"] / (1e3 * efa)
+
+    stack = label_stack(args.frames)
+    n_obj = int(sum(len(np.unique(f)) - 1 for f in stack))
+    P.measure(stack[:1])  # warm-up
+    start = time.perf_counter()
+    features = P.measure(stack)
+    elapsed = time.perf_counter() - start
+    throughput = n_obj / elapsed
+    assert len(features) == n_obj
+
+    default_ratio = float(table.loc[table["method"] == "pfsdm default", "x EFA"].iloc[0])
+    bij = float(table.loc[table["method"] == "pfsdm bijective/exact", "ms_per_object"].iloc[0])
+    print()
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    print()
+    print(f"measure: {n_obj} objects ({args.frames} frames x 4, 512 x 512) in {elapsed:.2f} s "
+          f"= {throughput:.0f} objects/s")
+    print()
+    checks = [
+        (f"default pfsdm <= {TARGET_RATIO:g}x EFA", f"{default_ratio:.2f}x",
+         default_ratio <= TARGET_RATIO),
+        (f"bijective (exact sdf) <= {TARGET_BIJECTIVE_MS:g} ms", f"{bij:.1f} ms",
+         bij <= TARGET_BIJECTIVE_MS),
+        (f"measure >= {TARGET_MEASURE:g} objects/s", f"{throughput:.0f}/s",
+         throughput >= TARGET_MEASURE),
+    ]
+    for what, value, ok in checks:
+        print(f"  {'met ' if ok else 'MISSED'}  {what}: {value}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = pd.concat([table, pd.DataFrame([{
+        "method": "measure (objects/s)", "ms_per_object": 1e3 / throughput,
+        "x EFA": 1e3 / throughput / (1e3 * efa)}])], ignore_index=True)
+    summary.to_csv(out / "speed.csv", index=False)
+    print(f"\nwrote {out / 'speed.csv'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
