@@ -160,34 +160,28 @@ def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
 
 
 def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) -> pd.DataFrame:
-    """PCA of the ``{kind}_*`` feature columns over all (frame, label) rows without error.
+    """PCA of the ``{kind}_*`` features over all (frame, label) rows without error.
 
-    Features are centred, not scaled (they share units). Returns ``frame``, ``label`` and
-    ``PC1``... columns; ``attrs["explained_variance_ratio"]`` holds the ratios.
+    The same PCA as the command line's trajectories (:func:`napari_pfsdm.batch.reports.pca_scores`:
+    each ring weighted by its quadrature weight, so that distances in this space are PF-SDM
+    distances). Returns ``frame``, ``label``, ``PC1``... columns and
+    ``attrs["explained_variance_ratio"]``; no PC columns when there are fewer than two rows.
     """
-    cols = [c for c in table.columns if c.startswith(f"{kind}_")]
-    if not cols:
-        return pd.DataFrame(columns=["frame", "label"])
-    ok = table["error"].fillna("").astype(str).eq("") if "error" in table else True
-    sub = table.loc[ok & table[cols].notna().all(axis=1)]
-    x = sub[cols].to_numpy(dtype=float)
-    k = int(min(n_components, x.shape[0], x.shape[1]))
-    out = sub[["frame", "label"]].reset_index(drop=True).copy()
-    if k < 1:
+    from napari_pfsdm.batch.reports import pca_scores as _pca
+
+    if not any(c.startswith(f"{kind}_") for c in table.columns):
+        out = pd.DataFrame(columns=["frame", "label"])
         out.attrs["explained_variance_ratio"] = []
         return out
-    x = x - x.mean(axis=0)
-    u, s, vt = np.linalg.svd(x, full_matrices=False)
-    # deterministic signs: the largest loading of each component is positive
-    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
-    signs[signs == 0] = 1
-    scores = (u * s) * signs
-    var = s**2
-    total = var.sum() if var.sum() > 0 else 1.0
-    for i in range(k):
-        out[f"PC{i + 1}"] = scores[:, i]
-    out.attrs["explained_variance_ratio"] = list(var[:k] / total)
-    return out
+    try:
+        scores, ratios = _pca(table, channel=kind, n_components=n_components)
+    except ValueError:
+        out = table.loc[[], ["frame", "label"]].reset_index(drop=True)
+        out.attrs["explained_variance_ratio"] = []
+        return out
+    scores = scores.rename(columns=lambda c: c.removeprefix(f"{kind}_"))
+    scores.attrs = {"explained_variance_ratio": [float(r) for r in ratios]}
+    return scores
 
 
 def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:

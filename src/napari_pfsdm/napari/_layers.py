@@ -53,6 +53,13 @@ def _show_object(viewer, output: AnalysisOutput, label: int) -> None:
         viewer.dims.set_point(0, idx)
 
 
+def _name_axes(viewer, labels_layer) -> None:
+    """Call the slider axes 'object' and 'frame' when the dims are exactly ours."""
+    names = ["object", "frame", "y", "x"] if labels_layer.ndim == 3 else ["object", "y", "x"]
+    if viewer.dims.ndim == len(names):
+        viewer.dims.axis_labels = names
+
+
 def _disk_geometry(labels_layer, output: AnalysisOutput, slot: int):
     """Scale and translate that put a disk image beside the labels (slot 0, 1, ...)."""
     ny, nx = labels_layer.data.shape[-2:]
@@ -87,48 +94,77 @@ def _replace(viewer, name: str, kind: str, data, **kwargs):
 
 
 def _limits(a: np.ndarray) -> tuple[float, float]:
-    finite = a[np.isfinite(a)]
+    """Contrast limits centred on 0 (diverging colormap), robust to a few extreme values."""
+    finite = np.abs(a[np.isfinite(a)])
     if finite.size == 0:
         return (-1.0, 1.0)
-    m = float(np.abs(finite).max()) or 1.0
+    m = float(np.percentile(finite, 99.5)) or float(finite.max()) or 1.0
     return (-m, m)
 
 
-def show_results(viewer, labels_layer, output: AnalysisOutput) -> list:
-    """Add (or replace) the result layers of one run; return them."""
+def show_results_steps(viewer, labels_layer, output: AnalysisOutput) -> list:
+    """The steps that add (or replace) the result layers of one run, one layer per step.
+
+    Run them one per event-loop iteration (the widget does) so that the viewer redraws and takes
+    clicks between two layers; or call :func:`show_results` to do all at once.
+    """
     names = layer_names(labels_layer.name)
-    layers = []
     scale, translate = _disk_geometry(labels_layer, output, 0)
-    layers.append(_replace(viewer, names["disk"], "image", output.disk, colormap="PiYG",
-                           contrast_limits=_limits(output.disk), scale=scale,
-                           translate=translate))
-    layers.append(_replace(viewer, names["disk_skeleton"], "labels", output.disk_skeleton,
-                           scale=scale, translate=translate))
-    if output.intensity_disk is not None:
+    geo = {"scale": tuple(labels_layer.scale), "translate": tuple(labels_layer.translate)}
+    label = labels_layer.selected_label
+    if output.object_index(label) is None:
+        label = int(output.object_labels[0])
+
+    def features():
+        table = output.table.copy()
+        table.attrs = {}
+        labels_layer.features = table
+
+    def disk():
+        _replace(viewer, names["disk"], "image", output.disk, colormap="RdBu_r",
+                 contrast_limits=_limits(output.disk), scale=scale, translate=translate)
+
+    def disk_skeleton():
+        _replace(viewer, names["disk_skeleton"], "labels", output.disk_skeleton, scale=scale,
+                 translate=translate)
+
+    def intensity_disk():
+        if output.intensity_disk is None:
+            if names["intensity_disk"] in viewer.layers:
+                viewer.layers.remove(names["intensity_disk"])
+            return
         scale2, translate2 = _disk_geometry(labels_layer, output, 1)
         finite = output.intensity_disk[np.isfinite(output.intensity_disk)]
         hi = float(finite.max()) if finite.size else 1.0
         lo = float(finite.min()) if finite.size else 0.0
-        layers.append(_replace(viewer, names["intensity_disk"], "image", output.intensity_disk,
-                               colormap="magma", contrast_limits=(lo, hi if hi > lo else lo + 1),
-                               scale=scale2, translate=translate2))
-    elif names["intensity_disk"] in viewer.layers:
-        viewer.layers.remove(names["intensity_disk"])
-    geo = {"scale": tuple(labels_layer.scale), "translate": tuple(labels_layer.translate)}
-    layers.append(_replace(viewer, names["skeleton"], "labels", output.skeleton, **geo))
-    label = labels_layer.selected_label
-    if output.object_index(label) is None:
-        label = int(output.object_labels[0])
-    sdf = output.sdf_stack(label)
-    layers.append(_replace(viewer, names["sdf"], "image", sdf, colormap="RdBu_r",
-                           contrast_limits=_limits(sdf), opacity=0.6, **geo))
-    layers[-1].metadata["pfsdm_label"] = label
-    table = output.table.copy()
-    table.attrs = {}
-    labels_layer.features = table
-    labels_layer.selected_label = label
-    viewer.layers.selection.active = labels_layer
-    return layers
+        _replace(viewer, names["intensity_disk"], "image", output.intensity_disk,
+                 colormap="magma", contrast_limits=(lo, hi if hi > lo else lo + 1),
+                 scale=scale2, translate=translate2)
+
+    def skeleton():
+        _replace(viewer, names["skeleton"], "labels", output.skeleton, **geo)
+
+    def sdf():
+        stack = output.sdf_stack(label)
+        layer = _replace(viewer, names["sdf"], "image", stack, colormap="RdBu_r",
+                         contrast_limits=_limits(stack), opacity=0.6, **geo)
+        layer.metadata["pfsdm_label"] = label
+
+    def select():
+        _name_axes(viewer, labels_layer)
+        labels_layer.selected_label = label
+        _show_object(viewer, output, label)
+        viewer.layers.selection.active = labels_layer
+
+    return [features, disk, disk_skeleton, intensity_disk, skeleton, sdf, select]
+
+
+def show_results(viewer, labels_layer, output: AnalysisOutput) -> list:
+    """Add (or replace) the result layers of one run at once; return them."""
+    for step in show_results_steps(viewer, labels_layer, output):
+        step()
+    return [viewer.layers[n] for n in layer_names(labels_layer.name).values()
+            if n in viewer.layers]
 
 
 def update_sdf(viewer, labels_layer, output: AnalysisOutput, label: int) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 from napari.layers import Image, Labels
 from napari.qt.threading import GeneratorWorker, thread_worker
 from napari.utils.notifications import show_error, show_info
-from qtpy.QtCore import Signal
+from qtpy.QtCore import QTimer, Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -86,6 +86,7 @@ class AnalysisWidget(QWidget):
         self.run_seconds: float = float("nan")
         self._syncing = False
         self._linked_layer: Labels | None = None
+        self._showing = False
 
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.image_combo = QComboBox(toolTip=TIPS["image"])
@@ -226,7 +227,7 @@ class AnalysisWidget(QWidget):
         self, labels: Labels | None = None, image: Image | None = None
     ) -> GeneratorWorker | None:
         """Start the analysis in a worker thread; returns the worker (None when refused)."""
-        if self.worker is not None:
+        if self.worker is not None or self._showing:
             return self.worker
         labels = labels if isinstance(labels, Labels) else self.labels_layer
         image = image if image is not None else self.image_layer
@@ -281,16 +282,38 @@ class AnalysisWidget(QWidget):
         if labels not in self.viewer.layers:
             self._message("The Labels layer was removed during the run; nothing shown.", True)
             return
-        _layers.show_results(self.viewer, labels, output)
+        self._message("Showing the results…")
+        self._showing = True
+        steps = _layers.show_results_steps(self.viewer, labels, output)
+        steps.append(lambda: self._results_shown(labels, output))
+        self._run_steps(steps)
+
+    def _run_steps(self, steps: list) -> None:
+        """One layer per event-loop iteration: the viewer redraws between them."""
+        step, rest = steps[0], steps[1:]
+        try:
+            step()
+        except Exception as err:  # noqa: BLE001 - reported to the user
+            self._showing = False
+            self._on_error(err)
+            self._after_run()
+            return
+        if rest:
+            QTimer.singleShot(0, lambda: self._run_steps(rest))
+
+    def _results_shown(self, labels: Labels, output: AnalysisOutput) -> None:
         self.last_output = output
         STORE.set(labels, output)
         self._link(labels)
         n_err = int((output.table["error"].astype(str) != "").sum())
-        msg = f"{len(output.table)} objects in {self.run_seconds:.1f} s."
+        msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
+               "move the sliders to see its disk, skeleton and SDF.")
         if n_err:
             msg += f" {n_err} could not be measured (see the 'error' column)."
         self._message(msg)
         self.export_button.setEnabled(True)
+        self._showing = False
+        self._after_run()
         self.finished.emit(labels)
 
     def _on_error(self, err: Exception) -> None:
@@ -305,6 +328,10 @@ class AnalysisWidget(QWidget):
 
     def _on_finished(self) -> None:
         self.worker = None
+        if not self._showing:
+            self._after_run()
+
+    def _after_run(self) -> None:
         self.run_button.setEnabled(True)
         self.cancel_button.setEnabled(False)
         if self.progress.maximum() == 0:
@@ -387,7 +414,7 @@ class AnalysisWidget(QWidget):
         window = self.viewer.window
         for cls, name in ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
                           (ShapeComparisonWidget, "PF-SDM shape comparison")):
-            if name in getattr(window, "_dock_widgets", {}):
+            if name in getattr(window, "dock_widgets", {}):
                 continue
             window.add_dock_widget(cls(self.viewer), name=name, area="right")
 

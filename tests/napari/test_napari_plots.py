@@ -1,0 +1,170 @@
+"""Linked plots: clicking a point moves the viewer; the viewer's frame/label highlights points."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.backend_bases import MouseEvent
+from napari_helpers import run_and_wait
+
+from napari_pfsdm.napari import _layers
+from napari_pfsdm.napari._plots import (
+    ShapeComparisonWidget,
+    TrajectoryPlotWidget,
+    read_groups_csv,
+)
+
+pytestmark = pytest.mark.gui
+
+SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "screenshot.png"
+
+
+def _click(plot, index: int) -> None:
+    """A real matplotlib button press at the display position of point ``index``."""
+    plot.canvas.draw()
+    x, y = plot.click_display_position(index)
+    MouseEvent("button_press_event", plot.canvas, x, y, button=1)._process()
+
+
+def _frame(viewer, labels_layer) -> int:
+    return _layers.current_frame(viewer, labels_layer)
+
+
+def test_trajectory_click_moves_viewer_and_selection_highlights(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    labels_layer = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    plot = TrajectoryPlotWidget(viewer)
+    viewer.window.add_dock_widget(plot, name="trajectories")
+    assert plot.layer_combo.currentText() == "gastruloids"
+    keys = plot._keys
+    assert len(keys) == len(labels_layer.features)
+    target = keys.index((7, 5))
+    assert (_frame(viewer, labels_layer), labels_layer.selected_label) != (7, 5)
+    _click(plot, target)
+    assert _frame(viewer, labels_layer) == 7
+    assert labels_layer.selected_label == 5
+    assert plot.highlighted_keys() == [(7, 5)]
+    # moving napari's time slider and selecting another label moves the highlight
+    axis = _layers.frame_axis(viewer, labels_layer)
+    viewer.dims.set_point(axis, 2)
+    labels_layer.selected_label = 3
+    assert plot.highlighted_keys() == [(2, 3)]
+    star = [a for a in plot._highlight_artists if hasattr(a, "get_offsets")][-1]
+    np.testing.assert_allclose(star.get_offsets()[0], plot._points[keys.index((2, 3))])
+    # a click far from any point does nothing
+    plot.canvas.draw()
+    MouseEvent("button_press_event", plot.canvas, 1, 1, button=1)._process()
+    assert (_frame(viewer, labels_layer), labels_layer.selected_label) == (2, 3)
+
+
+def test_trajectory_views_components_and_groups(viewer_widget, qtbot, tmp_path):
+    viewer, widget = viewer_widget
+    run_and_wait(qtbot, widget)
+    plot = TrajectoryPlotWidget(viewer)
+    out = widget.last_output
+    shape_xy = plot._points.copy()
+    np.testing.assert_allclose(shape_xy[:, 0], out.pca["shape"]["PC1"])
+    plot.view.setCurrentText("intensity")
+    np.testing.assert_allclose(plot._points[:, 1], out.pca["intensity"]["PC2"])
+    plot.pc_x.setValue(3)
+    np.testing.assert_allclose(plot._points[:, 0], out.pca["intensity"]["PC3"])
+    csv = tmp_path / "groups.csv"
+    csv.write_text("label,group\n1,single-axis\n2,multi-axes\n")
+    assert read_groups_csv(csv) == {1: "single-axis", 2: "multi-axes"}
+    plot.load_groups(csv)
+    assert plot.color_by.currentText() == "group"
+    legend = plot._axes_points.get_legend()
+    assert sorted(t.get_text() for t in legend.get_texts()) == ["multi-axes", "single-axis"]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("label,group\nfirst,x\n")
+    with pytest.raises(ValueError, match="whole numbers"):
+        read_groups_csv(bad)
+
+
+def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    labels_layer = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    comp = ShapeComparisonWidget(viewer)
+    viewer.window.add_dock_widget(comp, name="comparison")
+    axis = _layers.frame_axis(viewer, labels_layer)
+    viewer.dims.set_point(axis, 4)
+    n = len(np.unique(labels_layer.data[4])) - 1
+    assert comp.distances.shape == (n, n)
+    assert all(f == 4 for f, _ in comp._keys)
+    np.testing.assert_allclose(comp.distances, comp.distances.T)
+    # distances agree with the core's distance matrix on the same rows
+    from napari_pfsdm import distance_matrix
+
+    table = widget.last_output.table
+    sub = table[table["frame"] == 4]
+    np.testing.assert_allclose(comp.distances, distance_matrix(
+        sub, intensity_weight=widget.last_output.options["intensity_weight"]))
+    target = [lab for _, lab in comp._keys].index(6)
+    _click(comp, target)
+    assert labels_layer.selected_label == 6
+    assert _frame(viewer, labels_layer) == 4
+
+
+def _nonblank(region: np.ndarray) -> bool:
+    rgb = region[..., :3].astype(float)
+    return rgb.std(axis=(0, 1)).max() > 8 and len(np.unique(rgb.reshape(-1, 3), axis=0)) > 20
+
+
+def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample_layers, qtbot):
+    from qtpy.QtCore import QPoint
+
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    window = viewer.window._qt_window
+    window.resize(1600, 900)
+    widget = AnalysisWidget(viewer)
+    viewer.window.add_dock_widget(widget, name="PF-SDM analysis", area="right")
+    run_and_wait(qtbot, widget)
+    widget.open_plots()
+    labels_layer = viewer.layers["gastruloids"]
+    viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 9)
+    labels_layer.selected_label = 5
+    viewer.layers["gastruloids reporter"].visible = False
+    qtbot.wait(500)  # let the docks take their place before fitting the view
+    viewer.reset_view()
+    plot = next(w for w in window.findChildren(TrajectoryPlotWidget))
+    qtbot.wait(800)
+    img = viewer.screenshot(canvas_only=False, flash=False)
+    assert img.ndim == 3 and img.shape[2] in (3, 4)
+    ratio = img.shape[1] / window.width()
+
+    # the trajectory plot's canvas
+    top_left = plot.canvas.mapTo(window, QPoint(0, 0))
+    x0, y0 = int(top_left.x() * ratio), int(top_left.y() * ratio)
+    w, h = int(plot.canvas.width() * ratio), int(plot.canvas.height() * ratio)
+    assert w > 100 and h > 100
+    assert _nonblank(img[y0:y0 + h, x0:x0 + w])
+
+    # the disk layer, beside the labels on the canvas
+    canvas = viewer.window._qt_viewer.canvas.native
+    origin = canvas.mapTo(window, QPoint(0, 0))
+    disk = viewer.layers["gastruloids PF-SDF disk"]
+    size = disk.data.shape[-1]
+    centre = np.asarray(disk.translate[-2:]) + np.asarray(disk.scale[-2:]) * size / 2
+    cam = viewer.scene.camera
+    offset = (centre - np.asarray(cam.center[-2:])) * cam.zoom
+    cy = origin.y() + canvas.height() / 2 + offset[0]
+    cx = origin.x() + canvas.width() / 2 + offset[1]
+    half = 0.3 * size * disk.scale[-1] * cam.zoom
+    box = img[int((cy - half) * ratio):int((cy + half) * ratio),
+              int((cx - half) * ratio):int((cx + half) * ratio)]
+    assert box.shape[0] > 20 and box.shape[1] > 20
+    assert _nonblank(box)
+
+    SCREENSHOT.parent.mkdir(exist_ok=True)
+    from imageio.v3 import imwrite  # napari's own dependency
+
+    imwrite(SCREENSHOT, img[..., :3])
+    assert SCREENSHOT.stat().st_size > 10_000

@@ -1,0 +1,60 @@
+"""The library, the analysis, the data, the batch and the CLI import no Qt, napari or magicgui."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+FORBIDDEN = ("qtpy", "PyQt5", "PyQt6", "PySide2", "PySide6", "napari", "magicgui", "vispy",
+             "superqt")
+
+MODULES = [
+    "napari_pfsdm",
+    "napari_pfsdm.core",
+    "napari_pfsdm.analysis",
+    "napari_pfsdm.analysis.features",
+    "napari_pfsdm.data",
+    "napari_pfsdm.data.shapes",
+    "napari_pfsdm.data.gastruloids",
+    "napari_pfsdm.batch",
+    "napari_pfsdm.cli",
+    "napari_pfsdm.io_csv",
+]
+
+SCRIPT = """
+import importlib, json, pkgutil, sys
+import napari_pfsdm
+names = {names!r}
+# every submodule outside the napari plugin subpackage, too
+for pkg in ("napari_pfsdm.core", "napari_pfsdm.analysis", "napari_pfsdm.data",
+            "napari_pfsdm.batch"):
+    mod = importlib.import_module(pkg)
+    names += [m.name for m in pkgutil.walk_packages(mod.__path__, pkg + ".")]
+for name in names:
+    importlib.import_module(name)
+bad = sorted(m for m in sys.modules if m.split(".")[0] in {forbidden!r})
+print(json.dumps({{"imported": sorted(set(names)), "bad": bad}}))
+"""
+
+
+def test_headless_modules_import_no_gui_toolkit():
+    code = SCRIPT.format(names=MODULES, forbidden=set(FORBIDDEN))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env={"PATH": "/usr/bin:/bin", "QT_API": "pyqt6"})
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "napari_pfsdm.cli" in result["imported"]
+    assert "napari_pfsdm.core" in result["imported"]
+    assert result["bad"] == [], f"GUI modules imported headless: {result['bad'][:10]}"
+
+
+def test_the_check_would_notice_a_gui_import():
+    """The subprocess check itself works: importing the plugin pulls in napari and Qt."""
+    code = SCRIPT.format(names=["napari_pfsdm.napari._widget"], forbidden=set(FORBIDDEN))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    if out.returncode != 0:  # napari not installed: nothing to show
+        return
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "napari" in result["bad"] and "qtpy" in result["bad"]
