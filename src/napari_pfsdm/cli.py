@@ -77,37 +77,46 @@ def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _add_method_options(p: argparse.ArgumentParser) -> None:
+    from .core.pfsdm import DEFAULTS
+
+    D = {"min_area": 20, **DEFAULTS}  # the help shows the core's current defaults
     g = p.add_argument_group(
         "method options (the same as in the napari widget; leave them out for the defaults)"
     )
     g.add_argument("--n-fourier", dest="n_fourier", type=int, metavar="N",
-                   help="how much outline detail is kept: Fourier modes per ring (default 10)")
+                   help="how much outline detail is kept: Fourier modes per ring "
+                        f"(default {D['n_fourier']})")
     g.add_argument("--n-radii", dest="n_radii", type=int, metavar="N",
-                   help="rings sampled from the object's centre to its outline (default 16)")
+                   help="rings sampled from the object's centre to its outline "
+                        f"(default {D['n_radii']})")
     g.add_argument("--n-angles", dest="n_angles", type=int, metavar="N",
-                   help="samples around each ring (default 64)")
+                   help=f"samples around each ring (default {D['n_angles']})")
     g.add_argument("--sdf", choices=("exact", "viscous"),
-                   help="distance to the outline: 'exact' (fast, default) or 'viscous' "
-                        "(the paper's smoothed version, ~5x slower)")
+                   help="distance to the outline: 'exact' (fast) or 'viscous' "
+                        "(the paper's smoothed version, ~5x slower); default " + D["sdf"])
     g.add_argument("--viscosity", type=float, metavar="NU",
-                   help="smoothing of the viscous distance, in object sizes (default 0.05)")
+                   help="smoothing of the viscous distance, in object sizes "
+                        f"(default {D['viscosity']})")
     g.add_argument("--mapping", choices=("harmonic", "bijective", "radial"),
-                   help="how the unit disk is laid onto the object: 'harmonic' (fast, default), "
+                   help="how the unit disk is laid onto the object: 'harmonic' (fast), "
                         "'bijective' (never folds; for snake-like or branched objects), "
-                        "'radial' (the paper's; round, star-shaped objects only)")
+                        "'radial' (the paper's; round, star-shaped objects only); default "
+                        + D["mapping"])
     g.add_argument("--normalization", choices=("none", "ring"),
                    help="'ring' rescales each ring's modes to unit length as in the paper "
-                        "(unstable for near-round objects); default 'none'")
+                        "(unstable for near-round objects); default " + D["normalization"])
     g.add_argument("--radii", choices=("uniform", "boundary"),
-                   help="ring placement: 'uniform' (default) or 'boundary' (packed toward "
-                        "the outline, where shapes differ most)")
+                   help="ring placement: 'uniform' or 'boundary' (packed toward the outline, "
+                        "where shapes differ most); default " + str(D["radii"]))
     g.add_argument("--ring-weighting", dest="ring_weighting", choices=("none", "boundary"),
-                   help="extra weight of the outer rings in distances (default 'none')")
+                   help="extra weight of the outer rings in distances; default "
+                        + D["ring_weighting"])
     g.add_argument("--components", choices=("largest", "raise"),
                    help="an object in several pieces: keep the 'largest' (default) or report "
                         "an error for it ('raise')")
     g.add_argument("--min-area", dest="min_area", type=int, metavar="PIXELS",
-                   help="objects smaller than this get an error instead of features (default 20)")
+                   help="objects smaller than this get an error instead of features "
+                        f"(default {D['min_area']})")
 
 
 def _add_compute_options(p: argparse.ArgumentParser) -> None:

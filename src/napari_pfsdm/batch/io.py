@@ -89,8 +89,27 @@ class _Frames:
         for d in self._drop:
             full.append(next(it) if d is None else d)
         if self._handle is None:
-            self._handle = self._open()
+            self._handle = self._cached_open()
         return np.asarray(self._handle[tuple(full)])
+
+    def _cache_key(self) -> tuple:
+        return (type(self).__name__, self.path, getattr(self, "component", None),
+                getattr(self, "series", None))
+
+    def _cached_open(self) -> Any:
+        """Open once per process: tasks unpickled in a worker re-use the open array."""
+        key = self._cache_key()
+        handle = _OPEN.get(key)
+        if handle is None:
+            handle = self._open()
+            if len(_OPEN) >= 16:
+                _OPEN.pop(next(iter(_OPEN)))
+            _OPEN[key] = handle
+        return handle
+
+
+#: Arrays opened in this process, by (kind, path, component/series).
+_OPEN: dict[tuple, Any] = {}
 
 
 class _ZarrFrames(_Frames):

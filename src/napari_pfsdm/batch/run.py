@@ -73,6 +73,37 @@ def _frame_chunks(n_frames: int, frames_per_task: int) -> list[tuple[int, int]]:
     return [(s, min(s + step, n_frames)) for s in range(0, n_frames, step)]
 
 
+#: Largest amount of image data (labels + intensity) one task reads at once by default.
+TASK_BYTES = 256 * 2**20
+
+
+def default_frames_per_task(
+    labels: Any, intensity: Any, kind: str, obj: Any, num_workers: int | None
+) -> int:
+    """Frames per task: few, large enough tasks (about 4 per worker), bounded in memory.
+
+    At least the dask chunk along T (a chunk is read whole anyway), at most what fits in
+    :data:`TASK_BYTES`, and a whole number of chunks.
+    """
+    n_frames = int(labels.shape[0])
+    chunks = getattr(labels, "chunks", None)
+    chunk_t = int(chunks[0][0]) if chunks and isinstance(chunks[0], tuple) else 1
+    if kind == "local":
+        workers = 1 if obj == "sync" else (num_workers or os.cpu_count() or 1)
+    else:
+        try:
+            workers = sum(obj.nthreads().values()) if kind == "distributed" else 8
+        except Exception:  # pragma: no cover - a client that cannot answer
+            workers = 8
+    frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
+    if intensity is not None:
+        frame_bytes += int(np.prod(intensity.shape[1:])) * np.dtype(intensity.dtype).itemsize
+    by_memory = max(1, TASK_BYTES // max(frame_bytes, 1))
+    by_balance = max(1, -(-n_frames // (4 * max(workers, 1))))
+    k = max(1, min(by_memory, by_balance))
+    return max(chunk_t, (k // chunk_t) * chunk_t) if chunk_t <= by_memory else chunk_t
+
+
 def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, Any]:
     """Normalise the scheduler choice into ``(kind, object)``.
 
@@ -149,8 +180,8 @@ def measure_dask(
     num_workers : int, optional
         Workers of the local threads/processes scheduler (default: the number of cores).
     frames_per_task : int, optional
-        Frames per task. Default: the dask chunking along T of ``labels`` if it is a dask
-        array, else 1.
+        Frames per task. Default: about four tasks per worker, whole dask chunks along T,
+        at most 256 MiB of pixels per task (:func:`default_frames_per_task`).
     progress : callable, optional
         ``progress(frames_done, n_frames)``, called in the calling process as chunks finish.
     pool : concurrent.futures.Executor, optional
@@ -172,8 +203,7 @@ def measure_dask(
         intensity = intensity[None] if intensity is not None else None
     n_frames = int(labels.shape[0])
     if frames_per_task is None:
-        chunks = getattr(labels, "chunks", None)
-        frames_per_task = int(chunks[0][0]) if chunks and isinstance(chunks[0], tuple) else 1
+        frames_per_task = default_frames_per_task(labels, intensity, kind, obj, num_workers)
     spans = _frame_chunks(n_frames, frames_per_task)
     args = [
         (
