@@ -168,7 +168,12 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str) -> tu
 
 
 def _open_zarr(path: Path) -> _ZarrFrames:
-    import zarr
+    try:
+        import zarr
+    except ImportError as exc:
+        raise ValueError(
+            f"reading {path} needs the zarr package: pip install 'napari-pfsdm[batch]'"
+        ) from exc
 
     try:
         node = zarr.open(str(path), mode="r")

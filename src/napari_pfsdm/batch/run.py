@@ -134,7 +134,13 @@ def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, A
 @contextlib.contextmanager
 def _client_for(kind: str, obj: Any) -> Iterator[Any]:
     if kind == "address":
-        from distributed import Client
+        try:
+            from distributed import Client
+        except ImportError as exc:
+            raise ValueError(
+                "running on a dask cluster needs the distributed package: "
+                "pip install 'napari-pfsdm[batch]'"
+            ) from exc
 
         try:
             client = Client(obj, timeout="20s")
