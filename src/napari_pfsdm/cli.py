@@ -249,7 +249,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     opts["explained_variance"] = {ch: ev.tolist() for ch, ev in explained.items()}
     write_table_csv(scores, out, opts)
     ev_txt = ", ".join(
-        f"{ch}: " + " ".join(f"{100 * v:.0f}%" for v in ev) for ch, ev in explained.items()
+        f"{ch}: " + " ".join(f"{100 * v:.2g}%" for v in ev) for ch, ev in explained.items()
     )
     _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
     if args.plot:
