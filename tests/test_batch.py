@@ -135,6 +135,19 @@ def test_open_movie_tiff_zarr_ome_zarr(tmp_path):
         assert arr.dtype == labels.dtype
         np.testing.assert_array_equal(arr[1:3].compute(), labels[1:3])
     assert open_movie(tmp_path / "v2.zarr", frames_per_chunk=3).chunks[0] == (3, 1)
+    # OME-Zarr 0.5 (Zarr v3, metadata under "ome")
+    g = zarr.open_group(str(tmp_path / "v05.zarr"), mode="w", zarr_format=3)
+    a = g.create_array("s0", shape=(4, 1, 64, 80), chunks=(1, 1, 64, 80), dtype="uint16")
+    a[:] = labels[:, None]
+    axes = [{"name": n} for n in "tcyx"]
+    g.attrs["ome"] = {"version": "0.5",
+                      "multiscales": [{"axes": axes, "datasets": [{"path": "s0"}]}]}
+    np.testing.assert_array_equal(open_movie(tmp_path / "v05.zarr").compute(), labels)
+    # a channel axis with several channels is refused with a plain message
+    tifffile.imwrite(tmp_path / "chan.tif", np.zeros((3, 2, 16, 16), np.uint8), imagej=True,
+                     metadata={"axes": "TCYX"})
+    with pytest.raises(ValueError, match="'c' axis of size 2"):
+        open_movie(tmp_path / "chan.tif")
     # 3 or 4 frames saved with tifffile's defaults are stored as planar RGB(A): still frames
     with warnings.catch_warnings():  # tifffile warns that this default will change
         warnings.simplefilter("ignore", DeprecationWarning)
