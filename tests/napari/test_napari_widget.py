@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 import pytest
-from napari_helpers import many_objects, run_and_wait
+from napari_helpers import RUN_TIMEOUT_MS, many_objects, run_and_wait
 
 from napari_pfsdm.napari import _layers
 from napari_pfsdm.napari._store import STORE
@@ -145,21 +145,29 @@ def test_event_loop_is_serviced_during_a_run_of_200_objects(make_napari_viewer, 
     viewer.add_labels(many_objects(), name="many")
     widget = AnalysisWidget(viewer)
     ticks: list[float] = []
+    returned: list[float] = []
     timer = QTimer()
     timer.setInterval(10)
     timer.timeout.connect(lambda: ticks.append(time.perf_counter()))
     timer.start()
     t0 = time.perf_counter()
-    out = run_and_wait(qtbot, widget)
+    with qtbot.waitSignal(widget.finished, timeout=RUN_TIMEOUT_MS):
+        worker = widget.run()
+        worker.returned.connect(lambda _: returned.append(time.perf_counter()))
+    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
     timer.stop()
     duration = time.perf_counter() - t0
-    assert len(out.table) == 200
-    gaps = np.diff(ticks)
-    print(f"\n200 objects in {duration:.1f} s; {len(ticks)} timer ticks; longest gap "
-          f"{1e3 * gaps.max():.0f} ms; median {1e3 * np.median(gaps):.0f} ms")
-    # the GUI thread kept running its event loop: ticks all along the run, no freeze of seconds
-    assert len(ticks) > 0.3 * duration / 0.010
-    assert gaps.max() < 1.5
+    assert len(widget.last_output.table) == 200
+    ticks_arr = np.asarray(ticks)
+    gaps = np.diff(ticks_arr)
+    compute = np.diff(ticks_arr[ticks_arr <= returned[0]])
+    print(f"\n200 objects in {duration:.1f} s; {len(ticks)} timer ticks; longest gap while "
+          f"computing {1e3 * compute.max():.0f} ms (median {1e3 * np.median(compute):.0f} ms); "
+          f"longest gap overall (napari adding the layers) {1e3 * gaps.max():.0f} ms")
+    # the GUI thread kept running its event loop all along the computation
+    assert len(compute) > 0.3 * (returned[0] - t0) / 0.010
+    assert compute.max() < 0.5
+    assert gaps.max() < 2.0
 
 
 def test_export_roundtrip(viewer_widget, qtbot, tmp_path):
@@ -183,3 +191,25 @@ def test_export_roundtrip(viewer_widget, qtbot, tmp_path):
     np.testing.assert_allclose(d, d.T)
     assert np.all(np.diag(d) == 0)
     assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*"))
+
+
+def test_two_dimensional_labels_five_shapes(make_napari_viewer, qtbot):
+    from napari_pfsdm.napari._sample_data import benchmark_shapes
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer()
+    (data, kwargs, _), = benchmark_shapes()
+    labels_layer = viewer.add_labels(data, **kwargs)
+    widget = AnalysisWidget(viewer)
+    assert widget.image_combo.currentText() == "(none)"
+    out = run_and_wait(qtbot, widget)
+    names = _layers.layer_names("five shapes")
+    n = len(np.unique(data)) - 1
+    size = out.disk.shape[-1]
+    assert viewer.layers[names["disk"]].data.shape == (n, size, size)
+    assert viewer.layers[names["skeleton"]].data.shape == data.shape
+    assert names["intensity_disk"] not in viewer.layers
+    assert len(labels_layer.features) == n and (labels_layer.features["frame"] == 0).all()
+    assert viewer.dims.axis_labels == ("object", "y", "x")
+    labels_layer.selected_label = 7
+    assert int(round(viewer.dims.point[0])) == out.object_index(7) == 6

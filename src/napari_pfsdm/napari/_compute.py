@@ -162,26 +162,40 @@ def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
 def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) -> pd.DataFrame:
     """PCA of the ``{kind}_*`` features over all (frame, label) rows without error.
 
-    The same PCA as the command line's trajectories (:func:`napari_pfsdm.batch.reports.pca_scores`:
-    each ring weighted by its quadrature weight, so that distances in this space are PF-SDM
-    distances). Returns ``frame``, ``label``, ``PC1``... columns and
-    ``attrs["explained_variance_ratio"]``; no PC columns when there are fewer than two rows.
-    """
-    from napari_pfsdm.batch.reports import pca_scores as _pca
+    The same PCA as the command line's trajectories (:func:`napari_pfsdm.batch.reports.pca_scores`):
+    each ring is weighted by the square root of its quadrature weight, so that Euclidean
+    distances in this space are PF-SDM distances; components signed as scikit-learn does (the
+    largest loading of each is positive). Plain numpy (an SVD of a few hundred rows takes a
+    millisecond; scikit-learn's import alone blocks the viewer for seconds).
 
-    if not any(c.startswith(f"{kind}_") for c in table.columns):
-        out = pd.DataFrame(columns=["frame", "label"])
-        out.attrs["explained_variance_ratio"] = []
-        return out
-    try:
-        scores, ratios = _pca(table, channel=kind, n_components=n_components)
-    except ValueError:
-        out = table.loc[[], ["frame", "label"]].reset_index(drop=True)
-        out.attrs["explained_variance_ratio"] = []
-        return out
-    scores = scores.rename(columns=lambda c: c.removeprefix(f"{kind}_"))
-    scores.attrs = {"explained_variance_ratio": [float(r) for r in ratios]}
-    return scores
+    Returns ``frame``, ``label``, ``PC1``... columns and ``attrs["explained_variance_ratio"]``;
+    no PC columns with fewer than two measured rows.
+    """
+    from napari_pfsdm import embeddings_from_table
+
+    empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
+    empty.attrs["explained_variance_ratio"] = []
+    if not any(c.startswith(f"{kind}_r") for c in table.columns):
+        return empty
+    ok = table["error"].fillna("").astype(str).eq("").to_numpy() if "error" in table else True
+    emb, weights = embeddings_from_table(table, channel=kind)
+    x = (emb * np.sqrt(np.asarray(weights, float))[None, :, None]).reshape(len(emb), -1)
+    ok = ok & np.isfinite(x).all(axis=1)
+    x = x[ok]
+    if len(x) < 2:
+        return empty
+    k = int(min(n_components, x.shape[0], x.shape[1]))
+    x = x - x.mean(axis=0)
+    u, s, vt = np.linalg.svd(x, full_matrices=False)
+    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
+    signs[signs == 0] = 1
+    scores = (u * s * signs)[:, :k]
+    var = s**2
+    out = table.loc[ok, ["frame", "label"]].reset_index(drop=True)
+    for i in range(k):
+        out[f"PC{i + 1}"] = scores[:, i]
+    out.attrs["explained_variance_ratio"] = [float(r) for r in var[:k] / max(var.sum(), 1e-300)]
+    return out
 
 
 def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:

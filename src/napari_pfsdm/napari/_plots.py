@@ -55,6 +55,14 @@ def read_groups_csv(path) -> dict[int, str]:
     return dict(zip(labels.tolist(), grp.astype(str).tolist(), strict=True))
 
 
+def _percent(ratios, i: int) -> str:
+    """' (12 %)': the share of the variance of component ``i`` (1-based)."""
+    if len(ratios) < i:
+        return ""
+    r = 100 * float(ratios[i - 1])
+    return f" ({r:.0f} %)" if r >= 10 else f" ({r:.2g} %)"
+
+
 class _LinkedPlot(QWidget):
     """A themed matplotlib canvas bound to one analysed Labels layer."""
 
@@ -317,8 +325,8 @@ class TrajectoryPlotWidget(_LinkedPlot):
                 cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
                 cb.set_label("frame", color=c["fg"])
                 cb.ax.tick_params(colors=c["fg"], labelsize=7)
-        ax.set_xlabel(f"PC{i}" + (f" ({100 * ratios[i - 1]:.0f} %)" if len(ratios) >= i else ""))
-        ax.set_ylabel(f"PC{j}" + (f" ({100 * ratios[j - 1]:.0f} %)" if len(ratios) >= j else ""))
+        ax.set_xlabel(f"PC{i}" + _percent(ratios, i))
+        ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
         ax.set_title(f"{kind} trajectories", fontsize=9)
         self._points = np.column_stack([x, y])
         self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Install what the tests need and run them: ruff, then pytest on a virtual X screen.
+#
+#   bash scripts/test.sh [extra pytest arguments]
+#
+# On a fresh Debian (as root) it first installs the system libraries that Qt 6, vispy and the
+# virtual X server need (see docs/napari.md). Without root or apt-get it skips that step and
+# expects them to be there. Creates .venv (with $PYTHON, default python3) when missing and
+# installs the project into it, editable, with the napari, batch and testing extras.
+# Exits non-zero as soon as a step fails.
+set -euo pipefail
+
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+PYTHON="${PYTHON:-python3}"
+START=$(date +%s)
+say() { printf '\n== %s (%ds)\n' "$*" "$(( $(date +%s) - START ))"; }
+
+APT_PACKAGES=(xvfb xauth libgl1 libegl1 libgl1-mesa-dri libglib2.0-0 libfontconfig1
+  libdbus-1-3 libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0
+  libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 libxcb-shape0 libxcb-xkb1)
+
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  say "system packages (apt-get)"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq "${APT_PACKAGES[@]}" >/dev/null
+else
+  say "skipping apt-get (not root or no apt-get); needs: ${APT_PACKAGES[*]}"
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  say "creating .venv with $PYTHON"
+  if ! "$PYTHON" -m venv .venv; then
+    # Debian's own python3 needs python3-venv for ensurepip
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+      rm -rf .venv
+      apt-get install -y -qq python3-venv >/dev/null
+      "$PYTHON" -m venv .venv
+    else
+      echo "error: '$PYTHON -m venv' failed; install python3-venv" >&2
+      exit 1
+    fi
+  fi
+fi
+
+say "pip install -e .[napari,batch,testing]"
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[napari,batch,testing]"
+
+say "ruff check"
+.venv/bin/ruff check .
+
+say "pytest"
+unset QT_QPA_PLATFORM  # napari needs a real (virtual) X screen, not the offscreen platform
+if command -v xvfb-run >/dev/null 2>&1; then
+  xvfb-run -a -s "-screen 0 1280x1024x24" .venv/bin/python -m pytest -p no:xvfb "$@"
+elif command -v Xvfb >/dev/null 2>&1; then
+  .venv/bin/python -m pytest --xvfb-width=1280 --xvfb-height=1024 --xvfb-colordepth=24 "$@"
+elif [ -n "${DISPLAY:-}" ]; then
+  .venv/bin/python -m pytest -p no:xvfb "$@"
+else
+  echo "error: no Xvfb and no DISPLAY: the napari tests need a (virtual) X screen" >&2
+  exit 1
+fi
+say "all tests passed"

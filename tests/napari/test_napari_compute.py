@@ -1,0 +1,139 @@
+"""The widget's array side (no Qt): objects, disk pixels, SDF patches, PCA, MDS, export."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from napari_pfsdm.napari._compute import (
+    classical_mds,
+    disk_pixels,
+    list_objects,
+    pca_scores,
+    run_analysis,
+    validate_layers_data,
+)
+from napari_pfsdm.napari._export import export_results, read_csv
+
+
+def _run(labels, intensity=None, **options):
+    gen = run_analysis(labels, intensity, options, disk_size=48)
+    progress = []
+    try:
+        while True:
+            progress.append(next(gen))
+    except StopIteration as stop:
+        return stop.value, progress
+
+
+@pytest.fixture(scope="module")
+def two_frames():
+    labels = np.zeros((2, 80, 120), np.uint16)
+    yy, xx = np.mgrid[:80, :120]
+    labels[0][(yy - 40) ** 2 / 400 + (xx - 30) ** 2 / 100 <= 1] = 3  # ellipse, long along y
+    labels[1][(yy - 40) ** 2 / 100 + (xx - 30) ** 2 / 400 <= 1] = 3  # the same, turned
+    labels[1][(yy - 40) ** 2 + (xx - 90) ** 2 <= 15**2] = 7  # a disk, only in frame 1
+    intensity = (xx / 120.0).astype(np.float32)[None].repeat(2, axis=0)
+    return labels, intensity
+
+
+def test_run_analysis_arrays(two_frames):
+    labels, intensity = two_frames
+    out, progress = _run(labels, intensity)
+    assert [p[:2] for p in progress] == [(1, 3), (2, 3), (3, 3)]
+    assert list_objects(labels) == out.objects == [(0, 3), (1, 3), (1, 7)]
+    assert list(out.object_labels) == [3, 7]
+    assert out.disk.shape == out.intensity_disk.shape == out.disk_skeleton.shape == (2, 2, 48, 48)
+    assert np.isnan(out.disk[1, 0]).all()  # label 7 is absent from frame 0
+    # rotation invariance: the disk of the turned ellipse has the same values, turned
+    a, b = out.disk[0, 0], out.disk[0, 1]
+    assert np.nanmin(a) < -0.3 and np.nanmax(a) <= 1e-6
+    assert abs(np.nanmean(a) - np.nanmean(b)) < 0.02
+    # skeleton of the disk-shaped object is small; of the ellipse, along its long axis (rows)
+    rr, cc = np.nonzero(out.skeleton[0] == 3)
+    assert np.ptp(rr) > 3 * max(np.ptp(cc), 1)
+    # SDF patch: negative inside (about -radius at the centre), 0 at the outline, positive out
+    s = out.sdf_stack(7)[1]
+    assert s[40, 90] == pytest.approx(-15, abs=1.0)
+    assert abs(s[40, 105]) < 1.0 and s[40, 110] > 3
+    assert np.isnan(out.sdf_stack(7)[0]).all()
+    table = out.table
+    assert list(zip(table["frame"], table["label"], strict=True)) == out.objects
+    assert table.attrs["pfsdm"]["n_fourier"] == 10
+
+
+def test_table_matches_measure(two_frames):
+    from napari_pfsdm import measure
+
+    labels, intensity = two_frames
+    out, _ = _run(labels, intensity, n_fourier=6)
+    ref = measure(labels, intensity, n_fourier=6)
+    assert list(out.table.columns) == list(ref.columns)
+    num = [c for c in ref.columns if c != "error"]
+    np.testing.assert_allclose(out.table[num].to_numpy(float), ref[num].to_numpy(float))
+
+
+def test_pca_matches_the_command_line_reports(two_frames):
+    from napari_pfsdm.batch.reports import pca_scores as reference
+
+    labels, intensity = two_frames
+    out, _ = _run(labels, intensity)
+    mine = pca_scores(out.table, "shape", n_components=3)
+    ref, ratios = reference(out.table, channel="shape", n_components=3)
+    np.testing.assert_allclose(mine[["PC1", "PC2", "PC3"]].to_numpy(),
+                               ref[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
+                               atol=1e-12)
+    np.testing.assert_allclose(mine.attrs["explained_variance_ratio"], ratios)
+
+
+def test_classical_mds_recovers_planar_points():
+    rng = np.random.default_rng(1)
+    pts = rng.normal(size=(12, 2))
+    d = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1))
+    xy = classical_mds(d)
+    d2 = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+    np.testing.assert_allclose(d2, d, atol=1e-9)
+
+
+def test_disk_pixels_centre_and_axes():
+    np.testing.assert_allclose(disk_pixels([[0, 0], [-1, 1]], 48), [[23.5, 23.5], [-0.5, 47.5]])
+
+
+def test_validation_messages():
+    with pytest.raises(ValueError, match="2-D image"):
+        validate_layers_data(np.zeros((2, 2, 2, 2), int), None)
+    with pytest.raises(ValueError, match="integer"):
+        validate_layers_data(np.zeros((4, 4)), None)
+    with pytest.raises(ValueError, match="does not match"):
+        validate_layers_data(np.zeros((4, 4), int), np.zeros((4, 5)))
+    with pytest.raises(ValueError, match="no objects"):
+        _run(np.zeros((10, 10), int))
+
+
+def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):
+    from napari_pfsdm.napari import _export
+
+    labels, intensity = two_frames
+    out, _ = _run(labels, intensity)
+    out.options["intensity_weight"] = 0.5
+    paths = export_results(out, tmp_path, "cells")
+    feats = read_csv(paths[0])
+    num = [c for c in out.table.columns if c != "error"]
+    np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
+    assert feats.attrs["pfsdm"]["intensity_weight"] == 0.5
+    dist = read_csv(tmp_path / "cells_distances.csv")
+    from napari_pfsdm import distance_matrix
+
+    np.testing.assert_array_equal(dist.iloc[:, 2:].to_numpy(float),
+                                  distance_matrix(out.table, intensity_weight=0.5))
+    # an error while writing leaves the previous file untouched and no temporary file
+    before = paths[0].read_bytes()
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("pandas.DataFrame.to_csv", boom)
+    with pytest.raises(OSError, match="disk full"):
+        _export.export_results(out, tmp_path, "cells")
+    assert paths[0].read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
