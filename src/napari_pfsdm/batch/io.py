@@ -276,7 +276,10 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None) 
 
     name = "pfsdm-read-" + tokenize(str(p.resolve()), os.path.getmtime(p), frames.shape)
     meta = np.empty((0,) * frames.ndim, dtype=frames.dtype)
-    return da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
+    arr = da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
+    # lets the batch read a task's frames in one call (see napari_pfsdm.batch.run._Slice)
+    arr._pfsdm_source = frames
+    return arr
 
 
 def find_movies(spec: str | os.PathLike | list) -> list[Path]:

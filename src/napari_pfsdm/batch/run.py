@@ -45,9 +45,14 @@ class _Slice:
     """
 
     def __init__(self, array: Any, start: int, stop: int):
-        self.array = array[start:stop]
+        # a movie from open_movie: read the frames straight from the file in one call
+        self.source = getattr(array, "_pfsdm_source", None)
+        self.span = (start, stop)
+        self.array = array[start:stop] if self.source is None else None
 
     def load(self) -> np.ndarray:
+        if self.source is not None:
+            return self.source[self.span[0]:self.span[1]]
         arr = self.array
         if hasattr(arr, "dask") and hasattr(arr, "compute"):
             return np.asarray(arr.compute(scheduler="sync"))
