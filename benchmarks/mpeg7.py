@@ -9,6 +9,7 @@ Run from the repository root (2 processes by default)::
 The images are read from ``../shared/data/mpeg7`` (relative to the repository root) or the
 folder given as the first argument; they are never copied into the project. Outputs go to
 ``benchmarks/out/``: ``mpeg7_results.csv`` (one row per method and shape set),
+``mpeg7_results.md`` (the same as a Markdown table, with the command line),
 ``mpeg7_per_class.csv`` (bull's-eye per class and method), ``mpeg7_per_class.png`` and
 ``mpeg7_gallery.png``.
 
@@ -47,7 +48,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
-import numpy as np
+# BLAS threads: at most 2 (the benchmark's budget), set before numpy is imported
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "2")
+
+import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -61,6 +66,7 @@ PAD = 4
 DEFAULT_FOLDER = REPO.parent / "shared" / "data" / "mpeg7"
 OUT = HERE / "out"
 CACHE_DIR = Path(tempfile.gettempdir()) / "napari_pfsdm_mpeg7"
+REF = "EFA resolved mirror-aware"  # the reference of the per-class plot
 
 
 # =========================================================================== data
@@ -172,16 +178,30 @@ def load_masks(folder: Path, use_cache: bool = True):
 _WORK: dict = {}
 
 
+class Stopwatch:
+    """``with Stopwatch() as sw: ...`` then ``sw.wall`` and ``sw.cpu`` (this process's CPU
+    seconds, all its threads: insensitive to other jobs on a shared machine)."""
+
+    def __enter__(self):
+        self._w, self._c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc):
+        self.wall = time.perf_counter() - self._w
+        self.cpu = time.process_time() - self._c
+        return False
+
+
 def _timed(i):
     fn, masks = _WORK["fn"], _WORK["masks"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     out = fn(masks[i])
-    return i, out, time.perf_counter() - t0
+    return i, out, time.process_time() - t0
 
 
 def describe(fn, masks: list[np.ndarray], processes: int) -> tuple[list, float, float]:
-    """Run ``fn`` on every mask; returns the descriptors, the mean ms per shape (single-process
-    time measured in the workers) and the wall-clock seconds."""
+    """Run ``fn`` on every mask; returns the descriptors, the mean CPU ms per shape (measured
+    in the workers, so other jobs on the machine do not inflate it) and the wall seconds."""
     _WORK.update(fn=fn, masks=masks)
     n = len(masks)
     out: list = [None] * n
@@ -210,6 +230,7 @@ class Method:
     D: np.ndarray
     ms_per_shape: float
     s_pairs: float
+    s_pairs_cpu: float = float("nan")
     subset_only: bool = False
     notes: str = ""
     extra: dict = field(default_factory=dict)
@@ -218,25 +239,30 @@ class Method:
 def run_peers(masks, processes: int) -> list[Method]:
     out = []
     efa, ms, _ = describe(peers.efa_descriptor, masks, processes)
-    for mirror, name in ((False, "EFA (10 harmonics)"), (True, "EFA mirror-aware")):
-        t0 = time.perf_counter()
-        D = peers.efa_distances(efa, mirror_aware=mirror)
-        out.append(Method(name, D, ms, time.perf_counter() - t0))
+    for mirror, name in ((False, "EFA pyefd"), (True, "EFA pyefd mirror-aware")):
+        with Stopwatch() as sw:
+            D = peers.efa_distances(efa, mirror_aware=mirror)
+        out.append(Method(name, D, ms, sw.wall, sw.cpu))
+        print(f"  {name}: {ms:.2f} ms/shape, all pairs {out[-1].s_pairs:.2f} s")
+    efa, ms, _ = describe(peers.efa_resolved_descriptor, masks, processes)
+    for mirror, name in ((False, "EFA resolved"), (True, REF)):
+        with Stopwatch() as sw:
+            D = peers.efa_resolved_distances(efa, mirror_aware=mirror)
+        out.append(Method(name, D, ms, sw.wall, sw.cpu,
+                          notes="analysis.baselines (180-degree ambiguities removed)"))
         print(f"  {name}: {ms:.2f} ms/shape, all pairs {out[-1].s_pairs:.2f} s")
     gpa, ms, _ = describe(peers.gpa_descriptor, masks, processes)
-    t0 = time.perf_counter()
-    D = peers.gpa_distances(gpa)
-    out.append(Method("GPA (Procrustes, EFA outline)", D, ms, time.perf_counter() - t0))
+    with Stopwatch() as sw:
+        D = peers.gpa_distances(gpa)
+    out.append(Method("GPA (Procrustes, EFA outline)", D, ms, sw.wall, sw.cpu))
     print(f"  GPA: {ms:.2f} ms/shape, all pairs {out[-1].s_pairs:.2f} s")
     hu, ms, _ = describe(peers.hu_descriptor, masks, processes)
-    t0 = time.perf_counter()
-    D = peers.hu_distances(hu)
-    s = time.perf_counter() - t0
+    with Stopwatch() as sw:
+        D = peers.hu_distances(hu)
     err = peers.check_hu_against_opencv(masks, D)
-    out.append(
-        Method("OpenCV matchShapes (Hu, I1)", D, ms, s, notes=f"max |diff| vs cv2 {err:.1e}")
-    )
-    print(f"  Hu: {ms:.2f} ms/shape, all pairs {s:.2f} s (vs cv2.matchShapes: {err:.1e})")
+    out.append(Method("OpenCV matchShapes (Hu, I1)", D, ms, sw.wall, sw.cpu,
+                      notes=f"max |diff| vs cv2.matchShapes {err:.1e}"))
+    print(f"  Hu: {ms:.2f} ms/shape, all pairs {sw.wall:.2f} s (vs cv2.matchShapes: {err:.1e})")
     return out
 
 
@@ -263,11 +289,21 @@ def run_shape_context(masks, subset_idx, processes: int, key: str, use_cache: bo
         s = time.perf_counter() - t0
         CACHE_DIR.mkdir(parents=True, exist_ok=True)
         np.savez(cache, D=D, seconds=s)
-    per_pair = 1e3 * s * processes / n_pairs
-    print(f"  shape context: {ms:.2f} ms/shape, {s:.0f} s for {n_pairs} pairs "
-          f"({per_pair:.2f} ms per pair per process)")
-    return Method("OpenCV shape context (100 pts)", D, ms, s, subset_only=True,
-                  notes=f"{per_pair:.1f} ms/pair/process; i<j only")
+    # CPU time per pair on a sample, in this process (the wall time above depends on the load)
+    import cv2
+
+    ext = cv2.createShapeContextDistanceExtractor()
+    rng = np.random.default_rng(2)
+    sample = rng.choice(len(sub), size=(100, 2))
+    with Stopwatch() as sw:
+        for i, j in sample:
+            ext.computeDistance(descs[i], descs[j])
+    cpu_pair = sw.cpu / len(sample)
+    print(f"  shape context: {ms:.2f} ms/shape, {s:.0f} s wall for {n_pairs} pairs; "
+          f"{1e3 * cpu_pair:.1f} CPU ms per pair")
+    return Method("OpenCV shape context (100 pts)", D, ms, s, cpu_pair * n_pairs,
+                  subset_only=True,
+                  notes=f"{1e3 * cpu_pair:.1f} CPU ms/pair; d(i<j) used for both orders")
 
 
 # --------------------------------------------------------------------------- PF-SDM variants
@@ -394,14 +430,14 @@ def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
             print(f"  pfsdm({dict(pkey) or ''}): {ms:.2f} ms/shape, {wall:.0f} s wall, "
                   f"mean folded fraction {np.nanmean(folded):.3f}")
         res, ms, folded = results_by_popts[pkey]
-        t0 = time.perf_counter()
         try:
-            D = np.asarray(api.distance_matrix(res, **d_opts), dtype=float)
+            with Stopwatch() as sw:
+                D = np.asarray(api.distance_matrix(res, **d_opts), dtype=float)
         except (ValueError, TypeError) as exc:
             print(f"  {variant_name(opts, defaults)} failed: {exc}")
             continue
-        s = time.perf_counter() - t0
-        out.append(Method(variant_name(opts, defaults), D, ms, s, extra={"opts": opts},
+        s = sw.wall
+        out.append(Method(variant_name(opts, defaults), D, ms, s, sw.cpu, extra={"opts": opts},
                           notes=f"mean folded fraction {folded:.3f}"))
         print(f"  {out[-1].name}: all pairs {s:.2f} s")
     return out
@@ -431,6 +467,7 @@ def score_rows(methods: list[Method], labels, subset_idx) -> list[dict]:
                 "loo_1nn_pct": round(loo_1nn(D, lab), 2),
                 "ms_per_shape": round(m.ms_per_shape, 3),
                 "s_all_pairs": round(m.s_pairs, 3),
+                "cpu_s_all_pairs": round(m.s_pairs_cpu, 3),
                 "us_per_pair": round(1e6 * m.s_pairs / (n * (n - 1) / 2 if not m.subset_only
                                                        else n_pairs), 3),
                 "notes": m.notes,
@@ -438,14 +475,19 @@ def score_rows(methods: list[Method], labels, subset_idx) -> list[dict]:
     return rows
 
 
-def print_table(rows: list[dict]) -> None:
-    print()
-    print("| method | shapes | bull's-eye % | LOO 1-NN % | ms/shape | s all pairs | µs/pair |")
-    print("|---|---|---|---|---|---|---|")
+def markdown_table(rows: list[dict]) -> str:
+    lines = [
+        "| method | shapes | bull's-eye % | LOO 1-NN % | CPU ms/shape | s all pairs (wall) "
+        "| CPU s all pairs |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        print(f"| {r['method']} | {r['shapes']} ({r['n']}) | {r['bullseye_pct']:.2f} | "
-              f"{r['loo_1nn_pct']:.2f} | {r['ms_per_shape']:.2f} | {r['s_all_pairs']:.2f} | "
-              f"{r['us_per_pair']:.3g} |")
+        lines.append(
+            f"| {r['method']} | {r['shapes']} ({r['n']}) | {r['bullseye_pct']:.2f} | "
+            f"{r['loo_1nn_pct']:.2f} | {r['ms_per_shape']:.2f} | {r['s_all_pairs']:.2f} | "
+            f"{r['cpu_s_all_pairs']:.2f} |"
+        )
+    return "\n".join(lines)
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
@@ -539,13 +581,16 @@ def main(argv=None) -> int:
     ap.add_argument("--variants", nargs="*", default=["all"], metavar="SPEC",
                     help="PF-SDM variants: 'all' (every combination of the core's options), "
                          "'default', 'none', or specs like radii=boundary,invariance=align")
+    ap.add_argument("--main", default="default", metavar="SPEC",
+                    help="the PF-SDM variant drawn in the PNGs (default: the core's defaults)")
     ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--classes", type=int, default=0, metavar="N",
+                    help="quick check: use only the first N classes for everything (0 = all)")
     ap.add_argument("--no-peers", action="store_true", help="skip EFA, GPA and Hu")
     ap.add_argument("--no-cache", action="store_true", help="recompute the cached masks / SC")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
+    print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores shared)")
 
     print(f"MPEG-7 folder: {args.folder}")
     masks, labels, names, stats = load_masks(args.folder, use_cache=not args.no_cache)
@@ -554,6 +599,13 @@ def main(argv=None) -> int:
           f"{stats['split']} split by the shrinking (largest kept), {stats['holes']} with a "
           f"hole closed by the shrinking (filled)")
     classes = sorted(set(labels))
+    if args.classes:
+        keep = np.isin(labels, classes[: args.classes])
+        masks = [m for m, k in zip(masks, keep, strict=True) if k]
+        names = [nm for nm, k in zip(names, keep, strict=True) if k]
+        labels = labels[keep]
+        classes = classes[: args.classes]
+        print(f"quick check on the first {args.classes} classes ({len(masks)} shapes)")
     subset_idx = None
     if args.subset > 0:
         keep = set(classes[: args.subset])
@@ -572,8 +624,14 @@ def main(argv=None) -> int:
                                          use_cache=not args.no_cache))
 
     rows = score_rows(methods, labels, subset_idx)
-    print_table(rows)
+    table_md = markdown_table(rows)
+    print("\n" + table_md)
+    print(f"load average at end: {os.getloadavg()[0]:.1f}")
     args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "mpeg7_results.md").write_text(
+        f"`{' '.join(['benchmarks/mpeg7.py', *(argv if argv is not None else sys.argv[1:])])}`"
+        f"\n\n{table_md}\n"
+    )
     write_csv(args.out / "mpeg7_results.csv", rows)
     classes, table = per_class_table(methods, labels)
     with open(args.out / "mpeg7_per_class.csv", "w", newline="") as fh:
@@ -587,10 +645,14 @@ def main(argv=None) -> int:
     if not full:
         print(f"wrote {args.out}/mpeg7_results.csv, mpeg7_per_class.csv (no plots)")
         return 0
-    main_m = next((m for m in full if m.name == "PF-SDM defaults"), None)
+    main_name = "PF-SDM defaults"
+    if args.main != "default":
+        main_name = next((m.name for m in full if m.extra.get("opts") == parse_variant(args.main)),
+                         args.main)
+    main_m = next((m for m in full if m.name == main_name), None)
     if main_m is None:
         main_m = next((m for m in full if m.name.startswith("PF-SDM")), None)
-    ref = "EFA mirror-aware"
+    ref = REF
     if main_m is None:
         main_m = full[0]
     if ref in table:

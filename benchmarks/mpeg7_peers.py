@@ -6,10 +6,15 @@ preprocessed, padded boolean masks of ``mpeg7.py`` (the object does not touch th
 
 * EFA: elliptic Fourier analysis (Kuhl & Giardina 1982) with ``pyefd``, 10 harmonics,
   ``normalize=True`` (rotation, scale and start-point normalised), the three constant
-  coefficients dropped, Euclidean distance. The outline is the marching-squares contour
+  coefficients dropped, Euclidean distance: plain pyefd, as a user would run it (the figure
+  quoted in issue 7). The outline is the marching-squares contour
   (``skimage.measure.find_contours`` at 0.5), the same kind of contour PF-SDM uses.
 * mirror-aware EFA: the same, with the distance the minimum over the second outline and its
   mirror image (EFA is not reflection invariant; MPEG-7 classes hold mirrored members).
+* resolved EFA: the project's own EFA baseline (``napari_pfsdm.analysis.baselines``, also
+  used by the five-shape benchmark): the same pyefd descriptors with the two 180°
+  ambiguities of the normalisation (direction of the first major axis; start point at either
+  end of it) removed. Plain and mirror-aware.
 * GPA: Procrustes analysis of 64 points equidistant in arc length on the 10-harmonic EFA
   reconstruction; full Procrustes distance minimised over the start point (all cyclic shifts
   at once by FFT) and over reflection.
@@ -83,6 +88,25 @@ def efa_distances(descs: list[np.ndarray], *, mirror_aware: bool) -> np.ndarray:
         D = np.minimum(D, np.minimum(Dm, Dm.T))
     np.fill_diagonal(D, 0.0)
     return D
+
+
+# --------------------------------------------------------------------------- resolved EFA
+def efa_resolved_descriptor(mask: np.ndarray) -> np.ndarray:
+    """(2, 40) EFA of the project's baselines (``napari_pfsdm.analysis.baselines``): pyefd's
+    normalisation with its 180° ambiguity removed (``a_1 = +1``), and of the mirror image."""
+    from napari_pfsdm.analysis.baselines import efa_descriptors
+
+    return np.vstack([efa_descriptors([mask]), efa_descriptors([mask], mirror=True)])
+
+
+def efa_resolved_distances(descs: list[np.ndarray], *, mirror_aware: bool) -> np.ndarray:
+    """(n, n) ``baselines.efa_distance_matrix``: also minimised over the two start points
+    that the normalisation cannot tell apart (the even harmonics change sign)."""
+    from napari_pfsdm.analysis.baselines import efa_distance_matrix
+
+    X = np.stack([d[0] for d in descs])
+    Xm = np.stack([d[1] for d in descs])
+    return efa_distance_matrix(descriptors=X, mirrored=Xm, mirror_aware=mirror_aware)
 
 
 # --------------------------------------------------------------------------- GPA
