@@ -10,12 +10,13 @@ import numpy as np
 import pandas as pd
 import pytest
 import tifffile
-import zarr
 
 import napari_pfsdm
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch.io import check_labels
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+zarr = pytest.importorskip("zarr")  # the [batch] extra
 
 
 def make_movie(n_frames: int = 4, shape=(64, 80)) -> tuple[np.ndarray, np.ndarray]:

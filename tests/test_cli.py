@@ -11,11 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 import tifffile
-import zarr
 
 import napari_pfsdm
 from napari_pfsdm.cli import main
 from napari_pfsdm.io_csv import read_table_csv
+
+zarr = pytest.importorskip("zarr")  # the [batch] extra
 
 OPTS = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "threads", "-q"]
 KW = {"n_fourier": 6, "n_radii": 8}
