@@ -97,7 +97,7 @@ def default_frames_per_task(
         workers = 1 if obj == "sync" else (num_workers or os.cpu_count() or 1)
     else:
         try:
-            workers = sum(obj.nthreads().values()) if kind == "distributed" else 8
+            workers = sum(obj.nthreads().values())
         except Exception:  # pragma: no cover - a client that cannot answer
             workers = 8
     frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
@@ -133,7 +133,6 @@ def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, A
     if hasattr(scheduler, "submit") and hasattr(scheduler, "gather"):
         return "distributed", scheduler
     raise ValueError(f"unknown scheduler {scheduler!r}")
-
 
 
 @contextlib.contextmanager
@@ -213,25 +212,26 @@ def measure_dask(
         labels = labels[None]
         intensity = intensity[None] if intensity is not None else None
     n_frames = int(labels.shape[0])
-    if frames_per_task is None:
-        frames_per_task = default_frames_per_task(labels, intensity, kind, obj, num_workers)
-    spans = _frame_chunks(n_frames, frames_per_task)
-    args = [
-        (
-            _Slice(labels, s, e),
-            _Slice(intensity, s, e) if intensity is not None else None,
-            s,
-            options,
-        )
-        for s, e in spans
-    ]
-    sizes = [e - s for s, e in spans]
 
-    if kind == "local":
-        tables = _run_local(args, sizes, obj, num_workers, progress, pool)
-    else:
-        with _client_for(kind, obj) as cl:
-            tables = _run_distributed(args, sizes, cl, progress)
+    with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
+        kind = "local" if kind == "local" else "distributed"
+        fpt = frames_per_task or default_frames_per_task(
+            labels, intensity, kind, handle, num_workers)
+        spans = _frame_chunks(n_frames, fpt)
+        args = [
+            (
+                _Slice(labels, s, e),
+                _Slice(intensity, s, e) if intensity is not None else None,
+                s,
+                options,
+            )
+            for s, e in spans
+        ]
+        sizes = [e - s for s, e in spans]
+        if kind == "local":
+            tables = _run_local(args, sizes, handle, num_workers, progress, pool)
+        else:
+            tables = _run_distributed(args, sizes, handle, progress)
 
     if tables:
         attrs = tables[0].attrs.copy()
