@@ -57,6 +57,10 @@ def test_run_analysis_arrays(two_frames):
     assert s[40, 90] == pytest.approx(-15, abs=1.0)
     assert abs(s[40, 105]) < 1.0 and s[40, 110] > 3
     assert np.isnan(out.sdf_stack(7)[0]).all()
+    window, (r0, c0) = out.sdf_window(7)
+    assert window.shape[0] == 2 and window.shape[1] < 80 and window.shape[2] < 120
+    np.testing.assert_array_equal(
+        window, out.sdf_stack(7)[:, r0:r0 + window.shape[1], c0:c0 + window.shape[2]])
     table = out.table
     assert list(zip(table["frame"], table["label"], strict=True)) == out.objects
     assert table.attrs["pfsdm"]["n_fourier"] == 10

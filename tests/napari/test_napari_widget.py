@@ -18,6 +18,15 @@ def _expected_objects(labels: np.ndarray) -> list[tuple[int, int]]:
     return [(t, int(lab)) for t in range(labels.shape[0]) for lab in np.unique(labels[t]) if lab]
 
 
+def _full_frame(sdf_layer, labels_layer) -> np.ndarray:
+    """The SDF layer's window put back into a full-size stack (NaN elsewhere)."""
+    full = np.full(labels_layer.data.shape, np.nan, dtype=np.float32)
+    r0, c0 = (int(round(v)) for v in sdf_layer.translate[-2:])
+    h, w = sdf_layer.data.shape[-2:]
+    full[..., r0:r0 + h, c0:c0 + w] = sdf_layer.data
+    return full
+
+
 def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     labels_layer = viewer.layers["gastruloids"]
@@ -36,7 +45,8 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     assert viewer.layers[names["intensity_disk"]].data.shape == (n_obj, t, size, size)
     assert viewer.layers[names["disk_skeleton"]].data.shape == (n_obj, t, size, size)
     assert viewer.layers[names["skeleton"]].data.shape == (t, y, x)
-    assert viewer.layers[names["sdf"]].data.shape == (t, y, x)
+    sdf_layer = viewer.layers[names["sdf"]]
+    assert sdf_layer.data.ndim == 3 and sdf_layer.data.shape[0] == t
     # the disk is NaN outside the unit disk and finite inside for every present object
     disk = viewer.layers[names["disk"]].data
     assert np.isnan(disk[0, 0, 0, 0]) and np.isfinite(disk[:, :, size // 2, size // 2]).all()
@@ -46,7 +56,7 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     assert on.sum() > 10 * t
     assert np.mean(labels_layer.data[on] == skel[on]) > 0.95
     # the SDF of the selected object: negative inside it, positive around it, NaN far away
-    sdf = viewer.layers[names["sdf"]].data
+    sdf = _full_frame(sdf_layer, labels_layer)
     label = labels_layer.selected_label
     inside = labels_layer.data == label
     assert np.nanmax(sdf[inside]) <= 1.0 and np.nanmin(sdf[inside]) < -3
@@ -77,7 +87,7 @@ def test_selecting_a_label_updates_disk_and_sdf(viewer_widget, qtbot):
     names = _layers.layer_names("gastruloids")
     labels_layer.selected_label = 4
     assert int(round(viewer.dims.point[0])) == out.object_index(4)
-    sdf = viewer.layers[names["sdf"]].data
+    sdf = _full_frame(viewer.layers[names["sdf"]], labels_layer)
     assert np.nanmin(sdf[labels_layer.data == 4]) < -3
     assert np.all(np.isnan(sdf[labels_layer.data == 2]))
     # moving the object slider selects the object

@@ -14,8 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-#: Side length (pixels) of one rendered unit disk.
+#: Largest side length (pixels) of one rendered unit disk.
 DISK_SIZE = 96
+#: Budget of disk pixels over all (object, frame) slots: many objects get smaller disks.
+DISK_PIXEL_BUDGET = 40_000_000
 #: The columns before the features, as in :func:`napari_pfsdm.measure`.
 BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
                 "n_components", "n_holes", "folded_fraction", "error"]
@@ -45,9 +47,9 @@ class AnalysisOutput:
         disk and where an object is absent); ``(O, S, S)`` for a 2-D image.
         ``intensity_disk`` is None without an intensity image.
     disk_skeleton
-        Same shape as ``disk``, uint32: the skeleton pushed onto the disk (value = label).
+        Same shape as ``disk``: the skeleton pushed onto the disk (value = label).
     skeleton
-        Same shape as the labels, uint32: the skeleton of every object in image space.
+        Same shape as the labels: the skeleton of every object in image space (value = label).
     sdf_patches
         ``{(frame, label): (row0, col0, patch)}``: the SDF (pixels, negative inside) on the object's
         bounding box plus a margin.
@@ -78,6 +80,27 @@ class AnalysisOutput:
         if idx < len(self.object_labels) and self.object_labels[idx] == label:
             return idx
         return None
+
+    def sdf_window(self, label: int) -> tuple[np.ndarray, tuple[int, int]]:
+        """SDF of ``label`` on the union of its patches over time: (array, (row0, col0)).
+
+        The array is (T, h, w) for a time-lapse ((h, w) for a 2-D image), NaN where the object
+        is absent; ``(row0, col0)`` is its top-left pixel in the frame. Memory stays small for
+        large frames and long movies.
+        """
+        items = [(f, p) for (f, lab), p in self.sdf_patches.items() if lab == label]
+        if not items:
+            shape = (self.n_frames, 1, 1) if self.time_lapse else (1, 1)
+            return np.full(shape, np.nan, dtype=np.float32), (0, 0)
+        r0 = min(p[0] for _, p in items)
+        c0 = min(p[1] for _, p in items)
+        r1 = max(p[0] + p[2].shape[0] for _, p in items)
+        c1 = max(p[1] + p[2].shape[1] for _, p in items)
+        out = np.full((self.n_frames, r1 - r0, c1 - c0), np.nan, dtype=np.float32)
+        for frame, (pr, pc, patch) in items:
+            h, w = patch.shape
+            out[frame, pr - r0:pr - r0 + h, pc - c0:pc - c0 + w] = patch
+        return (out if self.time_lapse else out[0]), (r0, c0)
 
     def sdf_stack(self, label: int) -> np.ndarray:
         """SDF of ``label`` in every frame, shaped like the labels (NaN away from the object)."""
@@ -248,11 +271,17 @@ def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd
     return table
 
 
+def disk_size_for(n_slots: int, largest: int = DISK_SIZE) -> int:
+    """Disk side so that ``n_slots`` (object × frame) disks stay within the pixel budget."""
+    side = int(np.sqrt(DISK_PIXEL_BUDGET / max(n_slots, 1)))
+    return int(np.clip(side, 24, largest))
+
+
 def run_analysis(
     labels,
     intensity=None,
     options: dict | None = None,
-    disk_size: int = DISK_SIZE,
+    disk_size: int | None = None,
 ) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
     """Analyse every (frame, label) object; a generator for worker threads.
 
@@ -273,10 +302,13 @@ def run_analysis(
     total = len(objects)
     object_labels = np.unique([lab for _, lab in objects])
     n_obj = len(object_labels)
+    if disk_size is None:
+        disk_size = disk_size_for(n_obj * n_frames)
     disk = np.full((n_obj, n_frames, disk_size, disk_size), np.nan, dtype=np.float32)
     idisk = disk.copy() if intensity is not None else None
-    dskel = np.zeros(disk.shape, dtype=np.uint32)
-    skel = np.zeros((n_frames, *frame_shape), dtype=np.uint32)
+    label_dtype = np.min_scalar_type(int(object_labels.max()))
+    dskel = np.zeros(disk.shape, dtype=label_dtype)
+    skel = np.zeros((n_frames, *frame_shape), dtype=label_dtype)
     patches: dict = {}
     collected = []
     done = 0

@@ -53,6 +53,14 @@ def _show_object(viewer, output: AnalysisOutput, label: int) -> None:
         viewer.dims.set_point(0, idx)
 
 
+def _window_translate(labels_layer, corner: tuple[int, int]) -> tuple:
+    """World translate of an array whose pixel (0, 0) is the labels' pixel ``corner``."""
+    t = list(labels_layer.translate)
+    t[-2] += corner[0] * labels_layer.scale[-2]
+    t[-1] += corner[1] * labels_layer.scale[-1]
+    return tuple(t)
+
+
 def _name_axes(viewer, labels_layer) -> None:
     """Call the slider axes 'object' and 'frame' when the dims are exactly ours."""
     names = ["object", "frame", "y", "x"] if labels_layer.ndim == 3 else ["object", "y", "x"]
@@ -145,9 +153,10 @@ def show_results_steps(viewer, labels_layer, output: AnalysisOutput) -> list:
         _replace(viewer, names["skeleton"], "labels", output.skeleton, **geo)
 
     def sdf():
-        stack = output.sdf_stack(label)
-        layer = _replace(viewer, names["sdf"], "image", stack, colormap="RdBu_r",
-                         contrast_limits=_limits(stack), opacity=0.6, **geo)
+        window, corner = output.sdf_window(label)
+        layer = _replace(viewer, names["sdf"], "image", window, colormap="RdBu_r",
+                         contrast_limits=_limits(window), opacity=0.6, scale=geo["scale"],
+                         translate=_window_translate(labels_layer, corner))
         layer.metadata["pfsdm_label"] = label
 
     def select():
@@ -175,7 +184,8 @@ def update_sdf(viewer, labels_layer, output: AnalysisOutput, label: int) -> None
     layer = viewer.layers[name]
     if layer.metadata.get("pfsdm_label") == label:
         return
-    sdf = output.sdf_stack(label)
-    layer.data = sdf
-    layer.contrast_limits = _limits(sdf)
+    window, corner = output.sdf_window(label)
+    layer.translate = _window_translate(labels_layer, corner)
+    layer.data = window
+    layer.contrast_limits = _limits(window)
     layer.metadata["pfsdm_label"] = label

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from napari.layers import Labels
 from napari.utils.notifications import show_error
@@ -300,16 +301,18 @@ class TrajectoryPlotWidget(_LinkedPlot):
         groups = self._group_of()
         by_group = self.color_by.currentText() == "group" and groups
         names = sorted(set(groups.values())) if by_group else []
-        cmap = self.figure.colorbar if False else None  # noqa: F841 - keep the namespace small
         import matplotlib
 
         tab = matplotlib.colormaps["tab10"]
-        for lab in np.unique(labels):
-            sel = labels == lab
-            order = np.argsort(frames[sel])
-            color = (tab(names.index(groups[lab]) % 10) if by_group and lab in groups
-                     else c["grid"])
-            ax.plot(x[sel][order], y[sel][order], "-", color=color, lw=1.0, alpha=0.8, zorder=1)
+        segments, seg_colors = [], []
+        for lab in np.unique(labels):  # one line per object through time
+            sel = np.flatnonzero(labels == lab)
+            sel = sel[np.argsort(frames[sel])]
+            segments.append(np.column_stack([x[sel], y[sel]]))
+            seg_colors.append(tab(names.index(groups[lab]) % 10) if by_group and lab in groups
+                              else c["grid"])
+        ax.add_collection(LineCollection(segments, colors=seg_colors, linewidths=1.0,
+                                         alpha=0.8, zorder=1))
         if by_group:
             colors = [tab(names.index(groups[lab]) % 10) if lab in groups else c["grid"]
                       for lab in labels]
