@@ -303,7 +303,9 @@ def run_analysis(
     object_labels = np.unique([lab for _, lab in objects])
     n_obj = len(object_labels)
     if disk_size is None:
-        disk_size = disk_size_for(n_obj * n_frames)
+        # rendering evaluates the SDF at ~size²/2 points: cheaper disks for the costly options
+        costly = options.get("sdf") == "viscous" or options.get("mapping") == "bijective"
+        disk_size = disk_size_for(n_obj * n_frames, largest=64 if costly else DISK_SIZE)
     disk = np.full((n_obj, n_frames, disk_size, disk_size), np.nan, dtype=np.float32)
     idisk = disk.copy() if intensity is not None else None
     label_dtype = np.min_scalar_type(int(object_labels.max()))

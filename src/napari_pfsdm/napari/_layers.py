@@ -21,6 +21,13 @@ def layer_names(source: str) -> dict[str, str]:
     return {key: f"{source} {suffix}" for key, suffix in SUFFIXES.items()}
 
 
+def _shape(layer) -> tuple:
+    """Full-resolution data shape (also for multiscale layers)."""
+    if getattr(layer, "multiscale", False):
+        return tuple(int(n) for n in layer.level_shapes[0])
+    return tuple(layer.data.shape)
+
+
 def frame_axis(viewer, labels_layer) -> int | None:
     """World axis of the frames (None for a 2-D Labels layer)."""
     if labels_layer.ndim != 3:
@@ -35,7 +42,7 @@ def current_frame(viewer, labels_layer) -> int:
         return 0
     world = viewer.dims.point[ax]
     t = (world - labels_layer.translate[0]) / labels_layer.scale[0]
-    return int(np.clip(np.rint(t), 0, labels_layer.data.shape[0] - 1))
+    return int(np.clip(np.rint(t), 0, _shape(labels_layer)[0] - 1))
 
 
 def go_to(viewer, labels_layer, output: AnalysisOutput, frame: int, label: int) -> None:
@@ -70,7 +77,7 @@ def _name_axes(viewer, labels_layer) -> None:
 
 def _disk_geometry(labels_layer, output: AnalysisOutput, slot: int):
     """Scale and translate that put a disk image beside the labels (slot 0, 1, ...)."""
-    ny, nx = labels_layer.data.shape[-2:]
+    ny, nx = _shape(labels_layer)[-2:]
     sy, sx = labels_layer.scale[-2:]
     ty, tx = labels_layer.translate[-2:]
     size = output.disk.shape[-1]

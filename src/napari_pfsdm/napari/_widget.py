@@ -58,8 +58,13 @@ TIPS = {
 }
 
 
+def _data(layer):
+    """The full-resolution array of a layer (the first level of a multiscale layer)."""
+    return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
+
+
 def _fits(image: Image, labels: Labels) -> bool:
-    same = tuple(image.data.shape) == tuple(labels.data.shape)
+    same = tuple(_data(image).shape) == tuple(_data(labels).shape)
     return same and not getattr(image, "rgb", False)
 
 
@@ -88,15 +93,21 @@ class AnalysisWidget(QWidget):
         self._linked_layer: Labels | None = None
         self._showing = False
 
+        from napari_pfsdm import DEFAULTS
+
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.image_combo = QComboBox(toolTip=TIPS["image"])
-        self.n_fourier = QSpinBox(minimum=1, maximum=32, value=10, toolTip=TIPS["n_fourier"])
+        self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(DEFAULTS["n_fourier"]),
+                                  toolTip=TIPS["n_fourier"])
         self.mapping = QComboBox(toolTip=TIPS["mapping"])
         self.mapping.addItems(["harmonic", "bijective", "radial"])
+        self.mapping.setCurrentText(DEFAULTS["mapping"])
         self.sdf = QComboBox(toolTip=TIPS["sdf"])
         self.sdf.addItems(["exact", "viscous"])
+        self.sdf.setCurrentText(DEFAULTS["sdf"])
         self.viscosity = QDoubleSpinBox(minimum=0.005, maximum=0.5, singleStep=0.01, decimals=3,
-                                        value=0.05, toolTip=TIPS["viscosity"])
+                                        value=float(DEFAULTS["viscosity"]),
+                                        toolTip=TIPS["viscosity"])
         self.intensity_weight = QDoubleSpinBox(minimum=0.0, maximum=10.0, singleStep=0.1,
                                                value=1.0, toolTip=TIPS["intensity_weight"])
         self.run_button = QPushButton("Run", toolTip=TIPS["run"])
@@ -217,7 +228,7 @@ class AnalysisWidget(QWidget):
             raise ValueError(f"'{image.name}' is not an Image layer.")
         if image is not None and getattr(image, "rgb", False):
             raise ValueError(f"'{image.name}' is an RGB image: pick a single-channel image.")
-        validate_layers_data(labels.data, None if image is None else image.data)
+        validate_layers_data(_data(labels), None if image is None else _data(image))
 
     def _message(self, text: str, error: bool = False) -> None:
         self.status.setText(text)
@@ -249,7 +260,7 @@ class AnalysisWidget(QWidget):
         self._last_progress = 0.0
         self._t0 = time.perf_counter()
         # errors are shown by _on_error (not re-raised into the event loop)
-        worker = _analysis_worker(labels.data, None if image is None else image.data, options,
+        worker = _analysis_worker(_data(labels), None if image is None else _data(image), options,
                                   _ignore_errors=True)
         worker.yielded.connect(self._on_progress)
         worker.returned.connect(lambda out: self._on_returned(labels, out, weight))
