@@ -94,9 +94,12 @@ class _LinkedPlot(QWidget):
         for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed):
             event.connect(self._refresh_layers)
         napari_viewer.dims.events.current_step.connect(self._on_step)
-        napari_viewer.events.theme.connect(lambda e: self.redraw())
+        napari_viewer.events.theme.connect(self._on_theme)
         self.destroyed.connect(self._disconnect)
         self._refresh_layers()
+
+    def _on_theme(self, event=None) -> None:
+        self.redraw()
 
     def _disconnect(self, *args) -> None:
         try:
