@@ -126,7 +126,7 @@ def test_classify_prints_scores(tmp_path, capsys):
     assert main(["classify", str(feats), "--groups", str(groups), "--frames", "0-1",
                  "--positive", "multi", "-o", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "fusion (nested)" in printed and "16 objects (8 multi" in printed
+    assert "fusion (nested)" in printed and "16 objects (8 multi, 8 single)" in printed
     scores = read_table_csv(out).set_index("features")
     assert scores.loc["shape", "balanced_accuracy_mean"] > 0.9  # separable by construction
 

@@ -292,7 +292,8 @@ def cmd_classify(args: argparse.Namespace) -> int:
     if not has_int:
         summary = summary.loc[["shape"]]
     n1 = int(y.sum())
-    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} other), frames {frames}, "
+    other = names[0] if positive == names[1] else names[1]
+    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} {other}), frames {frames}, "
          f"{len(splits)} stratified splits ({args.test_size:.0%} test)", args.quiet)
     with np.printoptions(precision=3):
         import pandas as pd
