@@ -304,6 +304,23 @@ def _run_distributed(
 # Resumable batches over many movies
 # ---------------------------------------------------------------------------------------------
 
+def _exit_with_parent(parent_pid: int) -> None:
+    """Pool worker initializer: exit when the parent dies (e.g. ``kill -9`` of ``pfsdm``).
+
+    Without it, the workers of a killed run would wait forever for work that never comes.
+    """
+    import threading
+    import time
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            time.sleep(1.0)
+
+    threading.Thread(target=watch, daemon=True, name="pfsdm-parent-watch").start()
+
+
 def _have_parquet() -> bool:
     try:
         import pyarrow  # noqa: F401
@@ -427,6 +444,8 @@ def run_batch(
         pool_cm = ProcessPoolExecutor(
             max_workers=num_workers or os.cpu_count() or 1,
             mp_context=multiprocessing.get_context("spawn"),
+            initializer=_exit_with_parent,
+            initargs=(os.getpid(),),
         )
     tables = []
     attrs: dict = {}
