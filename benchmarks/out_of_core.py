@@ -14,7 +14,7 @@
    the movie's size, checks the table (one row per object and frame, no errors), and deletes
    the movie (unless --keep).
 
-Run once (about 10 minutes on 2 busy cores)::
+Run once (measured: 39 s to write + 106 s to measure on 2 busy cores)::
 
     .venv/bin/python benchmarks/out_of_core.py --out benchmarks/out
 """
