@@ -300,3 +300,18 @@ def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
         run_batch(movies, tmp_path / "f.csv", scheduler="sync")
     parts = tmp_path / "f.csv.parts"
     assert not (tmp_path / "f.csv").exists() and not any(parts.iterdir())
+
+
+def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
+    pytest.importorskip("pyarrow")
+    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    labels, _ = make_movie(2)
+    write_zarr(tmp_path / "a.zarr", labels)
+    movies = pair_movies(find_movies(tmp_path / "a.zarr"))
+    first = run_batch(movies, tmp_path / "f.csv", scheduler="sync")
+    assert [p.suffix for p in sorted((tmp_path / "f.csv.parts").iterdir())] == [".json",
+                                                                                ".parquet"]
+    log = []
+    again = run_batch(movies, tmp_path / "f.csv", scheduler="sync", log=log.append)
+    assert log[0].startswith("skipped a")
+    pd.testing.assert_frame_equal(again, first)
