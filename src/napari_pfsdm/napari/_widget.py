@@ -426,9 +426,13 @@ class AnalysisWidget(QWidget):
         window = self.viewer.window
         for cls, name in ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
                           (ShapeComparisonWidget, "PF-SDM shape comparison")):
-            if name in getattr(window, "dock_widgets", {}):
+            try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice
+                window.add_plugin_dock_widget("napari-pfsdm", name)
                 continue
-            window.add_dock_widget(cls(self.viewer), name=name, area="right")
+            except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
+                pass
+            if name not in getattr(window, "dock_widgets", {}):
+                window.add_dock_widget(cls(self.viewer), name=name, area="right")
 
 
 @thread_worker(start_thread=False)
