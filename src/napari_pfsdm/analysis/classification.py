@@ -1,0 +1,422 @@
+"""Predict a per-object outcome from feature trajectories (the paper's classification).
+
+The protocol of the paper, with one correction:
+
+* one feature vector per object: the concatenation of its features at the chosen frames, for
+  the shape (columns ``shape_*`` of a :func:`napari_pfsdm.measure` table) and for the intensity
+  (columns ``intensity_*``) separately (:func:`feature_matrix`);
+* standardised features, logistic regression with balanced class weights, one classifier per
+  channel (:func:`logistic_model`);
+* late fusion ``p = alpha * p_shape + (1 - alpha) * p_intensity`` (:func:`fuse`);
+* repeated stratified shuffle splits, 5 x 20 % test by default (:func:`make_splits`), accuracy
+  and balanced accuracy, mean and standard deviation over the splits (:func:`summarize`).
+
+The paper chose ``alpha`` to maximise the balanced accuracy *on the test split*, which is
+optimistic. :func:`evaluate` reports both: ``fusion (nested)`` chooses ``alpha`` from
+out-of-fold predictions inside the training split only (it never sees a test label), and
+``fusion (optimistic)`` repeats the paper's choice on the test split, labelled as such.
+
+The evaluation is model-agnostic: a model is any callable ``fit_predict(train_idx, predict_idx)
+-> (p_shape, p_intensity)`` that trains on the objects ``train_idx`` (and may read their labels
+only) and returns class-1 probabilities for ``predict_idx``. The pixel baselines in
+:mod:`napari_pfsdm.analysis.pixel_baseline` plug into the same splits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+from sklearn.linear_model import LogisticRegression
+from sklearn.metrics import accuracy_score, balanced_accuracy_score
+from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+
+__all__ = [
+    "ALPHAS",
+    "FEATURE_SETS",
+    "best_alpha",
+    "evaluate",
+    "feature_matrix",
+    "fuse",
+    "logistic_model",
+    "make_splits",
+    "measure_movies",
+    "parse_frames",
+    "summarize",
+]
+
+#: Grid of fusion weights searched for alpha.
+ALPHAS = np.round(np.linspace(0.0, 1.0, 21), 10)
+#: Rows of the result tables, in display order.
+FEATURE_SETS = ("shape", "intensity", "fusion (nested)", "fusion (optimistic, test-tuned)")
+
+FitPredict = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def parse_frames(
+    frames: str | int | Iterable[int] | None, n_frames: int | None = None
+) -> list[int]:
+    """Frame indices from ``"0-9"``, ``"0,2,4"``, ``"0-4,8"``, an int, a sequence or None (all).
+
+    Parameters
+    ----------
+    frames : str, int, iterable of int or None
+        The selection; ranges are inclusive (``"0-9"`` is ten frames).
+    n_frames : int, optional
+        Number of frames available; needed for ``None`` and used to check the selection.
+
+    Returns
+    -------
+    list of int
+        Sorted, unique frame indices.
+    """
+    if frames is None:
+        if n_frames is None:
+            raise ValueError("frames=None means all frames, which needs n_frames.")
+        out = list(range(n_frames))
+    elif isinstance(frames, str):
+        out = []
+        for part in frames.replace(" ", "").split(","):
+            if not part:
+                continue
+            if "-" in part:
+                lo, hi = part.split("-", 1)
+                try:
+                    a, b = int(lo), int(hi)
+                except ValueError:
+                    raise ValueError(
+                        f"could not read the frame range {part!r}; write e.g. '0-9' or '0,3,5'."
+                    ) from None
+                if b < a:
+                    raise ValueError(f"frame range {part!r} is empty: write it low-high.")
+                out.extend(range(a, b + 1))
+            else:
+                try:
+                    out.append(int(part))
+                except ValueError:
+                    raise ValueError(
+                        f"could not read the frame {part!r}; write e.g. '0-9' or '0,3,5'."
+                    ) from None
+    elif isinstance(frames, int | np.integer):
+        out = [int(frames)]
+    else:
+        out = [int(f) for f in frames]
+    out = sorted(set(out))
+    if not out:
+        raise ValueError("no frames selected; give e.g. frames='0-9'.")
+    if out[0] < 0 or (n_frames is not None and out[-1] >= n_frames):
+        raise ValueError(
+            f"frames {out[0]}..{out[-1]} are outside the movie's 0..{(n_frames or 0) - 1}."
+        )
+    return out
+
+
+def feature_matrix(
+    table: pd.DataFrame,
+    kind: str,
+    frames: Sequence[int] | str | None = None,
+    object_col: str = "object",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-object vectors: the ``{kind}_*`` features of the chosen frames, concatenated.
+
+    Parameters
+    ----------
+    table : DataFrame
+        A feature table with columns ``frame``, ``object_col`` and ``{kind}_...`` (e.g. from
+        :func:`napari_pfsdm.measure`, with an object column added per movie).
+    kind : str
+        Column prefix: ``"shape"`` or ``"intensity"``.
+    frames : sequence of int or str, optional
+        Frames to concatenate (default: all frames in the table).
+    object_col : str
+        Column naming the object a row belongs to.
+
+    Returns
+    -------
+    X : ndarray, (n_objects, n_frames * n_features)
+        Frame-major: all features of the first chosen frame, then of the second, ...
+    objects : ndarray
+        The object ids, in the row order of ``X`` (sorted).
+    """
+    for col in ("frame", object_col):
+        if col not in table.columns:
+            raise ValueError(f"the table has no {col!r} column; it is needed to build vectors.")
+    cols = [c for c in table.columns if c.startswith(f"{kind}_")]
+    if not cols:
+        raise ValueError(
+            f"the table has no '{kind}_*' columns; for intensity features, measure with an "
+            "intensity image."
+        )
+    all_frames = sorted(table["frame"].unique())
+    frames = all_frames if frames is None else parse_frames(frames)
+    sub = table[table["frame"].isin(frames)]
+    missing = sorted(set(frames) - set(sub["frame"].unique()))
+    if missing:
+        raise ValueError(f"frames {missing} are not in the table (it has {all_frames}).")
+    if sub.duplicated([object_col, "frame"]).any():
+        raise ValueError(
+            f"some ({object_col}, frame) pairs have several rows; keep one object per "
+            f"{object_col!r} and frame (e.g. select one label)."
+        )
+    wide = sub.pivot(index=object_col, columns="frame", values=cols)
+    wide = wide.reindex(columns=pd.MultiIndex.from_product([cols, frames]))
+    bad = wide.isna().any(axis=1)
+    if bad.any():
+        raise ValueError(
+            f"objects {list(wide.index[bad])[:10]} miss a frame or have NaN features "
+            "(see the table's 'error' column); drop them or choose other frames."
+        )
+    # frame-major order: (frame, feature)
+    x = wide.to_numpy(dtype=np.float64).reshape(len(wide), len(cols), len(frames))
+    return x.transpose(0, 2, 1).reshape(len(wide), -1), wide.index.to_numpy()
+
+
+def make_splits(
+    y: np.ndarray,
+    n_splits: int = 5,
+    test_size: float = 0.2,
+    n_repeats: int = 3,
+    seed: int = 0,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Repeated stratified shuffle splits of the objects.
+
+    Parameters
+    ----------
+    y : ndarray, (n_objects,)
+        Class of each object (binary).
+    n_splits, test_size : int, float
+        As :class:`sklearn.model_selection.StratifiedShuffleSplit` (the paper: 5, 0.2).
+    n_repeats : int
+        Independent repeats (seeds ``seed``, ``seed + 1``, ...).
+    seed : int
+        Seed of the first repeat.
+
+    Returns
+    -------
+    list of (train_idx, test_idx)
+        ``n_splits * n_repeats`` pairs of disjoint index arrays into ``y``.
+    """
+    y = np.asarray(y)
+    classes, counts = np.unique(y, return_counts=True)
+    if len(classes) != 2:
+        raise ValueError(f"need exactly two classes to classify, got {len(classes)}.")
+    if counts.min() < 2:
+        raise ValueError(
+            f"the smaller class has {counts.min()} object(s); stratified splits need at least 2."
+        )
+    out = []
+    for r in range(n_repeats):
+        sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=test_size, random_state=seed + r)
+        out.extend((tr, te) for tr, te in sss.split(np.zeros(len(y)), y))
+    return out
+
+
+def logistic_model(
+    x_shape: np.ndarray, x_intensity: np.ndarray, y: np.ndarray, C: float = 0.01
+) -> FitPredict:
+    """The paper's per-channel classifiers as a ``fit_predict`` for :func:`evaluate`.
+
+    Standardised features and L2 logistic regression with balanced class weights, fitted for
+    the shape and the intensity separately. Only ``y[train_idx]`` is ever read.
+    """
+    y = np.asarray(y).astype(int)
+
+    def _fit(x: np.ndarray, tr: np.ndarray, pr: np.ndarray) -> np.ndarray:
+        clf = make_pipeline(
+            StandardScaler(),
+            LogisticRegression(
+                C=C, class_weight="balanced", solver="liblinear", max_iter=1000, random_state=0
+            ),
+        )
+        clf.fit(x[tr], y[tr])
+        return clf.predict_proba(x[pr])[:, 1]
+
+    def fit_predict(train_idx: np.ndarray, predict_idx: np.ndarray):
+        return _fit(x_shape, train_idx, predict_idx), _fit(x_intensity, train_idx, predict_idx)
+
+    return fit_predict
+
+
+def fuse(p_shape: np.ndarray, p_intensity: np.ndarray, alpha: float) -> np.ndarray:
+    """Late fusion ``alpha * p_shape + (1 - alpha) * p_intensity``."""
+    return alpha * np.asarray(p_shape) + (1.0 - alpha) * np.asarray(p_intensity)
+
+
+def best_alpha(
+    p_shape: np.ndarray, p_intensity: np.ndarray, y: np.ndarray, alphas: np.ndarray = ALPHAS
+) -> float:
+    """The alpha of ``alphas`` with the best balanced accuracy on ``y`` (ties: nearest 0.5)."""
+    y = np.asarray(y).astype(int)
+    scores = np.array(
+        [balanced_accuracy_score(y, fuse(p_shape, p_intensity, a) >= 0.5) for a in alphas]
+    )
+    best = np.flatnonzero(np.isclose(scores, scores.max()))
+    return float(alphas[best[np.argmin(np.abs(alphas[best] - 0.5))]])
+
+
+def _inner_alpha(
+    fit_predict: FitPredict,
+    y: np.ndarray,
+    train: np.ndarray,
+    inner_folds: int,
+    seed: int,
+    alphas: np.ndarray,
+) -> float:
+    """alpha from out-of-fold predictions inside ``train`` (the test split is never touched)."""
+    y_tr = y[train]
+    n_folds = min(inner_folds, int(np.bincount(y_tr).min()))
+    if n_folds < 2:
+        return 0.5
+    ps = np.empty(len(train))
+    pi = np.empty(len(train))
+    skf = StratifiedKFold(n_splits=n_folds, shuffle=True, random_state=seed)
+    for itr, iva in skf.split(np.zeros(len(train)), y_tr):
+        ps[iva], pi[iva] = fit_predict(train[itr], train[iva])
+    return best_alpha(ps, pi, y_tr, alphas)
+
+
+def evaluate(
+    fit_predict: FitPredict,
+    y: np.ndarray,
+    splits: Sequence[tuple[np.ndarray, np.ndarray]],
+    *,
+    inner: str = "cv",
+    inner_folds: int = 3,
+    alphas: np.ndarray = ALPHAS,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Scores of shape, intensity and both fusions on every split.
+
+    Parameters
+    ----------
+    fit_predict : callable
+        ``fit_predict(train_idx, predict_idx) -> (p_shape, p_intensity)``, e.g. from
+        :func:`logistic_model`.
+    y : ndarray, (n_objects,)
+        Binary class of each object.
+    splits : sequence of (train_idx, test_idx)
+        From :func:`make_splits`.
+    inner : {"cv", "holdout"}
+        How the nested alpha is chosen inside the training split: ``"cv"`` from out-of-fold
+        predictions of ``inner_folds``-fold stratified CV (then the model is refitted on the
+        whole training split); ``"holdout"`` (for expensive models) trains once on 75 % of the
+        training split, picks alpha on the other 25 % and predicts the test split with that
+        same model.
+    inner_folds : int
+        Folds of the inner CV.
+    alphas : ndarray
+        The alpha grid.
+    seed : int
+        Seed of the inner splits.
+
+    Returns
+    -------
+    DataFrame
+        One row per split and feature set: ``split``, ``features`` (see ``FEATURE_SETS``),
+        ``accuracy``, ``balanced_accuracy``, ``alpha`` (NaN for single channels).
+    """
+    if inner not in ("cv", "holdout"):
+        raise ValueError(f"inner must be 'cv' or 'holdout', got {inner!r}.")
+    y = np.asarray(y).astype(int)
+    rows = []
+    for k, (train, test) in enumerate(splits):
+        train, test = np.asarray(train), np.asarray(test)
+        if np.intersect1d(train, test).size:
+            raise ValueError(f"split {k}: an object is in both the training and the test set.")
+        if inner == "cv":
+            a_nested = _inner_alpha(fit_predict, y, train, inner_folds, seed + k, alphas)
+            ps, pi = fit_predict(train, test)
+        else:
+            sss = StratifiedShuffleSplit(n_splits=1, test_size=0.25, random_state=seed + k)
+            itr, iva = next(sss.split(np.zeros(len(train)), y[train]))
+            ps_all, pi_all = fit_predict(train[itr], np.concatenate([train[iva], test]))
+            nv = len(iva)
+            a_nested = best_alpha(ps_all[:nv], pi_all[:nv], y[train[iva]], alphas)
+            ps, pi = ps_all[nv:], pi_all[nv:]
+        y_te = y[test]
+        a_opt = best_alpha(ps, pi, y_te, alphas)  # the paper's choice: tuned on the test split
+        preds = {
+            "shape": (ps, np.nan),
+            "intensity": (pi, np.nan),
+            "fusion (nested)": (fuse(ps, pi, a_nested), a_nested),
+            "fusion (optimistic, test-tuned)": (fuse(ps, pi, a_opt), a_opt),
+        }
+        for name, (p, a) in preds.items():
+            yhat = (p >= 0.5).astype(int)
+            rows.append(
+                {
+                    "split": k,
+                    "features": name,
+                    "accuracy": accuracy_score(y_te, yhat),
+                    "balanced_accuracy": balanced_accuracy_score(y_te, yhat),
+                    "alpha": a,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def summarize(scores: pd.DataFrame) -> pd.DataFrame:
+    """Mean and standard deviation over splits, one row per feature set (display order)."""
+    g = scores.groupby("features", sort=False)
+    out = pd.DataFrame(
+        {
+            "accuracy_mean": g["accuracy"].mean(),
+            "accuracy_std": g["accuracy"].std(ddof=1),
+            "balanced_accuracy_mean": g["balanced_accuracy"].mean(),
+            "balanced_accuracy_std": g["balanced_accuracy"].std(ddof=1),
+            "alpha_mean": g["alpha"].mean(),
+            "n_splits": g.size(),
+        }
+    )
+    order = [f for f in FEATURE_SETS if f in out.index]
+    return out.loc[order + [f for f in out.index if f not in order]]
+
+
+def measure_movies(
+    labels: np.ndarray,
+    intensity: np.ndarray | None = None,
+    frames: Sequence[int] | str | None = None,
+    **options,
+) -> pd.DataFrame:
+    """:func:`napari_pfsdm.measure` over one-object movies, with an ``object`` column.
+
+    Parameters
+    ----------
+    labels : ndarray, (n_objects, T, Y, X)
+        One movie per object (as :func:`napari_pfsdm.data.gastruloids.make_gastruloids`).
+    intensity : ndarray, same shape, optional
+    frames : sequence of int or str, optional
+        Frames to measure (default all); only these are computed.
+    **options
+        Passed to :func:`napari_pfsdm.measure`.
+
+    Returns
+    -------
+    DataFrame
+        The concatenated tables; ``object`` is the movie index.
+    """
+    from .features import measure
+
+    if labels.ndim != 4:
+        raise ValueError(
+            f"labels must be (n_objects, T, Y, X) one-object movies, got shape {labels.shape}."
+        )
+    if intensity is not None and intensity.shape != labels.shape:
+        raise ValueError(
+            f"intensity has shape {intensity.shape} but labels {labels.shape}; they must match."
+        )
+    sel = parse_frames(frames, labels.shape[1])
+    tables = []
+    for i in range(labels.shape[0]):
+        tab = measure(
+            labels[i][sel], None if intensity is None else intensity[i][sel], **options
+        )
+        tab["frame"] = np.asarray(sel)[tab["frame"].to_numpy()]
+        tab.insert(0, "object", i)
+        tables.append(tab)
+    out = pd.concat(tables, ignore_index=True)
+    out.attrs = dict(tables[0].attrs) if tables else {}
+    return out
