@@ -34,6 +34,7 @@ measured inside the workers) and the seconds for all pairwise distances.
 from __future__ import annotations
 
 import argparse
+import copy
 import csv
 import hashlib
 import inspect
@@ -46,7 +47,6 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 
 # BLAS threads: at most 2 (the benchmark's budget), set before numpy is imported
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -307,12 +307,30 @@ def run_shape_context(masks, subset_idx, processes: int, key: str, use_cache: bo
 
 
 # --------------------------------------------------------------------------- PF-SDM variants
-KNOWN_VALUES = {
-    # option name -> values to try (only options present in the core's signatures are used)
-    "radii": ["uniform", "boundary"],
-    "ring_weighting": ["none", "boundary"],
-    "invariance": ["magnitude", "align", "combined"],
+# option name -> (module, constant) in the core listing its values; only options present in the
+# signatures of pfsdm / distance_matrix are used
+OPTION_VALUES = {
+    "radii": ("napari_pfsdm.core.morphometric", "RADII_PLACEMENTS"),
+    "ring_weighting": ("napari_pfsdm.core.morphometric", "RING_WEIGHTINGS"),
+    "mode_weighting": ("napari_pfsdm.core.morphometric", "MODE_WEIGHTINGS"),
+    "invariance": ("napari_pfsdm.core.distance", "INVARIANCES"),
 }
+FALLBACK_VALUES = {
+    "radii": ("uniform", "boundary"),
+    "ring_weighting": ("none", "boundary"),
+    "invariance": ("magnitude", "align", "combined"),
+}
+
+
+def option_values(name: str) -> tuple:
+    """The values the core accepts for one option (its constant, or a fallback)."""
+    import importlib
+
+    module, const = OPTION_VALUES[name]
+    try:
+        return tuple(getattr(importlib.import_module(module), const))
+    except (ImportError, AttributeError):
+        return FALLBACK_VALUES.get(name, ())
 
 
 def _parse_value(v: str):
@@ -321,7 +339,20 @@ def _parse_value(v: str):
             return cast(v)
         except ValueError:
             pass
-    return {"true": True, "false": False, "none": None}.get(v.lower(), v)
+    return {"true": True, "false": False}.get(v.lower(), v)
+
+
+def expand_spec(spec: str) -> list[str]:
+    """``"ring_weighting=*,invariance=align"`` -> one spec per value the core accepts."""
+    parts = [p.strip() for p in spec.split(",") if p.strip()]
+    choices = []
+    for part in parts:
+        key, _, value = part.partition("=")
+        if value.strip() == "*" and key.strip() in OPTION_VALUES:
+            choices.append([f"{key.strip()}={v}" for v in option_values(key.strip())])
+        else:
+            choices.append([part])
+    return [",".join(c) for c in itertools.product(*choices)] if choices else [spec]
 
 
 def parse_variant(spec: str) -> dict:
@@ -355,9 +386,9 @@ def discover_variants(api) -> tuple[list[dict], dict, dict]:
     p_params = {k: v.default for k, v in inspect.signature(api.pfsdm).parameters.items()}
     d_params = {k: v.default for k, v in inspect.signature(api.distance_matrix).parameters.items()}
     axes = []
-    for name, values in KNOWN_VALUES.items():
+    for name in OPTION_VALUES:
         if name in p_params or name in d_params:
-            axes.append([(name, v) for v in values])
+            axes.append([(name, v) for v in option_values(name)])
     variants = [dict(combo) for combo in itertools.product(*axes)] if axes else [{}]
     return variants, p_params, d_params
 
@@ -380,14 +411,17 @@ def split_options(opts: dict, p_params: dict, d_params: dict) -> tuple[dict, dic
 _PFSDM_KW: dict = {}
 
 
+_HEAVY = ("contour", "sdf", "mapping", "samples", "disk", "mask_info", "intensity_image")
+
+
 def _slim(res):
-    """What ``distance_matrix`` reads from a result (a full result pickles to ~250 kB)."""
-    return SimpleNamespace(
-        embedding=res.embedding, spectrum=res.spectrum, weights=res.weights,
-        intensity_embedding=res.intensity_embedding,
-        intensity_spectrum=getattr(res, "intensity_spectrum", None),
-        diagnostics=dict(res.diagnostics),
-    )
+    """A shallow copy without the fields ``distance_matrix`` never reads (a full result pickles
+    to ~250 kB: too much to send back from the workers for 1,400 shapes)."""
+    out = copy.copy(res)
+    for name in _HEAVY:
+        if hasattr(out, name):
+            object.__setattr__(out, name, None)
+    return out
 
 
 def _pfsdm_one(mask):
@@ -412,7 +446,7 @@ def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
         return []
     variants, p_params, d_params = discover_variants(api)
     if specs and specs != ["all"]:
-        variants = [parse_variant(s) for s in specs]
+        variants = [parse_variant(e) for spec in specs for e in expand_spec(spec)]
     defaults = {**p_params, **d_params}
     print(f"  pfsdm() options: {list(p_params)}")
     print(f"  distance_matrix() options: {list(d_params)}")
@@ -420,7 +454,8 @@ def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
     results_by_popts: dict = {}
     for opts in variants:
         p_opts, d_opts = split_options(opts, p_params, d_params)
-        pkey = tuple(sorted(p_opts.items()))
+        full_p = {k: p_opts.get(k, p_params[k]) for k in OPTION_VALUES if k in p_params}
+        pkey = tuple(sorted({**full_p, **p_opts}.items(), key=lambda kv: kv[0]))
         if pkey not in results_by_popts:
             _PFSDM_KW.clear()
             _PFSDM_KW.update(p_opts)
@@ -580,7 +615,8 @@ def main(argv=None) -> int:
                     help="run shape context on the first N classes (sorted names; 0 = skip)")
     ap.add_argument("--variants", nargs="*", default=["all"], metavar="SPEC",
                     help="PF-SDM variants: 'all' (every combination of the core's options), "
-                         "'default', 'none', or specs like radii=boundary,invariance=align")
+                         "'default', 'none', or specs like radii=boundary,invariance=align "
+                         "(value * = every value the core accepts)")
     ap.add_argument("--main", default="default", metavar="SPEC",
                     help="the PF-SDM variant drawn in the PNGs (default: the core's defaults)")
     ap.add_argument("--processes", type=int, default=2)
@@ -628,6 +664,12 @@ def main(argv=None) -> int:
     print("\n" + table_md)
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
     args.out.mkdir(parents=True, exist_ok=True)
+    import subprocess
+
+    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"],
+                          capture_output=True, text=True).stdout.strip()
+    print(f"core version: git {head or 'unknown'}")
+    table_md += f"\n\n(git {head or 'unknown'}; load average {os.getloadavg()[0]:.1f} on 2 cores)"
     (args.out / "mpeg7_results.md").write_text(
         f"`{' '.join(['benchmarks/mpeg7.py', *(argv if argv is not None else sys.argv[1:])])}`"
         f"\n\n{table_md}\n"
