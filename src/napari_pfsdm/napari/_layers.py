@@ -133,10 +133,10 @@ def show_results_steps(viewer, labels_layer, output: AnalysisOutput) -> list:
     def features():
         table = output.table.copy()
         table.attrs = {}
-        # napari's convention: an 'index' column says which label a row belongs to
+        # napari's convention: an 'index' column says which label a row belongs to (its
+        # status bar then shows one row per label, the last frame's; the 'frame' column says so)
         table.insert(0, "index", table["label"].to_numpy())
         labels_layer.features = table
-        sync_status_rows(viewer, labels_layer, output)
 
     def disk():
         _replace(viewer, names["disk"], "image", output.disk, colormap="RdBu_r",
@@ -184,22 +184,6 @@ def show_results(viewer, labels_layer, output: AnalysisOutput) -> list:
         step()
     return [viewer.layers[n] for n in layer_names(labels_layer.name).values()
             if n in viewer.layers]
-
-
-def sync_status_rows(viewer, labels_layer, output: AnalysisOutput) -> None:
-    """Make napari's status bar show the current frame's row of the label under the cursor.
-
-    napari maps a label to one row of ``features`` (its ``index`` column); a time-lapse has one
-    row per frame, so the map is re-pointed to the current frame's rows. Cosmetic: uses
-    napari's private ``_label_index`` when it exists and does nothing otherwise.
-    """
-    if not output.time_lapse or not hasattr(labels_layer, "_label_index"):
-        return
-    frame = current_frame(viewer, labels_layer)
-    frames = output.table["frame"].to_numpy()
-    labels = output.table["label"].to_numpy()
-    rows = np.flatnonzero(frames == frame)
-    labels_layer._label_index = {int(labels[r]): int(r) for r in rows}
 
 
 def update_sdf(viewer, labels_layer, output: AnalysisOutput, label: int) -> None:

@@ -383,7 +383,6 @@ class AnalysisWidget(QWidget):
         output = STORE.get(labels)
         if output is None or self._syncing or labels not in self.viewer.layers:
             return
-        _layers.sync_status_rows(self.viewer, labels, output)
         if self.viewer.dims.ndim <= labels.ndim or len(output.object_labels) == 0:
             return
         idx = int(np.clip(np.rint(self.viewer.dims.point[0]), 0, len(output.object_labels) - 1))
