@@ -201,3 +201,15 @@ def test_cnn_baseline_runs(small_set):
     ps, pi = fp(np.arange(14), np.arange(14, 20))
     assert ps.shape == pi.shape == (6,)
     assert np.all((ps >= 0) & (ps <= 1)) and np.all((pi >= 0) & (pi <= 1))
+
+
+def test_report_writes_table_and_plots(tmp_path):
+    from napari_pfsdm.analysis.gastruloid_report import run
+
+    results = run(tmp_path, n_objects=20, n_frames=6, size=80, frames="3-5", quick=True,
+                  pixel=False, cnn=False, verbose=False)
+    assert list(results["features"]) == list(cl.FEATURE_SETS)
+    assert (results["method"] == "PF-SDM + logistic").all()
+    assert (results["time_s"] > 0).all()
+    for name in ("gastruloid_results.csv", "gastruloid_accuracy.png", "gastruloid_pca.png"):
+        assert (tmp_path / name).stat().st_size > 500

@@ -63,7 +63,7 @@ class GastruloidParams:
     radius: tuple[float, float] = (0.1, 0.13)  #: body radius R0 / frame size
     growth: tuple[float, float] = (1.05, 1.25)  #: R(1) / R(0)
     ellipticity: tuple[float, float] = (1.0, 1.18)  #: early aspect ratio, both classes
-    shape_onset: tuple[float, float] = (0.15, 0.32)  #: start of the primary axis
+    shape_onset: tuple[float, float] = (0.1, 0.28)  #: start of the primary axis
     axis_length: tuple[float, float] = (1.9, 2.8)  #: primary axis length at s = 1
     tip_radius: tuple[float, float] = (0.3, 0.5)  #: axis tip radius
     bend: tuple[float, float] = (-0.12, 0.12)  #: axis curvature x = k y^2 / R0

@@ -1,0 +1,323 @@
+"""The paper's gastruloid application end to end, on the synthetic generator.
+
+Generate gastruloid movies, measure PF-SDM shape and intensity features on the chosen (early)
+frames, predict single- vs multi-axes with the paper's protocol (:mod:`.classification`), do the
+same from pixels (:mod:`.pixel_baseline`: scikit-learn always, a small CNN when ``torch`` is
+installed) on the very same splits, and write
+
+* ``gastruloid_results.csv``: accuracy and balanced accuracy (mean, std over splits) per method
+  and feature set, with each method's wall time end to end (feature extraction included, data
+  generation excluded);
+* ``gastruloid_accuracy.png``: the bar plot of the paper's Fig. 3;
+* ``gastruloid_pca.png``: PCA trajectories of the shape and intensity features over all frames,
+  one line per object, coloured by class (the paper's Fig. 2B).
+
+Run it with ``python -m napari_pfsdm.analysis.gastruloid_report --out DIR`` or
+``python benchmarks/gastruloids.py --out DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..data.gastruloids import make_gastruloids
+from . import classification as cl
+from . import pixel_baseline as pb
+
+__all__ = ["main", "plot_accuracy", "plot_pca", "run"]
+
+_CLASS_COLORS = {False: "tab:blue", True: "tab:orange"}
+
+
+def _summary_rows(method: str, summary: pd.DataFrame, seconds: float, note: str) -> list[dict]:
+    rows = []
+    for feat, r in summary.iterrows():
+        rows.append(
+            {
+                "method": method,
+                "features": feat,
+                "accuracy_mean": r["accuracy_mean"],
+                "accuracy_std": r["accuracy_std"],
+                "balanced_accuracy_mean": r["balanced_accuracy_mean"],
+                "balanced_accuracy_std": r["balanced_accuracy_std"],
+                "alpha_mean": r["alpha_mean"],
+                "n_splits": int(r["n_splits"]),
+                "time_s": seconds,
+                "notes": note,
+            }
+        )
+    return rows
+
+
+def format_table(results: pd.DataFrame) -> str:
+    """The results as a fixed-width text table (mean ± std)."""
+    lines = [
+        f"{'method':<22} {'features':<32} {'accuracy':>13} {'balanced acc.':>13} {'time':>8}",
+        "-" * 92,
+    ]
+    for _, r in results.iterrows():
+        acc = f"{r.accuracy_mean:.3f}±{r.accuracy_std:.3f}"
+        bal = f"{r.balanced_accuracy_mean:.3f}±{r.balanced_accuracy_std:.3f}"
+        lines.append(
+            f"{r.method:<22} {r.features:<32} {acc:>13} {bal:>13} {r.time_s:>7.1f}s"
+        )
+    return "\n".join(lines)
+
+
+def plot_accuracy(results: pd.DataFrame, path: str | Path, title: str = "") -> None:
+    """Grouped bars: accuracy (plain) and balanced accuracy (hatched) per feature set/method."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    methods = list(dict.fromkeys(results["method"]))
+    feats = [f for f in cl.FEATURE_SETS if f in set(results["features"])]
+    colors = ["tab:green", "tab:gray", "tab:purple", "tab:brown"]
+    fig, ax = plt.subplots(figsize=(10, 5.6))
+    n_m = len(methods)
+    width = 0.8 / (2 * n_m)
+    x = np.arange(len(feats))
+    for i, m in enumerate(methods):
+        sub = results[results["method"] == m].set_index("features").reindex(feats)
+        t = sub["time_s"].iloc[0]
+        for j, (col, hatch, alpha) in enumerate(
+            (("accuracy", "", 1.0), ("balanced_accuracy", "///", 0.55))
+        ):
+            pos = x - 0.4 + width * (2 * i + j + 0.5)
+            ax.bar(
+                pos, sub[f"{col}_mean"], width, yerr=sub[f"{col}_std"], capsize=2,
+                color=colors[i % len(colors)], alpha=alpha, hatch=hatch, edgecolor="black",
+                linewidth=0.5,
+                label=(f"{m} ({t:.0f} s)" + (", balanced" if j else ", accuracy")),
+            )
+    ax.axhline(0.5, color="k", lw=0.8, ls=":")
+    ax.set_xticks(x)
+    ax.set_xticklabels([f.replace(", test-tuned", ",\ntest-tuned") for f in feats])
+    ax.set_ylim(0, 1.05)
+    ax.set_ylabel("score (mean ± std over splits)")
+    ax.set_title(title or "single- vs multi-axes prediction")
+    ax.legend(fontsize=7, ncol=n_m, loc="upper center", bbox_to_anchor=(0.5, -0.16))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_pca(
+    table: pd.DataFrame,
+    multi_axis: np.ndarray,
+    path: str | Path,
+    marks: Sequence[int] | None = None,
+) -> None:
+    """PCA trajectories (PC1, PC2) of intensity (left) and shape (right) features over time.
+
+    PCA over all (object, frame) rows of standardised features; one line per object through
+    time, blue single-axis, orange multi-axes; circle, triangle, square mark an early, an
+    intermediate and the last frame (as the paper's Fig. 2B).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from sklearn.decomposition import PCA
+    from sklearn.preprocessing import StandardScaler
+
+    frames = sorted(table["frame"].unique())
+    if marks is None:
+        marks = [frames[0], frames[len(frames) // 2], frames[-1]]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5))
+    for ax, kind in zip(axes, ("intensity", "shape"), strict=True):
+        cols = [c for c in table.columns if c.startswith(f"{kind}_")]
+        ok = table[cols].notna().all(axis=1)
+        sub = table[ok].sort_values(["object", "frame"])
+        z = StandardScaler().fit_transform(sub[cols].to_numpy())
+        pca = PCA(n_components=2).fit(z)
+        pcs = pca.transform(z)
+        for obj in sub["object"].unique():
+            sel = (sub["object"] == obj).to_numpy()
+            multi = bool(multi_axis[obj])
+            color = _CLASS_COLORS[multi]
+            ax.plot(pcs[sel, 0], pcs[sel, 1], "-", color=color, lw=0.8,
+                    alpha=0.8 if multi else 0.45, zorder=3 if multi else 2)
+            fr = sub["frame"].to_numpy()[sel]
+            for mark, marker in zip(marks, ("o", "^", "s"), strict=False):
+                k = np.flatnonzero(fr == mark)
+                if k.size:
+                    ax.plot(pcs[sel][k, 0], pcs[sel][k, 1], marker, color=color, ms=4,
+                            mec="black", mew=0.4, zorder=4)
+        ev = pca.explained_variance_ratio_
+        ax.set_xlabel(f"PC1 ({100 * ev[0]:.0f} %)")
+        ax.set_ylabel(f"PC2 ({100 * ev[1]:.0f} %)")
+        ax.set_title(f"PF-SDM {kind} features")
+    handles = [
+        plt.Line2D([], [], color=_CLASS_COLORS[False], label="single-axis"),
+        plt.Line2D([], [], color=_CLASS_COLORS[True], label="multi-axes"),
+    ] + [
+        plt.Line2D([], [], ls="", marker=m, color="gray", label=f"frame {f}")
+        for f, m in zip(marks, ("o", "^", "s"), strict=False)
+    ]
+    axes[1].legend(handles=handles, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run(
+    out_dir: str | Path,
+    *,
+    n_objects: int = 78,
+    n_frames: int = 25,
+    frames: str | Sequence[int] = "0-9",
+    quick: bool = False,
+    seed: int = 0,
+    size: int = 128,
+    n_repeats: int | None = None,
+    pixel: bool = True,
+    cnn: bool | None = None,
+    cnn_epochs: int | None = None,
+    measure_options: dict | None = None,
+    verbose: bool = True,
+) -> pd.DataFrame:
+    """Generate, measure, classify, compare with pixel baselines, write table and plots.
+
+    Parameters
+    ----------
+    out_dir : path
+        Where ``gastruloid_results.csv``, ``gastruloid_accuracy.png`` and
+        ``gastruloid_pca.png`` go (created if needed).
+    n_objects, n_frames, size, seed : int
+        Passed to :func:`~napari_pfsdm.data.gastruloids.make_gastruloids` (15 % multi-axes).
+    frames : str or sequence of int
+        Frames used for the prediction (default ``"0-9"``: the early frames).
+    quick : bool
+        Fewer splits and a shorter CNN training (a smoke run).
+    n_repeats : int, optional
+        Repeats of the 5 x 20 % stratified splits (default 2, quick 1).
+    pixel : bool
+        Run the scikit-learn pixel baseline.
+    cnn : bool, optional
+        Run the CNN baseline (default: when ``torch`` is installed).
+    cnn_epochs : int, optional
+        CNN training epochs (default 60, quick 15).
+    measure_options : dict, optional
+        Options of :func:`napari_pfsdm.measure` (default: the package defaults).
+    verbose : bool
+        Print progress and the table.
+
+    Returns
+    -------
+    DataFrame
+        The table written to ``gastruloid_results.csv``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    say = print if verbose else (lambda *a, **k: None)
+    n_repeats = n_repeats or (1 if quick else 2)
+    cnn = pb.torch_available() if cnn is None else cnn
+    cnn_epochs = cnn_epochs or (15 if quick else 60)
+    options = measure_options or {}
+
+    t0 = time.perf_counter()
+    data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=size, seed=seed)
+    sel = cl.parse_frames(frames, n_frames)
+    y = data.multi_axis.astype(int)
+    say(
+        f"generated {n_objects} movies x {n_frames} frames of {size}² "
+        f"({int(y.sum())} multi-axes) in {time.perf_counter() - t0:.1f} s; "
+        f"predicting from frames {sel[0]}..{sel[-1]} ({len(sel)} frames)"
+    )
+    splits = cl.make_splits(y, n_splits=5, test_size=0.2, n_repeats=n_repeats, seed=seed)
+    rows: list[dict] = []
+
+    # PF-SDM: measure + vectors + logistic regression, nested alpha by inner CV
+    t0 = time.perf_counter()
+    table = cl.measure_movies(data.labels, data.intensity, frames=sel, **options)
+    t_measure = time.perf_counter() - t0
+    xs, _ = cl.feature_matrix(table, "shape", sel)
+    xi, _ = cl.feature_matrix(table, "intensity", sel)
+    scores = cl.evaluate(cl.logistic_model(xs, xi, y), y, splits, inner="cv", seed=seed)
+    t_pfsdm = time.perf_counter() - t0
+    say(f"PF-SDM: {t_pfsdm:.1f} s (measure {t_measure:.1f} s, {xs.shape[1]} features/channel)")
+    rows += _summary_rows(
+        "PF-SDM + logistic", cl.summarize(scores), t_pfsdm,
+        f"measure {t_measure:.1f} s; alpha by 3-fold CV inside the training split",
+    )
+
+    stacks = None
+    if pixel:
+        t0 = time.perf_counter()
+        stacks = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
+        t_stack = time.perf_counter() - t0
+        fp = pb.sklearn_pixel_model(*stacks, y, n_augment=4 if quick else 8, seed=seed)
+        scores = cl.evaluate(fp, y, splits, inner="cv", seed=seed)
+        t_pix = time.perf_counter() - t0
+        say(f"pixels (scikit-learn): {t_pix:.1f} s")
+        rows += _summary_rows(
+            "pixels + logistic", cl.summarize(scores), t_pix,
+            f"32x32 px, x{4 if quick else 8} rotations/reflections; stacks {t_stack:.1f} s; "
+            "alpha by 3-fold CV inside the training split",
+        )
+    if cnn:
+        t0 = time.perf_counter()
+        stacks_c = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
+        fp = pb.cnn_model(*stacks_c, y, epochs=cnn_epochs, seed=seed)
+        scores = cl.evaluate(fp, y, splits, inner="holdout", seed=seed)
+        t_cnn = time.perf_counter() - t0
+        say(f"pixels (CNN): {t_cnn:.1f} s")
+        rows += _summary_rows(
+            "pixels + CNN", cl.summarize(scores), t_cnn,
+            f"32x32 px, {cnn_epochs} epochs, random rotations/reflections; alpha on a 25 % "
+            "validation part of the training split (the model is trained once per split)",
+        )
+    results = pd.DataFrame(rows)
+    results.to_csv(out / "gastruloid_results.csv", index=False)
+    say("\n" + format_table(results))
+
+    plot_accuracy(
+        results, out / "gastruloid_accuracy.png",
+        title=(f"{n_objects} synthetic gastruloids, frames {sel[0]}-{sel[-1]} of {n_frames}, "
+               f"{len(splits)} stratified splits (5 x 20 % test x {n_repeats})"),
+    )
+    t0 = time.perf_counter()
+    full = cl.measure_movies(data.labels, data.intensity, **options)
+    plot_pca(full, data.multi_axis, out / "gastruloid_pca.png",
+             marks=[sel[0], sel[-1], n_frames - 1])
+    say(f"PCA trajectories over all {n_frames} frames: {time.perf_counter() - t0:.1f} s")
+    for name in ("gastruloid_results.csv", "gastruloid_accuracy.png", "gastruloid_pca.png"):
+        say(f"wrote {out / name}")
+    return results
+
+
+def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
+    """Command line: ``python -m napari_pfsdm.analysis.gastruloid_report --out DIR``."""
+    p = argparse.ArgumentParser(
+        description="Synthetic gastruloids: predict single vs multiple body axes from early "
+        "frames with PF-SDM features, against pixel-space baselines."
+    )
+    p.add_argument("--out", default="results/gastruloids", help="output folder")
+    p.add_argument("--n-objects", type=int, default=78)
+    p.add_argument("--n-frames", type=int, default=25)
+    p.add_argument("--frames", default="0-9", help="frames used to predict, e.g. 0-9")
+    p.add_argument("--size", type=int, default=128)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=None, help="repeats of 5 x 20 %% splits")
+    p.add_argument("--quick", action="store_true", help="fewer splits, short CNN training")
+    p.add_argument("--no-pixel", action="store_true", help="skip the scikit-learn pixels")
+    p.add_argument("--no-cnn", action="store_true", help="skip the CNN even if torch exists")
+    p.add_argument("--cnn-epochs", type=int, default=None)
+    a = p.parse_args(argv)
+    return run(
+        a.out, n_objects=a.n_objects, n_frames=a.n_frames, frames=a.frames, quick=a.quick,
+        seed=a.seed, size=a.size, n_repeats=a.repeats, pixel=not a.no_pixel,
+        cnn=False if a.no_cnn else None, cnn_epochs=a.cnn_epochs,
+    )
+
+
+if __name__ == "__main__":
+    main()
