@@ -63,7 +63,8 @@ def test_distance_properties():
         d = P.distance_matrix(shapes, invariance=inv)
         np.testing.assert_allclose(d, d.T, atol=1e-12)
         assert np.all(np.diag(d) == 0) and np.all(d[np.triu_indices(5, 1)] > 0)
-    mag = P.distance_matrix(shapes)
+    mag = P.distance_matrix(shapes, invariance="magnitude")
     ali = P.distance_matrix(shapes, invariance="align")
     assert np.all(ali >= mag - 1e-9)  # magnitudes are a lower bound of the aligned distance
-    assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1])
+    assert P.distance(shapes[0], shapes[1], invariance="magnitude") == pytest.approx(mag[0, 1])
+    assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1] + ali[0, 1])

@@ -18,6 +18,7 @@ from .core import (
     pfsdm,
     render_disk,
     skeleton,
+    weighted_features,
 )
 
 __version__ = "0.1.0"
@@ -36,4 +37,5 @@ __all__ = [
     "pfsdm",
     "render_disk",
     "skeleton",
+    "weighted_features",
 ]

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage as ndi
 
-from ..core.morphometric import ring_radii, ring_weights
+from ..core.morphometric import mode_weights, ring_radii, ring_weights
 from ..core.pfsdm import DEFAULTS, PFSDMResult, pfsdm
 
 __all__ = ["ObjectResult", "iter_objects", "measure", "count_objects", "feature_columns"]
@@ -147,6 +147,7 @@ def resolved_options(**options: Any) -> dict[str, Any]:
     opts["radii"] = r.tolist()
     opts["n_radii"] = len(r)
     opts["weights"] = ring_weights(r, opts["ring_weighting"]).tolist()
+    opts["mode_weights"] = mode_weights(opts["n_fourier"], opts["mode_exponent"]).tolist()
     return opts
 
 

@@ -3,7 +3,13 @@
 Pure numpy/scipy/scikit-image; never imports Qt or napari.
 """
 
-from .distance import INVARIANCES, distance, distance_matrix, embeddings_from_table
+from .distance import (
+    INVARIANCES,
+    distance,
+    distance_matrix,
+    embeddings_from_table,
+    weighted_features,
+)
 from .pfsdm import DEFAULTS, PFSDMResult, pfsdm, render_disk
 from .skeleton import Skeleton, skeleton
 
@@ -18,4 +24,5 @@ __all__ = [
     "pfsdm",
     "render_disk",
     "skeleton",
+    "weighted_features",
 ]

@@ -249,6 +249,10 @@ def extract_contour(info: MaskInfo, n_points: int = 256, smooth: float = 1.0) ->
     area, _ = _polygon_area_centroid(raw)
     if area < 0:
         raw = raw[::-1]
+    # Start at the vertex farthest from the centroid: a canonical point, so that a raster rotated
+    # by 90° or mirrored is resampled at exactly the same boundary points.
+    _, raw_center = _polygon_area_centroid(raw)
+    raw = np.roll(raw, -int(np.argmax(((raw - raw_center) ** 2).sum(axis=1))), axis=0)
     perimeter = np.linalg.norm(np.diff(np.vstack([raw, raw[:1]]), axis=0), axis=1).sum()
     pts = resample_closed(raw, n_points)
     if smooth > 0:

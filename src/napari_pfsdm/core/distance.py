@@ -12,17 +12,24 @@ Two ways to remove rotation and reflection (``invariance``):
     and over the reflection θ → −θ, all shifts at once by an FFT cross-correlation. It keeps the
     phase relation between rings and between modes that magnitudes discard; always ≥ the
     magnitude distance. Needs results (a table holds magnitudes only).
-``"combined"``
-    The mean of the two.
+``"combined"`` (default for results)
+    The sum of the two: on the MPEG-7 silhouettes it retrieves better than either alone
+    (README, "Real shapes").
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["INVARIANCES", "distance", "distance_matrix", "embeddings_from_table"]
+__all__ = [
+    "INVARIANCES",
+    "distance",
+    "distance_matrix",
+    "embeddings_from_table",
+    "weighted_features",
+]
 
-INVARIANCES = ("magnitude", "align", "combined")
+INVARIANCES = ("combined", "magnitude", "align")
 
 
 def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
@@ -44,8 +51,8 @@ def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np
     return values, weights
 
 
-def _magnitude_features(emb: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    return (emb * np.sqrt(weights)[None, :, None]).reshape(len(emb), -1)
+def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    return (emb * np.sqrt(weights)[None, :, None] * modes[None, None, :]).reshape(len(emb), -1)
 
 
 def _sq_euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -59,11 +66,11 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
     weighted L2 distance of complex spectra (n, R, K), summed over channels.
 
     d²(s) = ‖a‖² + ‖b‖² − 2 C(s) with C(s) = Re Σ_m X_m e^{ims}, X_m = Σ_r w_r a_rm conj(b_rm)
-    (a reflection conjugates b). C is sampled at 48 angles by a real matrix product and its best
-    sample refined by Newton steps, so the angle is not quantised.
+    (a reflection conjugates b). C is sampled at max(64, 8K) angles by a real matrix product and
+    its best sample refined by a parabola.
     """
     n, _, k = spec[0].shape
-    n_shift = max(48, 4 * k)
+    n_shift = max(64, 8 * k)
     m = np.arange(k)
     ang = np.outer(m, 2 * np.pi * np.arange(n_shift) / n_shift)
     basis = np.vstack([np.cos(ang), -np.sin(ang)])  # Re(X e^{ims}) = Re X cos − Im X sin
@@ -81,26 +88,55 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
                 other = f if mirror else np.conj(f)
                 for mode in range(k):
                     cross[:, :, mode] += f[mode, i0:i1] @ other[mode].T
-            re, im = cross.real, cross.imag
-            corr = np.concatenate([re, im], axis=2) @ basis
-            s = 2 * np.pi * corr.argmax(axis=2) / n_shift
-            best = np.maximum(best, corr.max(axis=2))
-            for _ in range(2):
-                cos, sin = np.cos(s[..., None] * m), np.sin(s[..., None] * m)
-                d1 = -((re * sin + im * cos) * m).sum(axis=2)
-                d2 = -((re * cos - im * sin) * m**2).sum(axis=2)
-                s = s - np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), 0.0)
-            value = (re * np.cos(s[..., None] * m) - im * np.sin(s[..., None] * m)).sum(axis=2)
-            best = np.maximum(best, value)
+            corr = np.concatenate([cross.real, cross.imag], axis=2) @ basis
+            best = np.maximum(best, _parabolic_peak(corr))
         out[i0:i1] = np.maximum(norms[i0:i1, None] + norms[None, :] - 2 * best, 0.0)
     return out
+
+
+def _parabolic_peak(corr: np.ndarray) -> np.ndarray:
+    """Maximum over the last axis of a periodic sampled function, refined by the parabola
+    through the best sample and its two neighbours (so the angle is not quantised)."""
+    j = corr.argmax(axis=-1)[..., None]
+    n = corr.shape[-1]
+    c0 = np.take_along_axis(corr, j, -1)[..., 0]
+    cm = np.take_along_axis(corr, (j - 1) % n, -1)[..., 0]
+    cp = np.take_along_axis(corr, (j + 1) % n, -1)[..., 0]
+    curv = 2 * c0 - cm - cp
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lift = np.where(curv > 0, (cp - cm) ** 2 / (8 * curv), 0.0)
+    return c0 + np.minimum(lift, np.abs(c0 - np.minimum(cm, cp)))
+
+
+def _from_results(items, channel: str):
+    attr = "embedding" if channel == "shape" else "intensity_embedding"
+    if any(getattr(r, attr) is None for r in items):
+        raise ValueError("intensity_weight > 0 needs results computed with an intensity.")
+    emb = np.stack([getattr(r, attr) for r in items])
+    return emb, items[0].weights, items[0].mode_weights
+
+
+def _from_table(table, channel: str):
+    emb, weights = embeddings_from_table(table, channel)
+    mw = table.attrs.get("pfsdm", {}).get("mode_weights")
+    mw = np.ones(emb.shape[2]) if mw is None else np.asarray(mw, float)[: emb.shape[2]]
+    return emb, weights, mw
+
+
+def weighted_features(items, channel: str = "shape") -> np.ndarray:
+    """Flat feature vectors (n, n_radii × (n_fourier + 1)) scaled by the ring and mode weights,
+    so that their Euclidean distances are the PF-SDM (magnitude) distances; use them for PCA
+    or any Euclidean method. ``items``: results or a :func:`measure` table."""
+    is_table = hasattr(items, "columns")
+    emb, w, mw = _from_table(items, channel) if is_table else _from_results(list(items), channel)
+    return _magnitude_features(emb, w, mw)
 
 
 def distance_matrix(
     items,
     intensity_weight: float = 0.0,
     *,
-    invariance: str = "magnitude",
+    invariance: str | None = None,
     chunk: int = 256,
 ) -> np.ndarray:
     """All pairwise PF-SDM distances.
@@ -111,8 +147,9 @@ def distance_matrix(
         The objects. Results and table rows must share the same options (rings, N_F).
     intensity_weight : float
         Weight w_I of the intensity term (0: shape only).
-    invariance : {"magnitude", "align", "combined"}
-        How rotation and reflection are removed (module docstring).
+    invariance : {"combined", "magnitude", "align"}, optional
+        How rotation and reflection are removed (module docstring). Default: ``"combined"``
+        for results, ``"magnitude"`` for a table (which holds magnitudes only).
     chunk : int
         Rows computed at once by ``"align"`` (memory ~ chunk × n × 64 complex numbers).
 
@@ -129,12 +166,14 @@ def distance_matrix(
     >>> disk = (yy - 32) ** 2 + (xx - 32) ** 2 < 20 ** 2
     >>> bar = (abs(yy - 32) < 8) & (abs(xx - 32) < 25)
     >>> d = distance_matrix([pfsdm(disk), pfsdm(bar), pfsdm(disk.T)])
-    >>> bool(d[0, 2] < 0.01 * d[0, 1])
+    >>> bool(d[0, 2] < 0.02 * d[0, 1])
     True
     """
+    is_table = hasattr(items, "columns")
+    if invariance is None:
+        invariance = "magnitude" if is_table else "combined"
     if invariance not in INVARIANCES:
         raise ValueError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
-    is_table = hasattr(items, "columns")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
     if is_table:
         if invariance != "magnitude":
@@ -142,41 +181,37 @@ def distance_matrix(
                 f"invariance={invariance!r} needs the complex spectra of pfsdm results; a table "
                 "holds magnitudes only. Use invariance='magnitude' for tables."
             )
-        embs = [embeddings_from_table(items, c) for c in channels]
+        embs = [_from_table(items, c) for c in channels]
     else:
         items = list(items)
         if not items:
             return np.zeros((0, 0))
-        if intensity_weight and any(r.intensity_embedding is None for r in items):
-            raise ValueError("intensity_weight > 0 needs results computed with an intensity.")
-        weights = items[0].weights
-        embs = [(np.stack([r.embedding for r in items]), weights)]
-        if intensity_weight:
-            embs.append((np.stack([r.intensity_embedding for r in items]), weights))
+        embs = [_from_results(items, c) for c in channels]
     scale = [1.0, float(intensity_weight)]
-    d2 = 0.0
+    d_mag = d_align = None
     if invariance in ("magnitude", "combined"):
-        for (emb, w), s in zip(embs, scale[: len(embs)], strict=True):
-            f = _magnitude_features(emb, w)
+        d2 = 0.0
+        for (emb, w, mw), s in zip(embs, scale[: len(embs)], strict=True):
+            f = _magnitude_features(emb, w, mw)
             d2 = d2 + s * _sq_euclidean(f, f)
+        d_mag = np.sqrt(d2)
     if invariance in ("align", "combined"):
-        n_f = items[0].embedding.shape[1]
-        spec = [np.stack([r.spectrum[:, :n_f] for r in items])]
+        n_f = embs[0][0].shape[2]
+        spec = [np.stack([r.spectrum[:, :n_f] for r in items]) * embs[0][2]]
         if intensity_weight:
-            spec.append(np.stack([r.intensity_spectrum[:, :n_f] for r in items]))
-        wts = [items[0].weights * s for s in scale[: len(spec)]]
-        d2_align = _align_sq(spec, wts, chunk)
-        d2 = d2_align if invariance == "align" else d2
-        if invariance == "combined":
-            out = 0.5 * (np.sqrt(d2) + np.sqrt(d2_align))
-            np.fill_diagonal(out, 0.0)
-            return out
-    out = np.sqrt(d2)
+            spec.append(np.stack([r.intensity_spectrum[:, :n_f] for r in items]) * embs[0][2])
+        wts = [embs[0][1] * s for s in scale[: len(spec)]]
+        d_align = np.sqrt(_align_sq(spec, wts, chunk))
+    if invariance == "magnitude":
+        out = d_mag
+    elif invariance == "align":
+        out = d_align
+    else:
+        out = d_mag + d_align
     np.fill_diagonal(out, np.where(np.isnan(np.diag(out)), np.nan, 0.0))
     return out
 
 
-def distance(a, b, intensity_weight: float = 0.0, *, invariance: str = "magnitude") -> float:
+def distance(a, b, intensity_weight: float = 0.0, *, invariance: str | None = None) -> float:
     """PF-SDM distance between two results (see :func:`distance_matrix`)."""
     return float(distance_matrix([a, b], intensity_weight, invariance=invariance)[0, 1])
-

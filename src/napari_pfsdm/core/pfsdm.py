@@ -10,7 +10,7 @@ import numpy as np
 from scipy import ndimage as ndi
 
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
-from .morphometric import magnitude_embedding, ring_radii, ring_weights, spectrum
+from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
 from .pushforward import BijectiveMap, FourierMap, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
@@ -26,7 +26,8 @@ DEFAULTS: dict[str, Any] = {
     "mapping": "harmonic",
     "normalization": "none",
     "radii": "uniform",
-    "ring_weighting": "none",
+    "ring_weighting": "depth",
+    "mode_exponent": 0.25,
 }
 
 
@@ -43,6 +44,7 @@ class PFSDMResult:
     radii: np.ndarray
     angles: np.ndarray
     weights: np.ndarray
+    mode_weights: np.ndarray
     samples: np.ndarray
     disk: np.ndarray
     spectrum: np.ndarray
@@ -117,6 +119,7 @@ def pfsdm(
     normalization: str = DEFAULTS["normalization"],
     radii: str | np.ndarray = DEFAULTS["radii"],
     ring_weighting: str = DEFAULTS["ring_weighting"],
+    mode_exponent: float = DEFAULTS["mode_exponent"],
     components: str = "largest",
     min_area: int = DEFAULT_MIN_AREA,
     smooth: float = 1.0,
@@ -153,8 +156,13 @@ def pfsdm(
         ``"ring"`` scales (c_1 … c_N_F) to unit length on every ring, as in the paper.
     radii : {"uniform", "boundary"} or array_like
         Placement of the rings (``"boundary"`` packs them toward the outline).
-    ring_weighting : {"none", "boundary"}
-        Extra weight of each ring in the distance (``"boundary"``: 1/(1 − r + 0.05)).
+    ring_weighting : {"depth", "none", "boundary"}
+        Extra weight of each ring in the distance. ``"depth"`` (default) divides by (1 − r)²,
+        i.e. compares φ*/(1 − r), which stays of order one up to the outline where φ* → 0;
+        ``"boundary"``: 1/(1 − r + 0.05); ``"none"``: the plain ∫ dr of the paper.
+    mode_exponent : float
+        The distance compares (1 + n)^mode_exponent · |c_n|: 0.25 (default) brings out the fine
+        outline; 0 as in the paper.
     components : {"largest", "raise"}
         What to do with an object made of several pieces.
     min_area : int
@@ -226,12 +234,14 @@ def pfsdm(
     options = {
         "n_fourier": n_fourier, "n_radii": len(r), "n_angles": n_angles, "sdf": sdf,
         "viscosity": viscosity, "mapping": mapping, "normalization": normalization,
-        "radii": r.tolist(), "ring_weighting": ring_weighting, "smooth": smooth,
+        "radii": r.tolist(), "ring_weighting": ring_weighting,
+        "mode_exponent": mode_exponent, "smooth": smooth,
     }
     result = PFSDMResult(
         contour=contour, sdf=phi, mapping=pmap, radii=r, angles=theta,
-        weights=ring_weights(r, ring_weighting), samples=samples, disk=disk, spectrum=spec,
-        embedding=emb, diagnostics=diagnostics, options=options, mask_info=info,
+        weights=ring_weights(r, ring_weighting),
+        mode_weights=mode_weights(n_fourier, mode_exponent), samples=samples, disk=disk,
+        spectrum=spec, embedding=emb, diagnostics=diagnostics, options=options, mask_info=info,
     )
     if intensity is not None:
         result.intensity_image = _intensity_crop(intensity, info)
@@ -255,14 +265,14 @@ def _shift(result: PFSDMResult, offset: np.ndarray) -> None:
                                 touches_border=info.touches_border)
 
 
-def _polar_to_cartesian(polar: np.ndarray, size: int) -> np.ndarray:
+def _polar_to_cartesian(polar: np.ndarray, size: int, turn: float = 0.0) -> np.ndarray:
     """Resample (n_r, n_θ) samples at r_i = (i + ½)/n_r, θ_j = 2πj/n_θ onto a size × size image
-    of the unit disk (row ↔ u, col ↔ v, NaN outside)."""
+    of the unit disk (row ↔ u, col ↔ v, NaN outside), the disk turned by ``turn`` radians."""
     n_r, n_t = polar.shape
     c = (np.arange(size) + 0.5) / size * 2 - 1
     u, v = np.meshgrid(c, c, indexing="ij")
     rho = np.hypot(u, v)
-    ang = np.mod(np.arctan2(v, u), 2 * np.pi)
+    ang = np.mod(np.arctan2(v, u) - turn, 2 * np.pi)
     ri = np.clip(rho * n_r - 0.5, 0, n_r - 1)
     ti = ang / (2 * np.pi) * n_t
     wrapped = np.concatenate([polar, polar[:, :1]], axis=1)
@@ -279,7 +289,8 @@ def render_disk(result: PFSDMResult, size: int = 128, channel: str = "sdf") -> n
     result : PFSDMResult
     size : int
         Output is ``size × size``; pixel (i, j) is the disk point u = row, v = column (both
-        in [-1, 1]), so the disk shows the object in the image's orientation.
+        in [-1, 1]), turned so that the disk shows the object roughly in the image's
+        orientation (the turn does not change any descriptor).
     channel : {"sdf", "intensity"}
         The PF-SDF φ* (normalised units, negative inside) or the pushed intensity (relative to
         the object's mean).
@@ -302,7 +313,17 @@ def render_disk(result: PFSDMResult, size: int = 128, channel: str = "sdf") -> n
         values = result.sdf(pts.reshape(-1, 2)).reshape(n_r, n_t)
     else:
         values = sample_intensity(result, pts)
-    return _polar_to_cartesian(values, size)
+    # θ = 0 is where the outline's parametrisation starts; turn the disk so that this point
+    # shows at its own polar angle around the centroid: the disk then shows the object roughly
+    # in the image's orientation.
+    return _polar_to_cartesian(values, size, turn=display_turn(result))
+
+
+def display_turn(result: PFSDMResult) -> float:
+    """Angle (radians) by which :func:`render_disk` turns the disk: the polar angle of the
+    outline's start point (θ = 0) around the centroid."""
+    start = result.contour.normalized[0]
+    return float(np.arctan2(start[1], start[0]))
 
 
 def sample_intensity(result: PFSDMResult, points: np.ndarray) -> np.ndarray:

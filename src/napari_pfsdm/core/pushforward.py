@@ -82,16 +82,26 @@ class FourierMap:
         det = np.imag(np.conj(x_r) * x_t)[:, :: m // n_angles]
         return det
 
-    def __call__(self, uv: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    def __call__(self, uv: np.ndarray, chunk: int = 2048) -> np.ndarray:
         """Shape points of arbitrary disk points ``uv`` (K, 2)."""
-        z = _as_complex(np.asarray(uv, float).reshape(-1, 2))
-        out = np.empty(len(z), complex)
-        pos, neg = self._n >= 0, self._n < 0
-        for i in range(0, len(z), chunk):
-            zz = z[i : i + chunk, None]
-            out[i : i + chunk] = (zz ** self._n[pos] @ self.coefficients[pos]
-                                  + np.conj(zz) ** (-self._n[neg]) @ self.coefficients[neg])
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        r, theta = np.hypot(uv[:, 0], uv[:, 1]), np.arctan2(uv[:, 1], uv[:, 0])
+        out = np.empty(len(uv), complex)
+        for i in range(0, len(uv), chunk):
+            basis = (r[i : i + chunk, None] ** np.abs(self._n)
+                     * np.exp(1j * theta[i : i + chunk, None] * self._n))
+            out[i : i + chunk] = basis @ self.coefficients
         return _as_real(out)
+
+    def boundary(self, theta: np.ndarray) -> np.ndarray:
+        """Outline points X(1, θ) at angles ``theta`` (K,), by linear interpolation between
+        the boundary samples."""
+        m = len(self.coefficients)
+        nodes = np.fft.ifft(self.coefficients) * m
+        grid = 2 * np.pi * np.arange(m + 1) / m
+        closed = np.append(nodes, nodes[:1])
+        t = np.mod(theta, 2 * np.pi)
+        return np.column_stack([np.interp(t, grid, closed.real), np.interp(t, grid, closed.imag)])
 
 
 def harmonic_map(nodes: np.ndarray) -> FourierMap:
@@ -190,17 +200,22 @@ class BijectiveMap:
         disk_all = np.vstack([self.grid_disk, np.column_stack([np.cos(theta), np.sin(theta)])])
         shape_all = np.vstack([shape_pts, nodes])
         self._interp = LinearNDInterpolator(Delaunay(disk_all), shape_all)
+        self._rim = np.cos(np.pi / m)
         self._inverse_tree = cKDTree(shape_all)
         self._inverse_values = disk_all
 
     def __call__(self, uv: np.ndarray) -> np.ndarray:
         """Shape points of disk points ``uv`` (K, 2)."""
         uv = np.asarray(uv, float).reshape(-1, 2)
-        out = self._interp(uv)
-        bad = np.isnan(out[:, 0])
-        if bad.any():  # a sliver between the outermost nodes and the circle: use the boundary
-            ang = np.arctan2(uv[bad, 1], uv[bad, 0])
-            out[bad] = self._boundary(np.column_stack([np.cos(ang), np.sin(ang)]))
+        out = np.full(uv.shape, np.nan)
+        # the triangulation's hull is the polygon of the boundary nodes: points beyond it (a
+        # sliver at r > cos(π/M)) would send qhull into a brute-force search; they lie on the
+        # outline to within (π/M)²/2
+        rim = np.hypot(uv[:, 0], uv[:, 1]) >= self._rim
+        out[~rim] = self._interp(uv[~rim])
+        bad = rim | np.isnan(out[:, 0])
+        if bad.any():
+            out[bad] = self._boundary.boundary(np.arctan2(uv[bad, 1], uv[bad, 0]))
         return out
 
     def polar(self, radii: np.ndarray, n_angles: int) -> np.ndarray:

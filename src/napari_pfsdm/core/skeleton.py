@@ -20,6 +20,7 @@ from scipy import ndimage as ndi
 from scipy.spatial import cKDTree
 from skimage.morphology import skeletonize
 
+from .pfsdm import display_turn
 from .sdf import ViscousSDF
 
 __all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points"]
@@ -36,7 +37,8 @@ class Skeleton:
     points : ndarray of int, shape (K, 2)
         Skeleton pixels, image ``(row, col)`` coordinates.
     disk_points : ndarray, shape (K, 2)
-        The same points pushed onto the unit disk, ``(u, v)``.
+        The same points pushed onto the unit disk, ``(u, v)``, in the frame of
+        :func:`~napari_pfsdm.core.pfsdm.render_disk` (which turns the disk for display).
     depth : ndarray, shape (K,)
         Distance to the outline at each point, in pixels (the local half-thickness).
     """
@@ -181,4 +183,5 @@ def _push_to_disk(result, shape_points: np.ndarray, n_r: int = 64, n_t: int = 25
     images = result.mapping.polar(r, n_t).reshape(-1, 2)
     _, k = cKDTree(images).query(shape_points)
     rr, tt = np.divmod(k, n_t)
-    return np.column_stack([r[rr] * np.cos(theta[tt]), r[rr] * np.sin(theta[tt])])
+    angle = theta[tt] + display_turn(result)
+    return np.column_stack([r[rr] * np.cos(angle), r[rr] * np.sin(angle)])
