@@ -72,7 +72,8 @@ def _progress_printer(quiet: bool):
 
 def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
     names = ("n_fourier", "n_radii", "n_angles", "sdf", "viscosity", "mapping",
-             "normalization", "radii", "ring_weighting", "components", "min_area")
+             "normalization", "radii", "ring_weighting", "mode_exponent", "components",
+             "min_area")
     return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
 
 
@@ -108,9 +109,13 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--radii", choices=("uniform", "boundary"),
                    help="ring placement: 'uniform' or 'boundary' (packed toward the outline, "
                         "where shapes differ most); default " + str(D["radii"]))
-    g.add_argument("--ring-weighting", dest="ring_weighting", choices=("none", "boundary"),
+    g.add_argument("--ring-weighting", dest="ring_weighting",
+                   choices=("depth", "none", "boundary"),
                    help="extra weight of the outer rings in distances; default "
                         + D["ring_weighting"])
+    g.add_argument("--mode-exponent", dest="mode_exponent", type=float, metavar="A",
+                   help="distances compare (1 + n)^A |c_n|: higher A stresses fine outline "
+                        f"detail, 0 is the paper's choice; default {D['mode_exponent']}")
     g.add_argument("--components", choices=("largest", "raise"),
                    help="an object in several pieces: keep the 'largest' (default) or report "
                         "an error for it ('raise')")

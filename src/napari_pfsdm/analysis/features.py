@@ -194,7 +194,8 @@ def measure(
     n_r, n_f = opts["n_radii"], opts["n_fourier"]
     shape_cols = feature_columns(n_r, n_f, "shape")
     int_cols = feature_columns(n_r, n_f, "intensity") if intensity is not None else []
-    total = count_objects(labels) if isinstance(labels, np.ndarray) else None
+    counted = progress is not None and isinstance(labels, np.ndarray)
+    total = count_objects(labels) if counted else None
     base, shape_rows, int_rows = [], [], []
     nan = np.full(len(shape_cols), np.nan)
     for done, obj in enumerate(iter_objects(labels, intensity, **options), start=1):

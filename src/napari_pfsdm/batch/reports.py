@@ -91,11 +91,11 @@ def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
 
 
 def _weighted_features(table: pd.DataFrame, channel: str) -> np.ndarray:
-    """Feature vectors scaled by √(ring weight), so Euclidean distances are PF-SDM distances."""
-    from napari_pfsdm import embeddings_from_table
+    """Feature vectors scaled by the ring and mode weights, so that Euclidean distances are
+    PF-SDM (magnitude) distances."""
+    from napari_pfsdm import weighted_features
 
-    emb, weights = embeddings_from_table(table, channel=channel)
-    return (emb * np.sqrt(np.asarray(weights, float))[None, :, None]).reshape(len(emb), -1)
+    return weighted_features(table, channel=channel)
 
 
 def pca_scores(
