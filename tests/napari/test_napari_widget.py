@@ -225,3 +225,23 @@ def test_two_dimensional_labels_five_shapes(make_napari_viewer, qtbot):
     assert viewer.dims.axis_labels == ("object", "y", "x")
     labels_layer.selected_label = 7
     assert int(round(viewer.dims.point[0])) == out.object_index(7) == 6
+
+
+def test_plugin_sample_and_widget_through_napari(make_napari_viewer):
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer()
+    viewer.open_sample("napari-pfsdm", "gastruloids")
+    viewer.open_sample("napari-pfsdm", "five_shapes")
+    assert [layer.name for layer in viewer.layers] == [
+        "gastruloids reporter", "gastruloids", "five shapes"]
+    _, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    assert isinstance(widget, AnalysisWidget)
+    labels = [widget.labels_combo.itemText(i) for i in range(widget.labels_combo.count())]
+    assert labels == ["gastruloids", "five shapes"]
+    widget.labels_combo.setCurrentText("five shapes")  # 2-D: the 3-D reporter does not fit
+    assert [widget.image_combo.itemText(i) for i in range(widget.image_combo.count())] == [
+        "(none)"]
+    widget.labels_combo.setCurrentText("gastruloids")
+    assert widget.image_combo.currentText() in ("gastruloids reporter", "(none)")
+    assert widget.image_combo.count() == 2
