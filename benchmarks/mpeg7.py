@@ -313,11 +313,13 @@ OPTION_VALUES = {
     "radii": ("napari_pfsdm.core.morphometric", "RADII_PLACEMENTS"),
     "ring_weighting": ("napari_pfsdm.core.morphometric", "RING_WEIGHTINGS"),
     "mode_weighting": ("napari_pfsdm.core.morphometric", "MODE_WEIGHTINGS"),
-    "invariance": ("napari_pfsdm.core.distance", "INVARIANCES"),
+    "mode_exponent": ("napari_pfsdm.core.morphometric", "MODE_EXPONENTS"),
+    "invariance": ("napari_pfsdm.core.distances", "INVARIANCES"),
 }
 FALLBACK_VALUES = {
     "radii": ("uniform", "boundary"),
     "ring_weighting": ("none", "boundary"),
+    "mode_exponent": (0.0, 0.25, 0.5),
     "invariance": ("magnitude", "align", "combined"),
 }
 

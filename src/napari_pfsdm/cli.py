@@ -78,7 +78,7 @@ def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _add_method_options(p: argparse.ArgumentParser) -> None:
-    from .core.pfsdm import DEFAULTS
+    from .core.descriptor import DEFAULTS
 
     D = {"min_area": 20, **DEFAULTS}  # the help shows the core's current defaults
     g = p.add_argument_group(

@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage as ndi
 
+from ..core.descriptor import DEFAULTS, PFSDMResult, pfsdm
 from ..core.morphometric import mode_weights, ring_radii, ring_weights
-from ..core.pfsdm import DEFAULTS, PFSDMResult, pfsdm
 
 __all__ = ["ObjectResult", "iter_objects", "measure", "count_objects", "feature_columns"]
 
@@ -92,7 +92,7 @@ def iter_objects(labels, intensity=None, *, frames=None, **options: Any) -> Iter
     frames : iterable of int, optional
         Frames to process (default all).
     **options
-        Passed to :func:`~napari_pfsdm.core.pfsdm.pfsdm`.
+        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm`.
 
     Yields
     ------
@@ -169,7 +169,7 @@ def measure(
     progress : callable(done, total), optional
         Called after every object; ``total`` is None for lazy (non-numpy) inputs.
     **options
-        Passed to :func:`~napari_pfsdm.core.pfsdm.pfsdm` (``n_fourier``, ``mapping``, ...).
+        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm` (``n_fourier``, ``mapping``, ...).
 
     Returns
     -------

@@ -3,15 +3,15 @@
 Pure numpy/scipy/scikit-image; never imports Qt or napari.
 """
 
-from .distance import (
+from .descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
+from .distances import (
     INVARIANCES,
     distance,
     distance_matrix,
     embeddings_from_table,
     weighted_features,
 )
-from .pfsdm import DEFAULTS, PFSDMResult, pfsdm, render_disk
-from .skeleton import Skeleton, skeleton
+from .medial_axis import Skeleton, skeleton
 
 __all__ = [
     "DEFAULTS",

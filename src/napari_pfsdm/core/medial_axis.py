@@ -20,7 +20,7 @@ from scipy import ndimage as ndi
 from scipy.spatial import cKDTree
 from skimage.morphology import skeletonize
 
-from .pfsdm import display_turn
+from .descriptor import display_turn
 from .sdf import ViscousSDF
 
 __all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points"]
@@ -38,7 +38,7 @@ class Skeleton:
         Skeleton pixels, image ``(row, col)`` coordinates.
     disk_points : ndarray, shape (K, 2)
         The same points pushed onto the unit disk, ``(u, v)``, in the frame of
-        :func:`~napari_pfsdm.core.pfsdm.render_disk` (which turns the disk for display).
+        :func:`~napari_pfsdm.core.descriptor.render_disk` (which turns the disk for display).
     depth : ndarray, shape (K,)
         Distance to the outline at each point, in pixels (the local half-thickness).
     """
@@ -129,7 +129,7 @@ def prune_branches(skel: np.ndarray, min_length: float, rounds: int = 3) -> np.n
 
 def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
              prune: float = 0.5) -> Skeleton:
-    """Thin, pruned medial axis of a :class:`~napari_pfsdm.core.pfsdm.PFSDMResult`.
+    """Thin, pruned medial axis of a :class:`~napari_pfsdm.core.descriptor.PFSDMResult`.
 
     Parameters
     ----------

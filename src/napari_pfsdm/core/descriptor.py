@@ -60,7 +60,7 @@ class PFSDMResult:
     @cached_property
     def skeleton(self):
         """The pruned medial axis, in image and disk coordinates (:class:`Skeleton`)."""
-        from .skeleton import skeleton
+        from .medial_axis import skeleton
 
         return skeleton(self)
 

@@ -73,17 +73,19 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
     n_shift = max(64, 8 * k)
     m = np.arange(k)
     ang = np.outer(m, 2 * np.pi * np.arange(n_shift) / n_shift)
-    basis = np.vstack([np.cos(ang), -np.sin(ang)])  # Re(X e^{ims}) = Re X cos − Im X sin
+    # single precision: twice the speed of the matrix products, errors ~1e-7 of ‖a‖‖b‖
+    basis = np.vstack([np.cos(ang), -np.sin(ang)]).astype(np.float32)  # Re(X e^{ims})
     norms = sum(np.einsum("irk,r->i", np.abs(s) ** 2, w)
                 for s, w in zip(spec, weights, strict=True))
-    flat = [np.ascontiguousarray((s * np.sqrt(w)[None, :, None]).transpose(2, 0, 1))
+    flat = [np.ascontiguousarray((s * np.sqrt(w)[None, :, None]).transpose(2, 0, 1),
+                                 dtype=np.complex64)
             for s, w in zip(spec, weights, strict=True)]  # (K, n, R)
     out = np.empty((n, n))
     for i0 in range(0, n, chunk):
         i1 = min(i0 + chunk, n)
         best = np.full((i1 - i0, n), -np.inf)
         for mirror in (False, True):
-            cross = np.zeros((i1 - i0, n, k), complex)
+            cross = np.zeros((i1 - i0, n, k), np.complex64)
             for f in flat:
                 other = f if mirror else np.conj(f)
                 for mode in range(k):
