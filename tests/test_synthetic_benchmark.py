@@ -25,7 +25,8 @@ def test_nn_accuracy_and_silhouette_on_a_hand_made_matrix():
 def test_variant_grid_is_complete_and_starts_with_the_defaults():
     grid = SB.pfsdm_variants()
     assert grid[0] == {} and SB.pfsdm_variants(quick=True) == [{}]
-    combos = {(v["mapping"], v["sdf"], v["normalization"], v["radii"]) for v in grid[1:]}
+    combos = {(v["mapping"], v["sdf"], v["normalization"], v["radii"])
+              for v in grid[1:] if "mapping" in v}
     assert len(combos) == 3 * 2 * 2 * 2
 
 
@@ -55,6 +56,7 @@ def test_run_with_variants_and_one_set(tmp_path):
                    verbose=False)
     pf = table[table["family"] == "PF-SDM"]
     assert pf["invariance"].tolist() == ["magnitude", "align"]
+    assert pf["method"].str.contains("norm=ring").all()
     assert (pf["normalization"] == "ring").all() and not pf["is_default"].any()
     assert not (tmp_path / "synthetic_mds.png").exists()
     with pytest.raises(ValueError, match="Unknown set"):

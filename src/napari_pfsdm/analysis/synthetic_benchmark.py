@@ -10,8 +10,9 @@ every method, the pairwise distance matrix of each set is scored by
 - the **leave-one-out 1-NN accuracy**: the fraction of objects whose nearest other object is
   of the same class.
 
-Methods: PF-SDM (every ``mapping`` × ``sdf`` × ``normalization`` × ring placement, and both
-``invariance`` modes of the distance; ``quick=True`` keeps the default only), and the
+Methods: PF-SDM (every ``mapping`` × ``sdf`` × ``normalization`` × ring placement, a few
+ablations of the distance's ring weighting and mode exponent, and every ``invariance`` mode of
+the distance; ``quick=True`` keeps the default only), and the
 baselines of :mod:`napari_pfsdm.analysis.baselines`: normalised EFA with 10 harmonics as
 ``pyefd`` gives it (``"EFA (raw pyefd)"``, as in the paper), the same with its 180° ambiguities
 removed (``"EFA"``), mirror-aware EFA, and GPA (Procrustes on 100 equidistant points of the
@@ -45,12 +46,6 @@ DEFAULT_LABEL = "PF-SDM (default)"
 
 SETS = ("exact", "perturbed")
 
-_RADII = {
-    "uniform": {"radii": "uniform", "ring_weighting": "none"},
-    "boundary": {"radii": "boundary", "ring_weighting": "boundary"},
-}
-
-
 def pfsdm_variants(quick: bool = False) -> list[dict]:
     """PF-SDM option sets of the benchmark.
 
@@ -63,16 +58,29 @@ def pfsdm_variants(quick: bool = False) -> list[dict]:
     -------
     list of dict
         Keyword arguments for :func:`napari_pfsdm.pfsdm`; ``{}`` first. The full grid is every
-        ``mapping`` × ``sdf`` × ``normalization`` × ring placement (``radii`` with the matching
-        ``ring_weighting``) that the core offers.
+        ``mapping`` × ``sdf`` × ``normalization`` × ``radii`` (ring placement), the other
+        options at the library's defaults, plus, where the core offers them, the default
+        options with each other ``ring_weighting`` and with ``mode_exponent=0`` (the paper's
+        plain distance).
     """
+    from napari_pfsdm import DEFAULTS
+
     if quick:
         return [{}]
     out: list[dict] = [{}]
     for mapping, sdf, norm, radii in itertools.product(
-        ("harmonic", "bijective", "radial"), ("exact", "viscous"), ("none", "ring"), _RADII
+        ("harmonic", "bijective", "radial"), ("exact", "viscous"), ("none", "ring"),
+        ("uniform", "boundary"),
     ):
-        out.append({"mapping": mapping, "sdf": sdf, "normalization": norm, **_RADII[radii]})
+        out.append({"mapping": mapping, "sdf": sdf, "normalization": norm, "radii": radii})
+    if "ring_weighting" in DEFAULTS:
+        for weighting in ("none", "boundary", "depth"):
+            if weighting != DEFAULTS["ring_weighting"]:
+                out.append({"ring_weighting": weighting})
+    if "mode_exponent" in DEFAULTS and DEFAULTS["mode_exponent"] != 0:
+        out.append({"mode_exponent": 0.0})
+        if "ring_weighting" in DEFAULTS and DEFAULTS["ring_weighting"] != "none":
+            out.append({"mode_exponent": 0.0, "ring_weighting": "none"})
     return out
 
 
@@ -82,11 +90,26 @@ def _full_options(options: dict) -> dict:
     return {**DEFAULTS, **options}
 
 
+def _default_invariance() -> str:
+    """The invariance ``distance_matrix`` uses for results when none is given."""
+    import inspect
+
+    from napari_pfsdm import distance_matrix
+
+    default = inspect.signature(distance_matrix).parameters["invariance"].default
+    return "combined" if default is None else str(default)
+
+
 def _variant_label(options: dict, invariance: str) -> str:
+    from napari_pfsdm import DEFAULTS
+
     opts = _full_options(options)
-    radii = "boundary" if opts["radii"] == "boundary" else "uniform"
-    return (f"PF-SDM {opts['mapping']}/{opts['sdf']}/norm={opts['normalization']}/"
-            f"rings={radii}/{invariance}")
+    label = (f"PF-SDM {opts['mapping']}/{opts['sdf']}/norm={opts['normalization']}/"
+             f"rings={opts['radii']}")
+    for key, short in (("ring_weighting", "weights"), ("mode_exponent", "modes^")):
+        if key in opts and opts[key] != DEFAULTS.get(key):
+            label += f"/{short}{'=' if short == 'weights' else ''}{opts[key]}"
+    return f"{label}/{invariance}"
 
 
 def nn_accuracy(dist: np.ndarray, labels: np.ndarray) -> float:
@@ -196,9 +219,9 @@ def run(
         Masks are ``size × size`` pixels.
     sets : sequence of {"exact", "perturbed"}
         Which sets to build.
-    invariances : sequence of {"magnitude", "align"}, optional
+    invariances : sequence of {"combined", "magnitude", "align"}, optional
         Distance modes of the PF-SDM rows. Default: the core's default with ``quick``,
-        both otherwise.
+        all three otherwise (the core's default first).
     plot : bool
         Write the MDS figure.
     verbose : bool
@@ -210,7 +233,8 @@ def run(
     -------
     pandas.DataFrame
         Long format, one row per (set, method): ``set``, ``method``, ``family``,
-        ``mapping``, ``sdf``, ``normalization``, ``rings``, ``invariance``, ``is_default``,
+        ``mapping``, ``sdf``, ``normalization``, ``rings``, ``ring_weighting``,
+        ``mode_exponent``, ``invariance``, ``is_default``,
         ``silhouette``, ``nn_accuracy``, ``ms_per_object``, ``error``.
     """
     from napari_pfsdm.analysis import baselines
@@ -222,8 +246,11 @@ def run(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     variants = pfsdm_variants(quick) if variants is None else [dict(v) for v in variants]
+    default_inv = _default_invariance()
     if invariances is None:
-        invariances = ("magnitude",) if quick else ("magnitude", "align")
+        invariances = [default_inv]
+        if not quick:
+            invariances += [i for i in ("combined", "magnitude", "align") if i != default_inv]
     say = progress or ((lambda msg: print(msg, flush=True)) if verbose else (lambda msg: None))
 
     rows: list[dict] = []
@@ -258,13 +285,14 @@ def run(
                 f"/{opts['radii']} ...")
             results, per_obj, err = _pfsdm_results(masks, options)
             for inv in invariances:
-                method = (DEFAULT_LABEL if is_default and inv == invariances[0]
-                          else _variant_label(options, inv))
+                default_row = is_default and inv == default_inv
+                method = DEFAULT_LABEL if default_row else _variant_label(options, inv)
                 add(method, "PF-SDM", _pfsdm_matrix(results, inv), 1e3 * per_obj, err,
                     mapping=opts["mapping"], sdf=opts["sdf"],
                     normalization=opts["normalization"],
-                    rings="boundary" if opts["radii"] == "boundary" else "uniform",
-                    invariance=inv, is_default=is_default and inv == invariances[0])
+                    rings=str(opts["radii"]), ring_weighting=str(opts.get("ring_weighting", "")),
+                    mode_exponent=opts.get("mode_exponent", np.nan), invariance=inv,
+                    is_default=default_row)
 
         if not _have_pyefd():
             say(f"[{set_name}] EFA and GPA skipped: the optional package 'pyefd' is missing "
@@ -297,13 +325,16 @@ def run(
             is_default=False)
 
     table = pd.DataFrame(rows)
-    for col in ("mapping", "sdf", "normalization", "rings", "invariance"):
+    for col in ("mapping", "sdf", "normalization", "rings", "ring_weighting", "invariance"):
         if col not in table:
             table[col] = ""
         table[col] = table[col].fillna("")
     table["is_default"] = table["is_default"].fillna(False).astype(bool)
+    if "mode_exponent" not in table:
+        table["mode_exponent"] = np.nan
     cols = ["set", "method", "family", "mapping", "sdf", "normalization", "rings",
-            "invariance", "is_default", "silhouette", "nn_accuracy", "ms_per_object", "error"]
+            "ring_weighting", "mode_exponent", "invariance", "is_default", "silhouette",
+            "nn_accuracy", "ms_per_object", "error"]
     table = table[cols]
     table.attrs["matrices"] = matrices
     table.to_csv(out / "synthetic_benchmark.csv", index=False)
