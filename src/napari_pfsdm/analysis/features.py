@@ -14,7 +14,15 @@ from scipy import ndimage as ndi
 from ..core.descriptor import DEFAULTS, PFSDMResult, pfsdm
 from ..core.morphometric import mode_weights, ring_radii, ring_weights
 
-__all__ = ["ObjectResult", "iter_objects", "measure", "count_objects", "feature_columns"]
+__all__ = [
+    "ObjectResult",
+    "count_objects",
+    "feature_columns",
+    "iter_objects",
+    "measure",
+    "resolved_options",
+    "table_from_objects",
+]
 
 _BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
                  "n_components", "n_holes", "folded_fraction", "error"]
@@ -151,6 +159,36 @@ def resolved_options(**options: Any) -> dict[str, Any]:
     return opts
 
 
+def table_from_objects(objects, *, with_intensity: bool = False, **options: Any) -> pd.DataFrame:
+    """The feature table of :func:`measure` from objects computed by :func:`iter_objects` with
+    the same ``options`` (one row per object, in the given order). ``objects`` may be a
+    generator: only the rows are kept, not the results."""
+    opts = resolved_options(**options)
+    shape_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
+    int_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "intensity") \
+        if with_intensity else []
+    nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
+    base, shape_rows, int_rows = [], [], []
+    for obj in objects:
+        res = obj.result
+        diag = res.diagnostics if res is not None else {}
+        base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
+                     obj.touches_border, diag.get("n_components", np.nan),
+                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error))
+        shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
+        if int_cols:
+            emb = None if res is None else res.intensity_embedding
+            int_rows.append(emb.ravel() if emb is not None else nan_i)
+    blocks = [pd.DataFrame(base, columns=_BASE_COLUMNS),
+              pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)), columns=shape_cols)]
+    if int_cols:
+        blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
+                                   columns=int_cols))
+    table = pd.concat(blocks, axis=1)
+    table.attrs["pfsdm"] = opts
+    return table
+
+
 def measure(
     labels,
     intensity=None,
@@ -190,31 +228,13 @@ def measure(
     >>> len(table), list(table.columns[:3])
     (6, ['frame', 'label', 'area'])
     """
-    opts = resolved_options(**options)
-    n_r, n_f = opts["n_radii"], opts["n_fourier"]
-    shape_cols = feature_columns(n_r, n_f, "shape")
-    int_cols = feature_columns(n_r, n_f, "intensity") if intensity is not None else []
     counted = progress is not None and isinstance(labels, np.ndarray)
     total = count_objects(labels) if counted else None
-    base, shape_rows, int_rows = [], [], []
-    nan = np.full(len(shape_cols), np.nan)
-    for done, obj in enumerate(iter_objects(labels, intensity, **options), start=1):
-        res = obj.result
-        diag = res.diagnostics if res is not None else {}
-        base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
-                     obj.touches_border, diag.get("n_components", np.nan),
-                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error))
-        shape_rows.append(res.embedding.ravel() if res is not None else nan)
-        if int_cols:
-            int_rows.append(res.intensity_embedding.ravel() if res is not None else nan)
-        if progress is not None:
-            progress(done, total)
-    table = pd.DataFrame(base, columns=_BASE_COLUMNS)
-    blocks = [table, pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)),
-                                  columns=shape_cols)]
-    if int_cols:
-        blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
-                                   columns=int_cols))
-    table = pd.concat(blocks, axis=1)
-    table.attrs["pfsdm"] = opts
-    return table
+
+    def reporting():
+        for done, obj in enumerate(iter_objects(labels, intensity, **options), start=1):
+            yield obj  # consumed row by row: no result is kept
+            if progress is not None:
+                progress(done, total)
+
+    return table_from_objects(reporting(), with_intensity=intensity is not None, **options)

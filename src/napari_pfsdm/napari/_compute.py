@@ -194,15 +194,14 @@ def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) 
     Returns ``frame``, ``label``, ``PC1``... columns and ``attrs["explained_variance_ratio"]``;
     no PC columns with fewer than two measured rows.
     """
-    from napari_pfsdm import embeddings_from_table
+    from napari_pfsdm import weighted_features
 
     empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
     empty.attrs["explained_variance_ratio"] = []
     if not any(c.startswith(f"{kind}_r") for c in table.columns):
         return empty
     ok = table["error"].fillna("").astype(str).eq("").to_numpy() if "error" in table else True
-    emb, weights = embeddings_from_table(table, channel=kind)
-    x = (emb * np.sqrt(np.asarray(weights, float))[None, :, None]).reshape(len(emb), -1)
+    x = weighted_features(table, channel=kind)
     ok = ok & np.isfinite(x).all(axis=1)
     x = x[ok]
     if len(x) < 2:
@@ -239,36 +238,9 @@ def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:
 
 def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:
     """The feature table of :func:`napari_pfsdm.measure` from already computed objects."""
-    from napari_pfsdm.analysis import features as _features
+    from napari_pfsdm.analysis.features import table_from_objects as build
 
-    builder = getattr(_features, "table_from_objects", None)
-    if builder is not None:
-        return builder(objects, with_intensity=with_intensity, **options)
-    opts = _features.resolved_options(**options)
-    shape_cols = _features.feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
-    int_cols = (_features.feature_columns(opts["n_radii"], opts["n_fourier"], "intensity")
-                if with_intensity else [])
-    nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
-    base, shape_rows, int_rows = [], [], []
-    for obj in objects:
-        res = obj.result
-        diag = res.diagnostics if res is not None else {}
-        base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
-                     obj.touches_border, diag.get("n_components", np.nan),
-                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error))
-        shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
-        if int_cols:
-            emb = None if res is None else res.intensity_embedding
-            int_rows.append(emb.ravel() if emb is not None else nan_i)
-    table = pd.DataFrame(base, columns=BASE_COLUMNS)
-    blocks = [table, pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)),
-                                  columns=shape_cols)]
-    if int_cols:
-        blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
-                                   columns=int_cols))
-    table = pd.concat(blocks, axis=1)
-    table.attrs["pfsdm"] = opts
-    return table
+    return build(objects, with_intensity=with_intensity, **options)
 
 
 def disk_size_for(n_slots: int, largest: int = DISK_SIZE) -> int:
