@@ -221,6 +221,10 @@ def logistic_model(
 
     Standardised features and L2 logistic regression with balanced class weights, fitted for
     the shape and the intensity separately. Only ``y[train_idx]`` is ever read.
+
+    The solver is liblinear with a fixed ``random_state`` (deterministic; about 7x faster than
+    lbfgs here); ``C = 0.01`` was chosen on a development seed of the synthetic gastruloids
+    (1760 features per channel for ~60 training objects needs strong regularisation).
     """
     y = np.asarray(y).astype(int)
 

@@ -72,15 +72,13 @@ def format_table(results: pd.DataFrame) -> str:
 
 def plot_accuracy(results: pd.DataFrame, path: str | Path, title: str = "") -> None:
     """Grouped bars: accuracy (plain) and balanced accuracy (hatched) per feature set/method."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     methods = list(dict.fromkeys(results["method"]))
     feats = [f for f in cl.FEATURE_SETS if f in set(results["features"])]
     colors = ["tab:green", "tab:gray", "tab:purple", "tab:brown"]
-    fig, ax = plt.subplots(figsize=(10, 5.6))
+    fig = Figure(figsize=(10, 5.6))
+    ax = fig.subplots()
     n_m = len(methods)
     width = 0.8 / (2 * n_m)
     x = np.arange(len(feats))
@@ -106,7 +104,6 @@ def plot_accuracy(results: pd.DataFrame, path: str | Path, title: str = "") -> N
     ax.legend(fontsize=7, ncol=n_m, loc="upper center", bbox_to_anchor=(0.5, -0.16))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def plot_pca(
@@ -121,17 +118,16 @@ def plot_pca(
     time, blue single-axis, orange multi-axes; circle, triangle, square mark an early, an
     intermediate and the last frame (as the paper's Fig. 2B).
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from sklearn.decomposition import PCA
     from sklearn.preprocessing import StandardScaler
 
     frames = sorted(table["frame"].unique())
     if marks is None:
         marks = [frames[0], frames[len(frames) // 2], frames[-1]]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5))
+    fig = Figure(figsize=(11, 5))
+    axes = fig.subplots(1, 2)
     for ax, kind in zip(axes, ("intensity", "shape"), strict=True):
         cols = [c for c in table.columns if c.startswith(f"{kind}_")]
         ok = table[cols].notna().all(axis=1)
@@ -156,16 +152,15 @@ def plot_pca(
         ax.set_ylabel(f"PC2 ({100 * ev[1]:.0f} %)")
         ax.set_title(f"PF-SDM {kind} features")
     handles = [
-        plt.Line2D([], [], color=_CLASS_COLORS[False], label="single-axis"),
-        plt.Line2D([], [], color=_CLASS_COLORS[True], label="multi-axes"),
+        Line2D([], [], color=_CLASS_COLORS[False], label="single-axis"),
+        Line2D([], [], color=_CLASS_COLORS[True], label="multi-axes"),
     ] + [
-        plt.Line2D([], [], ls="", marker=m, color="gray", label=f"frame {f}")
+        Line2D([], [], ls="", marker=m, color="gray", label=f"frame {f}")
         for f, m in zip(marks, ("o", "^", "s"), strict=False)
     ]
     axes[1].legend(handles=handles, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def run(
