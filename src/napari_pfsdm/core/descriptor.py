@@ -303,11 +303,8 @@ def render_disk(result: PFSDMResult, size: int = 128, channel: str = "sdf") -> n
         raise ValueError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
     if channel == "intensity" and result.intensity_image is None:
         raise ValueError("This result has no intensity: pass an intensity image to pfsdm.")
-    n_r = max(size // 2, 4)
-    if isinstance(result.mapping, FourierMap):
-        n_t = len(result.mapping.coefficients)
-    else:
-        n_t = 4 * size
+    # about two samples per output pixel along each ring: the SDF evaluation is the cost
+    n_r, n_t = max(size // 2, 4), max(64, 2 * size)
     pts = result.mapping.polar((np.arange(n_r) + 0.5) / n_r, n_t)
     if channel == "sdf":
         values = result.sdf(pts.reshape(-1, 2)).reshape(n_r, n_t)
