@@ -629,6 +629,10 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores shared)")
+    import subprocess
+
+    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"],
+                          capture_output=True, text=True).stdout.strip()
 
     print(f"MPEG-7 folder: {args.folder}")
     masks, labels, names, stats = load_masks(args.folder, use_cache=not args.no_cache)
@@ -666,11 +670,7 @@ def main(argv=None) -> int:
     print("\n" + table_md)
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
     args.out.mkdir(parents=True, exist_ok=True)
-    import subprocess
-
-    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"],
-                          capture_output=True, text=True).stdout.strip()
-    print(f"core version: git {head or 'unknown'}")
+    print(f"core version (at start): git {head or 'unknown'}")
     table_md += f"\n\n(git {head or 'unknown'}; load average {os.getloadavg()[0]:.1f} on 2 cores)"
     (args.out / "mpeg7_results.md").write_text(
         f"`{' '.join(['benchmarks/mpeg7.py', *(argv if argv is not None else sys.argv[1:])])}`"
