@@ -15,10 +15,17 @@ leave-one-out 1-NN accuracy of every distance matrix, and writes
 
 from __future__ import annotations
 
-import argparse
-import time
+import os
 
-from napari_pfsdm.analysis.synthetic_benchmark import run
+# One BLAS/OpenMP thread: on a shared machine, multi-threaded BLAS spinning against other
+# processes made single calls up to 500x slower (measured here).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+from napari_pfsdm.analysis.synthetic_benchmark import run  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
