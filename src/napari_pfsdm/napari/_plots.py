@@ -227,6 +227,17 @@ class _LinkedPlot(QWidget):
     def draw_plot(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
 
+    def _clear_highlight(self):
+        """Remove the highlight markers; the axes to draw new ones on, or None if no points."""
+        for artist in getattr(self, "_highlight_artists", []):
+            try:
+                artist.remove()
+            except (ValueError, NotImplementedError):
+                pass
+        self._highlight_artists = []
+        ax = self._axes_points
+        return None if ax is None or not len(self._points) else ax
+
     def highlight(self, draw: bool = True) -> None:  # pragma: no cover - overridden
         pass
 
@@ -340,14 +351,8 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self.info.setText("Click a point to go to that object and frame.")
 
     def highlight(self, draw: bool = True) -> None:
-        for artist in getattr(self, "_highlight_artists", []):
-            try:
-                artist.remove()
-            except (ValueError, NotImplementedError):
-                pass
-        self._highlight_artists = []
-        ax = self._axes_points
-        if ax is None or not len(self._points):
+        ax = self._clear_highlight()
+        if ax is None:
             return
         frame, label = self.current()
         keys = np.asarray(self._keys)
@@ -463,14 +468,8 @@ class ShapeComparisonWidget(_LinkedPlot):
         super()._on_click(event)
 
     def highlight(self, draw: bool = True) -> None:
-        for artist in getattr(self, "_highlight_artists", []):
-            try:
-                artist.remove()
-            except (ValueError, NotImplementedError):
-                pass
-        self._highlight_artists = []
-        ax = self._axes_points
-        if ax is None or not len(self._points):
+        ax = self._clear_highlight()
+        if ax is None:
             return
         frame, label = self.current()
         keys = np.asarray(self._keys)
