@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import threading
 import warnings
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,6 +25,31 @@ __all__ = [
     "resolved_options",
     "table_from_objects",
 ]
+
+_BLAS_LOCK = threading.Lock()
+_BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None}
+
+
+@contextmanager
+def _one_blas_thread():
+    """Limit BLAS to one thread while objects are computed: one object's matrices are small,
+    threads only add overhead and, with several workers, oversubscribe the cores (parallelism
+    comes from frames: the dask batch). Reference-counted, so that concurrent threads restore
+    the original setting only when the last one leaves."""
+    with _BLAS_LOCK:
+        if _BLAS_STATE["users"] == 0:
+            from threadpoolctl import threadpool_limits
+
+            _BLAS_STATE["limiter"] = threadpool_limits(limits=1, user_api="blas")
+        _BLAS_STATE["users"] += 1
+    try:
+        yield
+    finally:
+        with _BLAS_LOCK:
+            _BLAS_STATE["users"] -= 1
+            if _BLAS_STATE["users"] == 0:
+                _BLAS_STATE["limiter"].restore_original_limits()
+
 
 _BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
                  "n_components", "n_holes", "folded_fraction", "error"]
@@ -108,8 +135,14 @@ def iter_objects(labels, intensity=None, *, frames=None, **options: Any) -> Iter
         In frame order, then label order. Objects that cannot be described (too small, NaN
         intensity, ...) are yielded with ``result=None`` and the reason in ``error``; a badly
         formed input (wrong dimensions, shapes, dtype) raises ``ValueError`` before anything runs.
+        While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
     n_frames, timelapse = _validate(labels, intensity)
+    with _one_blas_thread():
+        yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, options)
+
+
+def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
     for t in range(n_frames) if frames is None else frames:
         frame = _frame(labels, t, timelapse)
         if frame.dtype == bool:

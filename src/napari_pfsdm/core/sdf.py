@@ -231,7 +231,11 @@ class ViscousSDF:
                 s = sel & side
                 if s.any():
                     val = _double_layer(pts[s], nodes, normal, w, self.k, shift=d[s]) @ mu
-                    out[s] = np.log(np.maximum(val, 1e-300)) - self.k * d[s]
+                    # val ≈ 1 for a resolved quadrature; a non-positive value means the point
+                    # is where the polygon and the smooth curve disagree (a sharp corner): use
+                    # the exact distance there rather than log(0)
+                    ok = val > 1e-12
+                    out[s] = np.where(ok, np.log(np.where(ok, val, 1.0)), 0.0) - self.k * d[s]
         return out
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
