@@ -68,3 +68,14 @@ def test_distance_properties():
     assert np.all(ali >= mag - 1e-9)  # magnitudes are a lower bound of the aligned distance
     assert P.distance(shapes[0], shapes[1], invariance="magnitude") == pytest.approx(mag[0, 1])
     assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1] + ali[0, 1])
+
+
+def test_viscous_sdf_stays_bounded_at_sharp_corners():
+    # a perturbed branched shape whose sharp corner once sent log(w) to log(1e-300): phi = -34
+    from napari_pfsdm.data.shapes import make_benchmark_set
+
+    mask = make_benchmark_set(10, True, 0)[0][26]
+    res = P.pfsdm(mask, mapping="bijective", sdf="viscous")
+    exact = P.pfsdm(mask, mapping="bijective")
+    assert res.disk.min() > 1.2 * exact.disk.min()
+    assert np.abs(res.disk - exact.disk).max() < 0.1
