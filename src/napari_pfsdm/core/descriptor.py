@@ -64,10 +64,6 @@ class PFSDMResult:
 
         return skeleton(self)
 
-    def features(self) -> np.ndarray:
-        """Shape embedding as one flat vector (ring-major), as in :func:`measure`'s columns."""
-        return self.embedding.ravel()
-
 
 def _check_intensity(intensity: np.ndarray, mask_shape: tuple[int, ...]) -> np.ndarray:
     intensity = np.asarray(intensity)
