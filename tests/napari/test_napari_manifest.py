@@ -80,6 +80,11 @@ def test_wheel_carries_the_manifest_and_a_fresh_install_finds_the_plugin(tmp_pat
     (wheel,) = dist.glob("napari_pfsdm-*.whl")
     with zipfile.ZipFile(wheel) as zf:
         assert zf.read("napari_pfsdm/napari.yaml") == MANIFEST.read_bytes()
+        # every subpackage of the source tree ships (a folder without __init__.py would not)
+        names = set(zf.namelist())
+        for init in (ROOT / "src" / "napari_pfsdm").rglob("*.py"):
+            rel = init.relative_to(ROOT / "src").as_posix()
+            assert rel in names, f"{rel} is missing from the wheel"
         entry = next(n for n in zf.namelist() if n.endswith(".dist-info/entry_points.txt"))
         assert "napari-pfsdm = napari_pfsdm:napari.yaml" in zf.read(entry).decode()
     env = tmp_path / "env"
