@@ -208,8 +208,79 @@ def test_report_writes_table_and_plots(tmp_path):
 
     results = run(tmp_path, n_objects=20, n_frames=6, size=80, frames="3-5", quick=True,
                   pixel=False, cnn=False, verbose=False)
-    assert list(results["features"]) == list(cl.FEATURE_SETS)
-    assert (results["method"] == "PF-SDM + logistic").all()
+    assert list(results["features"]) == 2 * list(cl.FEATURE_SETS)
+    assert list(dict.fromkeys(results["method"])) == [
+        "PF-SDM + logistic", "size + contrast (ref.)"
+    ]
     assert (results["time_s"] > 0).all()
     for name in ("gastruloid_results.csv", "gastruloid_accuracy.png", "gastruloid_pca.png"):
         assert (tmp_path / name).stat().st_size > 500
+    back = pd.read_csv(tmp_path / "gastruloid_results.csv")
+    np.testing.assert_allclose(back["balanced_accuracy_mean"], results["balanced_accuracy_mean"])
+
+
+def test_report_over_seeds_summarises_each_seed(tmp_path):
+    from napari_pfsdm.analysis.gastruloid_report import run_seeds
+
+    summary = run_seeds(tmp_path, [3, 4], n_objects=20, n_frames=6, size=80, frames="3-5",
+                        quick=True, pixel=False, cnn=False, verbose=False)
+    per_seed = [pd.read_csv(tmp_path / f"seed{k}" / "gastruloid_results.csv") for k in (3, 4)]
+    row = summary[(summary.method == "PF-SDM + logistic")
+                  & (summary.features == "fusion (nested)")].iloc[0]
+    values = [r[(r.method == "PF-SDM + logistic") & (r.features == "fusion (nested)")]
+              ["balanced_accuracy_mean"].iloc[0] for r in per_seed]
+    assert row.n_seeds == 2
+    assert row.balanced_accuracy_mean == pytest.approx(np.mean(values))
+    assert row.balanced_accuracy_sd_over_seeds == pytest.approx(np.std(values, ddof=1))
+    assert (tmp_path / "gastruloid_seeds.csv").exists()
+
+
+def test_speed_summary_names_the_ratios():
+    from napari_pfsdm.analysis.gastruloid_report import speed_summary
+
+    res = pd.DataFrame({"method": ["PF-SDM + logistic", "size + contrast (ref.)", "pixels + CNN"],
+                        "time_s": [2.0, 0.5, 30.0]})
+    line = speed_summary(res)
+    assert "15.0x faster than pixels + CNN" in line
+    assert "size + contrast" not in line  # the reference is not a competitor
+    assert speed_summary(res.iloc[1:]) == ""
+
+
+def _disk(shape, center, radius):
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
+    return (yy - center[0]) ** 2 + (xx - center[1]) ** 2 <= radius**2
+
+
+def test_size_contrast_features_measure_growth_and_contrast():
+    labels = np.zeros((2, 3, 96, 96), dtype=np.uint16)
+    for t, r in enumerate((10, 15, 20)):
+        labels[:, t][:, _disk((96, 96), (48, 48), r)] = 1
+    intensity = np.ones(labels.shape, dtype=np.float32)
+    spot = _disk((96, 96), (48, 56), 3)
+    intensity[1][:, spot] = 20.0  # object 1: one bright pole
+    growth, contrast = cl.size_contrast_features(labels, intensity * 3.0, "0-2")
+    assert growth.shape == (2, 2) and contrast.shape == (2, 3)
+    # equivalent radius doubles from frame 0 to 2: growth = log 2 (rasterisation aside)
+    np.testing.assert_allclose(growth[:, 1], np.log(2.0), atol=0.01)
+    np.testing.assert_allclose(growth[:, 0], np.log(1.5), atol=0.01)
+    np.testing.assert_allclose(contrast[0], 1.0)  # uniform reporter
+    assert np.all(contrast[1] < 0.5)  # a bright pole: the mean is far below the peak
+    # the gain does not matter
+    _, c1 = cl.size_contrast_features(labels, intensity, "0-2")
+    np.testing.assert_allclose(c1, contrast)
+
+
+def test_size_contrast_features_bad_input():
+    labels = np.zeros((1, 2, 32, 32), dtype=np.uint16)
+    labels[0, 0, 10:20, 10:20] = 1
+    intensity = np.ones(labels.shape)
+    with pytest.raises(ValueError, match="empty at frame 1"):
+        cl.size_contrast_features(labels, intensity, "0-1")
+    with pytest.raises(ValueError, match="at least two frames"):
+        cl.size_contrast_features(labels, intensity, "0")
+    labels[0, 1] = labels[0, 0]
+    intensity[0, 1, 12, 12] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        cl.size_contrast_features(labels, intensity, "0-1")
+    with pytest.raises(ValueError, match="same shape"):
+        cl.size_contrast_features(labels, intensity[:, :, :16], "0-1")

@@ -45,6 +45,7 @@ __all__ = [
     "make_splits",
     "measure_movies",
     "parse_frames",
+    "size_contrast_features",
     "summarize",
 ]
 
@@ -424,3 +425,61 @@ def measure_movies(
     out = pd.concat(tables, ignore_index=True)
     out.attrs = dict(tables[0].attrs) if tables else {}
     return out
+
+
+def size_contrast_features(
+    labels: np.ndarray,
+    intensity: np.ndarray,
+    frames: Sequence[int] | str | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two plain numbers per frame: relative growth and reporter contrast (a reference).
+
+    PF-SDM removes the object's size (scale invariance) and its brightness (the intensity is
+    divided by the object's mean). Over a time-lapse both leave traces that can predict the
+    outcome on their own; these two features measure them directly, so that a report can say
+    how much of a result they explain:
+
+    * growth: ``0.5 * log(area_t / area_first)`` for every chosen frame after the first (the
+      log of the relative equivalent radius; unchanged when the whole movie is rescaled);
+    * contrast: ``mean / 99th percentile`` of the intensity inside the object at every chosen
+      frame (1 for a uniform reporter, small for one bright pole; unchanged by the gain).
+
+    Parameters
+    ----------
+    labels, intensity : ndarray, (n_objects, T, Y, X)
+        One-object movies (label > 0 is the object), as
+        :func:`napari_pfsdm.data.gastruloids.make_gastruloids`.
+    frames : sequence of int or str, optional
+        Frames to use (default all); growth needs at least two.
+
+    Returns
+    -------
+    growth : ndarray, (n_objects, n_frames - 1)
+    contrast : ndarray, (n_objects, n_frames)
+    """
+    if labels.ndim != 4 or intensity.shape != labels.shape:
+        raise ValueError(
+            "labels and intensity must both be (n_objects, T, Y, X) one-object movies of the "
+            f"same shape; got {labels.shape} and {intensity.shape}."
+        )
+    sel = parse_frames(frames, labels.shape[1])
+    if len(sel) < 2:
+        raise ValueError("growth needs at least two frames; choose e.g. frames='0-9'.")
+    n = labels.shape[0]
+    area = np.zeros((n, len(sel)))
+    contrast = np.zeros((n, len(sel)))
+    for i in range(n):
+        for j, t in enumerate(sel):
+            inside = labels[i, t] > 0
+            if not inside.any():
+                raise ValueError(f"object {i} is empty at frame {t}; drop it first.")
+            values = np.asarray(intensity[i, t][inside], dtype=np.float64)
+            if np.isnan(values).any():
+                raise ValueError(
+                    f"object {i} has NaN intensity at frame {t}; replace the NaNs first."
+                )
+            top = float(np.percentile(values, 99))
+            area[i, j] = inside.sum()
+            contrast[i, j] = values.mean() / top if top > 0 else 1.0
+    growth = 0.5 * np.log(area[:, 1:] / area[:, :1])
+    return growth, contrast
