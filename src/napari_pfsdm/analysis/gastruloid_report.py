@@ -304,7 +304,10 @@ def run(
     results = pd.DataFrame(rows)
     results.to_csv(out / "gastruloid_results.csv", index=False)
     say("\n" + format_table(results))
-    say(speed_summary(results))
+    speed = speed_summary(results)
+    if speed and quick:
+        speed += " (quick run: the pixel models train less than in the full report)"
+    say(speed)
 
     plot_accuracy(
         results, out / "gastruloid_accuracy.png",
