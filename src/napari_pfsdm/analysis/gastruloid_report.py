@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..data.gastruloids import make_gastruloids
+from ..data.gastruloids import GastruloidParams, make_gastruloids
 from . import classification as cl
 from . import pixel_baseline as pb
 
@@ -196,6 +196,7 @@ def run(
     cnn: bool | None = None,
     cnn_epochs: int | None = None,
     measure_options: dict | None = None,
+    params: GastruloidParams | None = None,
     verbose: bool = True,
 ) -> pd.DataFrame:
     """Generate, measure, classify, compare with pixel baselines, write table and plots.
@@ -221,6 +222,8 @@ def run(
         CNN training epochs (default 60, quick 15).
     measure_options : dict, optional
         Options of :func:`napari_pfsdm.measure` (default: the package defaults).
+    params : GastruloidParams, optional
+        Generator parameters (default: the documented defaults).
     verbose : bool
         Print progress and the table.
 
@@ -238,7 +241,8 @@ def run(
     options = measure_options or {}
 
     t0 = time.perf_counter()
-    data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=size, seed=seed)
+    data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=size, seed=seed,
+                            params=params)
     sel = cl.parse_frames(frames, n_frames)
     y = data.multi_axis.astype(int)
     say(
