@@ -27,6 +27,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
+from napari_pfsdm import DEFAULTS
 from napari_pfsdm.analysis import classification as cl
 from napari_pfsdm.data.gastruloids import make_gastruloids
 
@@ -57,7 +58,7 @@ def _logistic(C=0.01, scale=True, pca=None):
 
 def _blocks(x, n_frames):
     """(n, n_frames * n_radii * (n_fourier + 1)) -> (n, n_frames, n_radii, n_fourier + 1)."""
-    return x.reshape(len(x), n_frames, -1, 11)
+    return x.reshape(len(x), n_frames, -1, DEFAULTS["n_fourier"] + 1)
 
 
 def variants(table, data, frames):

@@ -331,11 +331,12 @@ def run(
 def run_seeds(out_dir: str | Path, seeds: Sequence[int], **kwargs) -> pd.DataFrame:
     """:func:`run` on several generated data sets, and the spread between them.
 
-    With 13 multi-axes objects in 78, a test split holds 2-3 of them and one object moves the
-    balanced accuracy by 0.17-0.25: one generated set is not enough to rank methods. Each seed
-    ``k`` writes its own report in ``out_dir/seed{k}``; ``out_dir/gastruloid_seeds.csv`` holds,
-    per method and feature set, the mean and standard deviation over the seeds of the
-    per-seed mean scores and wall times.
+    With 12 multi-axes objects in 78 (the paper: 13), a test split holds 2-3 of them and one
+    object moves the balanced accuracy by 0.17-0.25: one generated set is not enough to rank
+    methods. Each seed ``k`` writes its own report in ``out_dir/seed{k}``;
+    ``out_dir/gastruloid_seeds.csv`` holds, per method and feature set, the mean over the seeds
+    of the per-seed mean accuracy, balanced accuracy and wall time, and the standard deviation
+    over the seeds of the balanced accuracy (NaN with a single seed).
 
     Parameters
     ----------
