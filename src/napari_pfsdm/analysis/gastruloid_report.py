@@ -108,8 +108,11 @@ def plot_accuracy(results: pd.DataFrame, path: str | Path, title: str = "") -> N
             (("accuracy", "", 1.0), ("balanced_accuracy", "///", 0.55))
         ):
             pos = x - 0.4 + width * (2 * i + j + 0.5)
+            mean, std = sub[f"{col}_mean"].to_numpy(), sub[f"{col}_std"].to_numpy()
+            # a score cannot pass 1: clip the upper bar there rather than run off the axes
+            yerr = np.vstack([std, np.clip(np.minimum(std, 1.0 - mean), 0.0, None)])
             ax.bar(
-                pos, sub[f"{col}_mean"], width, yerr=sub[f"{col}_std"], capsize=2,
+                pos, mean, width, yerr=yerr, capsize=2,
                 color=colors[i % len(colors)], alpha=alpha, hatch=hatch, edgecolor="black",
                 linewidth=0.5,
                 label=(f"{m} ({t:.0f} s)" + (", balanced" if j else ", accuracy")),
