@@ -74,7 +74,10 @@ def format_table(results: pd.DataFrame) -> str:
 
 
 def speed_summary(results: pd.DataFrame, reference: str = "PF-SDM + logistic") -> str:
-    """One line: how many times faster ``reference`` ran than each other method, end to end."""
+    """One line: how many times faster ``reference`` ran than each other method, end to end.
+
+    Methods whose name ends in ``"(ref.)"`` are diagnostics, not competitors, and are left out.
+    """
     times = results.groupby("method", sort=False)["time_s"].first()
     if reference not in times.index:
         return ""
