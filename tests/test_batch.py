@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import warnings
 from pathlib import Path
@@ -88,7 +89,9 @@ def test_table_csv_round_trip_is_exact(tmp_path):
     options = {"n_fourier": 10, "mapping": "harmonic", "radii": np.linspace(0.1, 0.9, 5),
                "weights": np.full(5, 0.2), "viscosity": np.float64(0.05)}
     path = write_table_csv(df, tmp_path / "t.csv", options)
-    assert path.read_text().startswith('# pfsdm: {"n_fourier": 10')
+    assert path.read_text().startswith("movie,frame,label,")  # plain CSV, no comment line
+    side = json.loads((tmp_path / "t.csv.json").read_text())
+    assert side["options"]["n_fourier"] == 10 and side["written_by"].startswith("napari-pfsdm")
     back = read_table_csv(path)
     pd.testing.assert_frame_equal(back, df, check_exact=True)
     assert back.attrs["pfsdm"]["radii"] == pytest.approx(np.linspace(0.1, 0.9, 5).tolist(),
@@ -147,7 +150,7 @@ def test_open_movie_tiff_zarr_ome_zarr(tmp_path):
     # a channel axis with several channels is refused with a plain message
     tifffile.imwrite(tmp_path / "chan.tif", np.zeros((3, 2, 16, 16), np.uint8), imagej=True,
                      metadata={"axes": "TCYX"})
-    with pytest.raises(ValueError, match="'c' axis of size 2"):
+    with pytest.raises(ValueError, match=r"2 channels.*one channel per file"):
         open_movie(tmp_path / "chan.tif")
     # 3 or 4 frames saved with tifffile's defaults are stored as planar RGB(A): still frames
     with warnings.catch_warnings():  # tifffile warns that this default will change

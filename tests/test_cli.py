@@ -14,7 +14,7 @@ import tifffile
 
 import napari_pfsdm
 from napari_pfsdm.cli import main
-from napari_pfsdm.io_csv import read_table_csv
+from napari_pfsdm.io_csv import read_table_csv, write_table_csv
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
 
@@ -40,10 +40,12 @@ def write_zarr(path: Path, data: np.ndarray) -> Path:
 
 
 def features_close(got: pd.DataFrame, ref: pd.DataFrame) -> None:
-    cols = [c for c in ref.columns if c != "error"]
+    text = ("error", "warnings")
+    cols = [c for c in ref.columns if c not in text]
     np.testing.assert_allclose(got[cols].to_numpy(float), ref[cols].to_numpy(float),
                                rtol=1e-12, atol=1e-12)
-    assert got["error"].tolist() == ref["error"].tolist()
+    for c in text:
+        assert got[c].tolist() == ref[c].tolist()
 
 
 def one_error_line(capsys) -> str:
@@ -120,6 +122,11 @@ def test_classify_prints_scores(tmp_path, capsys):
     feats = tmp_path / "f.csv"
     pd.DataFrame(rows).to_csv(feats, index=False)
     groups = tmp_path / "g.csv"
+    groups.write_text("movie,group\n")
+    # a table without its options (no f.csv.json) is refused, not guessed
+    assert main(["classify", str(feats), "--groups", str(groups), "--frames", "0-1"]) == 2
+    assert "does not say how it was measured" in capsys.readouterr().err
+    write_table_csv(pd.DataFrame(rows), feats, {"n_fourier": 2, "weights": [1.0]})
     groups.write_text("movie,group\n" + "".join(
         f"m{o:02d},{'multi' if o % 2 else 'single'}\n" for o in range(16)))
     out = tmp_path / "scores.csv"

@@ -47,8 +47,8 @@ def test_measure_reports_progress_and_accepts_2d_and_dask():
     assert calls == [(1, 2), (2, 2)] and (table.frame == 0).all()
     da = pytest.importorskip("dask.array")
     lazy = da.from_array(stack(), chunks=(1, 96, 96))
-    np.testing.assert_allclose(P.measure(lazy).iloc[:, 10:].to_numpy(float),
-                               P.measure(stack()).iloc[:, 10:].to_numpy(float))
+    np.testing.assert_allclose(P.measure(lazy).filter(like="shape_r").to_numpy(float),
+                               P.measure(stack()).filter(like="shape_r").to_numpy(float))
 
 
 def test_tiny_objects_become_nan_rows_with_a_reason():
@@ -59,11 +59,15 @@ def test_tiny_objects_become_nan_rows_with_a_reason():
     assert "too small" in bad["error"]
     assert np.isnan(bad["shape_r00_n00"])
     assert bad["area"] == 1
-    d = P.distance_matrix(table)
-    i = int(np.flatnonzero(table.label == 3)[0])
-    assert np.isnan(d[i]).all() and np.isnan(d[:, i]).all()
-    ok = np.flatnonzero(table.label != 3)
-    assert np.isfinite(d[np.ix_(ok, ok)]).all()
+    # never silently NaN: the matrix of a table with failed rows is refused ...
+    with pytest.raises(ValueError, match=r"1 of 3 rows have no shape features \(frame 0 label 3"):
+        P.distance_matrix(table)
+    # ... and drop_failed leaves them out, saying which
+    with pytest.warns(UserWarning, match=r"left out 1 of 3 rows .*frame 0 label 3: .*too small"):
+        measured = P.drop_failed(table)
+    assert 3 not in measured["label"].tolist() and len(measured) == 2
+    d = P.distance_matrix(measured)
+    assert d.shape == (2, 2) and np.isfinite(d).all()
 
 
 def test_border_objects_are_flagged():

@@ -7,7 +7,7 @@ and napari. The scripting API below imports no Qt and no napari.
 >>> from napari_pfsdm import pfsdm, measure, distance_matrix
 """
 
-from .analysis.features import ObjectResult, iter_objects, measure
+from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
 from .core import (
     DEFAULTS,
     PFSDMResult,
@@ -20,6 +20,8 @@ from .core import (
     skeleton,
     weighted_features,
 )
+from .io_csv import read_table_csv as read_table
+from .io_csv import write_table_csv as write_table
 
 __version__ = "0.1.0"
 
@@ -31,11 +33,14 @@ __all__ = [
     "__version__",
     "distance",
     "distance_matrix",
+    "drop_failed",
     "embeddings_from_table",
     "iter_objects",
     "measure",
     "pfsdm",
+    "read_table",
     "render_disk",
     "skeleton",
     "weighted_features",
+    "write_table",
 ]

@@ -2,8 +2,11 @@
 
 Run ``pfsdm --help`` or ``pfsdm COMMAND --help``. Every command runs without a display.
 Errors a user can fix (a missing file, labels and intensity of different sizes, a raw image
-given as labels, an output folder that cannot be written) print one line starting with
-``pfsdm: error:`` and exit with status 2; no partial output file is left behind.
+given as labels, an output folder that cannot be written, an output name that would replace a
+file pfsdm did not write) print one line starting with ``pfsdm: error:`` and exit with status
+2, without a traceback (``--debug`` shows it); no partial output file is left behind. Tables are
+plain CSV with their options in a ``.csv.json`` sidecar. Messages and progress go to stderr
+(``-q`` silences them); results and summaries to stdout.
 """
 
 from __future__ import annotations
@@ -34,8 +37,37 @@ def _say(msg: str, quiet: bool = False) -> None:
         print(msg, flush=True)
 
 
-def _check_output(path: str | os.PathLike, what: str = "output") -> Path:
-    """Fail early (before any long work) when ``path`` cannot be written."""
+def _note(msg: str, quiet: bool = False) -> None:
+    """A message about the run (progress, rows left out) on stderr."""
+    if not quiet:
+        print(f"pfsdm: {msg}", file=sys.stderr, flush=True)
+
+
+class _Step:
+    """Says on stderr what a step is doing and, when it took more than a second, how long:
+    every step that can pass a few seconds on a large table is announced."""
+
+    def __init__(self, what: str, quiet: bool):
+        self.what, self.quiet = what, quiet
+
+    def __enter__(self) -> _Step:
+        self.t0 = time.perf_counter()
+        _note(f"{self.what} …", self.quiet)
+        return self
+
+    def __exit__(self, kind, *rest) -> None:
+        dt = time.perf_counter() - self.t0
+        if kind is None and dt > 1.0:
+            _note(f"{self.what}: done in {dt:.1f} s", self.quiet)
+
+
+def _check_output(
+    path: str | os.PathLike, what: str = "output", *, force: bool = False,
+    inputs: Sequence[str | os.PathLike] = (),
+) -> Path:
+    """Fail early (before any long work) when ``path`` cannot or must not be written."""
+    from .io_csv import check_overwrite
+
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
     if p.is_dir():
@@ -44,7 +76,37 @@ def _check_output(path: str | os.PathLike, what: str = "output") -> Path:
         raise UserError(f"cannot write the {what} {p}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK):
         raise UserError(f"cannot write the {what} {p}: the folder {folder} is not writable")
+    for q in inputs:
+        if Path(q).exists() and p.exists() and os.path.samefile(p, q):
+            raise UserError(f"the {what} {p} is also an input; choose another output name")
+    check_overwrite(p, force=force, what=what)
     return p
+
+
+def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
+    """Say on stderr how many rows were left out and which (frame, label, reason)."""
+    if not len(left):
+        return
+    shown = [f"{r['movie'] + '/' if 'movie' in r and r['movie'] else ''}frame {r['frame']} "
+             f"label {r['label']} ({r['reason']})" for r in left.head(3).to_dict("records")]
+    more = f" and {len(left) - 3} more" if len(left) > 3 else ""
+    _note(f"left out {len(left)} of {total} {what} without features: {'; '.join(shown)}{more}"
+          " (all listed in the output's .json file)", quiet)
+
+
+def _measured(table, channels, what: str, quiet: bool, need: int = 2):
+    """The rows with ``channels`` features, the rows left out; refuses fewer than ``need``."""
+    from .analysis.features import split_failed
+
+    ok, left = split_failed(table, tuple(channels))
+    _left_out_note(left, len(table), what, quiet)
+    if len(ok) < need:
+        reasons = sorted(set(left["reason"]))[:3]
+        raise UserError(
+            f"only {len(ok)} of {len(table)} {what} have features; at least {need} are needed"
+            + (f" (the others: {'; '.join(reasons)})" if reasons else "")
+        )
+    return ok, left
 
 
 def _progress_printer(quiet: bool):
@@ -141,12 +203,23 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
 # --------------------------------------------------------------------------------------------
 
 def cmd_measure(args: argparse.Namespace) -> int:
+    from .analysis.features import warnings_summary
     from .batch.io import find_movies, pair_movies
     from .batch.run import default_parts_dir, run_batch
 
-    out = _check_output(args.output)
+    if not args.labels:
+        if args.intensity and len(args.intensity) > 1:
+            raise UserError(
+                f"no label movie given: -i/--intensity took all of {' '.join(args.intensity)}. "
+                "Put the labels first, e.g.: pfsdm measure labels.tif -i reporter.tif "
+                "-o features.csv"
+            )
+        raise UserError("give the label movie(s) to measure, e.g.: pfsdm measure labels.tif "
+                        "-o features.csv")
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
+    out = _check_output(args.output, force=args.force,
+                        inputs=[*labels, *(intensity or [])])
     movies = pair_movies(labels, intensity)
     options = _measure_options(args)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
@@ -158,15 +231,15 @@ def cmd_measure(args: argparse.Namespace) -> int:
         parts_dir=args.parts,
         progress=_progress_printer(args.quiet),
         log=lambda m: _say("  " + m, args.quiet),
+        allow_empty=args.allow_empty,
         **options,
     )
     dt = time.perf_counter() - t0
-    n_err = int(table["error"].fillna("").ne("").sum()) if "error" in table else 0
-    _say(
-        f"wrote {out}: {len(table)} objects from {len(movies)} movie(s) in {dt:.1f} s"
-        + (f" ({n_err} with an error: see the 'error' column)" if n_err else ""),
-        args.quiet,
-    )
+    _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
+         f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
+    summary = warnings_summary(table)
+    if summary:
+        _say(summary[0].upper() + summary[1:], args.quiet)
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
     _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
     return 0
@@ -175,13 +248,13 @@ def cmd_measure(args: argparse.Namespace) -> int:
 def _select_frames(table, frames: str | None):
     if frames is None:
         return table
-    from .analysis.classification import parse_frames
+    from .analysis.classification import format_frames, parse_frames
 
     sel = parse_frames(frames)
     sub = table[table["frame"].isin(sel)]
     if sub.empty:
-        raise UserError(f"no rows in frames {frames}; the table has frames "
-                        f"{int(table['frame'].min())}-{int(table['frame'].max())}")
+        raise UserError(f"no rows in frames {frames}: the table has frames "
+                        f"{format_frames(table['frame'])}; choose frames among these")
     return sub
 
 
@@ -196,26 +269,34 @@ def cmd_compare(args: argparse.Namespace) -> int:
     )
     from .io_csv import write_table_csv
 
-    out = _check_output(args.output)
+    out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.mds:
-        _check_output(args.mds, "plot")
+        _check_output(args.mds, "plot", force=args.force, inputs=[args.features])
     table = load_features(args.features)
     table = _select_frames(table, args.frames).reset_index(drop=True)
     if args.groups:
         table = attach_groups(table, read_groups(args.groups))
+    channels = ["shape"] + (["intensity"] if args.intensity_weight else [])
+    table, left = _measured(table, channels, "objects", args.quiet)
     if len(table) > args.max_objects:
         raise UserError(
             f"{len(table)} objects would give a {len(table)}x{len(table)} matrix; choose frames "
             f"with --frames (e.g. --frames 0) or raise --max-objects"
         )
-    dist = distance_table(table, intensity_weight=args.intensity_weight)
+    n = len(table)
+    with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
+        dist = distance_table(table, intensity_weight=args.intensity_weight)
     opts = dict(table.attrs.get("pfsdm", {}))
     opts["intensity_weight"] = args.intensity_weight
-    write_table_csv(dist, out, opts, index=True)
-    _say(f"wrote {out}: {len(dist)} x {len(dist)} PF-SDM distances", args.quiet)
+    with _Step(f"writing {out}", args.quiet):
+        write_table_csv(dist, out, opts, index=True, kind="distances",
+                        extra={"features": str(args.features),
+                               "left_out": left.to_dict("records")})
+    _say(f"wrote {out}: {n} x {n} PF-SDM distances", args.quiet)
     if args.mds:
-        coords = mds_coordinates(dist.to_numpy())
-        plot_mds(coords, table, args.mds)
+        with _Step(f"drawing the 2-D MDS map of {n:,} objects", args.quiet):
+            coords = mds_coordinates(dist.to_numpy())
+            plot_mds(coords, table, args.mds)
         _say(f"wrote {args.mds}", args.quiet)
     return 0
 
@@ -230,29 +311,34 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
         plot_trajectories,
         read_groups,
     )
+    from .core.table_schema import has_channel
     from .io_csv import write_table_csv
 
-    out = _check_output(args.output)
+    out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.plot:
-        _check_output(args.plot, "plot")
+        _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
     table = load_features(args.features)
     if args.groups:
         table = attach_groups(table, read_groups(args.groups))
-    has_int = any(c.startswith("intensity_r") for c in table.columns)
+    has_int = has_channel(table.columns, "intensity")
     channels = {"shape": ["shape"], "intensity": ["intensity"],
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
     if "intensity" in channels and not has_int:
         raise UserError("the table has no intensity features; measure with --intensity IMAGE")
+    table, left = _measured(table, ["shape", *channels], "rows", args.quiet)
     scores = None
     explained = {}
-    for ch in channels:
-        s, ev = pca_scores(table, ch, n_components=args.components)
-        explained[ch] = ev
-        scores = s if scores is None else pd.concat(
-            [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
+    with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)})", args.quiet):
+        for ch in channels:
+            s, ev = pca_scores(table, ch, n_components=args.components)
+            explained[ch] = ev
+            scores = s if scores is None else pd.concat(
+                [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
     opts = dict(table.attrs.get("pfsdm", {}))
-    opts["explained_variance"] = {ch: ev.tolist() for ch, ev in explained.items()}
-    write_table_csv(scores, out, opts)
+    write_table_csv(scores, out, opts, kind="pca", extra={
+        "features": str(args.features),
+        "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
+        "left_out": left.to_dict("records")})
     ev_txt = ", ".join(
         f"{ch}: " + " ".join(f"{100 * v:.2g}%" for v in ev) for ch, ev in explained.items()
     )
@@ -260,9 +346,58 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     if args.plot:
         for ch, ev in explained.items():
             scores.attrs[f"{ch}_explained"] = ev
-        plot_trajectories(scores, args.plot, components=tuple(args.show))
+        with _Step(f"drawing {args.plot}", args.quiet):
+            plot_trajectories(scores, args.plot, components=tuple(args.show))
         _say(f"wrote {args.plot}", args.quiet)
     return 0
+
+
+def _check_groups(table, groups, path: str) -> None:
+    """Say in plain words when the groups file does not name the table's objects."""
+    from .analysis.classification import format_frames
+
+    named = sorted(set(groups["group"]))
+    matched = sorted(set(table["group"]) - {""})
+    if len(named) != 2:
+        raise UserError(f"classify needs exactly two groups; {path} gives {len(named)}: "
+                        f"{', '.join(named) or '(none)'}")
+    if len(matched) == 2:
+        return
+    keys = [k for k in ("movie", "label") if k in groups.columns]
+    have = {k: sorted(set(table[k].astype(str))) for k in keys}
+    desc = "; ".join(
+        f"the table's {k}s are {format_frames(map(int, v)) if k == 'label' else ', '.join(v[:5])}"
+        for k, v in have.items()
+    )
+    missing = sorted(set(named) - set(matched))
+    raise UserError(
+        f"{path} names groups {' and '.join(named)}, but no measured object of the table "
+        f"belongs to {' or '.join(missing)} ({desc}; the groups file gives "
+        f"{', '.join(f'{k} ' + ', '.join(sorted(set(groups[k]))[:5]) for k in keys)}): "
+        "its labels/movies must be those of the table"
+    )
+
+
+def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> None:
+    """Refuse, in plain words, splits that scikit-learn cannot make."""
+    import math
+
+    n = len(y)
+    n1 = int(y.sum())
+    counts = {positive: n1, next(g for g in names if g != positive): n - n1}
+    n_test = math.ceil(test_size * n)
+    n_train = n - n_test
+    small = [g for g, c in counts.items() if c < 2]
+    txt = ", ".join(f"{c} {g}" for g, c in counts.items())
+    if small:
+        raise UserError(f"classify needs at least 2 objects in each group; there are {txt}. "
+                        "Measure more objects or choose frames where more are present")
+    if n_test < 2 or n_train < 2:
+        raise UserError(
+            f"{n} objects ({txt}) are too few for a {test_size:.0%} test split: it would hold "
+            f"{n_test} object(s), and each side of a split needs one of each group. Measure "
+            "more objects, or change --test-size (e.g. --test-size 0.5)"
+        )
 
 
 def cmd_classify(args: argparse.Namespace) -> int:
@@ -270,36 +405,63 @@ def cmd_classify(args: argparse.Namespace) -> int:
 
     from .analysis import classification as clf
     from .batch.reports import attach_groups, load_features, object_ids, read_groups
+    from .core.table_schema import has_channel
     from .io_csv import write_table_csv
 
     if args.output:
-        _check_output(args.output)
+        _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
-    table = attach_groups(table, read_groups(args.groups))
+    groups = read_groups(args.groups)
+    table = attach_groups(table, groups)
+    frames = clf.parse_frames(args.frames)
+    if not table["frame"].isin(frames).any():
+        raise UserError(f"no rows in frames {args.frames}: the table has frames "
+                        f"{clf.format_frames(table['frame'])}; choose frames among these")
+    table = table[table["frame"].isin(frames)]
+    _check_groups(table, groups, args.groups)
     table = table[table["group"] != ""].copy()
     table["object"] = object_ids(table)
-    names = sorted(table["group"].unique())
-    if len(names) != 2:
-        raise UserError(f"classify needs exactly two groups, the groups file gives {names}")
+    has_int = has_channel(table.columns, "intensity")
+    ok, left = _measured(table, ["shape", "intensity"] if has_int else ["shape"], "rows",
+                         args.quiet, need=0)
+    # an object is used only when it has features in every chosen frame
+    bad_objects = set(object_ids(left)) if len(left) else set()
+    seen = ok.groupby("object")["frame"].nunique()
+    incomplete = set(seen.index[seen < len(frames)]) | (set(table["object"]) - set(seen.index))
+    dropped = sorted(bad_objects | incomplete)
+    if incomplete - bad_objects:
+        shown = ", ".join(sorted(incomplete - bad_objects)[:5])
+        _note(f"left out {len(incomplete - bad_objects)} object(s) absent from some of frames "
+              f"{clf.format_frames(frames)}: {shown}", args.quiet)
+    table = ok[~ok["object"].isin(dropped)]
+    names = sorted(set(groups["group"]))
     positive = args.positive or names[1]
     if positive not in names:
         raise UserError(f"--positive {positive!r} is not one of the groups {names}")
-    frames = args.frames
-    xs, objects = clf.feature_matrix(table, "shape", frames, object_col="object")
-    has_int = any(c.startswith("intensity_r") for c in table.columns)
-    xi = clf.feature_matrix(table, "intensity", frames, object_col="object")[0] if has_int else xs
     group_of = table.drop_duplicates("object").set_index("object")["group"]
+    objects = sorted(group_of.index)
+    y = (group_of.loc[objects].to_numpy() == positive).astype(int)
+    _check_class_sizes(y, names, positive, args.test_size)
+    xs, objects = clf.feature_matrix(table, "shape", frames, object_col="object")
+    xi = clf.feature_matrix(table, "intensity", frames, object_col="object")[0] if has_int else xs
     y = (group_of.loc[objects].to_numpy() == positive).astype(int)
     splits = clf.make_splits(y, n_splits=args.splits, test_size=args.test_size,
                              n_repeats=args.repeats, seed=args.seed)
-    scores = clf.evaluate(clf.logistic_model(xs, xi, y), y, splits, seed=args.seed)
+
+    def tick(done: int, total: int) -> None:
+        if done == total or done % max(1, total // 5) == 0:
+            _note(f"classifying: split {done}/{total}", args.quiet)
+
+    scores = clf.evaluate(clf.logistic_model(xs, xi, y), y, splits, seed=args.seed,
+                          progress=tick)
     summary = clf.summarize(scores)
     if not has_int:
         summary = summary.loc[["shape"]]
     n1 = int(y.sum())
     other = names[0] if positive == names[1] else names[1]
-    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} {other}), frames {frames}, "
-         f"{len(splits)} stratified splits ({args.test_size:.0%} test)", args.quiet)
+    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} {other}), frames "
+         f"{clf.format_frames(frames)}, {len(splits)} stratified splits "
+         f"({args.test_size:.0%} test)", args.quiet)
     with np.printoptions(precision=3):
         import pandas as pd
 
@@ -310,8 +472,10 @@ def cmd_classify(args: argparse.Namespace) -> int:
              "'nested' is the honest estimate", args.quiet)
     if args.output:
         out = summary.reset_index().rename(columns={"index": "features"})
-        write_table_csv(out, args.output, {"frames": frames, "positive": positive,
-                                           "splits": len(splits)})
+        write_table_csv(out, args.output, {}, kind="classification", extra={
+            "features": str(args.features), "frames": frames, "positive": positive,
+            "splits": len(splits), "objects_left_out": dropped,
+            "left_out": left.to_dict("records")})
         _say(f"wrote {args.output}", args.quiet)
     return 0
 
@@ -407,6 +571,12 @@ A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
 """
 
 
+def _add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true",
+                   help="replace output files even when pfsdm did not write them (by default "
+                        "an existing file that is not a pfsdm table or plot is never replaced)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of ``pfsdm`` (used by :func:`main` and for the docs)."""
     from . import __version__
@@ -440,12 +610,18 @@ examples:
   pfsdm measure 'plate1/*_labels.zarr' --intensity 'plate1/*_reporter.zarr' -o plate1.csv
   pfsdm measure archive/ -o archive.csv --scheduler tcp://10.0.0.5:8786
 """)
-    p.add_argument("labels", nargs="+", metavar="LABELS",
+    # "*" rather than "+": a labels file swallowed by -i gets a message that says so
+    p.add_argument("labels", nargs="*", metavar="LABELS",
                    help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
     p.add_argument("-i", "--intensity", nargs="+", metavar="IMAGE",
                    help="reporter movie(s) of the same size as the labels")
     p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
-                   help="the feature table to write (CSV; the options are in its first line)")
+                   help="the feature table to write (plain CSV; the options go into "
+                        "FEATURES.csv.json beside it: keep the two together)")
+    p.add_argument("--allow-empty", dest="allow_empty", action="store_true",
+                   help="write an empty table when the labels hold no object (default: an "
+                        "error, as labels with only background are usually the wrong file)")
+    _add_force(p)
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -475,7 +651,8 @@ examples:
     p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
     p.add_argument("--max-objects", type=int, default=5000, metavar="N",
                    help="refuse larger matrices (default 5000)")
-    p.add_argument("-q", "--quiet", action="store_true")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser(
@@ -502,7 +679,8 @@ example:
                    help="principal components to keep (default 3)")
     p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
-    p.add_argument("-q", "--quiet", action="store_true")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_trajectories)
 
     p = sub.add_parser(
@@ -529,7 +707,8 @@ example:
     p.add_argument("--repeats", type=int, default=3, help="repeats (default 3)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
-    p.add_argument("-q", "--quiet", action="store_true")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
 
     p = sub.add_parser(
@@ -552,7 +731,12 @@ time-lapse measured from TIFF files -> features.csv, pca.csv/pca.png, distances.
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``pfsdm`` with ``argv`` (default: the command line); return the exit status."""
+    """Run ``pfsdm`` with ``argv`` (default: the command line); return the exit status.
+
+    0 on success; 2 for an error the user can fix (one plain ``pfsdm: error:`` line on stderr);
+    1 for an unexpected failure (one line too: ``--debug`` shows the traceback); 130 when
+    interrupted.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -561,7 +745,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        if isinstance(exc, OSError) and exc.filename and exc.filename not in msg:
+        if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
             msg = f"{exc.filename}: {msg}"
         print(f"pfsdm: error: {msg}", file=sys.stderr)
         return EXIT_USAGE
@@ -569,6 +753,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("pfsdm: interrupted (finished movies are kept; run again to resume)",
               file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"pfsdm: error: unexpected {type(exc).__name__}: {exc}. Run the same command "
+              "with --debug for the details and report it", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,15 +1,21 @@
-"""Feature tables as CSV files that remember how they were made.
+"""Tables as plain CSV files, with what they need to be read correctly in a JSON sidecar.
 
-A table written by :func:`write_table_csv` starts with one comment line holding the
-options used, as JSON::
+A table written by :func:`write_table_csv` is two files::
 
-    # pfsdm: {"n_fourier": 10, "mapping": "harmonic", ...}
-    frame,label,area,...
+    features.csv        a plain CSV: pandas.read_csv(path), Excel or R read it as it is
+    features.csv.json   {"written_by": "napari-pfsdm 0.1.0", "table": "features",
+                         "options": {"n_fourier": 10, "weights": [...], ...}, ...}
 
-:func:`read_table_csv` reads such a file back, with the options in
-``df.attrs["pfsdm"]`` (numbers round-trip exactly). Writing is atomic: the table goes to a
-temporary file in the same folder, which then replaces the target in one step, so an error
-or a killed process never leaves a half-written CSV behind.
+:func:`read_table_csv` reads the table with its sidecar's options in ``df.attrs["pfsdm"]``
+(numbers round-trip exactly). A copy of the table re-saved by pandas (``df.to_csv(path)``, even
+with its index) reads back the same, as long as the sidecar travels with it. Tables of older
+versions, which carried the options in a first ``# pfsdm: {json}`` comment line, still read.
+
+Writing is atomic: each file goes to a temporary file in the same folder which then replaces
+the target in one step, so an error or a killed process never leaves a half-written file. The
+files get the permissions of any new file (``0o666`` less the umask), not the ``0o600`` of a
+temporary file. :func:`check_overwrite` refuses to replace a file that this program did not
+write (a user's image given as ``-o`` by mistake).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import IO, Any
@@ -24,7 +31,18 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["HEADER_PREFIX", "atomic_write", "read_table_csv", "write_table_csv"]
+__all__ = [
+    "HEADER_PREFIX",
+    "SIDECAR_SUFFIX",
+    "atomic_write",
+    "check_overwrite",
+    "read_options",
+    "read_sidecar",
+    "read_table_csv",
+    "sidecar_path",
+    "write_table_csv",
+    "written_by_pfsdm",
+]
 
 # pandas < 3 needs float_precision="round_trip" to read floats back exactly; pandas 3 does
 # it by default and deprecates the argument.
@@ -32,8 +50,20 @@ _FLOAT_KW: dict[str, Any] = (
     {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
 )
 
-#: The comment line that carries the options starts with this.
+#: The comment line of older tables (before the sidecar) started with this.
 HEADER_PREFIX = "# pfsdm: "
+#: ``features.csv`` -> ``features.csv.json``.
+SIDECAR_SUFFIX = ".json"
+#: Marker written into PNG files (metadata ``Software``) so that a re-run may replace them.
+PNG_SOFTWARE = "napari-pfsdm"
+
+_UMASK_LOCK = threading.Lock()
+
+
+def _version() -> str:
+    from . import __version__
+
+    return f"napari-pfsdm {__version__}"
 
 
 def _to_jsonable(value: Any) -> Any:
@@ -53,19 +83,39 @@ def _to_jsonable(value: Any) -> Any:
     return repr(value)
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[IO[str]], None]) -> Path:
-    """Write a text file atomically.
+def _new_file_mode() -> int:
+    """Permissions of a newly created file under the current umask (``0o666 & ~umask``)."""
+    with _UMASK_LOCK:  # os.umask can only be read by setting it
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return 0o666 & ~mask
+
+
+def sidecar_path(path: str | os.PathLike) -> Path:
+    """The sidecar of a table: ``features.csv`` -> ``features.csv.json``."""
+    path = Path(path)
+    return path.with_name(path.name + SIDECAR_SUFFIX)
+
+
+def atomic_write(
+    path: str | os.PathLike, write: Callable[[IO], None], *, binary: bool = False
+) -> Path:
+    """Write a file atomically, with the permissions of a normal new file.
 
     ``write(handle)`` fills a temporary file created in the target's folder; only when it
-    returns without error is the temporary file moved onto ``path`` with :func:`os.replace`.
-    On any error the temporary file is removed and ``path`` is left as it was.
+    returns without error is the temporary file given the umask's permissions and moved onto
+    ``path`` with :func:`os.replace`. On any error the temporary file is removed and ``path``
+    is left as it was.
 
     Parameters
     ----------
     path : str or PathLike
         Final file name. Its folder must exist and be writable.
     write : callable
-        Called with an open text handle (UTF-8, ``newline=""``).
+        Called with an open handle: text (UTF-8, ``newline=""``) or, with ``binary=True``,
+        bytes.
+    binary : bool
+        Open the temporary file in binary mode (e.g. for ``Figure.savefig(handle)``).
 
     Returns
     -------
@@ -73,6 +123,24 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[str]], None]) -> P
         The path written.
     """
     path = Path(path)
+    tmp = _write_temp(path, write, binary=binary)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        _unlink(tmp)
+        raise
+    return path
+
+
+def _unlink(path: str | os.PathLike) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def _write_temp(path: Path, write: Callable[[IO], None], *, binary: bool = False) -> str:
+    """Fill a temporary file next to ``path`` (umask permissions, synced); return its name."""
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise ValueError(
@@ -85,18 +153,24 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[str]], None]) -> P
             f"cannot write {path}: the folder {folder} is not writable ({exc.strerror})"
         ) from exc
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+        os.fchmod(fd, _new_file_mode())  # mkstemp makes 0o600: colleagues could not read it
+        kw: dict[str, Any] = {} if binary else {"encoding": "utf-8", "newline": ""}
+        with os.fdopen(fd, "wb" if binary else "w", **kw) as handle:
             write(handle)
             handle.flush()
             os.fsync(handle.fileno())
-        os.replace(tmp, path)
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+        _unlink(tmp)
         raise
-    return path
+    return tmp
+
+
+def save_figure(fig: Any, path: str | os.PathLike, **kwargs: Any) -> Path:
+    """Save a matplotlib figure as PNG atomically, marked as written by napari-pfsdm."""
+    meta = {"Software": f"{PNG_SOFTWARE} {_version().split()[-1]}"}
+    return atomic_write(
+        path, lambda h: fig.savefig(h, format="png", metadata=meta, **kwargs), binary=True
+    )
 
 
 def write_table_csv(
@@ -105,25 +179,32 @@ def write_table_csv(
     options: Mapping[str, Any] | None = None,
     *,
     index: bool = False,
+    kind: str = "table",
+    extra: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write a table to CSV with its options in a ``# pfsdm: {json}`` header line.
+    """Write a table as plain CSV plus its JSON sidecar (``path + ".json"``).
 
     Parameters
     ----------
     df : pandas.DataFrame
         The table (e.g. from :func:`napari_pfsdm.measure`).
     path : str or PathLike
-        Output file; written atomically (temporary file + :func:`os.replace`).
+        Output file. Both files are written atomically (nothing changes when writing the
+        table fails), with the umask's permissions.
     options : mapping, optional
-        Options to record. Defaults to ``df.attrs["pfsdm"]`` when present. numpy arrays and
-        scalars are stored as JSON lists and numbers.
+        The options to record (sidecar key ``"options"``). Defaults to ``df.attrs["pfsdm"]``.
+        numpy arrays and scalars are stored as JSON lists and numbers.
     index : bool
         Also write the index (e.g. for a distance matrix). Default False.
+    kind : str
+        What the table is (``"features"``, ``"pca"``, ``"distances"``, ...), for the sidecar.
+    extra : mapping, optional
+        More sidecar entries, e.g. ``{"left_out": [...]}`` for rows that were left out.
 
     Returns
     -------
     Path
-        The path written.
+        The table's path.
 
     Examples
     --------
@@ -133,39 +214,102 @@ def write_table_csv(
     >>> _ = write_table_csv(df, p, {"n_fourier": 10})
     >>> read_table_csv(p).attrs["pfsdm"]
     {'n_fourier': 10}
+    >>> list(pd.read_csv(p).columns)
+    ['frame', 'label', 'area']
     """
     if options is None:
-        options = df.attrs.get("pfsdm")
-    header = ""
-    if options is not None:
-        header = HEADER_PREFIX + json.dumps(_to_jsonable(dict(options)), sort_keys=False) + "\n"
-
+        options = df.attrs.get("pfsdm") or {}
+    side = {
+        "written_by": _version(),
+        "table": kind,
+        "csv": Path(path).name,
+        "rows": len(df),
+        "options": _to_jsonable(dict(options)),
+        **_to_jsonable(dict(extra or {})),
+    }
+    text = json.dumps(side, indent=1) + "\n"
     out = df.copy()
     out.attrs = {}  # pandas must not try to serialise attrs itself
 
-    def _write(handle: IO[str]) -> None:
-        handle.write(header)
-        out.to_csv(handle, index=index, lineterminator="\n")
-
-    return atomic_write(path, _write)
+    path = Path(path)
+    # the table first into a temporary file: if that fails, neither file has changed
+    tmp = _write_temp(path, lambda h: out.to_csv(h, index=index, lineterminator="\n"))
+    try:
+        atomic_write(sidecar_path(path), lambda h: h.write(text))
+        os.replace(tmp, path)
+    except BaseException:
+        _unlink(tmp)
+        raise
+    return path
 
 
 def read_options(path: str | os.PathLike) -> dict[str, Any] | None:
-    """Return the options stored in the header line of a CSV, or None if it has none."""
-    with open(path, encoding="utf-8") as handle:
-        first = handle.readline()
+    """The options a table was written with: from its sidecar, else from the comment line of
+    an older table; None when neither is there."""
+    side = read_sidecar(path)
+    if side is not None:
+        return dict(side.get("options") or {})
+    return _legacy_options(path)
+
+
+def _legacy_options(path: str | os.PathLike) -> dict[str, Any] | None:
+    try:
+        with open(path, encoding="utf-8") as handle:
+            first = handle.readline()
+    except UnicodeDecodeError:
+        return None
     if first.startswith(HEADER_PREFIX):
         return json.loads(first[len(HEADER_PREFIX):])
     return None
 
 
-def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
-    """Read a table written by :func:`write_table_csv`.
+def read_sidecar(path: str | os.PathLike) -> dict[str, Any] | None:
+    """The sidecar of a table as a dict (None when there is none)."""
+    side = sidecar_path(path)
+    if not side.is_file():
+        return None
+    try:
+        data = json.loads(side.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(
+            f"{side} is damaged ({exc}); delete it and write the table again"
+        ) from None
+    if not isinstance(data, dict) or "options" not in data:
+        raise ValueError(f"{side} is not a napari-pfsdm sidecar (no 'options' in it)")
+    return data
 
-    Floats are parsed so that they round-trip exactly; the ``error`` column (if any) comes
-    back as strings with ``""`` for rows without error; the header options are in
-    ``df.attrs["pfsdm"]`` (absent when the file has no header line, e.g. a CSV from
-    elsewhere).
+
+def _looks_binary(path: Path) -> str | None:
+    """A plain-words name for a binary file (TIFF, PNG, Zarr, ...) given where a CSV is
+    expected, or None when it looks like text."""
+    if path.is_dir():
+        return "a folder (a Zarr movie?)" if path.suffix.lower() == ".zarr" else "a folder"
+    with open(path, "rb") as handle:
+        head = handle.read(2048)
+    if head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        return "a TIFF image"
+    if head[:8] == b"\x89PNG\r\n\x1a\n":
+        return "a PNG image"
+    if head[:4] == b"PAR1":
+        return "a Parquet file"
+    if b"\x00" in head:
+        return "a binary file"
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 4:  # not just a character cut at the end of the block
+            return "not a UTF-8 text file"
+    return None
+
+
+def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
+    """Read a table written by :func:`write_table_csv` (or by pandas from one).
+
+    Floats are parsed so that they round-trip exactly; the ``error``, ``warnings`` and
+    ``movie`` columns come back as strings with ``""`` for empty cells; the sidecar's options
+    are in ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for
+    a CSV from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
+    when re-saving) is dropped.
 
     Parameters
     ----------
@@ -175,19 +319,65 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         Column to use as the index (e.g. 0 for a distance matrix written with ``index=True``).
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"cannot read {path}: no such file")
-    options = read_options(path)
-    df = pd.read_csv(
-        path,
-        skiprows=1 if options is not None else 0,
-        **_FLOAT_KW,
-        index_col=index_col,
-        dtype={"error": str, "movie": str},
-    )
-    for col in ("error", "movie"):
+    what = _looks_binary(path)
+    if what is not None:
+        raise ValueError(f"{path} is {what}, not a CSV table")
+    side_options = read_options(path)
+    legacy = _legacy_options(path) is not None
+    text_cols = {"error": str, "movie": str, "warnings": str}
+    try:
+        df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,
+                         index_col=index_col, dtype=text_cols)
+    except pd.errors.EmptyDataError:
+        raise ValueError(f"{path} is empty: it holds no table") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path} is not a readable CSV table ({exc})") from None
+    first = df.columns[0] if len(df.columns) else None
+    if (index_col is None and isinstance(first, str) and first.startswith("Unnamed: 0")
+            and df[first].dtype.kind in "iu"
+            and np.array_equal(df[first].to_numpy(), np.arange(len(df)))):
+        df = df.drop(columns=first)
+    for col in text_cols:
         if col in df.columns:
             df[col] = df[col].fillna("")
-    if options is not None:
-        df.attrs["pfsdm"] = options
+    if side_options is not None:
+        df.attrs["pfsdm"] = side_options
     return df
+
+
+def written_by_pfsdm(path: str | os.PathLike) -> bool:
+    """True when ``path`` is a file this program wrote: a table with a napari-pfsdm sidecar
+    (or the comment line of older tables), or a PNG marked by :func:`save_figure`."""
+    path = Path(path)
+    if not path.is_file():
+        return False
+    try:
+        side = read_sidecar(path)
+    except ValueError:
+        side = None
+    if side is not None and str(side.get("written_by", "")).startswith("napari-pfsdm"):
+        return True
+    with open(path, "rb") as handle:
+        head = handle.read(4096)
+    if head.startswith(HEADER_PREFIX.encode()):
+        return True
+    return head[:8] == b"\x89PNG\r\n\x1a\n" and PNG_SOFTWARE.encode() in head
+
+
+def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str = "output") -> None:
+    """Refuse to replace an existing file that this program did not write.
+
+    Raises
+    ------
+    ValueError
+        ``path`` exists, is not a table or plot written by napari-pfsdm, and ``force`` is False.
+    """
+    path = Path(path)
+    if force or not path.exists() or path.is_dir() or written_by_pfsdm(path):
+        return
+    raise ValueError(
+        f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
+        "nothing was changed. Choose another name, or add --force to replace it"
+    )

@@ -40,6 +40,7 @@ __all__ = [
     "best_alpha",
     "evaluate",
     "feature_matrix",
+    "format_frames",
     "fuse",
     "logistic_model",
     "make_splits",
@@ -115,6 +116,29 @@ def parse_frames(
     return out
 
 
+def format_frames(frames: Iterable[int]) -> str:
+    """Frames as a short text: ``[0, 1, 2, 3, 7]`` -> ``"0-3, 7"`` (the form ``--frames``
+    takes).
+
+    Examples
+    --------
+    >>> format_frames([0, 1, 2, 3, 7, 9, 10])
+    '0-3, 7, 9-10'
+    """
+    vals = sorted({int(f) for f in frames})
+    if not vals:
+        return "(none)"
+    runs, start, prev = [], vals[0], vals[0]
+    for f in vals[1:] + [None]:
+        if f is not None and f == prev + 1:
+            prev = f
+            continue
+        runs.append(str(start) if start == prev else f"{start}-{prev}")
+        if f is not None:
+            start = prev = f
+    return ", ".join(runs)
+
+
 def feature_matrix(
     table: pd.DataFrame,
     kind: str,
@@ -156,7 +180,11 @@ def feature_matrix(
     sub = table[table["frame"].isin(frames)]
     missing = sorted(set(frames) - set(sub["frame"].unique()))
     if missing:
-        raise ValueError(f"frames {missing} are not in the table (it has {all_frames}).")
+        raise ValueError(
+            f"frame{'s' if len(missing) > 1 else ''} {format_frames(missing)} "
+            f"{'are' if len(missing) > 1 else 'is'} not in the table: it has frames "
+            f"{format_frames(all_frames)}; choose frames among these"
+        )
     if sub.duplicated([object_col, "frame"]).any():
         raise ValueError(
             f"some ({object_col}, frame) pairs have several rows; keep one object per "
@@ -292,6 +320,7 @@ def evaluate(
     inner_folds: int = 3,
     alphas: np.ndarray = ALPHAS,
     seed: int = 0,
+    progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """Scores of shape, intensity and both fusions on every split.
 
@@ -316,6 +345,8 @@ def evaluate(
         The alpha grid.
     seed : int
         Seed of the inner splits.
+    progress : callable(done, total), optional
+        Called after each split.
 
     Returns
     -------
@@ -360,6 +391,8 @@ def evaluate(
                     "alpha": a,
                 }
             )
+        if progress is not None:
+            progress(k + 1, len(splits))
     return pd.DataFrame(rows)
 
 

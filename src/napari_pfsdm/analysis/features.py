@@ -14,17 +14,28 @@ import pandas as pd
 from scipy import ndimage as ndi
 
 from ..core.descriptor import DEFAULTS, PFSDMResult, pfsdm
+from ..core.distances import failed_rows
 from ..core.morphometric import mode_weights, ring_radii, ring_weights
+from ..core.table_schema import BASE_COLUMNS, feature_columns
 
 __all__ = [
     "ObjectResult",
+    "FOLDED_WARNING",
     "count_objects",
+    "drop_failed",
     "feature_columns",
     "iter_objects",
     "measure",
+    "object_warnings",
     "resolved_options",
+    "split_failed",
     "table_from_objects",
+    "warnings_summary",
 ]
+
+#: A row's ``warnings`` mention folding above this fraction of disk samples (5 %): the map
+#: then leaves the object there, and the features describe the object less faithfully.
+FOLDED_WARNING = 0.05
 
 _BLAS_LOCK = threading.Lock()
 _BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None}
@@ -51,8 +62,7 @@ def _one_blas_thread():
                 _BLAS_STATE["limiter"].restore_original_limits()
 
 
-_BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
-                 "n_components", "n_holes", "folded_fraction", "error"]
+_BASE_COLUMNS = BASE_COLUMNS
 
 
 @dataclass
@@ -72,6 +82,9 @@ class ObjectResult:
         ``None`` when the object could not be described; ``error`` then says why.
     error : str
         Empty when fine.
+    intensity_error : str
+        Why the intensity could not be described (NaN pixels, no signal) while the shape was:
+        ``result`` then has no intensity embedding. Empty when fine.
     """
 
     frame: int
@@ -82,6 +95,7 @@ class ObjectResult:
     touches_border: bool
     result: PFSDMResult | None
     error: str = ""
+    intensity_error: str = ""
 
 
 def _validate(labels, intensity) -> tuple[int, bool]:
@@ -164,21 +178,31 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
             centroid = np.array(ndi.center_of_mass(mask)) + [big[0].start, big[1].start]
             touches = bool(box[0].start == 0 or box[1].start == 0
                            or box[0].stop == frame.shape[0] or box[1].stop == frame.shape[1])
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", UserWarning)
-                    res = pfsdm(mask, None if image is None else image[big],
-                                offset=(big[0].start, big[1].start), **options)
-                error = ""
-            except ValueError as exc:
-                res, error = None, str(exc)
+            res, error, int_error = _describe(mask, None if image is None else image[big],
+                                              (big[0].start, big[1].start), options)
             yield ObjectResult(frame=int(t), label=label, bbox=box, area=area, centroid=centroid,
-                               touches_border=touches, result=res, error=error)
+                               touches_border=touches, result=res, error=error,
+                               intensity_error=int_error)
 
 
-def feature_columns(n_radii: int, n_fourier: int, channel: str = "shape") -> list[str]:
-    """Column names ``{channel}_rXX_nYY`` (ring-major), as in :func:`measure`'s table."""
-    return [f"{channel}_r{r:02d}_n{n:02d}" for r in range(n_radii) for n in range(n_fourier + 1)]
+def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, str]:
+    """pfsdm of one object; an intensity that cannot be described (NaN pixels, no signal)
+    costs the intensity features only, never the shape ones."""
+    def run(img):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            return pfsdm(mask, img, offset=offset, **options)
+
+    try:
+        return run(image), "", ""
+    except ValueError as exc:
+        if image is None:
+            return None, str(exc), ""
+        try:
+            res = run(None)
+        except ValueError:
+            return None, str(exc), ""
+        return res, "", str(exc)
 
 
 def resolved_options(**options: Any) -> dict[str, Any]:
@@ -207,7 +231,8 @@ def table_from_objects(objects, *, with_intensity: bool = False, **options: Any)
         diag = res.diagnostics if res is not None else {}
         base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
                      obj.touches_border, diag.get("n_components", np.nan),
-                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error))
+                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error,
+                     "; ".join(object_warnings(obj, with_intensity=with_intensity))))
         shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
         if int_cols:
             emb = None if res is None else res.intensity_embedding
@@ -220,6 +245,133 @@ def table_from_objects(objects, *, with_intensity: bool = False, **options: Any)
     table = pd.concat(blocks, axis=1)
     table.attrs["pfsdm"] = opts
     return table
+
+
+def object_warnings(obj: ObjectResult, *, with_intensity: bool = False) -> list[str]:
+    """Plain-words reasons to look at an object twice (the table's ``warnings`` column).
+
+    Border contact (the object may be cut by the image edge), folding above
+    :data:`FOLDED_WARNING`, holes filled, several pieces (the largest was kept) and an
+    intensity that could not be described.
+    """
+    out = []
+    if obj.touches_border:
+        out.append("touches the image border (may be cut off)")
+    diag = obj.result.diagnostics if obj.result is not None else {}
+    folded = diag.get("folded_fraction", 0.0)
+    if folded is not None and np.isfinite(folded) and folded > FOLDED_WARNING:
+        out.append(f"{100 * folded:.1f} % of disk samples fold (try mapping='bijective')")
+    n_holes = int(diag.get("n_holes", 0) or 0)
+    if n_holes:
+        out.append(f"{n_holes} hole{'s' if n_holes > 1 else ''} filled")
+    n_comp = int(diag.get("n_components", 1) or 1)
+    if n_comp > 1:
+        out.append(f"{n_comp} pieces, the largest kept")
+    if with_intensity and obj.intensity_error:
+        out.append(f"intensity features left empty: {obj.intensity_error}")
+    return out
+
+
+def warnings_summary(table: pd.DataFrame) -> str:
+    """One line on the suspect and failed objects of a table, or "" when there are none.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> t = pd.DataFrame({"error": ["", "", "too small"], "touches_border": [True, True, False],
+    ...                   "folded_fraction": [0.29, 0.0, float("nan")], "n_holes": [0, 2, 0],
+    ...                   "n_components": [1, 1, 1], "warnings": ["w", "w", ""]})
+    >>> for part in warnings_summary(t).split("; "):
+    ...     print(part)
+    1 object has no features (see the error column)
+    2 objects touch the border, 1 is 29 % folded, 1 had holes filled: see the warnings column
+    """
+    if len(table) == 0:
+        return ""
+
+    def col(name, default):
+        return table[name] if name in table.columns else pd.Series(default, index=table.index)
+
+    def n_obj(n: int, verb_one: str, verb_many: str) -> str:
+        return f"{n} object {verb_one}" if n == 1 else f"{n} objects {verb_many}"
+
+    parts = []
+    border = int(col("touches_border", False).fillna(False).astype(bool).sum())
+    if border:
+        parts.append(n_obj(border, "touches the border", "touch the border"))
+    folded = col("folded_fraction", 0.0).astype(float)
+    over = folded[folded > FOLDED_WARNING]
+    if len(over) == 1:
+        parts.append(f"1 is {100 * float(over.iloc[0]):.0f} % folded")
+    elif len(over):
+        parts.append(f"{len(over)} are more than {100 * FOLDED_WARNING:.0f} % folded "
+                     f"(up to {100 * float(over.max()):.0f} %)")
+    holes = int((col("n_holes", 0).fillna(0).astype(float) > 0).sum())
+    if holes:
+        parts.append(f"{holes} had holes filled")
+    pieces = int((col("n_components", 1).fillna(1).astype(float) > 1).sum())
+    if pieces:
+        parts.append(f"{pieces} {'was' if pieces == 1 else 'were'} in several pieces")
+    no_int = int(col("warnings", "").fillna("").astype(str).str.contains(
+        "intensity features left empty").sum())
+    if no_int:
+        parts.append(f"{no_int} {'has' if no_int == 1 else 'have'} no intensity features")
+    errors = int(col("error", "").fillna("").astype(str).ne("").sum())
+    head = (n_obj(errors, "has no features", "have no features") + " (see the error column)"
+            if errors else "")
+    tail = ", ".join(parts) + ": see the warnings column" if parts else ""
+    return "; ".join(p for p in (head, tail) if p)
+
+
+def split_failed(
+    table: pd.DataFrame, channels: tuple[str, ...] | list[str] = ("shape",)
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Split a feature table into rows that have ``channels`` features and rows that do not.
+
+    Returns
+    -------
+    measured : DataFrame
+        The rows with features (index reset, ``attrs`` kept).
+    left_out : DataFrame
+        ``movie`` (when present), ``frame``, ``label``, ``reason`` of the others.
+    """
+    bad = failed_rows(table, channels)
+    pos = [b[0] for b in bad]
+    keep = np.ones(len(table), bool)
+    keep[pos] = False
+    measured = table[keep].reset_index(drop=True)
+    measured.attrs = dict(table.attrs)
+    left = pd.DataFrame({"frame": [b[1] for b in bad], "label": [b[2] for b in bad],
+                         "reason": [b[3] for b in bad]})
+    if "movie" in table.columns:
+        left.insert(0, "movie", table["movie"].to_numpy()[pos] if pos else [])
+    return measured, left
+
+
+def drop_failed(table: pd.DataFrame, *, intensity: bool = False) -> pd.DataFrame:
+    """The rows of a feature table that have features, warning which rows were left out.
+
+    Parameters
+    ----------
+    table : DataFrame
+        From :func:`measure` or :func:`napari_pfsdm.read_table`.
+    intensity : bool
+        Also leave out rows without intensity features (for distances with an intensity
+        weight).
+
+    Returns
+    -------
+    DataFrame
+        The measured rows, index reset, options kept; use it for distances and PCA so that
+        rows and matrix entries stay in step.
+    """
+    measured, left = split_failed(table, ("shape", "intensity") if intensity else ("shape",))
+    if len(left):
+        shown = "; ".join(f"frame {r.frame} label {r.label}: {r.reason}"
+                          for r in left.head(5).itertuples())
+        warnings.warn(f"left out {len(left)} of {len(table)} rows without features ({shown}"
+                      f"{'; …' if len(left) > 5 else ''})", UserWarning, stacklevel=2)
+    return measured
 
 
 def measure(
@@ -247,7 +399,10 @@ def measure(
     pandas.DataFrame
         Columns ``frame``, ``label``, ``area`` (pixels), ``centroid_y``, ``centroid_x``
         (pixels), ``touches_border``, ``n_components``, ``n_holes``, ``folded_fraction``,
-        ``error`` (empty when fine, otherwise the reason, with NaN features), then
+        ``error`` (empty when fine, otherwise the reason, with NaN features), ``warnings``
+        (plain-words reasons to look twice: border contact, folding above
+        :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
+        described, whose features are then NaN while the shape's are kept), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``. ``attrs["pfsdm"]``
         holds the options used, with the rings' ``radii`` and ``weights``.
 

@@ -22,6 +22,7 @@ Run it with ``python -m napari_pfsdm.analysis.gastruloid_report --out DIR`` or
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -241,6 +242,13 @@ def run(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     say = print if verbose else (lambda *a, **k: None)
+
+    def splits_done(name: str):  # the slow baselines say how far they are, on stderr
+        if not verbose:
+            return None
+        return lambda done, total: print(f"   {name}: split {done}/{total}", file=sys.stderr,
+                                         flush=True)
+
     n_repeats = n_repeats or (1 if quick else 2)
     cnn = pb.torch_available() if cnn is None else cnn
     cnn_epochs = cnn_epochs or (15 if quick else 60)
@@ -291,7 +299,8 @@ def run(
         stacks = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
         t_stack = time.perf_counter() - t0
         fp = pb.sklearn_pixel_model(*stacks, y, n_augment=4 if quick else 8, seed=seed)
-        scores = cl.evaluate(fp, y, splits, inner="cv", seed=seed)
+        scores = cl.evaluate(fp, y, splits, inner="cv", seed=seed,
+                             progress=splits_done("pixels (scikit-learn)"))
         t_pix = time.perf_counter() - t0
         say(f"pixels (scikit-learn): {t_pix:.1f} s")
         rows += _summary_rows(
@@ -303,7 +312,8 @@ def run(
         t0 = time.perf_counter()
         stacks_c = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
         fp = pb.cnn_model(*stacks_c, y, epochs=cnn_epochs, seed=seed)
-        scores = cl.evaluate(fp, y, splits, inner="holdout", seed=seed)
+        scores = cl.evaluate(fp, y, splits, inner="holdout", seed=seed,
+                             progress=splits_done("pixels (CNN)"))
         t_cnn = time.perf_counter() - t0
         say(f"pixels (CNN): {t_cnn:.1f} s")
         rows += _summary_rows(

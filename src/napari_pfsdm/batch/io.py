@@ -88,9 +88,17 @@ class _Frames:
         it = iter(key)
         for d in self._drop:
             full.append(next(it) if d is None else d)
-        if self._handle is None:
-            self._handle = self._cached_open()
-        return np.asarray(self._handle[tuple(full)])
+        try:
+            if self._handle is None:
+                self._handle = self._cached_open()
+            return np.asarray(self._handle[tuple(full)])
+        except Exception as exc:  # noqa: BLE001 - any reader error: name the file
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            raise ValueError(
+                f"cannot read {self.path}: the file seems damaged or truncated "
+                f"({type(exc).__name__}{': ' + first if first else ''}); copy or export it "
+                "again"
+            ) from exc
 
     def _cache_key(self) -> tuple:
         return (type(self).__name__, self.path, getattr(self, "component", None),
@@ -136,6 +144,22 @@ class _TiffFrames(_Frames):
         return zarr.open_array(store, mode="r")
 
 
+_AXIS_NAMES = {"t": "time", "z": "z-slices", "c": "channels", "s": "colour samples (RGB)",
+               "y": "height", "x": "width"}
+
+
+def _axes_message(where: str, shape: tuple[int, ...], axes: list[str], bad: str) -> str:
+    """Plain words for a movie with an axis pfsdm cannot take (z, channels, RGB samples)."""
+    dims = ", ".join(f"{n} {_AXIS_NAMES.get(a, a + ' (unknown axis)')}"
+                     for a, n in zip(axes, shape, strict=True))
+    what = {"s": "it looks like a colour (RGB) image, not a label image: save the "
+                 "segmentation with one whole number per object, 0 = background",
+            "z": "pfsdm measures 2-D objects: give one z-plane (or a projection) per file",
+            "c": "give the segmentation of one channel per file"}.get(
+        bad, "give a 2-D image (Y, X) or a time-lapse (T, Y, X) per file")
+    return f"{where} has {len(shape)} dimensions ({dims}); {what}"
+
+
 def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str) -> tuple:
     """Decide which stored axes to keep to obtain (T, Y, X) or (Y, X)."""
     ndim = len(shape)
@@ -148,10 +172,7 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str) -> tu
             elif n == 1:
                 drop.append(0)
             else:
-                raise ValueError(
-                    f"{where} has a {a!r} axis of size {n} (axes {''.join(axes)}); "
-                    "pfsdm measures 2-D objects over time: give one channel / z-plane per file"
-                )
+                raise ValueError(_axes_message(where, shape, axes, a))
         if drop.count(None) in (2, 3):
             return tuple(drop)
     # No usable axis names: drop leading singleton axes until 3-D.

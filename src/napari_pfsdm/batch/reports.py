@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..io_csv import read_table_csv
+from ..core.table_schema import check_feature_table
+from ..io_csv import read_table_csv, save_figure
 
 __all__ = [
     "attach_groups",
@@ -238,7 +239,7 @@ def plot_trajectories(
         elif sc is not None:
             fig.colorbar(sc, ax=ax, label="frame")
     fig.suptitle(title)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     return Path(path)
 
 
@@ -276,17 +277,35 @@ def plot_mds(
     ax.set_ylabel("MDS 2")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title or "PF-SDM distances, 2-D MDS")
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     return Path(path)
 
 
-def load_features(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a features CSV and check it looks like a :func:`napari_pfsdm.measure` table."""
-    table = read_table_csv(path)
+def load_features(path: str | os.PathLike, *, allow_empty: bool = False) -> pd.DataFrame:
+    """Read a features CSV and check it is a complete :func:`napari_pfsdm.measure` table.
+
+    Refused, with a message that says what to do: a file that is not a CSV table (an image
+    given by mistake), a table without ``frame``/``label`` or feature columns, a table whose
+    options (the ``.csv.json`` sidecar, or the comment line of older tables) cannot be found,
+    a table missing some feature columns, and (unless ``allow_empty``) a table with no rows.
+    """
+    try:
+        table = read_table_csv(path)
+    except ValueError as exc:
+        raise ValueError(
+            f"{exc}; give the table written by 'pfsdm measure' (e.g. pfsdm measure "
+            "LABELS.tif -o features.csv, then use features.csv here)"
+        ) from None
     need = {"frame", "label"}
-    if not need <= set(table.columns) or not any(c.startswith("shape_r") for c in table.columns):
+    if not need <= set(table.columns):
         raise ValueError(
             f"{path} is not a PF-SDM feature table (it needs frame, label and shape_rXX_nYY "
             "columns); make one with: pfsdm measure LABELS -o features.csv"
+        )
+    check_feature_table(table, ["shape"], where=str(path))
+    if len(table) == 0 and not allow_empty:
+        raise ValueError(
+            f"{path} holds no objects (0 rows): its labels had only background; measure "
+            "labels that contain objects"
         )
     return table

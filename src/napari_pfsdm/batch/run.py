@@ -387,6 +387,7 @@ def run_batch(
     parts_dir: str | os.PathLike | None = None,
     progress: Callable[[str, int, int], None] | None = None,
     log: Callable[[str], None] | None = None,
+    allow_empty: bool = True,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -396,7 +397,7 @@ def run_batch(
     movies : sequence of Movie
         From :func:`napari_pfsdm.batch.io.pair_movies`.
     output : str or PathLike
-        Final CSV (written atomically, with the options in a ``# pfsdm:`` header line).
+        Final CSV (written atomically, with the options in its ``.csv.json`` sidecar).
     client, scheduler, num_workers, frames_per_task
         As in :func:`measure_dask`.
     parts_dir : str or PathLike, optional
@@ -406,6 +407,9 @@ def run_batch(
         ``progress(movie_name, frames_done, n_frames)``.
     log : callable, optional
         Receives one-line messages (e.g. ``"skipped movie01 (already measured)"``).
+    allow_empty : bool
+        When False, labels without any object raise ``ValueError`` and no table is written
+        (all-background labels are usually the wrong file).
     **options
         Passed to :func:`napari_pfsdm.measure`.
 
@@ -485,8 +489,15 @@ def run_batch(
     result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
     if not attrs:
         attrs = dict(options)
+    if len(result) == 0 and not allow_empty:
+        names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
+        raise ValueError(
+            f"no objects: {names} hold{'s' if len(movies) == 1 else ''} only background (0) "
+            "in every frame, so nothing was written. Check that these are the segmentation "
+            "(labels), or pass --allow-empty to write an empty table"
+        )
     result.attrs["pfsdm"] = attrs
-    write_table_csv(result, output, attrs)
+    write_table_csv(result, output, attrs, kind="features")
     return result
 
 

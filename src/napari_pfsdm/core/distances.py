@@ -19,13 +19,19 @@ Two ways to remove rotation and reflection (``invariance``):
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+
+from .morphometric import mode_weights
+from .table_schema import check_feature_table, feature_columns
 
 __all__ = [
     "INVARIANCES",
     "distance",
     "distance_matrix",
     "embeddings_from_table",
+    "failed_rows",
     "weighted_features",
 ]
 
@@ -35,20 +41,44 @@ INVARIANCES = ("combined", "magnitude", "align")
 def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
     """Embeddings (n, n_radii, n_fourier + 1) and ring weights from a :func:`measure` table.
 
-    Rows with an ``error`` give NaN embeddings. The weights come from
-    ``table.attrs["pfsdm"]["weights"]``; without them (a table rebuilt by hand) every ring
-    weighs 1/n_radii.
+    Rows with an ``error`` give NaN embeddings. The table must carry its options
+    (``table.attrs["pfsdm"]``, as :func:`napari_pfsdm.measure` and
+    :func:`napari_pfsdm.read_table` give it) and every feature column: a table without them is
+    refused, never reinterpreted (see :mod:`napari_pfsdm.core.table_schema`).
     """
-    cols = [c for c in table.columns if c.startswith(f"{channel}_r")]
-    if not cols:
-        raise ValueError(f"The table has no '{channel}_rXX_nYY' columns.")
-    rings = sorted({int(c.split("_")[1][1:]) for c in cols})
-    modes = sorted({int(c.split("_")[2][1:]) for c in cols})
-    ordered = [f"{channel}_r{r:02d}_n{n:02d}" for r in rings for n in modes]
-    values = table[ordered].to_numpy(float).reshape(len(table), len(rings), len(modes))
-    weights = table.attrs.get("pfsdm", {}).get("weights")
-    weights = np.full(len(rings), 1.0 / len(rings)) if weights is None else np.asarray(weights)
-    return values, weights
+    opts, n_radii, n_fourier = check_feature_table(table, [channel])
+    ordered = feature_columns(n_radii, n_fourier, channel)
+    values = table[ordered].to_numpy(float).reshape(len(table), n_radii, n_fourier + 1)
+    return values, np.asarray(opts["weights"], float)
+
+
+def failed_rows(table, channels=("shape",)) -> list[tuple[Any, ...]]:
+    """Rows of a feature table that have no features for ``channels``.
+
+    Returns
+    -------
+    list of (position, frame, label, reason)
+        ``position`` is the row's position in ``table``; ``reason`` the ``error`` text, or what
+        the ``warnings`` column says about the intensity.
+    """
+    opts, n_radii, n_fourier = check_feature_table(table, channels)
+    out = []
+    err = table["error"].fillna("").astype(str).to_numpy() if "error" in table.columns \
+        else np.full(len(table), "")
+    warn = table["warnings"].fillna("").astype(str).to_numpy() if "warnings" in table.columns \
+        else np.full(len(table), "")
+    bad = np.zeros(len(table), bool)
+    for channel in channels:
+        vals = table[feature_columns(n_radii, n_fourier, channel)].to_numpy(float)
+        bad |= ~np.isfinite(vals).all(axis=1)
+    bad |= err != ""
+    frames = table["frame"].to_numpy() if "frame" in table.columns else np.full(len(table), -1)
+    labels = table["label"].to_numpy() if "label" in table.columns else np.full(len(table), -1)
+    for i in np.flatnonzero(bad):
+        reason = err[i] or next((w for w in warn[i].split("; ") if "intensity" in w), "") \
+            or "no features (NaN)"
+        out.append((int(i), int(frames[i]), int(labels[i]), reason))
+    return out
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -124,8 +154,11 @@ def _from_results(items, channel: str):
 
 def _from_table(table, channel: str):
     emb, weights = embeddings_from_table(table, channel)
-    mw = table.attrs.get("pfsdm", {}).get("mode_weights")
-    mw = np.ones(emb.shape[2]) if mw is None else np.asarray(mw, float)[: emb.shape[2]]
+    opts = table.attrs.get("pfsdm", {})
+    mw = opts.get("mode_weights")
+    if mw is None:  # tables from before the mode weights: (1 + n)^exponent, 0 when absent
+        mw = mode_weights(emb.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
+    mw = np.asarray(mw, float)[: emb.shape[2]]
     return emb, weights, mw
 
 
@@ -163,7 +196,14 @@ def distance_matrix(
     Returns
     -------
     ndarray, shape (n, n)
-        Symmetric, zero diagonal; NaN rows and columns for table rows with an ``error``.
+        Symmetric, zero diagonal.
+
+    Raises
+    ------
+    ValueError
+        A table without its options or feature columns, or with rows that have no features
+        (an ``error``, or NaN intensity features when ``intensity_weight > 0``): they are never
+        returned as silent NaN; :func:`napari_pfsdm.drop_failed` leaves them out and says which.
 
     Examples
     --------
@@ -187,6 +227,14 @@ def distance_matrix(
             raise ValueError(
                 f"invariance={invariance!r} needs the complex spectra of pfsdm results; a table "
                 "holds magnitudes only. Use invariance='magnitude' for tables."
+            )
+        bad = failed_rows(items, channels)
+        if bad:
+            shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
+            raise ValueError(
+                f"{len(bad)} of {len(items)} rows have no {' or '.join(channels)} features "
+                f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
+                "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
             )
         embs = [_from_table(items, c) for c in channels]
     else:

@@ -14,13 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from napari_pfsdm.core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
+
 #: Largest side length (pixels) of one rendered unit disk.
 DISK_SIZE = 96
 #: Budget of disk pixels over all (object, frame) slots: many objects get smaller disks.
 DISK_PIXEL_BUDGET = 40_000_000
 #: The columns before the features, as in :func:`napari_pfsdm.measure`.
-BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
-                "n_components", "n_holes", "folded_fraction", "error"]
+BASE_COLUMNS = _BASE_COLUMNS
 #: Margin around an object's bounding box (fraction of its larger side) for the SDF patch.
 SDF_MARGIN = 0.25
 

@@ -1,8 +1,10 @@
 """CSV export of one analysis: features, PCA scores, distance matrix (no Qt).
 
 Every file is written atomically by :func:`napari_pfsdm.io_csv.write_table_csv` (a temporary file
-in the same folder, then ``os.replace``), so an error never leaves a half-written CSV. The options
-of the run go into the ``# pfsdm: {json}`` header line.
+in the same folder, then ``os.replace``), so an error never leaves a half-written CSV, with the
+umask's permissions. Each CSV is plain (``pandas.read_csv(path)`` reads it); the options of the
+run go into its sidecar ``<name>.csv.json``. A file of the same name that napari-pfsdm did not
+write is never replaced.
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.analysis.features import split_failed
+from napari_pfsdm.io_csv import check_overwrite, read_table_csv, write_table_csv
 
 from ._compute import AnalysisOutput
 
@@ -20,9 +23,10 @@ from ._compute import AnalysisOutput
 MAX_DISTANCE_ROWS = 3000
 
 
-def write_csv(table: pd.DataFrame, path, options: dict | None = None) -> Path:
-    """Write ``table`` atomically with ``options`` in the ``# pfsdm:`` header line."""
-    return write_table_csv(table, Path(path), options)
+def write_csv(table: pd.DataFrame, path, options: dict | None = None, *, kind: str = "table",
+              extra: dict | None = None) -> Path:
+    """Write ``table`` atomically as plain CSV, ``options`` in its ``.csv.json`` sidecar."""
+    return write_table_csv(table, Path(path), options, kind=kind, extra=extra)
 
 
 def read_csv(path) -> pd.DataFrame:
@@ -30,8 +34,11 @@ def read_csv(path) -> pd.DataFrame:
     return read_table_csv(path)
 
 
-def distance_table(output: AnalysisOutput, intensity_weight: float | None = None) -> pd.DataFrame:
-    """All-pairs PF-SDM distances of the analysed objects (columns ``t<frame>_l<label>``)."""
+def distance_table(
+    output: AnalysisOutput, intensity_weight: float | None = None
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """All-pairs PF-SDM distances of the measured objects (columns ``t<frame>_l<label>``), and
+    the rows left out (``frame``, ``label``, ``reason``) because they have no features."""
     from napari_pfsdm import distance_matrix
 
     table = output.table
@@ -43,25 +50,31 @@ def distance_table(output: AnalysisOutput, intensity_weight: float | None = None
         w = output.options.get("intensity_weight", 0.0)
     if not any(c.startswith("intensity_") for c in table.columns):
         w = 0.0
+    table, left_out = split_failed(table, ("shape", "intensity") if w else ("shape",))
     d = np.asarray(distance_matrix(table, intensity_weight=w))
     pairs = zip(table["frame"], table["label"], strict=True)
     names = [f"t{int(f)}_l{int(lab)}" for f, lab in pairs]
     out = pd.DataFrame(d, columns=names)
     out.insert(0, "label", table["label"].to_numpy())
     out.insert(0, "frame", table["frame"].to_numpy())
-    return out
+    return out, left_out
 
 
 def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
     """Write ``<prefix>_features.csv``, ``<prefix>_pca_<kind>.csv``, ``<prefix>_distances.csv``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    names = [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in output.pca),
+             f"{prefix}_distances.csv"]
+    for name in names:  # before writing anything: all or nothing
+        check_overwrite(folder / name, what="file")
+    dist, left_out = distance_table(output)  # may refuse (too many objects): nothing written
+    left = {"left_out": left_out.to_dict("records")}
     opts = dict(output.options)
-    written = [write_csv(output.table, folder / f"{prefix}_features.csv", opts)]
+    written = [write_csv(output.table, folder / names[0], opts, kind="features")]
     for kind, scores in output.pca.items():
         ratios = scores.attrs.get("explained_variance_ratio", [])
         h = dict(opts, pca_features=kind, explained_variance_ratio=list(ratios))
-        written.append(write_csv(scores, folder / f"{prefix}_pca_{kind}.csv", h))
-    dist = distance_table(output)
-    written.append(write_csv(dist, folder / f"{prefix}_distances.csv", opts))
+        written.append(write_csv(scores, folder / f"{prefix}_pca_{kind}.csv", h, kind="pca"))
+    written.append(write_csv(dist, folder / names[-1], opts, kind="distances", extra=left))
     return written

@@ -407,6 +407,7 @@ class ShapeComparisonWidget(_LinkedPlot):
 
     def draw_plot(self) -> None:
         from napari_pfsdm import distance_matrix
+        from napari_pfsdm.analysis.features import split_failed
 
         output = self.output
         if output is None:
@@ -428,6 +429,10 @@ class ShapeComparisonWidget(_LinkedPlot):
         w = output.options.get("intensity_weight", 0.0)
         if not any(col.startswith("intensity_") for col in sub.columns):
             w = 0.0
+        if w:  # rows whose reporter could not be described (NaN pixels) have no intensity
+            sub = split_failed(sub, ("shape", "intensity"))[0]
+            if len(sub) < 2:
+                raise ValueError("Fewer than two objects with intensity features here.")
         d = np.asarray(distance_matrix(sub, intensity_weight=w))
         xy = classical_mds(d, 2)
         c = self._theme()

@@ -110,6 +110,8 @@ class AnalysisWidget(QWidget):
                                         toolTip=TIPS["viscosity"])
         self.intensity_weight = QDoubleSpinBox(minimum=0.0, maximum=10.0, singleStep=0.1,
                                                value=1.0, toolTip=TIPS["intensity_weight"])
+        #: One line on suspect objects after the last run ("" when none), as in the CLI.
+        self.run_summary = ""
         self.run_button = QPushButton("Run", toolTip=TIPS["run"])
         self.cancel_button = QPushButton("Cancel", enabled=False)
         self.progress = QProgressBar(minimum=0, maximum=1, value=0)
@@ -253,6 +255,7 @@ class AnalysisWidget(QWidget):
         options = self.options()
         weight = self.intensity_weight.value() if image is not None else 0.0
         self.last_error = ""
+        self.run_summary = ""
         self.progress.setRange(0, 0)  # busy until the objects are counted
         self._message(f"Analysing '{labels.name}'…")
         self.run_button.setEnabled(False)
@@ -316,11 +319,14 @@ class AnalysisWidget(QWidget):
         self.last_output = output
         STORE.set(labels, output)
         self._link(labels)
-        n_err = int((output.table["error"].astype(str) != "").sum())
+        from napari_pfsdm.analysis.features import warnings_summary
+
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
                "move the sliders to see its disk, skeleton and SDF.")
-        if n_err:
-            msg += f" {n_err} could not be measured (see the 'error' column)."
+        summary = warnings_summary(output.table)
+        if summary:
+            msg += f" {summary[0].upper()}{summary[1:]}."
+        self.run_summary = summary
         self._message(msg)
         self.export_button.setEnabled(True)
         self._showing = False
