@@ -87,8 +87,9 @@ def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
     """Say on stderr how many rows were left out and which (frame, label, reason)."""
     if not len(left):
         return
-    shown = [f"{r['movie'] + '/' if 'movie' in r and r['movie'] else ''}frame {r['frame']} "
-             f"label {r['label']} ({r['reason']})" for r in left.head(3).to_dict("records")]
+    shown = [f"frame {r['frame']} label {r['label']}"
+             f"{' of ' + r['movie'] if r.get('movie') else ''} ({r['reason']})"
+             for r in left.head(3).to_dict("records")]
     more = f" and {len(left) - 3} more" if len(left) > 3 else ""
     _note(f"left out {len(left)} of {total} {what} without features: {'; '.join(shown)}{more}"
           " (all listed in the output's .json file)", quiet)

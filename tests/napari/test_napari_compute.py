@@ -73,7 +73,7 @@ def test_table_matches_measure(two_frames):
     out, _ = _run(labels, intensity, n_fourier=6)
     ref = measure(labels, intensity, n_fourier=6)
     assert list(out.table.columns) == list(ref.columns)
-    num = [c for c in ref.columns if c != "error"]
+    num = [c for c in ref.columns if c not in ("error", "warnings")]
     np.testing.assert_allclose(out.table[num].to_numpy(float), ref[num].to_numpy(float))
 
 
@@ -122,7 +122,7 @@ def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):
     out.options["intensity_weight"] = 0.5
     paths = export_results(out, tmp_path, "cells")
     feats = read_csv(paths[0])
-    num = [c for c in out.table.columns if c != "error"]
+    num = [c for c in out.table.columns if c not in ("error", "warnings")]
     np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
     assert feats.attrs["pfsdm"]["intensity_weight"] == 0.5
     dist = read_csv(tmp_path / "cells_distances.csv")
@@ -140,4 +140,12 @@ def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         _export.export_results(out, tmp_path, "cells")
     assert paths[0].read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [p.name for p in paths] + [p.name + ".json" for p in paths])
+    monkeypatch.undo()
+    # a file of the same name that napari-pfsdm did not write is never replaced
+    (tmp_path / "mine_distances.csv").write_text("my own numbers\n")
+    with pytest.raises(ValueError, match="mine_distances.csv already exists and was not written"):
+        _export.export_results(out, tmp_path, "mine")
+    assert not (tmp_path / "mine_features.csv").exists()  # all or nothing
+    assert (tmp_path / "mine_distances.csv").read_text() == "my own numbers\n"

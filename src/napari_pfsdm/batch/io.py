@@ -193,7 +193,7 @@ def _open_zarr(path: Path) -> _ZarrFrames:
         import zarr
     except ImportError as exc:
         raise ValueError(
-            f"reading {path} needs the zarr package: pip install 'napari-pfsdm[batch]'"
+            f"reading {path} needs the zarr package: pip install zarr"
         ) from exc
 
     try:

@@ -53,7 +53,7 @@ TIPS = {
                         "shape (0 = shape only, 1 = equal weight). Needs an intensity image.",
     "run": "Measure every object in every frame. The viewer stays usable; Cancel stops it.",
     "export": "Save the feature table, the PCA scores and the distance matrix as CSV files "
-              "(with the options used in the first line).",
+              "(plain CSV; the options used in a .csv.json file beside each).",
     "plots": "Open the PCA trajectory plot and the shape comparison view.",
 }
 
