@@ -738,8 +738,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     1 for an unexpected failure (one line too: ``--debug`` shows the traceback); 130 when
     interrupted.
     """
+    import logging
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    if not args.debug:  # tifffile logs a damaged file's details; the error line says it
+        logging.getLogger("tifffile").setLevel(logging.CRITICAL)
     try:
         return int(args.func(args) or 0)
     except (ValueError, OSError, ImportError) as exc:

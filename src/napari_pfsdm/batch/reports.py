@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis.features import FOLDED_WARNING
 from ..core.table_schema import check_feature_table
 from ..io_csv import read_table_csv, save_figure
 
@@ -261,9 +262,23 @@ def plot_mds(
             ax.scatter(coords[m, 0], coords[m, 1], s=28, color=tab10(i % 10),
                        label=n or "(no group)")
         ax.legend(fontsize=8)
-    else:
+    elif table["frame"].nunique() > 1:
         sc = ax.scatter(coords[:, 0], coords[:, 1], c=table["frame"], cmap="viridis", s=28)
         fig.colorbar(sc, ax=ax, label="frame")
+    else:  # one frame: a colour scale would say nothing
+        ax.scatter(coords[:, 0], coords[:, 1], s=28, color="tab:blue")
+    # objects cut by the border or folded by the map are often the outliers: ring them (holes
+    # are filled before measuring and do not change the shape, so they are not ringed)
+    flagged = np.zeros(len(table), bool)
+    if "touches_border" in table.columns:
+        flagged |= table["touches_border"].fillna(False).astype(bool).to_numpy()
+    if "folded_fraction" in table.columns:
+        flagged |= (table["folded_fraction"].astype(float) > FOLDED_WARNING).to_numpy()
+    if flagged.any():
+        ax.scatter(coords[flagged, 0], coords[flagged, 1], s=110, facecolors="none",
+                   edgecolors="tab:red", linewidths=1.2,
+                   label=f"{int(flagged.sum())} touch the border or fold (see 'warnings')")
+        ax.legend(fontsize=8)
     if len(table) <= 60:
         names = "l" + table["label"].astype(str)
         if table["frame"].nunique() > 1:
