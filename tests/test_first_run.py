@@ -18,6 +18,12 @@ from skimage import data, filters, measure
 
 from napari_pfsdm.cli import main
 
+
+def imwrite(path, array):
+    """Grey-level TIFF (a 3-frame stack would otherwise be taken for RGB)."""
+    tifffile.imwrite(path, array, photometric="minisblack")
+
+
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync"]
 
 
@@ -34,8 +40,8 @@ def coins(tmp_path_factory):
     folder = tmp_path_factory.mktemp("coins")
     image = data.coins()
     labels = measure.label(image > filters.threshold_otsu(image)).astype(np.uint16)
-    tifffile.imwrite(folder / "coins_labels.tif", labels)
-    tifffile.imwrite(folder / "coins_intensity.tif", image.astype(np.float32))
+    imwrite(folder / "coins_labels.tif", labels)
+    imwrite(folder / "coins_intensity.tif", image.astype(np.float32))
     old = os.umask(0o022)
     try:
         assert main(["measure", str(folder / "coins_labels.tif"),
@@ -155,7 +161,7 @@ def test_failed_rows_are_left_out_and_named(tmp_path, capsys):
     labels[:, 45:75, 40:75] = 2
     labels[0, 5, 70] = 3            # one pixel: too small to describe
     labels[1, 60:63, 5:8] = 4       # nine pixels: too small
-    tifffile.imwrite(tmp_path / "labels.tif", labels)
+    imwrite(tmp_path / "labels.tif", labels)
     features = tmp_path / "features.csv"
     assert main(["measure", str(tmp_path / "labels.tif"), "-o", str(features), "-q",
                  *FAST]) == 0
@@ -199,7 +205,7 @@ def test_nan_reporter_costs_only_the_intensity_features(tmp_path):
 
 
 def test_empty_labels(tmp_path, capsys):
-    tifffile.imwrite(tmp_path / "empty.tif", np.zeros((3, 32, 32), np.uint16))
+    imwrite(tmp_path / "empty.tif", np.zeros((3, 32, 32), np.uint16))
     features = tmp_path / "features.csv"
     args = ["measure", str(tmp_path / "empty.tif"), "-o", str(features), "-q", *FAST]
     assert main(args) == 2
@@ -219,7 +225,7 @@ def classify_table(tmp_path, n_objects: int):
     labels = np.zeros((2, 40, 40 * n_objects), np.uint16)
     for k in range(n_objects):
         labels[:, 8:32, 40 * k + 8:40 * k + 20 + 2 * k] = k + 1
-    tifffile.imwrite(tmp_path / "labels.tif", labels)
+    imwrite(tmp_path / "labels.tif", labels)
     assert main(["measure", str(tmp_path / "labels.tif"), "-o", str(tmp_path / "f.csv"),
                  "-q", *FAST]) == 0
     return tmp_path / "f.csv"
@@ -260,14 +266,14 @@ def test_classify_progress_and_quiet(tmp_path, capsys):
 def test_input_mistakes_get_plain_messages(tmp_path, capsys):
     movie = np.zeros((3, 32, 32), np.uint16)
     movie[:, 8:24, 8:24] = 1
-    tifffile.imwrite(tmp_path / "movie.tif", movie)
+    imwrite(tmp_path / "movie.tif", movie)
     # a movie given where a table is expected
     assert main(["trajectories", str(tmp_path / "movie.tif"), "-o", str(tmp_path / "p.csv")]) \
         == 2
     msg = last_error(capsys)
     assert "movie.tif is a TIFF image, not a CSV table" in msg and "pfsdm measure" in msg
     # -i swallowing the labels
-    tifffile.imwrite(tmp_path / "rep.tif", movie.astype(np.float32))
+    imwrite(tmp_path / "rep.tif", movie.astype(np.float32))
     assert main(["measure", "-i", str(tmp_path / "rep.tif"), str(tmp_path / "movie.tif"),
                  "-o", str(tmp_path / "f.csv")]) == 2
     assert "-i/--intensity took all of" in last_error(capsys)
@@ -301,3 +307,16 @@ def test_unexpected_errors_are_one_line_without_traceback(tmp_path, capsys, monk
     assert "unexpected RuntimeError: something inside broke" in msg and "--debug" in msg
     with pytest.raises(RuntimeError):
         main(["--debug", "compare", "x.csv", "-o", str(tmp_path / "d.csv")])
+
+
+@pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o027, 0o640), (0o002, 0o664)])
+def test_written_files_follow_the_umask(tmp_path, umask, mode):
+    from napari_pfsdm import write_table
+
+    old = os.umask(umask)
+    try:
+        write_table(pd.DataFrame({"frame": [0], "label": [1]}), tmp_path / "t.csv", {})
+    finally:
+        os.umask(old)
+    for name in ("t.csv", "t.csv.json"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == mode

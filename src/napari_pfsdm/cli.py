@@ -326,7 +326,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
     if "intensity" in channels and not has_int:
         raise UserError("the table has no intensity features; measure with --intensity IMAGE")
-    table, left = _measured(table, ["shape", *channels], "rows", args.quiet)
+    table, left = _measured(table, list(dict.fromkeys(["shape", *channels])), "rows",
+                            args.quiet)
     scores = None
     explained = {}
     with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)})", args.quiet):

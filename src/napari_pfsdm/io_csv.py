@@ -85,9 +85,14 @@ def _to_jsonable(value: Any) -> Any:
 
 def _new_file_mode() -> int:
     """Permissions of a newly created file under the current umask (``0o666 & ~umask``)."""
-    with _UMASK_LOCK:  # os.umask can only be read by setting it
-        mask = os.umask(0o022)
-        os.umask(mask)
+    try:  # Linux says it without changing it (no window where another thread sees another)
+        with open("/proc/self/status", encoding="ascii") as status:
+            line = next(ln for ln in status if ln.startswith("Umask:"))
+        mask = int(line.split()[1], 8)
+    except (OSError, StopIteration, ValueError, IndexError):
+        with _UMASK_LOCK:  # elsewhere os.umask can only be read by setting it
+            mask = os.umask(0o022)
+            os.umask(mask)
     return 0o666 & ~mask
 
 
