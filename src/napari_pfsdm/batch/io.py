@@ -92,6 +92,8 @@ class _Frames:
             if self._handle is None:
                 self._handle = self._cached_open()
             return np.asarray(self._handle[tuple(full)])
+        except ImportError:
+            raise
         except Exception as exc:  # noqa: BLE001 - any reader error: name the file
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             raise ValueError(
@@ -138,7 +140,14 @@ class _TiffFrames(_Frames):
 
     def _open(self) -> Any:
         import tifffile
-        import zarr
+
+        try:
+            import zarr
+        except ImportError as exc:  # a dependency: only a broken install lacks it
+            raise ImportError(
+                "reading TIFF movies frame by frame needs the zarr package, a dependency of "
+                "napari-pfsdm that is missing here: pip install zarr"
+            ) from exc
 
         store = tifffile.imread(self.path, aszarr=True, series=self.series, level=0)
         return zarr.open_array(store, mode="r")
