@@ -13,6 +13,7 @@ import pytest
 import tifffile
 
 import napari_pfsdm
+from napari_pfsdm.analysis import features as features_module
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch.io import check_labels
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
@@ -200,7 +201,7 @@ def test_check_labels_refuses_bad_inputs():
 @pytest.mark.parametrize("scheduler", ["threads", "sync"])
 @pytest.mark.parametrize("frames_per_task", [1, 2, 3])
 def test_measure_dask_offsets_frames(monkeypatch, scheduler, frames_per_task):
-    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    monkeypatch.setattr(features_module, "measure", fake_measure)
     labels, intensity = make_movie(5)
     ref = fake_measure(labels, intensity)
     seen = []
@@ -265,7 +266,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return fake_measure(lab, img, **kw)
 
-    monkeypatch.setattr(napari_pfsdm, "measure", dies_on_b)
+    monkeypatch.setattr(features_module, "measure", dies_on_b)
     with pytest.raises(KeyboardInterrupt):
         run_batch(movies, out, scheduler="sync", n_fourier=5)
     assert not out.exists()  # no final CSV from a killed run
@@ -273,7 +274,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     assert len(parts) == 2 and parts[0].startswith("a-") and parts[1].startswith("a-")
 
     calls.clear()
-    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    monkeypatch.setattr(features_module, "measure", fake_measure)
     log = []
     table = run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=5)
     assert log[0].startswith("skipped a") and log[1].startswith("measured b")
@@ -294,7 +295,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
 
 
 def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
-    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    monkeypatch.setattr(features_module, "measure", fake_measure)
     labels, intensity = make_movie(2)
     write_zarr(tmp_path / "good.zarr", labels)
     write_zarr(tmp_path / "raw.zarr", intensity)
@@ -307,7 +308,7 @@ def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
 
 def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
     pytest.importorskip("pyarrow")
-    monkeypatch.setattr(napari_pfsdm, "measure", fake_measure)
+    monkeypatch.setattr(features_module, "measure", fake_measure)
     labels, _ = make_movie(2)
     write_zarr(tmp_path / "a.zarr", labels)
     movies = pair_movies(find_movies(tmp_path / "a.zarr"))

@@ -1,36 +1,48 @@
 """napari-pfsdm: the Push-Forward Signed Distance Morphometric (PF-SDM).
 
 Invariant shape (and intensity) descriptors of segmented objects, for scripts, the command line
-and napari. The scripting API below imports no Qt and no napari.
+and napari. The scripting API below imports no Qt and no napari, and is loaded lazily (PEP 562):
+``import napari_pfsdm.core`` pulls in numpy, scipy and scikit-image only, and a name such as
+``napari_pfsdm.measure`` imports its module (and pandas) on first use. The layers are described
+in ``docs/design.md``.
 
 >>> import numpy as np
 >>> from napari_pfsdm import pfsdm, measure, distance_matrix
 """
 
-from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
-from .core import (
-    DEFAULTS,
-    PFSDMResult,
-    Skeleton,
-    distance,
-    distance_matrix,
-    embeddings_from_table,
-    pfsdm,
-    render_disk,
-    skeleton,
-    weighted_features,
-)
-from .io_csv import read_table_csv as read_table
-from .io_csv import write_table_csv as write_table
+from __future__ import annotations
 
-__version__ = "0.1.0"
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from ._version import __version__
+
+#: Public name -> (module, attribute): the one place that says where each name lives.
+_EXPORTS: dict[str, tuple[str, str]] = {
+    "DEFAULTS": (".core.descriptor", "DEFAULTS"),
+    "PFSDMResult": (".core.descriptor", "PFSDMResult"),
+    "pfsdm": (".core.descriptor", "pfsdm"),
+    "render_disk": (".core.descriptor", "render_disk"),
+    "Skeleton": (".core.medial_axis", "Skeleton"),
+    "skeleton": (".core.medial_axis", "skeleton"),
+    "distance": (".core.distances", "distance"),
+    "distance_matrix": (".core.distances", "distance_matrix"),
+    "embeddings_from_table": (".core.distances", "embeddings_from_table"),
+    "weighted_features": (".core.distances", "weighted_features"),
+    "ObjectResult": (".analysis.features", "ObjectResult"),
+    "drop_failed": (".analysis.features", "drop_failed"),
+    "iter_objects": (".analysis.features", "iter_objects"),
+    "measure": (".analysis.features", "measure"),
+    "read_table": (".io_csv", "read_table_csv"),
+    "write_table": (".io_csv", "write_table_csv"),
+}
 
 __all__ = [
+    "__version__",
     "DEFAULTS",
     "ObjectResult",
     "PFSDMResult",
     "Skeleton",
-    "__version__",
     "distance",
     "distance_matrix",
     "drop_failed",
@@ -44,3 +56,31 @@ __all__ = [
     "weighted_features",
     "write_table",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module, attr = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'napari_pfsdm' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module, __name__), attr)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
+
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
+    from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
+    from .core.distances import (
+        distance,
+        distance_matrix,
+        embeddings_from_table,
+        weighted_features,
+    )
+    from .core.medial_axis import Skeleton, skeleton
+    from .io_csv import read_table_csv as read_table
+    from .io_csv import write_table_csv as write_table

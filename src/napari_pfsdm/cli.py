@@ -495,21 +495,31 @@ def cmd_demo(args: argparse.Namespace) -> int:
     _check_output(out / "features.csv")
     failed = []
 
+    def synthetic_five_shapes() -> Any:
+        from .experiments import synthetic_five_shapes
+
+        return synthetic_five_shapes
+
+    def gastruloid_report() -> Any:
+        from .experiments import gastruloid_report
+
+        return gastruloid_report
+
     steps = [
-        ("synthetic five-shape benchmark", "napari_pfsdm.analysis.synthetic_benchmark"),
-        ("gastruloid axis-number report", "napari_pfsdm.analysis.gastruloid_report"),
+        ("synthetic five-shape benchmark", synthetic_five_shapes),
+        ("gastruloid axis-number report", gastruloid_report),
     ]
     if args.quick_only:
         steps = []
-    import importlib
 
-    for title, modname in steps:
-        _say(f"== {title} ({modname}.run) ==")
+    for title, load in steps:
         try:
-            mod = importlib.import_module(modname)
+            mod = load()
         except ImportError as exc:
-            _say(f"   skipped: {modname} is not available ({exc})")
+            _say(f"== {title} ==")
+            _say(f"   skipped: experiments.{load.__name__} is not available ({exc})")
             continue
+        _say(f"== {title} ({mod.__name__}.run) ==")
         try:
             mod.run(out, quick=True)
         except Exception as exc:  # keep going: the other parts of the demo still run
@@ -581,7 +591,7 @@ def _add_force(p: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of ``pfsdm`` (used by :func:`main` and for the docs)."""
-    from . import __version__
+    from ._version import __version__
 
     fmt = argparse.RawDescriptionHelpFormatter
     parser = argparse.ArgumentParser(prog="pfsdm", description=DESCRIPTION, formatter_class=fmt)

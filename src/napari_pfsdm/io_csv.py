@@ -61,7 +61,7 @@ _UMASK_LOCK = threading.Lock()
 
 
 def _version() -> str:
-    from . import __version__
+    from ._version import __version__
 
     return f"napari-pfsdm {__version__}"
 

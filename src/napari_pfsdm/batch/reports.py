@@ -95,7 +95,7 @@ def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
 def _weighted_features(table: pd.DataFrame, channel: str) -> np.ndarray:
     """Feature vectors scaled by the ring and mode weights, so that Euclidean distances are
     PF-SDM (magnitude) distances."""
-    from napari_pfsdm import weighted_features
+    from ..core.distances import weighted_features
 
     return weighted_features(table, channel=channel)
 
@@ -141,7 +141,7 @@ def distance_table(
     table: pd.DataFrame, intensity_weight: float = 0.0, invariance: str = "magnitude"
 ) -> pd.DataFrame:
     """Pairwise PF-SDM distance matrix as a square DataFrame indexed by row ids."""
-    from napari_pfsdm import distance_matrix
+    from ..core.distances import distance_matrix
 
     d = distance_matrix(table, intensity_weight=intensity_weight, invariance=invariance)
     ids = row_ids(table)

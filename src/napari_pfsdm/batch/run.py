@@ -63,7 +63,7 @@ def _measure_chunk(
     labels: _Slice, intensity: _Slice | None, start: int, options: dict
 ) -> pd.DataFrame:
     """Worker task: read frames, measure them, shift ``frame`` to the movie's numbering."""
-    from napari_pfsdm import measure
+    from ..analysis.features import measure
 
     lab = labels.load()
     img = intensity.load() if intensity is not None else None

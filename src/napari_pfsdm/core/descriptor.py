@@ -10,8 +10,9 @@ import numpy as np
 from scipy import ndimage as ndi
 
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
+from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
-from .pushforward import BijectiveMap, FourierMap, make_map
+from .pushforward import BijectiveMap, FourierMap, display_turn, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
 __all__ = ["PFSDMResult", "pfsdm", "render_disk", "DEFAULTS"]
@@ -60,9 +61,7 @@ class PFSDMResult:
     @cached_property
     def skeleton(self):
         """The pruned medial axis, in image and disk coordinates (:class:`Skeleton`)."""
-        from .medial_axis import skeleton
-
-        return skeleton(self)
+        return _skeleton(self)
 
 
 def _check_intensity(intensity: np.ndarray, mask_shape: tuple[int, ...]) -> np.ndarray:
@@ -310,13 +309,6 @@ def render_disk(result: PFSDMResult, size: int = 128, channel: str = "sdf") -> n
     # shows at its own polar angle around the centroid: the disk then shows the object roughly
     # in the image's orientation.
     return _polar_to_cartesian(values, size, turn=display_turn(result))
-
-
-def display_turn(result: PFSDMResult) -> float:
-    """Angle (radians) by which :func:`render_disk` turns the disk: the polar angle of the
-    outline's start point (θ = 0) around the centroid."""
-    start = result.contour.normalized[0]
-    return float(np.arctan2(start[1], start[0]))
 
 
 def sample_intensity(result: PFSDMResult, points: np.ndarray) -> np.ndarray:

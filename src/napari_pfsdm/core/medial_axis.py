@@ -17,10 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage as ndi
-from scipy.spatial import cKDTree
 from skimage.morphology import skeletonize
 
-from .descriptor import display_turn
+from .pushforward import push_to_disk
 from .sdf import ViscousSDF
 
 __all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points"]
@@ -170,18 +169,5 @@ def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
     thin = prune_branches(thin, prune * depth_px.max())
     local = np.argwhere(thin)
     points = (local + info.offset).astype(int)
-    disk = _push_to_disk(result, to_normalized(local.astype(float)))
+    disk = push_to_disk(result, to_normalized(local.astype(float)))
     return Skeleton(points=points, disk_points=disk, depth=depth_px[tuple(local.T)])
-
-
-def _push_to_disk(result, shape_points: np.ndarray, n_r: int = 64, n_t: int = 256) -> np.ndarray:
-    """Approximate inverse of the push-forward map: the disk point whose image is nearest."""
-    if len(shape_points) == 0:
-        return np.zeros((0, 2))
-    r = (np.arange(n_r) + 0.5) / n_r
-    theta = 2 * np.pi * np.arange(n_t) / n_t
-    images = result.mapping.polar(r, n_t).reshape(-1, 2)
-    _, k = cKDTree(images).query(shape_points)
-    rr, tt = np.divmod(k, n_t)
-    angle = theta[tt] + display_turn(result)
-    return np.column_stack([r[rr] * np.cos(angle), r[rr] * np.sin(angle)])

@@ -32,7 +32,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from .sdf import ExactSDF
 
-__all__ = ["MAPPINGS", "FourierMap", "BijectiveMap", "make_map"]
+__all__ = ["MAPPINGS", "FourierMap", "BijectiveMap", "display_turn", "make_map", "push_to_disk"]
 
 MAPPINGS = ("harmonic", "bijective", "radial")
 
@@ -236,3 +236,26 @@ def make_map(kind: str, nodes: np.ndarray, sdf: ExactSDF, *, degree: int = 16,
     if kind == "bijective":
         return BijectiveMap(nodes, sdf, grid=grid)
     raise ValueError(f"mapping must be one of {MAPPINGS}, got {kind!r}.")
+
+
+def display_turn(result) -> float:
+    """Angle (radians) by which :func:`~napari_pfsdm.core.descriptor.render_disk` turns the disk:
+    the polar angle of the outline's start point (θ = 0) around the centroid. ``result`` is a
+    :class:`~napari_pfsdm.core.descriptor.PFSDMResult` (anything with ``contour.normalized``)."""
+    start = result.contour.normalized[0]
+    return float(np.arctan2(start[1], start[0]))
+
+
+def push_to_disk(result, shape_points: np.ndarray, n_r: int = 64, n_t: int = 256) -> np.ndarray:
+    """Approximate inverse of the push-forward map: for each normalised shape point (k, 2), the
+    disk point (u, v) whose image under ``result.mapping`` is nearest (on an n_r × n_t polar
+    grid), in the turned frame of :func:`display_turn`."""
+    if len(shape_points) == 0:
+        return np.zeros((0, 2))
+    r = (np.arange(n_r) + 0.5) / n_r
+    theta = 2 * np.pi * np.arange(n_t) / n_t
+    images = result.mapping.polar(r, n_t).reshape(-1, 2)
+    _, k = cKDTree(images).query(shape_points)
+    rr, tt = np.divmod(k, n_t)
+    angle = theta[tt] + display_turn(result)
+    return np.column_stack([r[rr] * np.cos(angle), r[rr] * np.sin(angle)])

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from napari_pfsdm.core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
+from ..core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
 
 #: Largest side length (pixels) of one rendered unit disk.
 DISK_SIZE = 96
@@ -195,7 +195,7 @@ def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) 
     Returns ``frame``, ``label``, ``PC1``... columns and ``attrs["explained_variance_ratio"]``;
     no PC columns with fewer than two measured rows.
     """
-    from napari_pfsdm import weighted_features
+    from ..core.distances import weighted_features
 
     empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
     empty.attrs["explained_variance_ratio"] = []
@@ -239,7 +239,7 @@ def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:
 
 def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:
     """The feature table of :func:`napari_pfsdm.measure` from already computed objects."""
-    from napari_pfsdm.analysis.features import table_from_objects as build
+    from ..analysis.features import table_from_objects as build
 
     return build(objects, with_intensity=with_intensity, **options)
 
@@ -261,7 +261,8 @@ def run_analysis(
     Yields ``(done, total, frame, label)`` after each object; returns an :class:`AnalysisOutput`.
     Closing the generator (or the worker stopping at a yield) stops the work and keeps nothing.
     """
-    import napari_pfsdm as core
+    from ..analysis.features import iter_objects
+    from ..core.descriptor import render_disk
 
     options = dict(options or {})
     validate_layers_data(labels, intensity)
@@ -287,15 +288,15 @@ def run_analysis(
     patches: dict = {}
     collected = []
     done = 0
-    for obj in core.iter_objects(labels, intensity, **options):
+    for obj in iter_objects(labels, intensity, **options):
         collected.append(obj)
         frame, label = int(obj.frame), int(obj.label)
         res = obj.result
         if res is not None and not obj.error:
             o = int(np.searchsorted(object_labels, label))
-            disk[o, frame] = core.render_disk(res, size=disk_size)
+            disk[o, frame] = render_disk(res, size=disk_size)
             if idisk is not None and getattr(res, "intensity_disk", None) is not None:
-                idisk[o, frame] = core.render_disk(res, size=disk_size, channel="intensity")
+                idisk[o, frame] = render_disk(res, size=disk_size, channel="intensity")
             try:
                 sk = res.skeleton
                 rr, cc = _rasterize(np.asarray(sk.points), frame_shape)

@@ -14,9 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from napari_pfsdm.analysis.features import split_failed
-from napari_pfsdm.io_csv import check_overwrite, read_table_csv, write_table_csv
-
+from ..analysis.features import split_failed
+from ..io_csv import check_overwrite, read_table_csv, write_table_csv
 from ._compute import AnalysisOutput
 
 #: Largest number of objects for which the all-pairs distance matrix is exported.
@@ -39,7 +38,7 @@ def distance_table(
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """All-pairs PF-SDM distances of the measured objects (columns ``t<frame>_l<label>``), and
     the rows left out (``frame``, ``label``, ``reason``) because they have no features."""
-    from napari_pfsdm import distance_matrix
+    from ..core.distances import distance_matrix
 
     table = output.table
     if len(table) > MAX_DISTANCE_ROWS:

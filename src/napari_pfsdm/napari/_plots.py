@@ -406,8 +406,8 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.highlight()
 
     def draw_plot(self) -> None:
-        from napari_pfsdm import distance_matrix
-        from napari_pfsdm.analysis.features import split_failed
+        from ..analysis.features import split_failed
+        from ..core.distances import distance_matrix
 
         output = self.output
         if output is None:

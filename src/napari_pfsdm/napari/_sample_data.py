@@ -11,7 +11,7 @@ def gastruloid_timelapse() -> list[tuple]:
     Some objects develop one body axis, others several; ``metadata["groups"]`` of the Labels layer
     maps each label to ``"single-axis"`` or ``"multi-axes"`` (the trajectory plot can colour by it).
     """
-    from napari_pfsdm.data.gastruloids import make_timelapse_montage
+    from ..data.gastruloids import make_timelapse_montage
 
     labels, intensity, groups = make_timelapse_montage(n_objects=6, n_frames=12, size=256, seed=0)
     return [
@@ -25,7 +25,7 @@ def benchmark_shapes() -> list[tuple]:
 
     Each object's label is its index + 1; ``metadata["groups"]`` maps labels to shape names.
     """
-    from napari_pfsdm.data.shapes import make_benchmark_set
+    from ..data.shapes import make_benchmark_set
 
     masks, classes, names = make_benchmark_set(n_per_class=4, perturb=False, seed=0, size=96)
     n = len(masks)

@@ -93,7 +93,7 @@ class AnalysisWidget(QWidget):
         self._linked_layer: Labels | None = None
         self._showing = False
 
-        from napari_pfsdm import DEFAULTS
+        from ..core.descriptor import DEFAULTS
 
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.image_combo = QComboBox(toolTip=TIPS["image"])
@@ -319,7 +319,7 @@ class AnalysisWidget(QWidget):
         self.last_output = output
         STORE.set(labels, output)
         self._link(labels)
-        from napari_pfsdm.analysis.features import warnings_summary
+        from ..analysis.features import warnings_summary
 
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
                "move the sliders to see its disk, skeleton and SDF.")

@@ -1,0 +1,132 @@
+"""The import graph follows the layers of docs/design.md: data flows one way.
+
+core (arrays in, arrays out) <- analysis (tables) <- io/batch/cli, napari; nothing inside the
+package imports the package's own top level; and ``import napari_pfsdm.core`` stays light.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "napari_pfsdm"
+
+#: What each layer may import from the package (besides itself).
+ALLOWED = {
+    "core": set(),
+    "data": {"core"},
+    "analysis": {"core", "data"},
+    "io_csv": {"core"},
+    "batch": {"core", "analysis", "data", "io_csv"},
+    "experiments": {"core", "analysis", "data", "io_csv"},
+    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments"},
+    "napari": {"core", "analysis", "data", "io_csv"},
+    "__main__": {"cli"},
+    "__init__": {"core", "analysis", "io_csv"},
+    "_version": set(),
+}
+
+
+def _layer(path: Path) -> str:
+    rel = path.relative_to(SRC)
+    return rel.parts[0].removesuffix(".py")
+
+
+def _package_imports(text: str, rel: tuple[str, ...]) -> list[tuple[int, str]]:
+    """(line, top-level part) of every import of the package in ``text``, the source of the
+    module at ``rel`` (parts under src/napari_pfsdm, e.g. ("core", "descriptor.py")),
+    absolute or relative; the package's own top level gives "napari_pfsdm"."""
+    tree = ast.parse(text)
+    here = list(rel[:-1])  # the module's package, as parts
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                if parts[0] == "napari_pfsdm":
+                    out.append((node.lineno, parts[1] if len(parts) > 1 else "napari_pfsdm"))
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                parts = (node.module or "").split(".")
+                if parts[0] == "napari_pfsdm":
+                    out.append((node.lineno, parts[1] if len(parts) > 1 else "napari_pfsdm"))
+                continue
+            base = here[: len(here) - (node.level - 1)]
+            parts = base + (node.module.split(".") if node.module else [])
+            if parts:
+                out.append((node.lineno, parts[0].removesuffix(".py")))
+            else:  # "from . import x" in the package's top level: x is a module or a name
+                out.extend((node.lineno, a.name) for a in node.names)
+    return out
+
+
+def _violations(path: Path) -> list[tuple[int, str]]:
+    rel = path.relative_to(SRC).parts
+    layer = _layer(path)
+    text = path.read_text(encoding="utf-8")
+    return [(line, target) for line, target in _package_imports(text, rel)
+            if target not in (layer, "_version") and target not in ALLOWED[layer]]
+
+
+MODULES = sorted(p for p in SRC.rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(SRC)))
+def test_imports_follow_the_layers(path):
+    assert _layer(path) in ALLOWED, f"{path.relative_to(SRC)}: a new layer, add it to ALLOWED"
+    bad = _violations(path)
+    assert not bad, (f"{path.relative_to(SRC)} ({_layer(path)}) imports "
+                     + ", ".join(f"{t} (line {n})" for n, t in bad))
+
+
+def test_the_checker_sees_forbidden_imports():
+    text = "from ..analysis import features\nimport napari_pfsdm\nfrom . import sdf\n"
+    found = [t for _, t in _package_imports(text, ("core", "descriptor.py"))]
+    assert found == ["analysis", "napari_pfsdm", "core"]
+    found = [t for _, t in _package_imports("from . import __version__\n", ("cli.py",))]
+    assert found == ["__version__"]  # the top level itself: not allowed for cli
+
+
+LIGHT = """
+import importlib, json, sys
+importlib.import_module({module!r})
+print(json.dumps(sorted(m for m in {heavy!r} if m in sys.modules)))
+"""
+
+
+@pytest.mark.parametrize("module, heavy", [
+    ("napari_pfsdm", ["pandas", "sklearn", "matplotlib", "dask", "torch", "qtpy", "napari"]),
+    ("napari_pfsdm.core", ["pandas", "sklearn", "matplotlib", "dask", "torch", "qtpy"]),
+    ("napari_pfsdm.analysis.features", ["sklearn", "matplotlib", "dask", "torch", "qtpy"]),
+    ("napari_pfsdm.analysis.classification", ["matplotlib", "torch", "qtpy", "napari"]),
+])
+def test_importing_a_layer_stays_light(module, heavy):
+    out = subprocess.run([sys.executable, "-c", LIGHT.format(module=module, heavy=heavy)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == []
+
+
+def test_no_import_circle_in_core():
+    """core's modules import each other without a cycle (descriptor <-> medial_axis was one)."""
+    graph = {}
+    for path in (SRC / "core").glob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        deps = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+                deps.add(node.module.split(".")[0])
+        graph[path.stem] = deps
+
+    def visit(node, stack):
+        assert node not in stack, " -> ".join([*stack, node])
+        for dep in graph.get(node, ()):
+            visit(dep, [*stack, node])
+
+    for node in graph:
+        visit(node, [])
