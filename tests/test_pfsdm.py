@@ -79,3 +79,38 @@ def test_viscous_sdf_stays_bounded_at_sharp_corners():
     exact = P.pfsdm(mask, mapping="bijective")
     assert res.disk.min() > 1.2 * exact.disk.min()
     assert np.abs(res.disk - exact.disk).max() < 0.1
+
+
+def test_holes_are_filled_before_the_shape_is_described():
+    """The PF-SDM describes the outer outline: a ring-shaped object is its filled disk."""
+    yy, xx = np.mgrid[:80, :90]
+    filled = ((yy - 40) / 22.0) ** 2 + ((xx - 45) / 30.0) ** 2 <= 1
+    holed = filled & ~(((yy - 38) / 6.0) ** 2 + ((xx - 50) / 9.0) ** 2 <= 1)
+    a, b = P.pfsdm(holed), P.pfsdm(filled)
+    assert a.diagnostics["n_holes"] == 1 and b.diagnostics["n_holes"] == 0
+    assert a.diagnostics["area"] == b.diagnostics["area"] == int(filled.sum())
+    np.testing.assert_array_equal(a.embedding, b.embedding)
+    table = P.measure(holed.astype(np.uint8))
+    assert table.loc[0, "n_holes"] == 1 and table.loc[0, "warnings"] == "1 hole filled"
+
+
+@pytest.mark.parametrize("exponent", [0.0, 0.25, 0.5])
+def test_magnitude_distance_is_the_weighted_sum_the_readme_states(exponent):
+    """d² = Σ_r w_r Σ_n (1 + n)^{2α} (|c_n^(1)(r)| − |c_n^(2)(r)|)², for results and tables."""
+    masks = [raster(BASE_SHAPES[k], 160) for k in ("circle", "folded", "branched")]
+    results = [P.pfsdm(m, mode_exponent=exponent) for m in masks]
+    n = np.arange(results[0].embedding.shape[1])
+    w = results[0].weights
+
+    def by_hand(a, b):
+        diff = (a.embedding - b.embedding) * (1.0 + n)[None, :] ** exponent
+        return np.sqrt(np.sum(w[:, None] * diff**2))
+
+    expected = np.array([[by_hand(a, b) for b in results] for a in results])
+    got = P.distance_matrix(results, invariance="magnitude")
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+    labels = np.zeros((160, 480), np.uint8)
+    for k, m in enumerate(masks):
+        labels[:, 160 * k:160 * (k + 1)][m] = k + 1
+    table = P.measure(labels, mode_exponent=exponent)
+    np.testing.assert_allclose(P.distance_matrix(table), expected, rtol=1e-6, atol=1e-9)
