@@ -96,3 +96,25 @@ def test_distance_matrix_of_table_equals_that_of_results():
     results = [o.result for o in P.iter_objects(labels)]
     np.testing.assert_allclose(P.distance_matrix(table),
                                P.distance_matrix(results, invariance="magnitude"), atol=1e-12)
+
+
+def test_a_numerical_failure_costs_one_row_not_the_run(monkeypatch):
+    """A qhull RuntimeError (degenerate triangulation) in one object becomes that row's
+    error; the other objects are measured."""
+    from scipy.spatial import QhullError
+
+    from napari_pfsdm.analysis import features
+
+    real = features.pfsdm
+
+    def flaky(mask, *args, **kwargs):
+        if mask.sum() < 460:  # the disk of frame 0 only
+            raise QhullError("QH6154 Qhull precision error: initial simplex is flat")
+        return real(mask, *args, **kwargs)
+
+    monkeypatch.setattr(features, "pfsdm", flaky)
+    table = P.measure(stack(2))
+    bad = table["error"] != ""
+    assert 0 < bad.sum() < len(table)
+    assert table.loc[bad, "error"].str.startswith("numerical failure (QhullError: QH6154").all()
+    assert np.isfinite(table.loc[~bad].filter(like="shape_r").to_numpy(float)).all()

@@ -195,14 +195,30 @@ def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, st
 
     try:
         return run(image), "", ""
-    except ValueError as exc:
+    except _OBJECT_ERRORS as exc:
         if image is None:
-            return None, str(exc), ""
+            return None, _reason(exc), ""
         try:
             res = run(None)
-        except ValueError:
-            return None, str(exc), ""
-        return res, "", str(exc)
+        except _OBJECT_ERRORS:
+            return None, _reason(exc), ""
+        return res, "", _reason(exc)
+
+
+#: Errors that cost one object its features, never the whole run: ValueError for what the
+#: method refuses (too small, NaN intensity, ...), RuntimeError for numerical failures such as
+#: a degenerate Delaunay triangulation (scipy's QhullError) in the bijective map,
+#: ArithmeticError for overflows.
+_OBJECT_ERRORS = (ValueError, RuntimeError, ArithmeticError)
+
+
+def _reason(exc: BaseException) -> str:
+    """The row's ``error`` text: the message of a ValueError (written for users), the type and
+    first line of anything else (a numerical failure)."""
+    if isinstance(exc, ValueError):
+        return str(exc)
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    return f"numerical failure ({type(exc).__name__}{': ' + first if first else ''})"
 
 
 def resolved_options(**options: Any) -> dict[str, Any]:

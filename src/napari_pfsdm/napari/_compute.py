@@ -57,6 +57,9 @@ class AnalysisOutput:
     pca
         ``{"shape": scores, "intensity": scores}``: DataFrames with ``frame``, ``label``,
         ``PC1``... and ``attrs["explained_variance_ratio"]``.
+    skeleton_errors
+        ``{(frame, label): reason}`` for objects whose skeleton could not be drawn (their
+        features are kept; the widget says how many).
     """
 
     table: pd.DataFrame
@@ -70,6 +73,7 @@ class AnalysisOutput:
     skeleton: np.ndarray
     sdf_patches: dict = field(default_factory=dict)
     pca: dict = field(default_factory=dict)
+    skeleton_errors: dict = field(default_factory=dict)
 
     @property
     def n_frames(self) -> int:
@@ -286,6 +290,7 @@ def run_analysis(
     dskel = np.zeros(disk.shape, dtype=label_dtype)
     skel = np.zeros((n_frames, *frame_shape), dtype=label_dtype)
     patches: dict = {}
+    skeleton_errors: dict = {}
     collected = []
     done = 0
     for obj in iter_objects(labels, intensity, **options):
@@ -303,8 +308,8 @@ def run_analysis(
                 skel[frame, rr, cc] = label
                 rr, cc = _rasterize(disk_pixels(sk.disk_points, disk_size), (disk_size,) * 2)
                 dskel[o, frame, rr, cc] = label
-            except Exception:  # a skeleton failure must not lose the features
-                pass
+            except Exception as err:  # noqa: BLE001 - must not lose the features: recorded
+                skeleton_errors[(frame, label)] = f"{type(err).__name__}: {err}"
             patches[(frame, label)] = sdf_patch(res, obj.bbox, frame_shape)
         done += 1
         yield done, total, frame, label
@@ -320,4 +325,5 @@ def run_analysis(
         table=table, options=opts, objects=[(f, lab) for f, lab in objects],
         object_labels=object_labels, time_lapse=time_lapse, disk=disk, intensity_disk=idisk,
         disk_skeleton=dskel, skeleton=skel, sdf_patches=patches, pca=pca,
+        skeleton_errors=skeleton_errors,
     )

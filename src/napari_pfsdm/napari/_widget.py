@@ -324,6 +324,12 @@ class AnalysisWidget(QWidget):
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
                "move the sliders to see its disk, skeleton and SDF.")
         summary = warnings_summary(output.table)
+        if output.skeleton_errors:
+            (f, lab), why = next(iter(output.skeleton_errors.items()))
+            n = len(output.skeleton_errors)
+            summary += ("; " if summary else "") + (
+                f"no skeleton for {n} object{'s' if n > 1 else ''} (e.g. frame {f} label "
+                f"{lab}: {why})")
         if summary:
             msg += f" {summary[0].upper()}{summary[1:]}."
         self.run_summary = summary
