@@ -1,6 +1,6 @@
 """Sub-pixel boundary contour of one object, resampled in arc length and normalised.
 
-Step 1 of the method (DESIGN.md §2.1): marching squares on the object's bounding box, the
+Step 1 of the method (docs/design.md §2.1): marching squares on the object's bounding box, the
 outer boundary oriented counter-clockwise, resampled uniformly in arc length, lightly smoothed
 against the pixel staircase, then centred on the area centroid and scaled so that the farthest
 boundary point lies on the unit circle.

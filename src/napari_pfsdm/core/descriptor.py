@@ -1,4 +1,4 @@
-"""PF-SDM of one object: contour → SDF → push-forward → Fourier magnitudes (DESIGN.md §2)."""
+"""PF-SDM of one object: contour → SDF → push-forward → Fourier magnitudes (docs/design.md §2)."""
 
 from __future__ import annotations
 

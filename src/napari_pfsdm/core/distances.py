@@ -1,4 +1,4 @@
-"""PF-SDM distances between objects (DESIGN.md §2.6), for two objects or thousands at once.
+"""PF-SDM distances between objects (docs/design.md §2.6), for two objects or thousands at once.
 
 d(S₁, S₂)² = ∫₀¹ ‖e₁(r) − e₂(r)‖² dr + w_I ∫₀¹ ‖i₁(r) − i₂(r)‖² dr, by the quadrature weights
 of the rings. ``distance`` returns d (a metric); the paper's d is its square (same ranking).

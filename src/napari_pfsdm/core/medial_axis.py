@@ -1,4 +1,4 @@
-"""Skeleton (medial axis) from the singularities of the signed distance (DESIGN.md §2.7).
+"""Skeleton (medial axis) from the singularities of the signed distance (docs/design.md §2.7).
 
 The distance to the outline is differentiable everywhere inside the object except on the medial
 axis, where two or more boundary points are closest. There a central difference of φ over a

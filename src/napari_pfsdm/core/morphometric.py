@@ -1,6 +1,6 @@
 """The morphometric: ring-by-ring Fourier magnitudes of a function sampled on the unit disk.
 
-Step 4 of the method (DESIGN.md §2.4–2.5). A function f(r, θ) on the disk (the PF-SDF, or a
+Step 4 of the method (docs/design.md §2.4–2.5). A function f(r, θ) on the disk (the PF-SDF, or a
 pushed intensity) is sampled on ``n_radii`` rings × ``n_angles`` equispaced angles; an FFT along θ
 gives c_n(r). A rotation of the object shifts θ and multiplies c_n by a phase, a reflection
 conjugates it: the magnitudes |c_n(r)| are invariant to both.

@@ -1,4 +1,4 @@
-"""Push-forward maps X: unit disk → shape (DESIGN.md §2.3).
+"""Push-forward maps X: unit disk → shape (docs/design.md §2.3).
 
 Every map sends the unit circle onto the object's outline and the disk's interior into the
 object, in the contour's normalised coordinates; a point of the disk is a complex number

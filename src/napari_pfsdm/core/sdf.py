@@ -1,6 +1,6 @@
 """Signed distance functions of a closed contour, evaluable at any point with their gradient.
 
-Step 2 of the method (DESIGN.md §2.2). Both functions work in the contour's normalised
+Step 2 of the method (docs/design.md §2.2). Both functions work in the contour's normalised
 coordinates and follow the convention φ < 0 inside, φ = 0 on the boundary, φ > 0 outside.
 
 * :class:`ExactSDF` — the Euclidean distance to the sub-pixel polygon, signed. Cheap (a KD-tree

@@ -1,6 +1,6 @@
 """Synthetic shapes: the paper's five base shapes, similarity transforms, rasterisation.
 
-The synthetic benchmark (paper §3.1, DESIGN.md issue 2 item 5) compares five base shapes —
+The synthetic benchmark (paper §3.1, docs/design.md §2.8) compares five base shapes —
 a circle, an elongated shape, an asymmetrically folded shape, a rounded square and a branched
 shape with three arms — each rasterised many times under random translations, rotations,
 reflections and isotropic scalings (0.5×–2×), and, in a second variant, with a mild random
