@@ -10,7 +10,7 @@ downsampled pixels; a small CNN when torch is installed), on the same splits, ti
 Writes gastruloid_results.csv, gastruloid_accuracy.png and gastruloid_pca.png in --out.
 """
 
-from napari_pfsdm.analysis.gastruloid_report import main
+from napari_pfsdm.experiments.gastruloid_report import main
 
 if __name__ == "__main__":
     main()

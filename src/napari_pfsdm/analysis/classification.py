@@ -19,7 +19,7 @@ out-of-fold predictions inside the training split only (it never sees a test lab
 The evaluation is model-agnostic: a model is any callable ``fit_predict(train_idx, predict_idx)
 -> (p_shape, p_intensity)`` that trains on the objects ``train_idx`` (and may read their labels
 only) and returns class-1 probabilities for ``predict_idx``. The pixel baselines in
-:mod:`napari_pfsdm.analysis.pixel_baseline` plug into the same splits.
+:mod:`napari_pfsdm.experiments.pixel_baseline` plug into the same splits.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from .classification import FitPredict, parse_frames
+from ..analysis.classification import FitPredict, parse_frames
 
 __all__ = ["augment", "cnn_model", "pixel_stacks", "sklearn_pixel_model", "torch_available"]
 

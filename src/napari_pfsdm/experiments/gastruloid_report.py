@@ -1,9 +1,9 @@
 """The paper's gastruloid application end to end, on the synthetic generator.
 
 Generate gastruloid movies, measure PF-SDM shape and intensity features on the chosen (early)
-frames, predict single- vs multi-axes with the paper's protocol (:mod:`.classification`), do the
-same from pixels (:mod:`.pixel_baseline`: scikit-learn always, a small CNN when ``torch`` is
-installed) on the very same splits, and write
+frames, predict single- vs multi-axes with the paper's protocol
+(:mod:`napari_pfsdm.analysis.classification`), do the same from pixels (:mod:`.pixel_baseline`:
+scikit-learn always, a small CNN when ``torch`` is installed) on the very same splits, and write
 
 * ``gastruloid_results.csv``: accuracy and balanced accuracy (mean, std over splits) per method
   and feature set, with each method's wall time end to end (feature extraction included, data
@@ -15,7 +15,11 @@ installed) on the very same splits, and write
 * ``gastruloid_pca.png``: PCA trajectories of the shape and intensity features over all frames,
   one line per object, coloured by class (the paper's Fig. 2B).
 
-Run it with ``python -m napari_pfsdm.analysis.gastruloid_report --out DIR`` or
+The steps are separate: :func:`build_data` generates the movies, :func:`score_methods` scores
+each method on the same splits (no printing, no files), :func:`write_figures` writes the plots;
+:func:`run` calls them, prints and writes the table.
+
+Run it with ``python -m napari_pfsdm.experiments.gastruloid_report --out DIR`` or
 ``python benchmarks/gastruloids.py --out DIR``.
 """
 
@@ -24,17 +28,22 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..data.gastruloids import GastruloidParams, make_gastruloids
-from . import classification as cl
+from ..analysis import classification as cl
+from ..data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
+from ..io_csv import save_figure
 from . import pixel_baseline as pb
 
-__all__ = ["main", "plot_accuracy", "plot_pca", "run", "run_seeds", "speed_summary"]
+__all__ = [
+    "build_data", "format_seeds_table", "format_table", "main", "plot_accuracy", "plot_pca",
+    "run", "run_seeds", "score_methods", "seeds_summary", "speed_summary", "write_figures",
+]
 
 _CLASS_COLORS = {False: "tab:blue", True: "tab:orange"}
 
@@ -129,7 +138,7 @@ def plot_accuracy(results: pd.DataFrame, path: str | Path, title: str = "") -> N
     ax.set_title(title or "single- vs multi-axes prediction")
     ax.legend(fontsize=7, ncol=n_m, loc="upper center", bbox_to_anchor=(0.5, -0.16))
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_pca(
@@ -186,7 +195,226 @@ def plot_pca(
     ]
     axes[1].legend(handles=handles, fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
+
+
+#: Files :func:`run` writes, in the order it reports them.
+REPORT_FILES = ("gastruloid_results.csv", "gastruloid_accuracy.png", "gastruloid_pca.png")
+
+#: One split of the objects: (train indices, test indices).
+Split = tuple[np.ndarray, np.ndarray]
+
+#: What a scoring step gives: its table rows and a one-line progress message.
+MethodScore = tuple[list[dict], str]
+
+
+def _silent(*args: object, **kwargs: object) -> None:
+    """Print nothing."""
+
+
+def _print_split(name: str, done: int, total: int) -> None:
+    """Split progress of the slow baselines, on stderr."""
+    print(f"   {name}: split {done}/{total}", file=sys.stderr, flush=True)
+
+
+def build_data(
+    *,
+    n_objects: int = 78,
+    n_frames: int = 25,
+    frames: str | Sequence[int] = "0-9",
+    size: int = 128,
+    seed: int = 0,
+    params: GastruloidParams | None = None,
+) -> tuple[GastruloidSet, list[int], float]:
+    """Generate the gastruloid movies and parse the frames used for the prediction.
+
+    Parameters
+    ----------
+    n_objects, n_frames, size, seed : int
+        Passed to :func:`~napari_pfsdm.data.gastruloids.make_gastruloids`.
+    frames : str or sequence of int
+        Frames used for the prediction.
+    params : GastruloidParams, optional
+        Generator parameters (default: the documented defaults).
+
+    Returns
+    -------
+    data : GastruloidSet
+        The movies (``labels``, ``intensity``) and their classes (``multi_axis``).
+    sel : list of int
+        The chosen frames.
+    seconds : float
+        Wall time of the generation.
+    """
+    t0 = time.perf_counter()
+    data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=size, seed=seed,
+                            params=params)
+    sel = cl.parse_frames(frames, n_frames)
+    return data, sel, time.perf_counter() - t0
+
+
+def _score_pfsdm(data: GastruloidSet, sel: list[int], y: np.ndarray, splits: list[Split],
+                 seed: int, options: dict) -> MethodScore:
+    """PF-SDM: measure + vectors + logistic regression, nested alpha by inner CV."""
+    t0 = time.perf_counter()
+    table = cl.measure_movies(data.labels, data.intensity, frames=sel, **options)
+    t_measure = time.perf_counter() - t0
+    xs, _ = cl.feature_matrix(table, "shape", sel)
+    xi, _ = cl.feature_matrix(table, "intensity", sel)
+    scores = cl.evaluate(cl.logistic_model(xs, xi, y), y, splits, inner="cv", seed=seed)
+    t_pfsdm = time.perf_counter() - t0
+    rows = _summary_rows(
+        "PF-SDM + logistic", cl.summarize(scores), t_pfsdm,
+        f"measure {t_measure:.1f} s; alpha by 3-fold CV inside the training split",
+    )
+    return rows, (f"PF-SDM: {t_pfsdm:.1f} s (measure {t_measure:.1f} s, "
+                  f"{xs.shape[1]} features/channel)")
+
+
+def _score_size_contrast(data: GastruloidSet, sel: list[int], y: np.ndarray,
+                         splits: list[Split], seed: int) -> MethodScore:
+    """Reference: two plain numbers per frame that PF-SDM's invariances remove on purpose."""
+    t0 = time.perf_counter()
+    xg, xc = cl.size_contrast_features(data.labels, data.intensity, sel)
+    scores = cl.evaluate(cl.logistic_model(xg, xc, y, C=1.0), y, splits, inner="cv", seed=seed)
+    t_ref = time.perf_counter() - t0
+    rows = _summary_rows(
+        "size + contrast (ref.)", cl.summarize(scores), t_ref,
+        "shape = growth 0.5 log(A_t/A_first), intensity = mean/99th percentile inside the "
+        "object, per frame; C = 1; alpha by 3-fold CV inside the training split",
+    )
+    return rows, f"size + contrast reference: {t_ref:.1f} s"
+
+
+def _score_pixels(data: GastruloidSet, sel: list[int], y: np.ndarray, splits: list[Split],
+                  seed: int, quick: bool,
+                  progress: Callable[[int, int], None] | None) -> MethodScore:
+    """Logistic regression on augmented downsampled pixels (scikit-learn)."""
+    t0 = time.perf_counter()
+    stacks = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
+    t_stack = time.perf_counter() - t0
+    fp = pb.sklearn_pixel_model(*stacks, y, n_augment=4 if quick else 8, seed=seed)
+    scores = cl.evaluate(fp, y, splits, inner="cv", seed=seed, progress=progress)
+    t_pix = time.perf_counter() - t0
+    rows = _summary_rows(
+        "pixels + logistic", cl.summarize(scores), t_pix,
+        f"32x32 px, x{4 if quick else 8} rotations/reflections; stacks {t_stack:.1f} s; "
+        "alpha by 3-fold CV inside the training split",
+    )
+    return rows, f"pixels (scikit-learn): {t_pix:.1f} s"
+
+
+def _score_cnn(data: GastruloidSet, sel: list[int], y: np.ndarray, splits: list[Split],
+               seed: int, epochs: int,
+               progress: Callable[[int, int], None] | None) -> MethodScore:
+    """The small CNN on the pixels (needs ``torch``); alpha on a validation part."""
+    t0 = time.perf_counter()
+    stacks = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
+    fp = pb.cnn_model(*stacks, y, epochs=epochs, seed=seed)
+    scores = cl.evaluate(fp, y, splits, inner="holdout", seed=seed, progress=progress)
+    t_cnn = time.perf_counter() - t0
+    rows = _summary_rows(
+        "pixels + CNN", cl.summarize(scores), t_cnn,
+        f"32x32 px, {epochs} epochs, random rotations/reflections; alpha on a 25 % "
+        "validation part of the training split (the model is trained once per split)",
+    )
+    return rows, f"pixels (CNN): {t_cnn:.1f} s"
+
+
+def score_methods(
+    data: GastruloidSet,
+    sel: list[int],
+    splits: list[Split],
+    *,
+    seed: int = 0,
+    quick: bool = False,
+    pixel: bool = True,
+    cnn: bool = False,
+    cnn_epochs: int = 60,
+    measure_options: dict | None = None,
+    split_progress: Callable[[str, int, int], None] | None = None,
+) -> Iterator[MethodScore]:
+    """Score every method on the same splits, one at a time (pure: no printing, no files).
+
+    Parameters
+    ----------
+    data : GastruloidSet
+        From :func:`build_data`.
+    sel : list of int
+        Frames used for the prediction.
+    splits : list of (train, test) index arrays
+        From :func:`napari_pfsdm.analysis.classification.make_splits`.
+    seed : int
+        Seed of the inner CV and of the pixel models.
+    quick : bool
+        Fewer augmented copies for the scikit-learn pixels.
+    pixel, cnn : bool
+        Run the scikit-learn pixel baseline, the CNN baseline.
+    cnn_epochs : int
+        CNN training epochs.
+    measure_options : dict, optional
+        Options of :func:`napari_pfsdm.measure`.
+    split_progress : callable, optional
+        ``split_progress(method, done, total)`` after each split of the slow pixel baselines.
+
+    Yields
+    ------
+    rows : list of dict
+        Rows of the results table for one method (one per feature set).
+    message : str
+        One line on what it took (wall time end to end).
+    """
+    def progress(name: str) -> Callable[[int, int], None] | None:
+        return None if split_progress is None else partial(split_progress, name)
+
+    y = data.multi_axis.astype(int)
+    options = measure_options or {}
+    yield _score_pfsdm(data, sel, y, splits, seed, options)
+    yield _score_size_contrast(data, sel, y, splits, seed)
+    if pixel:
+        yield _score_pixels(data, sel, y, splits, seed, quick, progress("pixels (scikit-learn)"))
+    if cnn:
+        yield _score_cnn(data, sel, y, splits, seed, cnn_epochs, progress("pixels (CNN)"))
+
+
+def write_figures(
+    results: pd.DataFrame,
+    data: GastruloidSet,
+    sel: list[int],
+    out: Path,
+    *,
+    title: str = "",
+    measure_options: dict | None = None,
+) -> float:
+    """Write ``gastruloid_accuracy.png`` and ``gastruloid_pca.png``.
+
+    Parameters
+    ----------
+    results : DataFrame
+        The results table.
+    data : GastruloidSet
+        The movies; the PCA measures all their frames.
+    sel : list of int
+        Frames used for the prediction (the first and last are marked on the trajectories).
+    out : Path
+        Existing output folder.
+    title : str
+        Title of the accuracy plot.
+    measure_options : dict, optional
+        Options of :func:`napari_pfsdm.measure`.
+
+    Returns
+    -------
+    float
+        Wall time of the PCA trajectories (measuring all frames and plotting).
+    """
+    plot_accuracy(results, out / "gastruloid_accuracy.png", title=title)
+    t0 = time.perf_counter()
+    full = cl.measure_movies(data.labels, data.intensity, **(measure_options or {}))
+    n_frames = data.labels.shape[1]
+    plot_pca(full, data.multi_axis, out / "gastruloid_pca.png",
+             marks=[sel[0], sel[-1], n_frames - 1])
+    return time.perf_counter() - t0
 
 
 def run(
@@ -241,86 +469,27 @@ def run(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    say = print if verbose else (lambda *a, **k: None)
-
-    def splits_done(name: str):  # the slow baselines say how far they are, on stderr
-        if not verbose:
-            return None
-        return lambda done, total: print(f"   {name}: split {done}/{total}", file=sys.stderr,
-                                         flush=True)
-
+    say = print if verbose else _silent
     n_repeats = n_repeats or (1 if quick else 2)
     cnn = pb.torch_available() if cnn is None else cnn
     cnn_epochs = cnn_epochs or (15 if quick else 60)
-    options = measure_options or {}
 
-    t0 = time.perf_counter()
-    data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=size, seed=seed,
-                            params=params)
-    sel = cl.parse_frames(frames, n_frames)
+    data, sel, t_gen = build_data(n_objects=n_objects, n_frames=n_frames, frames=frames,
+                                  size=size, seed=seed, params=params)
     y = data.multi_axis.astype(int)
     say(
         f"generated {n_objects} movies x {n_frames} frames of {size}² "
-        f"({int(y.sum())} multi-axes) in {time.perf_counter() - t0:.1f} s; "
+        f"({int(y.sum())} multi-axes) in {t_gen:.1f} s; "
         f"predicting from frames {sel[0]}..{sel[-1]} ({len(sel)} frames)"
     )
     splits = cl.make_splits(y, n_splits=5, test_size=0.2, n_repeats=n_repeats, seed=seed)
     rows: list[dict] = []
-
-    # PF-SDM: measure + vectors + logistic regression, nested alpha by inner CV
-    t0 = time.perf_counter()
-    table = cl.measure_movies(data.labels, data.intensity, frames=sel, **options)
-    t_measure = time.perf_counter() - t0
-    xs, _ = cl.feature_matrix(table, "shape", sel)
-    xi, _ = cl.feature_matrix(table, "intensity", sel)
-    scores = cl.evaluate(cl.logistic_model(xs, xi, y), y, splits, inner="cv", seed=seed)
-    t_pfsdm = time.perf_counter() - t0
-    say(f"PF-SDM: {t_pfsdm:.1f} s (measure {t_measure:.1f} s, {xs.shape[1]} features/channel)")
-    rows += _summary_rows(
-        "PF-SDM + logistic", cl.summarize(scores), t_pfsdm,
-        f"measure {t_measure:.1f} s; alpha by 3-fold CV inside the training split",
-    )
-
-    # reference: two plain numbers per frame that PF-SDM's invariances remove on purpose
-    t0 = time.perf_counter()
-    xg, xc = cl.size_contrast_features(data.labels, data.intensity, sel)
-    scores = cl.evaluate(cl.logistic_model(xg, xc, y, C=1.0), y, splits, inner="cv", seed=seed)
-    t_ref = time.perf_counter() - t0
-    say(f"size + contrast reference: {t_ref:.1f} s")
-    rows += _summary_rows(
-        "size + contrast (ref.)", cl.summarize(scores), t_ref,
-        "shape = growth 0.5 log(A_t/A_first), intensity = mean/99th percentile inside the "
-        "object, per frame; C = 1; alpha by 3-fold CV inside the training split",
-    )
-
-    stacks = None
-    if pixel:
-        t0 = time.perf_counter()
-        stacks = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
-        t_stack = time.perf_counter() - t0
-        fp = pb.sklearn_pixel_model(*stacks, y, n_augment=4 if quick else 8, seed=seed)
-        scores = cl.evaluate(fp, y, splits, inner="cv", seed=seed,
-                             progress=splits_done("pixels (scikit-learn)"))
-        t_pix = time.perf_counter() - t0
-        say(f"pixels (scikit-learn): {t_pix:.1f} s")
-        rows += _summary_rows(
-            "pixels + logistic", cl.summarize(scores), t_pix,
-            f"32x32 px, x{4 if quick else 8} rotations/reflections; stacks {t_stack:.1f} s; "
-            "alpha by 3-fold CV inside the training split",
-        )
-    if cnn:
-        t0 = time.perf_counter()
-        stacks_c = pb.pixel_stacks(data.labels, data.intensity, sel, size=32)
-        fp = pb.cnn_model(*stacks_c, y, epochs=cnn_epochs, seed=seed)
-        scores = cl.evaluate(fp, y, splits, inner="holdout", seed=seed,
-                             progress=splits_done("pixels (CNN)"))
-        t_cnn = time.perf_counter() - t0
-        say(f"pixels (CNN): {t_cnn:.1f} s")
-        rows += _summary_rows(
-            "pixels + CNN", cl.summarize(scores), t_cnn,
-            f"32x32 px, {cnn_epochs} epochs, random rotations/reflections; alpha on a 25 % "
-            "validation part of the training split (the model is trained once per split)",
-        )
+    for method_rows, message in score_methods(
+        data, sel, splits, seed=seed, quick=quick, pixel=pixel, cnn=cnn, cnn_epochs=cnn_epochs,
+        measure_options=measure_options, split_progress=_print_split if verbose else None,
+    ):
+        rows += method_rows
+        say(message)
     results = pd.DataFrame(rows)
     results.to_csv(out / "gastruloid_results.csv", index=False)
     say("\n" + format_table(results))
@@ -328,20 +497,71 @@ def run(
     if speed and quick:
         speed += " (quick run: the pixel models train less than in the full report)"
     say(speed)
-
-    plot_accuracy(
-        results, out / "gastruloid_accuracy.png",
-        title=(f"{n_objects} synthetic gastruloids, frames {sel[0]}-{sel[-1]} of {n_frames}, "
-               f"{len(splits)} stratified splits (5 x 20 % test x {n_repeats})"),
-    )
-    t0 = time.perf_counter()
-    full = cl.measure_movies(data.labels, data.intensity, **options)
-    plot_pca(full, data.multi_axis, out / "gastruloid_pca.png",
-             marks=[sel[0], sel[-1], n_frames - 1])
-    say(f"PCA trajectories over all {n_frames} frames: {time.perf_counter() - t0:.1f} s")
-    for name in ("gastruloid_results.csv", "gastruloid_accuracy.png", "gastruloid_pca.png"):
+    title = (f"{n_objects} synthetic gastruloids, frames {sel[0]}-{sel[-1]} of {n_frames}, "
+             f"{len(splits)} stratified splits (5 x 20 % test x {n_repeats})")
+    t_pca = write_figures(results, data, sel, out, title=title, measure_options=measure_options)
+    say(f"PCA trajectories over all {n_frames} frames: {t_pca:.1f} s")
+    for name in REPORT_FILES:
         say(f"wrote {out / name}")
     return results
+
+
+def seeds_summary(per_seed: pd.DataFrame) -> pd.DataFrame:
+    """Per method and feature set, the spread of the per-seed results (pure).
+
+    Parameters
+    ----------
+    per_seed : DataFrame
+        The :func:`run` tables of all seeds, concatenated, with a ``seed`` column.
+
+    Returns
+    -------
+    DataFrame
+        ``method``, ``features``, ``balanced_accuracy_mean``,
+        ``balanced_accuracy_sd_over_seeds`` (NaN with a single seed), ``accuracy_mean``,
+        ``time_s_mean``, ``n_seeds``.
+    """
+    g = per_seed.groupby(["method", "features"], sort=False)
+    return pd.DataFrame(
+        {
+            "balanced_accuracy_mean": g["balanced_accuracy_mean"].mean(),
+            "balanced_accuracy_sd_over_seeds": g["balanced_accuracy_mean"].std(ddof=1),
+            "accuracy_mean": g["accuracy_mean"].mean(),
+            "time_s_mean": g["time_s"].mean(),
+            "n_seeds": g.size(),
+        }
+    ).reset_index()
+
+
+def format_seeds_table(per_seed: pd.DataFrame, summary: pd.DataFrame,
+                       seeds: Sequence[int]) -> str:
+    """The balanced accuracy of each seed and its mean (sd) over the seeds, as text.
+
+    Parameters
+    ----------
+    per_seed : DataFrame
+        As for :func:`seeds_summary`.
+    summary : DataFrame
+        From :func:`seeds_summary`.
+    seeds : sequence of int
+        The seeds, for the heading.
+
+    Returns
+    -------
+    str
+        A heading (after an empty line) and one line per method and feature set.
+    """
+    lines = [f"\nover seeds {list(seeds)}: balanced accuracy, mean (sd) of the per-seed means"]
+    wide = per_seed.pivot_table(index=["method", "features"], columns="seed",
+                                values="balanced_accuracy_mean", sort=False)
+    for (m, f), r in wide.iterrows():
+        cells = " ".join(f"{v:.3f}" for v in r.to_numpy())
+        row = summary[(summary.method == m) & (summary.features == f)].iloc[0]
+        lines.append(
+            f"{m:<22} {f:<32} {cells}  -> {row.balanced_accuracy_mean:.3f} "
+            f"({row.balanced_accuracy_sd_over_seeds:.3f}), {row.time_s_mean:.1f} s"
+        )
+    return "\n".join(lines)
 
 
 def run_seeds(out_dir: str | Path, seeds: Sequence[int], **kwargs) -> pd.DataFrame:
@@ -370,41 +590,22 @@ def run_seeds(out_dir: str | Path, seeds: Sequence[int], **kwargs) -> pd.DataFra
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    say = print if kwargs.get("verbose", True) else (lambda *a, **k: None)
+    say = print if kwargs.get("verbose", True) else _silent
     per_seed = []
     for k in seeds:
         say(f"\n=== seed {k} ===")
         res = run(out / f"seed{k}", seed=k, **kwargs)
         per_seed.append(res.assign(seed=k))
     allres = pd.concat(per_seed, ignore_index=True)
-    g = allres.groupby(["method", "features"], sort=False)
-    summary = pd.DataFrame(
-        {
-            "balanced_accuracy_mean": g["balanced_accuracy_mean"].mean(),
-            "balanced_accuracy_sd_over_seeds": g["balanced_accuracy_mean"].std(ddof=1),
-            "accuracy_mean": g["accuracy_mean"].mean(),
-            "time_s_mean": g["time_s"].mean(),
-            "n_seeds": g.size(),
-        }
-    ).reset_index()
+    summary = seeds_summary(allres)
     summary.to_csv(out / "gastruloid_seeds.csv", index=False)
-    lines = [f"\nover seeds {list(seeds)}: balanced accuracy, mean (sd) of the per-seed means"]
-    wide = allres.pivot_table(index=["method", "features"], columns="seed",
-                              values="balanced_accuracy_mean", sort=False)
-    for (m, f), r in wide.iterrows():
-        cells = " ".join(f"{v:.3f}" for v in r.to_numpy())
-        row = summary[(summary.method == m) & (summary.features == f)].iloc[0]
-        lines.append(
-            f"{m:<22} {f:<32} {cells}  -> {row.balanced_accuracy_mean:.3f} "
-            f"({row.balanced_accuracy_sd_over_seeds:.3f}), {row.time_s_mean:.1f} s"
-        )
-    say("\n".join(lines))
+    say(format_seeds_table(allres, summary, seeds))
     say(f"wrote {out / 'gastruloid_seeds.csv'}")
     return summary
 
 
 def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
-    """Command line: ``python -m napari_pfsdm.analysis.gastruloid_report --out DIR``."""
+    """Command line: ``python -m napari_pfsdm.experiments.gastruloid_report --out DIR``."""
     p = argparse.ArgumentParser(
         description="Synthetic gastruloids: predict single vs multiple body axes from early "
         "frames with PF-SDM features, against pixel-space baselines."

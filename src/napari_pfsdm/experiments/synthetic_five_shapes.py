@@ -20,7 +20,9 @@ EFA outline, best start point and mirror image).
 
 :func:`run` prints a table, writes ``synthetic_benchmark.csv`` and ``synthetic_mds.png`` (2-D
 MDS of PF-SDM default, EFA and GPA side by side, coloured by class) and returns the table.
-This is what ``pfsdm demo`` runs.
+This is what ``pfsdm demo`` runs. Its steps are separate: :func:`build_set` makes a shape set,
+:func:`score_set` scores every method on it and :func:`benchmark_table` collects the rows (no
+printing, no files), :func:`write_outputs` writes the CSV and the figure.
 
 Examples
 --------
@@ -37,14 +39,33 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis import baselines
+from ..core import DEFAULTS, distance_matrix, pfsdm
+from ..data.shapes import base_shapes, make_benchmark_set
+from ..io_csv import save_figure
+
 __all__ = [
     "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",
+    "build_set", "score_set", "benchmark_table", "write_outputs",
 ]
 
 #: Method name of the PF-SDM with the library's default options.
 DEFAULT_LABEL = "PF-SDM (default)"
 
 SETS = ("exact", "perturbed")
+
+#: Columns of the benchmark table, in order.
+COLUMNS = ["set", "method", "family", "mapping", "sdf", "normalization", "rings",
+           "ring_weighting", "mode_exponent", "invariance", "is_default", "silhouette",
+           "nn_accuracy", "ms_per_object", "error"]
+
+#: A progress callback: called with a short message before each step.
+Progress = Callable[[str], None]
+
+
+def _silent(msg: str) -> None:
+    """Progress callback that says nothing."""
+
 
 def pfsdm_variants(quick: bool = False) -> list[dict]:
     """PF-SDM option sets of the benchmark.
@@ -63,8 +84,6 @@ def pfsdm_variants(quick: bool = False) -> list[dict]:
         options with each other ``ring_weighting`` and with ``mode_exponent=0`` (the paper's
         plain distance).
     """
-    from napari_pfsdm import DEFAULTS
-
     if quick:
         return [{}]
     out: list[dict] = [{}]
@@ -85,8 +104,6 @@ def pfsdm_variants(quick: bool = False) -> list[dict]:
 
 
 def _full_options(options: dict) -> dict:
-    from napari_pfsdm import DEFAULTS
-
     return {**DEFAULTS, **options}
 
 
@@ -94,15 +111,11 @@ def _default_invariance() -> str:
     """The invariance ``distance_matrix`` uses for results when none is given."""
     import inspect
 
-    from napari_pfsdm import distance_matrix
-
     default = inspect.signature(distance_matrix).parameters["invariance"].default
     return "combined" if default is None else str(default)
 
 
 def _variant_label(options: dict, invariance: str) -> str:
-    from napari_pfsdm import DEFAULTS
-
     opts = _full_options(options)
     label = (f"PF-SDM {opts['mapping']}/{opts['sdf']}/norm={opts['normalization']}/"
              f"rings={opts['radii']}")
@@ -161,8 +174,6 @@ def _have_pyefd() -> bool:
 
 
 def _pfsdm_results(masks: Sequence[np.ndarray], options: dict) -> tuple[list, float, str]:
-    from napari_pfsdm import pfsdm
-
     results, errors = [], []
     start = time.perf_counter()
     for i, mask in enumerate(masks):
@@ -176,14 +187,256 @@ def _pfsdm_results(masks: Sequence[np.ndarray], options: dict) -> tuple[list, fl
 
 
 def _pfsdm_matrix(results: list, invariance: str) -> np.ndarray:
-    from napari_pfsdm import distance_matrix
-
     n = len(results)
     ok = [i for i, r in enumerate(results) if r is not None]
     dist = np.full((n, n), np.nan)
     if ok:
         dist[np.ix_(ok, ok)] = distance_matrix([results[i] for i in ok], invariance=invariance)
     return dist
+
+
+def _row(set_name: str, method: str, family: str, dist: np.ndarray, labels: np.ndarray,
+         ms: float, error: str = "", **info) -> dict:
+    """One table row: the scores of a distance matrix and what it came from."""
+    sil, nn = scores(dist, labels)
+    return {"set": set_name, "method": method, "family": family, **info,
+            "silhouette": sil, "nn_accuracy": nn, "ms_per_object": ms, "error": error}
+
+
+def _resolve_invariances(invariances: Sequence[str] | None, quick: bool) -> list[str]:
+    """The distance modes of the PF-SDM rows: the core's default first."""
+    if invariances is not None:
+        return list(invariances)
+    default_inv = _default_invariance()
+    out = [default_inv]
+    if not quick:
+        out += [i for i in ("combined", "magnitude", "align") if i != default_inv]
+    return out
+
+
+def build_set(
+    set_name: str, *, n_per_class: int = 10, seed: int = 0, size: int = 256
+) -> tuple[list[np.ndarray], np.ndarray, tuple[str, ...]]:
+    """Build one shape set of the benchmark (the data step).
+
+    Parameters
+    ----------
+    set_name : {"exact", "perturbed"}
+        Exact copies of the base shapes, or mildly and randomly deformed copies.
+    n_per_class : int
+        Copies of each base shape.
+    seed : int
+        Seed of the random transforms (and deformations).
+    size : int
+        Masks are ``size × size`` pixels.
+
+    Returns
+    -------
+    masks : list of ndarray
+        ``5 * n_per_class`` boolean masks.
+    labels : ndarray, shape (5 * n_per_class,)
+        True class of each mask (index into ``names``).
+    names : tuple of str
+        Names of the five base shapes.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``set_name``.
+    """
+    if set_name not in SETS:
+        raise ValueError(f"Unknown set(s) {[set_name]}; choose from {SETS}.")
+    return make_benchmark_set(n_per_class, perturb=set_name == "perturbed", seed=seed, size=size)
+
+
+def _score_pfsdm(
+    set_name: str,
+    masks: Sequence[np.ndarray],
+    labels: np.ndarray,
+    variants: Sequence[dict],
+    invariances: Sequence[str],
+    progress: Progress,
+) -> tuple[list[dict], dict[tuple[str, str], np.ndarray]]:
+    """Rows and distance matrices of the PF-SDM variants on one set (duplicates skipped)."""
+    default_inv = _default_invariance()
+    default_key = tuple(sorted(_full_options({}).items()))
+    rows: list[dict] = []
+    matrices: dict[tuple[str, str], np.ndarray] = {}
+    seen: set[tuple] = set()
+    for options in variants:
+        key = tuple(sorted(_full_options(options).items()))
+        if key in seen:
+            continue
+        seen.add(key)
+        opts = _full_options(options)
+        is_default = key == default_key
+        progress(f"[{set_name}] PF-SDM {opts['mapping']}/{opts['sdf']}/{opts['normalization']}"
+                 f"/{opts['radii']} ...")
+        results, per_obj, err = _pfsdm_results(masks, options)
+        for inv in invariances:
+            default_row = is_default and inv == default_inv
+            method = DEFAULT_LABEL if default_row else _variant_label(options, inv)
+            dist = _pfsdm_matrix(results, inv)
+            matrices[(set_name, method)] = dist
+            rows.append(_row(
+                set_name, method, "PF-SDM", dist, labels, 1e3 * per_obj, err,
+                mapping=opts["mapping"], sdf=opts["sdf"], normalization=opts["normalization"],
+                rings=str(opts["radii"]), ring_weighting=str(opts.get("ring_weighting", "")),
+                mode_exponent=opts.get("mode_exponent", np.nan), invariance=inv,
+                is_default=default_row,
+            ))
+    return rows, matrices
+
+
+def _score_baselines(
+    set_name: str, masks: Sequence[np.ndarray], labels: np.ndarray
+) -> tuple[list[dict], dict[tuple[str, str], np.ndarray]]:
+    """Rows and distance matrices of raw EFA, EFA, mirror-aware EFA and GPA on one set."""
+    t0 = time.perf_counter()
+    contours = [baselines.mask_contour(m) for m in masks]
+    t_contour = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    raw = baselines.efa_descriptors(contours, contours=True, canonical=False)
+    t_efa = t_contour + time.perf_counter() - t0
+    desc = raw * np.where(raw[:, :1] < 0, -1.0, 1.0)  # = efa_descriptors(canonical=True)
+    t0 = time.perf_counter()
+    mirrored = baselines.efa_descriptors(contours, contours=True, mirror=True)
+    t_mirror = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    outlines = baselines.efa_outlines(contours, contours=True)
+    t_gpa = t_contour + time.perf_counter() - t0
+    n = len(masks)
+    methods = [
+        ("EFA (raw pyefd)", "EFA",
+         baselines.efa_distance_matrix(descriptors=raw, resolve_start=False), t_efa),
+        ("EFA", "EFA", baselines.efa_distance_matrix(descriptors=desc), t_efa),
+        ("EFA (mirror-aware)", "EFA",
+         baselines.efa_distance_matrix(descriptors=desc, mirrored=mirrored, mirror_aware=True),
+         t_efa + t_mirror),
+        ("GPA", "GPA", baselines.gpa_distance_matrix(outlines=outlines), t_gpa),
+    ]
+    rows = [_row(set_name, method, family, dist, labels, 1e3 * t / n, is_default=False)
+            for method, family, dist, t in methods]
+    matrices = {(set_name, method): dist for method, _, dist, _ in methods}
+    return rows, matrices
+
+
+def score_set(
+    set_name: str,
+    masks: Sequence[np.ndarray],
+    labels: np.ndarray,
+    *,
+    variants: Sequence[dict],
+    invariances: Sequence[str],
+    progress: Progress | None = None,
+) -> tuple[list[dict], dict[tuple[str, str], np.ndarray]]:
+    """Score every method on one shape set (pure: no printing, no files).
+
+    Parameters
+    ----------
+    set_name : str
+        Name of the set, copied into the rows.
+    masks : sequence of ndarray
+        The set's masks (:func:`build_set`).
+    labels : ndarray
+        Their true classes.
+    variants : sequence of dict
+        PF-SDM option sets; options equal to an earlier set's are skipped.
+    invariances : sequence of str
+        Distance modes of the PF-SDM rows.
+    progress : callable, optional
+        Called with a short message before each step (default: silent).
+
+    Returns
+    -------
+    rows : list of dict
+        One row per method (see :func:`benchmark_table` for the columns). EFA and GPA are
+        left out, with a progress message, when the optional ``pyefd`` is missing.
+    matrices : dict
+        ``(set_name, method) -> distance matrix``.
+    """
+    say = progress or _silent
+    rows, matrices = _score_pfsdm(set_name, masks, labels, variants, invariances, say)
+    if not _have_pyefd():
+        say(f"[{set_name}] EFA and GPA skipped: the optional package 'pyefd' is missing "
+            "(pip install 'napari-pfsdm[bench]').")
+        return rows, matrices
+    say(f"[{set_name}] EFA and GPA ...")
+    more_rows, more_matrices = _score_baselines(set_name, masks, labels)
+    return rows + more_rows, {**matrices, **more_matrices}
+
+
+def benchmark_table(
+    rows: Sequence[dict], matrices: dict[tuple[str, str], np.ndarray]
+) -> pd.DataFrame:
+    """The rows of :func:`score_set` as the benchmark table.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        Rows of all sets, in order.
+    matrices : dict
+        ``(set, method) -> distance matrix``, kept in ``table.attrs["matrices"]``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`COLUMNS`; option columns empty (``""``) for the baselines,
+        ``mode_exponent`` NaN there.
+    """
+    table = pd.DataFrame(list(rows))
+    for col in ("mapping", "sdf", "normalization", "rings", "ring_weighting", "invariance"):
+        if col not in table:
+            table[col] = ""
+        table[col] = table[col].fillna("")
+    table["is_default"] = table["is_default"].fillna(False).astype(bool)
+    if "mode_exponent" not in table:
+        table["mode_exponent"] = np.nan
+    table = table[COLUMNS]
+    table.attrs["matrices"] = matrices
+    return table
+
+
+def write_outputs(
+    table: pd.DataFrame,
+    out: Path,
+    *,
+    labels_by_set: dict[str, np.ndarray],
+    names: Sequence[str],
+    sets: Sequence[str],
+    seed: int = 0,
+    plot: bool = True,
+) -> list[Path]:
+    """Write ``synthetic_benchmark.csv`` and, with ``plot``, ``synthetic_mds.png``.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`benchmark_table` (its ``attrs["matrices"]`` feed the plot).
+    out : Path
+        Existing output folder.
+    labels_by_set : dict
+        True classes of each set.
+    names : sequence of str
+        Names of the five base shapes.
+    sets : sequence of str
+        The sets, one row of panels each.
+    seed : int
+        Seed of the MDS.
+    plot : bool
+        Write the MDS figure.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    written = [out / "synthetic_benchmark.csv"]
+    table.to_csv(written[0], index=False)
+    if plot:
+        written.append(out / "synthetic_mds.png")
+        _plot_mds(written[1], table.attrs["matrices"], labels_by_set, names, sets, seed)
+    return written
 
 
 def run(
@@ -237,109 +490,33 @@ def run(
         ``mode_exponent``, ``invariance``, ``is_default``,
         ``silhouette``, ``nn_accuracy``, ``ms_per_object``, ``error``.
     """
-    from napari_pfsdm.analysis import baselines
-    from napari_pfsdm.data.shapes import make_benchmark_set
-
     unknown = set(sets) - set(SETS)
     if unknown:
         raise ValueError(f"Unknown set(s) {sorted(unknown)}; choose from {SETS}.")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     variants = pfsdm_variants(quick) if variants is None else [dict(v) for v in variants]
-    default_inv = _default_invariance()
-    if invariances is None:
-        invariances = [default_inv]
-        if not quick:
-            invariances += [i for i in ("combined", "magnitude", "align") if i != default_inv]
-    say = progress or ((lambda msg: print(msg, flush=True)) if verbose else (lambda msg: None))
+    invariances = _resolve_invariances(invariances, quick)
+    say = progress or ((lambda msg: print(msg, flush=True)) if verbose else _silent)
 
     rows: list[dict] = []
     matrices: dict[tuple[str, str], np.ndarray] = {}
     labels_by_set: dict[str, np.ndarray] = {}
     names: tuple[str, ...] = ()
-    seen: set[tuple] = set()
     for set_name in sets:
         say(f"[{set_name}] building {5 * n_per_class} shapes ...")
-        masks, labels, names = make_benchmark_set(
-            n_per_class, perturb=set_name == "perturbed", seed=seed, size=size
-        )
-        labels_by_set[set_name] = labels
+        masks, labels_by_set[set_name], names = build_set(
+            set_name, n_per_class=n_per_class, seed=seed, size=size)
+        set_rows, set_matrices = score_set(set_name, masks, labels_by_set[set_name],
+                                           variants=variants, invariances=invariances,
+                                           progress=say)
+        rows += set_rows
+        matrices.update(set_matrices)
 
-        def add(method: str, family: str, dist: np.ndarray, ms: float, error: str = "",
-                set_name: str = set_name, labels: np.ndarray = labels, **info) -> None:
-            sil, nn = scores(dist, labels)
-            matrices[(set_name, method)] = dist
-            rows.append({"set": set_name, "method": method, "family": family, **info,
-                         "silhouette": sil, "nn_accuracy": nn, "ms_per_object": ms,
-                         "error": error})
-
-        seen.clear()
-        for options in variants:
-            key = tuple(sorted(_full_options(options).items()))
-            if key in seen:
-                continue
-            seen.add(key)
-            opts = _full_options(options)
-            is_default = key == tuple(sorted(_full_options({}).items()))
-            say(f"[{set_name}] PF-SDM {opts['mapping']}/{opts['sdf']}/{opts['normalization']}"
-                f"/{opts['radii']} ...")
-            results, per_obj, err = _pfsdm_results(masks, options)
-            for inv in invariances:
-                default_row = is_default and inv == default_inv
-                method = DEFAULT_LABEL if default_row else _variant_label(options, inv)
-                add(method, "PF-SDM", _pfsdm_matrix(results, inv), 1e3 * per_obj, err,
-                    mapping=opts["mapping"], sdf=opts["sdf"],
-                    normalization=opts["normalization"],
-                    rings=str(opts["radii"]), ring_weighting=str(opts.get("ring_weighting", "")),
-                    mode_exponent=opts.get("mode_exponent", np.nan), invariance=inv,
-                    is_default=default_row)
-
-        if not _have_pyefd():
-            say(f"[{set_name}] EFA and GPA skipped: the optional package 'pyefd' is missing "
-                "(pip install 'napari-pfsdm[bench]').")
-            continue
-        say(f"[{set_name}] EFA and GPA ...")
-        t0 = time.perf_counter()
-        contours = [baselines.mask_contour(m) for m in masks]
-        t_contour = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        raw = baselines.efa_descriptors(contours, contours=True, canonical=False)
-        t_efa = t_contour + time.perf_counter() - t0
-        desc = raw * np.where(raw[:, :1] < 0, -1.0, 1.0)  # = efa_descriptors(canonical=True)
-        t0 = time.perf_counter()
-        mirrored = baselines.efa_descriptors(contours, contours=True, mirror=True)
-        t_mirror = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        outlines = baselines.efa_outlines(contours, contours=True)
-        t_gpa = t_contour + time.perf_counter() - t0
-        n = len(masks)
-        add("EFA (raw pyefd)", "EFA",
-            baselines.efa_distance_matrix(descriptors=raw, resolve_start=False),
-            1e3 * t_efa / n, is_default=False)
-        add("EFA", "EFA", baselines.efa_distance_matrix(descriptors=desc), 1e3 * t_efa / n,
-            is_default=False)
-        add("EFA (mirror-aware)", "EFA",
-            baselines.efa_distance_matrix(descriptors=desc, mirrored=mirrored, mirror_aware=True),
-            1e3 * (t_efa + t_mirror) / n, is_default=False)
-        add("GPA", "GPA", baselines.gpa_distance_matrix(outlines=outlines), 1e3 * t_gpa / n,
-            is_default=False)
-
-    table = pd.DataFrame(rows)
-    for col in ("mapping", "sdf", "normalization", "rings", "ring_weighting", "invariance"):
-        if col not in table:
-            table[col] = ""
-        table[col] = table[col].fillna("")
-    table["is_default"] = table["is_default"].fillna(False).astype(bool)
-    if "mode_exponent" not in table:
-        table["mode_exponent"] = np.nan
-    cols = ["set", "method", "family", "mapping", "sdf", "normalization", "rings",
-            "ring_weighting", "mode_exponent", "invariance", "is_default", "silhouette",
-            "nn_accuracy", "ms_per_object", "error"]
-    table = table[cols]
-    table.attrs["matrices"] = matrices
-    table.to_csv(out / "synthetic_benchmark.csv", index=False)
+    table = benchmark_table(rows, matrices)
+    write_outputs(table, out, labels_by_set=labels_by_set, names=names, sets=sets, seed=seed,
+                  plot=plot)
     if plot:
-        _plot_mds(out / "synthetic_mds.png", matrices, labels_by_set, names, sets, seed)
         say(f"wrote {out / 'synthetic_mds.png'}")
     if verbose:
         print()
@@ -392,8 +569,6 @@ def _plot_mds(path: Path, matrices: dict, labels_by_set: dict, names: Sequence[s
     import matplotlib.pyplot as plt
     from sklearn.metrics import silhouette_score
 
-    from napari_pfsdm.data.shapes import base_shapes
-
     methods = (DEFAULT_LABEL, "EFA", "GPA")
     colors = plt.get_cmap("tab10").colors
     fig, axes = plt.subplots(len(sets), len(methods) + 1, figsize=(4.2 * (len(methods) + 1),
@@ -432,5 +607,5 @@ def _plot_mds(path: Path, matrices: dict, labels_by_set: dict, names: Sequence[s
         legend_ax.set_aspect("equal")
     fig.suptitle("2-D MDS of the distance matrices (colours: true classes)", fontsize=12)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
