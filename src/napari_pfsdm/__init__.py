@@ -26,10 +26,11 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "Skeleton": (".core.medial_axis", "Skeleton"),
     "skeleton": (".core.medial_axis", "skeleton"),
     "distance": (".core.distances", "distance"),
-    "distance_matrix": (".core.distances", "distance_matrix"),
-    "embeddings_from_table": (".core.distances", "embeddings_from_table"),
-    "weighted_features": (".core.distances", "weighted_features"),
+    "distance_matrix": (".analysis.tables", "distance_matrix"),
+    "embeddings_from_table": (".analysis.tables", "embeddings_from_table"),
+    "weighted_features": (".analysis.tables", "weighted_features"),
     "ObjectResult": (".analysis.features", "ObjectResult"),
+    "PFSDMTransformer": (".analysis.transformer", "PFSDMTransformer"),
     "drop_failed": (".analysis.features", "drop_failed"),
     "iter_objects": (".analysis.features", "iter_objects"),
     "measure": (".analysis.features", "measure"),
@@ -41,6 +42,7 @@ __all__ = [
     "__version__",
     "DEFAULTS",
     "ObjectResult",
+    "PFSDMTransformer",
     "PFSDMResult",
     "Skeleton",
     "distance",
@@ -74,13 +76,10 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
+    from .analysis.tables import distance_matrix, embeddings_from_table, weighted_features
+    from .analysis.transformer import PFSDMTransformer
     from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
-    from .core.distances import (
-        distance,
-        distance_matrix,
-        embeddings_from_table,
-        weighted_features,
-    )
+    from .core.distances import distance
     from .core.medial_axis import Skeleton, skeleton
     from .io_csv import read_table_csv as read_table
     from .io_csv import write_table_csv as write_table

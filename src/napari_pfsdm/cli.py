@@ -260,14 +260,9 @@ def _select_frames(table, frames: str | None):
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from .batch.reports import (
-        attach_groups,
-        distance_table,
-        load_features,
-        mds_coordinates,
-        plot_mds,
-        read_groups,
-    )
+    from .analysis.reduction import attach_groups, distance_table, mds_coordinates, read_groups
+    from .analysis.tables import distance_matrix
+    from .batch.reports import load_features, plot_mds
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
@@ -286,7 +281,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         )
     n = len(table)
     with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
-        dist = distance_table(table, intensity_weight=args.intensity_weight)
+        dist = distance_table(
+            table, distance_matrix(table, intensity_weight=args.intensity_weight))
     opts = dict(table.attrs.get("pfsdm", {}))
     opts["intensity_weight"] = args.intensity_weight
     with _Step(f"writing {out}", args.quiet):
@@ -305,13 +301,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_trajectories(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .batch.reports import (
-        attach_groups,
-        load_features,
-        pca_scores,
-        plot_trajectories,
-        read_groups,
-    )
+    from .analysis.reduction import attach_groups, pca_scores, read_groups
+    from .batch.reports import load_features, plot_trajectories
     from .core.table_schema import has_channel
     from .io_csv import write_table_csv
 
@@ -406,7 +397,8 @@ def cmd_classify(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .analysis import classification as clf
-    from .batch.reports import attach_groups, load_features, object_ids, read_groups
+    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .batch.reports import load_features
     from .core.table_schema import has_channel
     from .io_csv import write_table_csv
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
+from napari_pfsdm.io_csv import read_table_csv
 from napari_pfsdm.napari._compute import (
     classical_mds,
     disk_pixels,
@@ -125,10 +127,10 @@ def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):
     num = [c for c in out.table.columns if c not in ("error", "warnings")]
     np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
     assert feats.attrs["pfsdm"]["intensity_weight"] == 0.5
-    dist = read_csv(tmp_path / "cells_distances.csv")
+    dist = read_table_csv(tmp_path / "cells_distances.csv", index_col=0)  # the CLI's layout
     from napari_pfsdm import distance_matrix
 
-    np.testing.assert_array_equal(dist.iloc[:, 2:].to_numpy(float),
+    np.testing.assert_array_equal(dist.to_numpy(float),
                                   distance_matrix(out.table, intensity_weight=0.5))
     # an error while writing leaves the previous file untouched and no temporary file
     before = paths[0].read_bytes()
@@ -149,3 +151,30 @@ def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):
         _export.export_results(out, tmp_path, "mine")
     assert not (tmp_path / "mine_features.csv").exists()  # all or nothing
     assert (tmp_path / "mine_distances.csv").read_text() == "my own numbers\n"
+
+
+def test_cli_and_widget_give_the_same_pca_mds_and_distance_table(tmp_path):
+    """One reduction module: the widget's export and the command line on that export agree."""
+    from napari_pfsdm.analysis.reduction import mds_coordinates
+    from napari_pfsdm.cli import main
+    from napari_pfsdm.data.gastruloids import make_timelapse_montage
+
+    labels, intensity, _ = make_timelapse_montage(n_objects=4, n_frames=3, size=128, seed=2)
+    out, _ = _run(labels, intensity, n_fourier=6)
+    out.options["intensity_weight"] = 0.5  # as the widget sets it
+    export_results(out, tmp_path, "w")
+    assert main(["trajectories", str(tmp_path / "w_features.csv"), "-o", str(tmp_path / "p.csv"),
+                 "--channel", "shape", "--components", "5", "-q"]) == 0
+    cli = pd.read_csv(tmp_path / "p.csv")
+    widget = pd.read_csv(tmp_path / "w_pca_shape.csv")
+    k = sum(c.startswith("PC") for c in widget.columns)
+    np.testing.assert_allclose(cli[[f"shape_PC{i}" for i in range(1, k + 1)]].to_numpy(),
+                               widget[[f"PC{i}" for i in range(1, k + 1)]].to_numpy(),
+                               rtol=1e-10, atol=1e-12)
+    assert main(["compare", str(tmp_path / "w_features.csv"), "-o", str(tmp_path / "d.csv"),
+                 "--intensity-weight", "0.5", "-q"]) == 0
+    d_cli = pd.read_csv(tmp_path / "d.csv", index_col=0)
+    d_widget = pd.read_csv(tmp_path / "w_distances.csv", index_col=0)
+    pd.testing.assert_frame_equal(d_cli, d_widget)
+    np.testing.assert_array_equal(classical_mds(d_widget.to_numpy()),
+                                  mds_coordinates(d_cli.to_numpy()))

@@ -199,8 +199,8 @@ def test_export_roundtrip(viewer_widget, qtbot, tmp_path):
     np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
     pca = read_table_csv(tmp_path / "gastruloids_pca_shape.csv")
     np.testing.assert_array_equal(pca.to_numpy(float), out.pca["shape"].to_numpy(float))
-    dist = read_table_csv(tmp_path / "gastruloids_distances.csv")
-    d = dist.drop(columns=["frame", "label"]).to_numpy(float)
+    dist = read_table_csv(tmp_path / "gastruloids_distances.csv", index_col=0)  # CLI layout
+    d = dist.to_numpy(float)
     assert d.shape == (len(out.table),) * 2
     np.testing.assert_allclose(d, d.T)
     assert np.all(np.diag(d) == 0)

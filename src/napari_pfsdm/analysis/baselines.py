@@ -28,6 +28,8 @@ from collections.abc import Sequence
 import numpy as np
 from skimage.measure import find_contours
 
+from ..core.contour import signed_area
+
 __all__ = [
     "mask_contour",
     "efa_descriptors",
@@ -68,8 +70,7 @@ def mask_contour(mask: np.ndarray) -> np.ndarray:
         raise ValueError("The mask is empty: there is no outline to describe.")
     padded = np.pad(mask.astype(np.float32), 1)
     contour = max(find_contours(padded, 0.5), key=len)[:-1] - 1.0
-    y, x = contour[:, 0], contour[:, 1]
-    if np.sum(y * np.roll(x, -1) - np.roll(y, -1) * x) < 0:
+    if signed_area(contour) < 0:
         contour = contour[::-1]
     return contour
 

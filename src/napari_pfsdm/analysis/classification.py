@@ -31,7 +31,7 @@ import pandas as pd
 from sklearn.linear_model import LogisticRegression
 from sklearn.metrics import accuracy_score, balanced_accuracy_score
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
-from sklearn.pipeline import make_pipeline
+from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 __all__ = [
@@ -43,6 +43,7 @@ __all__ = [
     "format_frames",
     "fuse",
     "logistic_model",
+    "logistic_pipeline",
     "make_splits",
     "measure_movies",
     "parse_frames",
@@ -243,6 +244,24 @@ def make_splits(
     return out
 
 
+def logistic_pipeline(C: float = 0.01) -> Pipeline:
+    """The paper's per-channel classifier as a scikit-learn :class:`~sklearn.pipeline.Pipeline`:
+    standardised features, L2 logistic regression with balanced class weights (liblinear,
+    deterministic). Put :class:`napari_pfsdm.PFSDMTransformer` in front of it to classify masks.
+
+    Examples
+    --------
+    >>> list(logistic_pipeline().named_steps)
+    ['standardscaler', 'logisticregression']
+    """
+    return make_pipeline(
+        StandardScaler(),
+        LogisticRegression(
+            C=C, class_weight="balanced", solver="liblinear", max_iter=1000, random_state=0
+        ),
+    )
+
+
 def logistic_model(
     x_shape: np.ndarray, x_intensity: np.ndarray, y: np.ndarray, C: float = 0.01
 ) -> FitPredict:
@@ -258,12 +277,7 @@ def logistic_model(
     y = np.asarray(y).astype(int)
 
     def _fit(x: np.ndarray, tr: np.ndarray, pr: np.ndarray) -> np.ndarray:
-        clf = make_pipeline(
-            StandardScaler(),
-            LogisticRegression(
-                C=C, class_weight="balanced", solver="liblinear", max_iter=1000, random_state=0
-            ),
-        )
+        clf = logistic_pipeline(C)
         clf.fit(x[tr], y[tr])
         return clf.predict_proba(x[pr])[:, 1]
 

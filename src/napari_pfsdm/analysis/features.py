@@ -14,9 +14,9 @@ import pandas as pd
 from scipy import ndimage as ndi
 
 from ..core.descriptor import DEFAULTS, PFSDMResult, pfsdm
-from ..core.distances import failed_rows
 from ..core.morphometric import mode_weights, ring_radii, ring_weights
 from ..core.table_schema import BASE_COLUMNS, feature_columns
+from .tables import failed_rows
 
 __all__ = [
     "ObjectResult",

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Bullseye", "bullseye", "loo_1nn", "nearest"]
+__all__ = ["Bullseye", "bullseye", "loo_1nn", "loo_1nn_fraction", "nearest"]
 
 
 class Bullseye(NamedTuple):
@@ -140,7 +140,12 @@ def bullseye(D: np.ndarray, labels, k: int = 40) -> Bullseye:
 
 
 def loo_1nn(D: np.ndarray, labels) -> float:
-    """Leave-one-out nearest-neighbour accuracy, in percent.
+    """Leave-one-out nearest-neighbour accuracy, in percent (:func:`loo_1nn_fraction` × 100)."""
+    return float(100.0 * loo_1nn_fraction(D, labels))
+
+
+def loo_1nn_fraction(D: np.ndarray, labels) -> float:
+    """Leave-one-out nearest-neighbour accuracy, as a fraction: the one 1-NN of the package.
 
     Each item is classified by the label of its nearest other item (itself excluded; ties
     broken by index). A query with no finite distance to any other item counts as a miss.
@@ -155,7 +160,13 @@ def loo_1nn(D: np.ndarray, labels) -> float:
     Returns
     -------
     float
-        Percentage of items whose nearest other item has the same label.
+        Fraction of items whose nearest other item has the same label.
+
+    Examples
+    --------
+    >>> d = np.array([[0, 1, 5], [1, 0, 4], [5, 4, 0.0]])
+    >>> loo_1nn_fraction(d, np.array([0, 0, 1]))
+    0.6666666666666666
     """
     D, labels = _check(D, labels)
     if D.shape[0] < 2:
@@ -164,4 +175,4 @@ def loo_1nn(D: np.ndarray, labels) -> float:
     np.fill_diagonal(work, np.inf)
     nn = np.argmin(work, axis=1)
     found = np.isfinite(work[np.arange(work.shape[0]), nn])  # a row of NaN finds nothing
-    return float(100.0 * np.mean(found & (labels[nn] == labels)))
+    return float(np.mean(found & (labels[nn] == labels)))

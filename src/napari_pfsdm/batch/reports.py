@@ -1,7 +1,10 @@
-"""Tables and plots made from a feature table: PCA trajectories, distances, MDS, groups.
+"""Plots made from a feature table (PCA trajectories, MDS map) and the checked reading of a
+features CSV, for the command line.
 
-Headless: figures are drawn with :class:`matplotlib.figure.Figure` (no pyplot, no GUI
-backend) and saved to PNG.
+The reductions themselves (PCA, MDS, the distance-table layout, groups) are
+:mod:`napari_pfsdm.analysis.reduction`, shared with the napari plugin; their names are
+re-exported here. Headless: figures are drawn with :class:`matplotlib.figure.Figure` (no
+pyplot, no GUI backend) and saved to PNG atomically.
 """
 
 from __future__ import annotations
@@ -13,166 +16,32 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import FOLDED_WARNING
+from ..analysis.reduction import (
+    KEY_COLUMNS,
+    attach_groups,
+    distance_table,
+    mds_coordinates,
+    object_ids,
+    pca_scores,
+    read_groups,
+    row_ids,
+)
 from ..core.table_schema import check_feature_table
 from ..io_csv import read_table_csv, save_figure
 
 __all__ = [
+    "KEY_COLUMNS",
     "attach_groups",
     "distance_table",
+    "load_features",
     "mds_coordinates",
     "object_ids",
     "pca_scores",
     "plot_mds",
     "plot_trajectories",
     "read_groups",
+    "row_ids",
 ]
-
-KEY_COLUMNS = ("movie", "label")
-
-
-def object_ids(table: pd.DataFrame) -> pd.Series:
-    """One id per object of a table: ``"movie/label"`` (or the label alone without movies)."""
-    if "movie" in table.columns:
-        return table["movie"].astype(str) + "/" + table["label"].astype(str)
-    return table["label"].astype(str)
-
-
-def row_ids(table: pd.DataFrame) -> list[str]:
-    """One id per row: ``movie/t<frame>/l<label>`` (without ``movie/`` when there is none)."""
-    base = "t" + table["frame"].astype(str) + "/l" + table["label"].astype(str)
-    if "movie" in table.columns:
-        base = table["movie"].astype(str) + "/" + base
-    return base.tolist()
-
-
-def read_groups(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a groups CSV: a ``group`` column plus ``label`` and/or ``movie`` columns.
-
-    Examples of valid files::
-
-        label,group            movie,group               movie,label,group
-        1,single-axis          gastruloid01,single-axis  plate1,3,multi-axes
-        2,multi-axes           gastruloid02,multi-axes
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"{p}: no such groups file")
-    groups = pd.read_csv(p, dtype=str, comment="#")
-    groups.columns = [c.strip().lower() for c in groups.columns]
-    keys = [k for k in KEY_COLUMNS if k in groups.columns]
-    if "group" not in groups.columns or not keys:
-        raise ValueError(
-            f"{p} must have a 'group' column and a 'label' and/or 'movie' column "
-            f"(it has {list(groups.columns)})"
-        )
-    groups = groups[keys + ["group"]].dropna()
-    if groups.duplicated(keys).any():
-        raise ValueError(f"{p} gives several groups to the same {'/'.join(keys)}")
-    return groups
-
-
-def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
-    """Add a ``group`` column to a feature table (objects without a group get ``""``)."""
-    keys = [k for k in KEY_COLUMNS if k in groups.columns]
-    missing = [k for k in keys if k not in table.columns]
-    if missing:
-        raise ValueError(
-            f"the groups file has a {missing[0]!r} column but the feature table has none"
-        )
-    left = table.drop(columns=["group"], errors="ignore").copy()
-    attrs = left.attrs
-    left.attrs = {}
-    for k in keys:
-        left["_key_" + k] = left[k].astype(str)
-    right = groups.rename(columns={k: "_key_" + k for k in keys})
-    out = left.merge(right, on=["_key_" + k for k in keys], how="left")
-    out = out.drop(columns=["_key_" + k for k in keys])
-    out["group"] = out["group"].fillna("")
-    out.attrs = attrs
-    return out
-
-
-def _weighted_features(table: pd.DataFrame, channel: str) -> np.ndarray:
-    """Feature vectors scaled by the ring and mode weights, so that Euclidean distances are
-    PF-SDM (magnitude) distances."""
-    from ..core.distances import weighted_features
-
-    return weighted_features(table, channel=channel)
-
-
-def pca_scores(
-    table: pd.DataFrame, channel: str = "shape", n_components: int = 3
-) -> tuple[pd.DataFrame, np.ndarray]:
-    """PCA of all (movie, frame, label) rows of a feature table.
-
-    The features of each ring are scaled by the square root of its quadrature weight, so that
-    Euclidean distances in this space are the PF-SDM distances (:func:`napari_pfsdm.distance`).
-    Rows with an ``error`` are left out.
-
-    Returns
-    -------
-    scores : DataFrame
-        The key columns (``movie``, ``frame``, ``label``, ``group`` when present) and
-        ``{channel}_PC1`` … .
-    explained : ndarray
-        Fraction of the variance explained by each component.
-    """
-    from sklearn.decomposition import PCA
-
-    ok = table["error"].fillna("").eq("") if "error" in table.columns else slice(None)
-    sub = table[ok]
-    x = _weighted_features(sub, channel)
-    finite = np.isfinite(x).all(axis=1)
-    sub, x = sub[finite], x[finite]
-    if len(sub) < 2:
-        raise ValueError("PCA needs at least two measured objects (rows without error)")
-    k = int(min(n_components, x.shape[1], len(sub)))
-    pca = PCA(n_components=k)
-    z = pca.fit_transform(x)
-    keys = [c for c in ("movie", "frame", "label", "group") if c in sub.columns]
-    scores = sub[keys].reset_index(drop=True).copy()
-    scores.attrs = {}
-    for i in range(k):
-        scores[f"{channel}_PC{i + 1}"] = z[:, i]
-    return scores, pca.explained_variance_ratio_
-
-
-def distance_table(
-    table: pd.DataFrame, intensity_weight: float = 0.0, invariance: str = "magnitude"
-) -> pd.DataFrame:
-    """Pairwise PF-SDM distance matrix as a square DataFrame indexed by row ids."""
-    from ..core.distances import distance_matrix
-
-    d = distance_matrix(table, intensity_weight=intensity_weight, invariance=invariance)
-    ids = row_ids(table)
-    return pd.DataFrame(d, index=pd.Index(ids, name="object"), columns=ids)
-
-
-def mds_coordinates(d: np.ndarray, seed: int = 0) -> np.ndarray:
-    """2-D metric MDS of a distance matrix (rows with NaN give NaN coordinates)."""
-    from sklearn.manifold import MDS
-
-    d = np.asarray(d, float)
-    ok = np.isfinite(d).all(axis=1) & (np.isfinite(d).sum(axis=1) > 0)
-    ok &= np.isfinite(d[:, ok]).all(axis=1) if ok.any() else ok
-    out = np.full((len(d), 2), np.nan)
-    if ok.sum() >= 3:
-        import inspect
-
-        params = inspect.signature(MDS).parameters
-        kw: dict = {"n_components": 2, "random_state": seed}
-        if "dissimilarity" in params and "metric_params" not in params:
-            kw.update(dissimilarity="precomputed", n_init=4)  # scikit-learn < 1.8
-        else:
-            kw["metric"] = "precomputed"
-            if "init" in params:
-                kw["init"] = "classical_mds"
-        mds = MDS(**kw)
-        out[ok] = mds.fit_transform(d[np.ix_(ok, ok)])
-    elif ok.sum() > 0:
-        out[ok] = 0.0
-    return out
-
 
 def _colour_key(frame: pd.DataFrame, by: str) -> tuple[np.ndarray, list[str] | None]:
     if by == "group" and "group" in frame.columns:

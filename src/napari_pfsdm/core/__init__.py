@@ -4,23 +4,17 @@ Pure numpy/scipy/scikit-image; never imports Qt or napari.
 """
 
 from .descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
-from .distances import (
-    INVARIANCES,
-    distance,
-    distance_matrix,
-    embeddings_from_table,
-    weighted_features,
-)
+from .distances import INVARIANCES, Embeddings, distance, distance_matrix, weighted_features
 from .medial_axis import Skeleton, skeleton
 
 __all__ = [
     "DEFAULTS",
+    "Embeddings",
     "INVARIANCES",
     "PFSDMResult",
     "Skeleton",
     "distance",
     "distance_matrix",
-    "embeddings_from_table",
     "pfsdm",
     "render_disk",
     "skeleton",

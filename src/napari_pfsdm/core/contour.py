@@ -19,7 +19,8 @@ import numpy as np
 from scipy import ndimage as ndi
 from skimage.measure import find_contours
 
-__all__ = ["Contour", "MaskInfo", "prepare_mask", "extract_contour", "resample_closed"]
+__all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
+           "resample_closed", "signed_area"]
 
 #: Objects with fewer pixels than this are refused: their outline is mostly rasterisation.
 DEFAULT_MIN_AREA = 20
@@ -212,7 +213,23 @@ def _smooth_closed(points: np.ndarray, sigma: float) -> np.ndarray:
     return np.real(np.fft.ifft(np.fft.fft(points, axis=0) * gain[:, None], axis=0))
 
 
-def _polygon_area_centroid(points: np.ndarray) -> tuple[float, np.ndarray]:
+def signed_area(points: np.ndarray) -> float:
+    """Shoelace area of a closed polygon (k, 2): positive when its vertices turn from the first
+    axis towards the second (counter-clockwise in (x, y); clockwise on screen in (row, col)).
+    The package's one polygon area.
+
+    Examples
+    --------
+    >>> signed_area(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]]))
+    2.0
+    """
+    x, y = points[:, 0], points[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_area_centroid(points: np.ndarray) -> tuple[float, np.ndarray]:
+    """Signed shoelace area (as :func:`signed_area`) and area centroid of a closed polygon
+    (k, 2), in the points' own axis order."""
     x, y = points[:, 0], points[:, 1]
     xn, yn = np.roll(x, -1), np.roll(y, -1)
     cross = x * yn - xn * y
@@ -249,18 +266,18 @@ def extract_contour(info: MaskInfo, n_points: int = 256, smooth: float = 1.0) ->
     """
     contours = find_contours(info.mask.astype(np.float32), 0.5)
     raw = max(contours, key=len)[:-1]  # closed curves repeat the first point
-    area, _ = _polygon_area_centroid(raw)
+    area, _ = polygon_area_centroid(raw)
     if area < 0:
         raw = raw[::-1]
     # Start at the vertex farthest from the centroid: a canonical point, so that a raster rotated
     # by 90° or mirrored is resampled at exactly the same boundary points.
-    _, raw_center = _polygon_area_centroid(raw)
+    _, raw_center = polygon_area_centroid(raw)
     raw = np.roll(raw, -int(np.argmax(((raw - raw_center) ** 2).sum(axis=1))), axis=0)
     perimeter = np.linalg.norm(np.diff(np.vstack([raw, raw[:1]]), axis=0), axis=1).sum()
     pts = resample_closed(raw, n_points)
     if smooth > 0:
         pts = resample_closed(_smooth_closed(pts, smooth * n_points / perimeter), n_points)
     pts = pts + info.offset
-    area, center = _polygon_area_centroid(pts)
+    area, center = polygon_area_centroid(pts)
     scale = float(np.linalg.norm(pts - center, axis=1).max())
     return Contour(points=pts, center=center, scale=scale, area=abs(area))

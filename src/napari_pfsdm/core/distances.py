@@ -19,66 +19,19 @@ Two ways to remove rotation and reflection (``invariance``):
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
-
-from .morphometric import mode_weights
-from .table_schema import check_feature_table, feature_columns
 
 __all__ = [
     "INVARIANCES",
     "distance",
     "distance_matrix",
-    "embeddings_from_table",
-    "failed_rows",
+    "Embeddings",
     "weighted_features",
 ]
 
 INVARIANCES = ("combined", "magnitude", "align")
-
-
-def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
-    """Embeddings (n, n_radii, n_fourier + 1) and ring weights from a :func:`measure` table.
-
-    Rows with an ``error`` give NaN embeddings. The table must carry its options
-    (``table.attrs["pfsdm"]``, as :func:`napari_pfsdm.measure` and
-    :func:`napari_pfsdm.read_table` give it) and every feature column: a table without them is
-    refused, never reinterpreted (see :mod:`napari_pfsdm.core.table_schema`).
-    """
-    opts, n_radii, n_fourier = check_feature_table(table, [channel])
-    ordered = feature_columns(n_radii, n_fourier, channel)
-    values = table[ordered].to_numpy(float).reshape(len(table), n_radii, n_fourier + 1)
-    return values, np.asarray(opts["weights"], float)
-
-
-def failed_rows(table, channels=("shape",)) -> list[tuple[Any, ...]]:
-    """Rows of a feature table that have no features for ``channels``.
-
-    Returns
-    -------
-    list of (position, frame, label, reason)
-        ``position`` is the row's position in ``table``; ``reason`` the ``error`` text, or what
-        the ``warnings`` column says about the intensity.
-    """
-    opts, n_radii, n_fourier = check_feature_table(table, channels)
-    out = []
-    err = table["error"].fillna("").astype(str).to_numpy() if "error" in table.columns \
-        else np.full(len(table), "")
-    warn = table["warnings"].fillna("").astype(str).to_numpy() if "warnings" in table.columns \
-        else np.full(len(table), "")
-    bad = np.zeros(len(table), bool)
-    for channel in channels:
-        vals = table[feature_columns(n_radii, n_fourier, channel)].to_numpy(float)
-        bad |= ~np.isfinite(vals).all(axis=1)
-    bad |= err != ""
-    frames = table["frame"].to_numpy() if "frame" in table.columns else np.full(len(table), -1)
-    labels = table["label"].to_numpy() if "label" in table.columns else np.full(len(table), -1)
-    for i in np.flatnonzero(bad):
-        reason = err[i] or next((w for w in warn[i].split("; ") if "intensity" in w), "") \
-            or "no features (NaN)"
-        out.append((int(i), int(frames[i]), int(labels[i]), reason))
-    return out
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -152,23 +105,48 @@ def _from_results(items, channel: str):
     return emb, items[0].weights, items[0].mode_weights
 
 
-def _from_table(table, channel: str):
-    emb, weights = embeddings_from_table(table, channel)
-    opts = table.attrs.get("pfsdm", {})
-    mw = opts.get("mode_weights")
-    if mw is None:  # tables from before the mode weights: (1 + n)^exponent, 0 when absent
-        mw = mode_weights(emb.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
-    mw = np.asarray(mw, float)[: emb.shape[2]]
-    return emb, weights, mw
+@dataclass(frozen=True)
+class Embeddings:
+    """Magnitude embeddings of n objects with the weights that make their distances PF-SDM
+    distances: what a feature table holds, as arrays (``napari_pfsdm.analysis.tables`` turns a
+    table into this; the core never reads a table).
+
+    Attributes
+    ----------
+    shape : ndarray, shape (n, n_radii, n_fourier + 1)
+        |c_n(r)| of the SDF.
+    weights : ndarray, shape (n_radii,)
+        Ring quadrature weights.
+    mode_weights : ndarray, shape (n_fourier + 1,)
+        (1 + n)^α.
+    intensity : ndarray, same shape as ``shape``, optional
+        |c_n(r)| of the intensity.
+    """
+
+    shape: np.ndarray
+    weights: np.ndarray
+    mode_weights: np.ndarray
+    intensity: np.ndarray | None = None
+
+    def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        emb = self.shape if name == "shape" else self.intensity
+        if emb is None:
+            raise ValueError("intensity_weight > 0 needs intensity embeddings.")
+        return emb, self.weights, self.mode_weights
+
+
+def _channel_arrays(items, channel: str):
+    if isinstance(items, Embeddings):
+        return items.channel(channel)
+    return _from_results(list(items), channel)
 
 
 def weighted_features(items, channel: str = "shape") -> np.ndarray:
     """Flat feature vectors (n, n_radii × (n_fourier + 1)) scaled by the ring and mode weights,
     so that their Euclidean distances are the PF-SDM (magnitude) distances; use them for PCA
-    or any Euclidean method. ``items``: results or a :func:`measure` table."""
-    is_table = hasattr(items, "columns")
-    emb, w, mw = _from_table(items, channel) if is_table else _from_results(list(items), channel)
-    return _magnitude_features(emb, w, mw)
+    or any Euclidean method. ``items``: results or :class:`Embeddings` (for a table, see
+    :func:`napari_pfsdm.weighted_features`)."""
+    return _magnitude_features(*_channel_arrays(items, channel))
 
 
 def distance_matrix(
@@ -182,13 +160,14 @@ def distance_matrix(
 
     Parameters
     ----------
-    items : sequence of PFSDMResult, or pandas.DataFrame from :func:`measure`
-        The objects. Results and table rows must share the same options (rings, N_F).
+    items : sequence of PFSDMResult, or Embeddings
+        The objects, computed with the same options (rings, N_F). A feature table goes through
+        :func:`napari_pfsdm.distance_matrix`, which turns it into :class:`Embeddings`.
     intensity_weight : float
         Weight w_I of the intensity term (0: shape only).
     invariance : {"combined", "magnitude", "align"}, optional
         How rotation and reflection are removed (module docstring). Default: ``"combined"``
-        for results, ``"magnitude"`` for a table (which holds magnitudes only).
+        for results, ``"magnitude"`` for embeddings (a table holds magnitudes only).
     chunk : int
         Rows computed at once by ``"align"`` (about chunk × n × 120 float32 numbers at once;
         5,000 objects with the combined distance peak at 1.2 GiB in all, measured).
@@ -200,10 +179,8 @@ def distance_matrix(
 
     Raises
     ------
-    ValueError
-        A table without its options or feature columns, or with rows that have no features
-        (an ``error``, or NaN intensity features when ``intensity_weight > 0``): they are never
-        returned as silent NaN; :func:`napari_pfsdm.drop_failed` leaves them out and says which.
+    TypeError
+        A table (use :func:`napari_pfsdm.distance_matrix`).
 
     Examples
     --------
@@ -216,27 +193,24 @@ def distance_matrix(
     >>> bool(d[0, 2] < 0.02 * d[0, 1])
     True
     """
-    is_table = hasattr(items, "columns")
+    if hasattr(items, "columns"):
+        raise TypeError(
+            "core.distances.distance_matrix takes results or Embeddings; for a feature table use "
+            "napari_pfsdm.distance_matrix (napari_pfsdm.analysis.tables), which reads its options"
+        )
+    arrays = isinstance(items, Embeddings)
     if invariance is None:
-        invariance = "magnitude" if is_table else "combined"
+        invariance = "magnitude" if arrays else "combined"
     if invariance not in INVARIANCES:
         raise ValueError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
-    if is_table:
+    if arrays:
         if invariance != "magnitude":
             raise ValueError(
                 f"invariance={invariance!r} needs the complex spectra of pfsdm results; a table "
                 "holds magnitudes only. Use invariance='magnitude' for tables."
             )
-        bad = failed_rows(items, channels)
-        if bad:
-            shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
-            raise ValueError(
-                f"{len(bad)} of {len(items)} rows have no {' or '.join(channels)} features "
-                f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
-                "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
-            )
-        embs = [_from_table(items, c) for c in channels]
+        embs = [items.channel(c) for c in channels]
     else:
         items = list(items)
         if not items:

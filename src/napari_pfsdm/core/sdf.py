@@ -27,14 +27,11 @@ from scipy.spatial import cKDTree
 from scipy.special import k1e
 from skimage.measure import points_in_poly
 
+from .contour import signed_area
+
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
 
 SDF_KINDS = ("exact", "viscous")
-
-
-def _signed_area(polygon: np.ndarray) -> float:
-    x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 class ExactSDF:
@@ -65,7 +62,7 @@ class ExactSDF:
         vertex = self._edge_normal + self._edge_normal[self._prev]
         self._vertex_normal = vertex / np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True),
                                                   1e-12)
-        self._orientation = np.sign(_signed_area(self.polygon)) or 1.0
+        self._orientation = np.sign(signed_area(self.polygon)) or 1.0
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest boundary point of each query point.

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.contour import polygon_area_centroid, signed_area
+
 __all__ = [
     "CLASS_NAMES",
     "Similarity",
@@ -68,26 +70,13 @@ def _from_polar(radius: np.ndarray, theta: np.ndarray) -> np.ndarray:
 def _unit(points: np.ndarray) -> np.ndarray:
     """Centre on the area centroid and scale so that the farthest point is at distance 1."""
     points = _ccw(points)
-    center = _area_centroid(points)
+    center = polygon_area_centroid(points)[1]
     points = points - center
     return points / np.linalg.norm(points, axis=1).max()
 
 
-def _shoelace(points: np.ndarray) -> float:
-    y, x = points[:, 0], points[:, 1]
-    return 0.5 * float(np.sum(y * np.roll(x, -1) - np.roll(y, -1) * x))
-
-
-def _area_centroid(points: np.ndarray) -> np.ndarray:
-    y, x = points[:, 0], points[:, 1]
-    yn, xn = np.roll(y, -1), np.roll(x, -1)
-    cross = y * xn - yn * x
-    area = 0.5 * cross.sum()
-    return np.array([((y + yn) * cross).sum(), ((x + xn) * cross).sum()]) / (6.0 * area)
-
-
 def _ccw(points: np.ndarray) -> np.ndarray:
-    return points if _shoelace(points) > 0 else points[::-1].copy()
+    return points if signed_area(points) > 0 else points[::-1].copy()
 
 
 def circle(n: int = N_VERTICES) -> np.ndarray:

@@ -155,8 +155,8 @@ def plot_pca(
     """
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
-    from sklearn.decomposition import PCA
-    from sklearn.preprocessing import StandardScaler
+
+    from ..analysis.reduction import pca_scores
 
     frames = sorted(table["frame"].unique())
     if marks is None:
@@ -167,9 +167,9 @@ def plot_pca(
         cols = [c for c in table.columns if c.startswith(f"{kind}_")]
         ok = table[cols].notna().all(axis=1)
         sub = table[ok].sort_values(["object", "frame"])
-        z = StandardScaler().fit_transform(sub[cols].to_numpy())
-        pca = PCA(n_components=2).fit(z)
-        pcs = pca.transform(z)
+        sub.attrs = table.attrs
+        scores, ev = pca_scores(sub, kind, n_components=2, standardize=True)
+        pcs = scores[[f"{kind}_PC1", f"{kind}_PC2"]].to_numpy()  # one row per row of sub
         for obj in sub["object"].unique():
             sel = (sub["object"] == obj).to_numpy()
             multi = bool(multi_axis[obj])
@@ -182,7 +182,6 @@ def plot_pca(
                 if k.size:
                     ax.plot(pcs[sel][k, 0], pcs[sel][k, 1], marker, color=color, ms=4,
                             mec="black", mew=0.4, zorder=4)
-        ev = pca.explained_variance_ratio_
         ax.set_xlabel(f"PC1 ({100 * ev[0]:.0f} %)")
         ax.set_ylabel(f"PC2 ({100 * ev[1]:.0f} %)")
         ax.set_title(f"PF-SDM {kind} features")

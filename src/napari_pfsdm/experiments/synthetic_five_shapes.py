@@ -40,6 +40,8 @@ import numpy as np
 import pandas as pd
 
 from ..analysis import baselines
+from ..analysis.reduction import mds_coordinates
+from ..analysis.retrieval import loo_1nn_fraction
 from ..core import DEFAULTS, distance_matrix, pfsdm
 from ..data.shapes import base_shapes, make_benchmark_set
 from ..io_csv import save_figure
@@ -146,10 +148,7 @@ def nn_accuracy(dist: np.ndarray, labels: np.ndarray) -> float:
     >>> nn_accuracy(d, np.array([0, 0, 1]))
     0.6666666666666666
     """
-    d = np.array(dist, float)
-    np.fill_diagonal(d, np.inf)
-    labels = np.asarray(labels)
-    return float(np.mean(labels[np.argmin(d, axis=1)] == labels))
+    return loo_1nn_fraction(dist, labels)
 
 
 def scores(dist: np.ndarray, labels: np.ndarray) -> tuple[float, float]:
@@ -543,22 +542,10 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def mds_embedding(dist: np.ndarray, seed: int = 0) -> np.ndarray:
-    """2-D metric MDS of a precomputed distance matrix (scikit-learn), reproducible.
-
-    Uses the classical-MDS start where scikit-learn offers it (≥ 1.8), four random starts
-    otherwise.
-    """
-    import inspect
-
-    from sklearn.manifold import MDS
-
-    params = inspect.signature(MDS).parameters
-    if "metric_mds" in params:
-        mds = MDS(n_components=2, metric="precomputed", metric_mds=True, init="classical_mds",
-                  random_state=seed)
-    else:  # scikit-learn < 1.8
-        mds = MDS(n_components=2, dissimilarity="precomputed", random_state=seed, n_init=4)
-    return mds.fit_transform(np.asarray(dist, float))
+    """2-D MDS of a precomputed distance matrix: the package's one (classical, deterministic)
+    MDS, :func:`napari_pfsdm.analysis.reduction.mds_coordinates`; ``seed`` is kept for
+    callers and ignored."""
+    return mds_coordinates(0.5 * (np.asarray(dist, float) + np.asarray(dist, float).T))
 
 
 def _plot_mds(path: Path, matrices: dict, labels_by_set: dict, names: Sequence[str],

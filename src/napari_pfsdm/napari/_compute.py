@@ -14,7 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..analysis.reduction import mds_coordinates
+from ..analysis.reduction import pca_scores as _pca
 from ..core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
+from ..core.table_schema import has_channel
 
 #: Largest side length (pixels) of one rendered unit disk.
 DISK_SIZE = 96
@@ -188,57 +191,27 @@ def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
 
 
 def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) -> pd.DataFrame:
-    """PCA of the ``{kind}_*`` features over all (frame, label) rows without error.
-
-    The same PCA as the command line's trajectories (:func:`napari_pfsdm.batch.reports.pca_scores`):
-    each ring is weighted by the square root of its quadrature weight, so that Euclidean
-    distances in this space are PF-SDM distances; components signed as scikit-learn does (the
-    largest loading of each is positive). Plain numpy (an SVD of a few hundred rows takes a
-    millisecond; scikit-learn's import alone blocks the viewer for seconds).
-
-    Returns ``frame``, ``label``, ``PC1``... columns and ``attrs["explained_variance_ratio"]``;
-    no PC columns with fewer than two measured rows.
-    """
-    from ..core.distances import weighted_features
-
+    """The widget's PCA: :func:`napari_pfsdm.analysis.reduction.pca_scores` (the command line's
+    too), with the plot's column names ``frame``, ``label``, ``PC1``… and
+    ``attrs["explained_variance_ratio"]``; no PC columns with fewer than two measured rows."""
     empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
     empty.attrs["explained_variance_ratio"] = []
-    if not any(c.startswith(f"{kind}_r") for c in table.columns):
+    if not has_channel(table.columns, kind):
         return empty
-    ok = table["error"].fillna("").astype(str).eq("").to_numpy() if "error" in table else True
-    x = weighted_features(table, channel=kind)
-    ok = ok & np.isfinite(x).all(axis=1)
-    x = x[ok]
-    if len(x) < 2:
+    try:
+        scores, ratios = _pca(table, kind, n_components)
+    except ValueError:  # fewer than two measured rows
         return empty
-    k = int(min(n_components, x.shape[0], x.shape[1]))
-    x = x - x.mean(axis=0)
-    u, s, vt = np.linalg.svd(x, full_matrices=False)
-    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
-    signs[signs == 0] = 1
-    scores = (u * s * signs)[:, :k]
-    var = s**2
-    out = table.loc[ok, ["frame", "label"]].reset_index(drop=True)
-    for i in range(k):
-        out[f"PC{i + 1}"] = scores[:, i]
-    out.attrs["explained_variance_ratio"] = [float(r) for r in var[:k] / max(var.sum(), 1e-300)]
+    out = scores[["frame", "label"]].copy()
+    for col in scores.columns:
+        if col.startswith(f"{kind}_PC"):
+            out[col[len(kind) + 1:]] = scores[col].to_numpy()
+    out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
     return out
 
 
-def classical_mds(d: np.ndarray, n_components: int = 2) -> np.ndarray:
-    """Classical (Torgerson) MDS of a distance matrix: (n, n_components) coordinates."""
-    d = np.asarray(d, dtype=float)
-    n = d.shape[0]
-    if n == 0:
-        return np.zeros((0, n_components))
-    j = np.eye(n) - 1.0 / n
-    b = -0.5 * j @ (d**2) @ j
-    w, v = np.linalg.eigh(b)
-    order = np.argsort(w)[::-1][:n_components]
-    coords = v[:, order] * np.sqrt(np.clip(w[order], 0, None))
-    if coords.shape[1] < n_components:
-        coords = np.hstack([coords, np.zeros((n, n_components - coords.shape[1]))])
-    return coords
+#: The widget's MDS is the package's one MDS.
+classical_mds = mds_coordinates
 
 
 def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import split_failed
+from ..analysis.reduction import distance_table as layout
 from ..io_csv import check_overwrite, read_table_csv, write_table_csv
 from ._compute import AnalysisOutput
 
@@ -36,9 +37,10 @@ def read_csv(path) -> pd.DataFrame:
 def distance_table(
     output: AnalysisOutput, intensity_weight: float | None = None
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """All-pairs PF-SDM distances of the measured objects (columns ``t<frame>_l<label>``), and
-    the rows left out (``frame``, ``label``, ``reason``) because they have no features."""
-    from ..core.distances import distance_matrix
+    """All-pairs PF-SDM distances of the measured objects, in the command line's layout (rows
+    and columns ``t<frame>/l<label>``, index ``object``), and the rows left out (``frame``,
+    ``label``, ``reason``) because they have no features."""
+    from ..analysis.tables import distance_matrix
 
     table = output.table
     if len(table) > MAX_DISTANCE_ROWS:
@@ -51,12 +53,7 @@ def distance_table(
         w = 0.0
     table, left_out = split_failed(table, ("shape", "intensity") if w else ("shape",))
     d = np.asarray(distance_matrix(table, intensity_weight=w))
-    pairs = zip(table["frame"], table["label"], strict=True)
-    names = [f"t{int(f)}_l{int(lab)}" for f, lab in pairs]
-    out = pd.DataFrame(d, columns=names)
-    out.insert(0, "label", table["label"].to_numpy())
-    out.insert(0, "frame", table["frame"].to_numpy())
-    return out, left_out
+    return layout(table, d), left_out
 
 
 def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
@@ -75,5 +72,6 @@ def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
         ratios = scores.attrs.get("explained_variance_ratio", [])
         h = dict(opts, pca_features=kind, explained_variance_ratio=list(ratios))
         written.append(write_csv(scores, folder / f"{prefix}_pca_{kind}.csv", h, kind="pca"))
-    written.append(write_csv(dist, folder / names[-1], opts, kind="distances", extra=left))
+    written.append(write_table_csv(dist, folder / names[-1], opts, index=True, kind="distances",
+                                   extra=left))
     return written

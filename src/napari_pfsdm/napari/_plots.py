@@ -8,7 +8,6 @@ the matching points.
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -27,6 +26,7 @@ from qtpy.QtWidgets import (
 
 import napari
 
+from ..analysis.reduction import read_groups
 from . import _layers
 from ._compute import classical_mds
 from ._store import STORE
@@ -36,24 +36,14 @@ PICK_RADIUS_PX = 12
 
 
 def read_groups_csv(path) -> dict[int, str]:
-    """Label → group from a CSV with a ``label`` column and a ``group`` column.
-
-    Without those names, the first two columns are used.
-    """
-    table = pd.read_csv(path, comment="#")
-    cols = [c.lower() for c in table.columns]
-    if "label" in cols and "group" in cols:
-        lab = table.iloc[:, cols.index("label")]
-        grp = table.iloc[:, cols.index("group")]
-    elif table.shape[1] >= 2:
-        lab, grp = table.iloc[:, 0], table.iloc[:, 1]
-    else:
-        raise ValueError("The group file needs two columns: label and group (e.g. 3,multi-axes).")
-    try:
-        labels = lab.astype(int)
-    except (TypeError, ValueError) as err:
-        raise ValueError("The 'label' column of the group file must hold whole numbers.") from err
-    return dict(zip(labels.tolist(), grp.astype(str).tolist(), strict=True))
+    """Label → group from a groups CSV (``label,group``), read by the package's one groups
+    reader (:func:`napari_pfsdm.analysis.reduction.read_groups`, as the command line)."""
+    groups = read_groups(path)
+    if "label" not in groups.columns:
+        raise ValueError("The group file needs a 'label' column and a 'group' column "
+                         "(e.g. 3,multi-axes).")
+    return dict(zip(groups["label"].astype(int).tolist(), groups["group"].astype(str).tolist(),
+                    strict=True))
 
 
 def _percent(ratios, i: int) -> str:
@@ -407,7 +397,7 @@ class ShapeComparisonWidget(_LinkedPlot):
 
     def draw_plot(self) -> None:
         from ..analysis.features import split_failed
-        from ..core.distances import distance_matrix
+        from ..analysis.tables import distance_matrix
 
         output = self.output
         if output is None:

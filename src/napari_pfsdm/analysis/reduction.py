@@ -1,0 +1,234 @@
+"""Reductions of a feature table shared by the command line and the napari plugin: PCA, MDS, the
+distance-table layout, row and object ids, and the groups file.
+
+One implementation each, so that the CLI's and the widget's maps of the same table are the same
+numbers (docs/design.md §2.8). Plain numpy for the PCA and the MDS: an SVD or an eigen-
+decomposition of a few thousand rows takes well under a second, and scikit-learn's import alone
+would block the viewer for seconds.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .tables import weighted_features
+
+__all__ = [
+    "KEY_COLUMNS",
+    "attach_groups",
+    "distance_table",
+    "mds_coordinates",
+    "object_ids",
+    "pca_scores",
+    "read_groups",
+    "row_ids",
+]
+
+#: Columns that identify an object across frames in a groups file.
+KEY_COLUMNS = ("movie", "label")
+
+
+def object_ids(table: pd.DataFrame) -> pd.Series:
+    """One id per object of a table: ``"movie/label"`` (or the label alone without movies)."""
+    if "movie" in table.columns:
+        return table["movie"].astype(str) + "/" + table["label"].astype(str)
+    return table["label"].astype(str)
+
+
+def row_ids(table: pd.DataFrame) -> list[str]:
+    """One id per row: ``movie/t<frame>/l<label>`` (without ``movie/`` when there is none)."""
+    base = "t" + table["frame"].astype(str) + "/l" + table["label"].astype(str)
+    if "movie" in table.columns:
+        base = table["movie"].astype(str) + "/" + base
+    return base.tolist()
+
+
+def pca_scores(
+    table: pd.DataFrame,
+    channel: str = "shape",
+    n_components: int = 3,
+    *,
+    standardize: bool = False,
+) -> tuple[pd.DataFrame, np.ndarray]:
+    """PCA of all (movie, frame, label) rows of a feature table.
+
+    By default each ring is scaled by the square root of its quadrature weight and each Fourier
+    index by its mode weight, so that Euclidean distances in this space are the PF-SDM
+    (magnitude) distances (docs/design.md §2.6); ``standardize=True`` instead gives every
+    feature unit variance (as in the paper's trajectory plots). Rows with an ``error`` or
+    non-finite features are left out. Components are signed so that the largest loading of
+    each is positive (scikit-learn's convention), which makes the result reproducible.
+
+    Parameters
+    ----------
+    table : DataFrame
+        A feature table with its options (:func:`napari_pfsdm.measure`, ``read_table``).
+    channel : {"shape", "intensity"}
+    n_components : int
+        At most this many components (fewer when there are fewer rows or features).
+    standardize : bool
+        Standardise the raw features instead of weighting them.
+
+    Returns
+    -------
+    scores : DataFrame
+        The key columns (``movie``, ``frame``, ``label``, ``group`` when present) and
+        ``{channel}_PC1`` …, one row per measured row, in table order.
+    explained : ndarray
+        Fraction of the variance explained by each component.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two measured rows.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from napari_pfsdm import measure
+    >>> labels = np.zeros((3, 64, 64), int)
+    >>> for t in range(3):
+    ...     labels[t, 10:30, 10:30 + 5 * t] = 1
+    >>> scores, explained = pca_scores(measure(labels), n_components=2)
+    >>> list(scores.columns), bool(explained[0] > 0.9)
+    (['frame', 'label', 'shape_PC1', 'shape_PC2'], True)
+    """
+    ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
+          if "error" in table.columns else np.ones(len(table), bool))
+    x = weighted_features(table, channel=channel)
+    if standardize:
+        from ..core.table_schema import feature_columns
+
+        opts = table.attrs["pfsdm"]
+        cols = feature_columns(len(opts["weights"]), int(opts["n_fourier"]), channel)
+        x = table[cols].to_numpy(float)
+    ok &= np.isfinite(x).all(axis=1)
+    x = x[ok]
+    if len(x) < 2:
+        raise ValueError("PCA needs at least two measured objects (rows without error)")
+    x = x - x.mean(axis=0)
+    if standardize:
+        sd = x.std(axis=0)
+        x = x / np.where(sd > 0, sd, 1.0)
+    u, s, vt = np.linalg.svd(x, full_matrices=False)
+    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
+    signs[signs == 0] = 1
+    k = int(min(n_components, x.shape[0], x.shape[1]))
+    z = (u * s * signs)[:, :k]
+    var = s**2
+    keys = [c for c in ("movie", "frame", "label", "group") if c in table.columns]
+    scores = table.loc[ok, keys].reset_index(drop=True)
+    scores.attrs = {}
+    for i in range(k):
+        scores[f"{channel}_PC{i + 1}"] = z[:, i]
+    return scores, var[:k] / max(float(var.sum()), 1e-300)
+
+
+def mds_coordinates(d: np.ndarray, n_components: int = 2) -> np.ndarray:
+    """Classical (Torgerson) MDS of a distance matrix: (n, n_components) coordinates.
+
+    Deterministic and exact for Euclidean distances. Rows and columns with NaN are left out of
+    the fit and get NaN coordinates.
+
+    Examples
+    --------
+    >>> pts = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 4.0]])
+    >>> d = np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1))
+    >>> xy = mds_coordinates(d)
+    >>> bool(np.allclose(np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1)), d))
+    True
+    """
+    d = np.asarray(d, dtype=float)
+    n = d.shape[0]
+    out = np.full((n, n_components), np.nan)
+    ok = np.isfinite(d).all(axis=1) if n else np.zeros(0, bool)
+    ok &= np.isfinite(d[:, ok]).all(axis=1) if ok.any() else ok
+    m = int(ok.sum())
+    if m == 0:
+        return out
+    sub = d[np.ix_(ok, ok)]
+    j = np.eye(m) - 1.0 / m
+    b = -0.5 * j @ (sub**2) @ j
+    w, v = np.linalg.eigh(b)
+    order = np.argsort(w)[::-1][:n_components]
+    coords = v[:, order] * np.sqrt(np.clip(w[order], 0, None))
+    if coords.shape[1] < n_components:
+        coords = np.hstack([coords, np.zeros((m, n_components - coords.shape[1]))])
+    out[ok] = coords
+    return out
+
+
+def distance_table(table: pd.DataFrame, d: np.ndarray) -> pd.DataFrame:
+    """The one layout of a distance matrix: square, rows and columns named by :func:`row_ids`
+    (index name ``object``); written with its index, read back with ``index_col=0``."""
+    ids = row_ids(table)
+    return pd.DataFrame(np.asarray(d), index=pd.Index(ids, name="object"), columns=ids)
+
+
+def read_groups(path: str | os.PathLike) -> pd.DataFrame:
+    """Read a groups CSV: a ``group`` column plus ``label`` and/or ``movie`` columns.
+
+    Examples of valid files::
+
+        label,group            movie,group               movie,label,group
+        1,single-axis          gastruloid01,single-axis  plate1,3,multi-axes
+        2,multi-axes           gastruloid02,multi-axes
+
+    Returns
+    -------
+    DataFrame
+        The key columns (as text) and ``group``.
+
+    Raises
+    ------
+    ValueError
+        A missing file, missing columns, a ``label`` that is not a whole number, or two groups
+        for the same object.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{p}: no such groups file")
+    groups = pd.read_csv(p, dtype=str, comment="#")
+    groups.columns = [str(c).strip().lower() for c in groups.columns]
+    keys = [k for k in KEY_COLUMNS if k in groups.columns]
+    if "group" not in groups.columns or not keys:
+        raise ValueError(
+            f"{p} must have a 'group' column and a 'label' and/or 'movie' column "
+            f"(it has {list(groups.columns)}), e.g. label,group then 3,multi-axes"
+        )
+    groups = groups[keys + ["group"]].dropna()
+    if "label" in keys:
+        try:
+            groups["label"] = groups["label"].str.strip().astype(int).astype(str)
+        except ValueError:
+            raise ValueError(
+                f"The 'label' column of the group file {p.name} must hold whole numbers."
+            ) from None
+    if groups.duplicated(keys).any():
+        raise ValueError(f"{p} gives several groups to the same {'/'.join(keys)}")
+    return groups.reset_index(drop=True)
+
+
+def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
+    """Add a ``group`` column to a feature table (objects without a group get ``""``)."""
+    keys = [k for k in KEY_COLUMNS if k in groups.columns]
+    missing = [k for k in keys if k not in table.columns]
+    if missing:
+        raise ValueError(
+            f"the groups file has a {missing[0]!r} column but the feature table has none"
+        )
+    left = table.drop(columns=["group"], errors="ignore").copy()
+    attrs = left.attrs
+    left.attrs = {}
+    for k in keys:
+        left["_key_" + k] = left[k].astype(str)
+    right = groups.rename(columns={k: "_key_" + k for k in keys})
+    out = left.merge(right, on=["_key_" + k for k in keys], how="left")
+    out = out.drop(columns=["_key_" + k for k in keys])
+    out["group"] = out["group"].fillna("")
+    out.attrs = attrs
+    return out

@@ -1,0 +1,149 @@
+"""Feature tables as arrays: the bridge between a table (its columns and options, see
+:mod:`napari_pfsdm.core.table_schema`) and the core's distances, which take arrays only.
+
+:func:`distance_matrix` and :func:`weighted_features` accept a feature table or a list of
+:class:`~napari_pfsdm.core.descriptor.PFSDMResult`; they are the package's public
+``napari_pfsdm.distance_matrix`` and ``napari_pfsdm.weighted_features``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from ..core import distances as _core
+from ..core.distances import Embeddings
+from ..core.morphometric import mode_weights
+from ..core.table_schema import check_feature_table, feature_columns
+
+__all__ = [
+    "distance_matrix",
+    "embeddings",
+    "embeddings_from_table",
+    "failed_rows",
+    "is_table",
+    "weighted_features",
+]
+
+
+def is_table(items: Any) -> bool:
+    """True for a DataFrame-like feature table (anything with ``columns``)."""
+    return hasattr(items, "columns")
+
+
+def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
+    """Embeddings (n, n_radii, n_fourier + 1) and ring weights from a :func:`measure` table.
+
+    Rows with an ``error`` give NaN embeddings. The table must carry its options
+    (``table.attrs["pfsdm"]``, as :func:`napari_pfsdm.measure` and
+    :func:`napari_pfsdm.read_table` give it) and every feature column: a table without them is
+    refused, never reinterpreted (see :mod:`napari_pfsdm.core.table_schema`).
+    """
+    opts, n_radii, n_fourier = check_feature_table(table, [channel])
+    ordered = feature_columns(n_radii, n_fourier, channel)
+    values = table[ordered].to_numpy(float).reshape(len(table), n_radii, n_fourier + 1)
+    return values, np.asarray(opts["weights"], float)
+
+
+def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, ...]]:
+    """Rows of a feature table that have no features for ``channels``.
+
+    Returns
+    -------
+    list of (position, frame, label, reason)
+        ``position`` is the row's position in ``table``; ``reason`` the ``error`` text, or what
+        the ``warnings`` column says about the intensity.
+    """
+    channels = list(channels)
+    opts, n_radii, n_fourier = check_feature_table(table, channels)
+    n = len(table)
+    err = (table["error"].fillna("").astype(str).to_numpy() if "error" in table.columns
+           else np.full(n, ""))
+    warn = (table["warnings"].fillna("").astype(str).to_numpy() if "warnings" in table.columns
+            else np.full(n, ""))
+    bad = err != ""
+    for channel in channels:
+        vals = table[feature_columns(n_radii, n_fourier, channel)].to_numpy(float)
+        bad |= ~np.isfinite(vals).all(axis=1)
+    frames = table["frame"].to_numpy() if "frame" in table.columns else np.full(n, -1)
+    labels = table["label"].to_numpy() if "label" in table.columns else np.full(n, -1)
+    out = []
+    for i in np.flatnonzero(bad):
+        reason = err[i] or next((w for w in warn[i].split("; ") if "intensity" in w), "") \
+            or "no features (NaN)"
+        out.append((int(i), int(frames[i]), int(labels[i]), reason))
+    return out
+
+
+def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
+    """The :class:`~napari_pfsdm.core.distances.Embeddings` of a feature table.
+
+    Raises
+    ------
+    ValueError
+        The table lacks its options or feature columns, or has rows without features for
+        ``channels`` (named in the message: leave them out with
+        :func:`napari_pfsdm.drop_failed`, so that rows and results stay in step).
+    """
+    channels = list(channels)
+    bad = failed_rows(table, channels)
+    if bad:
+        shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
+        raise ValueError(
+            f"{len(bad)} of {len(table)} rows have no {' or '.join(channels)} features "
+            f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
+            "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
+        )
+    shape, weights = embeddings_from_table(table, "shape")
+    opts = table.attrs["pfsdm"]
+    mw = opts.get("mode_weights")
+    if mw is None:  # tables from before the mode weights: (1 + n)^exponent, 0 when absent
+        mw = mode_weights(shape.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
+    intensity = embeddings_from_table(table, "intensity")[0] if "intensity" in channels else None
+    return Embeddings(shape=shape, weights=weights,
+                      mode_weights=np.asarray(mw, float)[: shape.shape[2]], intensity=intensity)
+
+
+def weighted_features(items, channel: str = "shape") -> np.ndarray:
+    """Flat feature vectors (n, n_radii × (n_fourier + 1)) scaled by the ring and mode weights,
+    so that their Euclidean distances are the PF-SDM (magnitude) distances; use them for PCA
+    or any Euclidean method. ``items``: results or a :func:`measure` table (rows without
+    features give NaN vectors)."""
+    if not is_table(items):
+        return _core.weighted_features(items, channel)
+    emb, weights = embeddings_from_table(items, channel)
+    opts = items.attrs["pfsdm"]
+    mw = opts.get("mode_weights")
+    if mw is None:
+        mw = mode_weights(emb.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
+    return _core.weighted_features(
+        Embeddings(shape=emb, weights=weights, mode_weights=np.asarray(mw, float)[: emb.shape[2]]))
+
+
+def distance_matrix(
+    items, intensity_weight: float = 0.0, *, invariance: str | None = None, chunk: int = 128
+) -> np.ndarray:
+    """All pairwise PF-SDM distances of results or of a feature table's rows.
+
+    A table holds magnitudes only (``invariance="magnitude"``), must carry its options, and is
+    refused when rows have no features (``ValueError`` naming them): see
+    :func:`napari_pfsdm.drop_failed`. Everything else as
+    :func:`napari_pfsdm.core.distances.distance_matrix`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from napari_pfsdm import measure
+    >>> labels = np.zeros((64, 128), int)
+    >>> labels[10:50, 10:50] = 1
+    >>> labels[20:40, 70:120] = 2
+    >>> d = distance_matrix(measure(labels))
+    >>> d.shape, bool(d[0, 1] > 0)
+    ((2, 2), True)
+    """
+    if is_table(items):
+        channels = ["shape"] + (["intensity"] if intensity_weight else [])
+        items = embeddings(items, channels)
+    return _core.distance_matrix(items, intensity_weight, invariance=invariance, chunk=chunk)
