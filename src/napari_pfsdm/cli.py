@@ -111,24 +111,23 @@ def _measured(table, channels, what: str, quiet: bool, need: int = 2):
 
 
 def _progress_printer(quiet: bool):
+    """A ``progress(movie, done, total)`` callback drawing one tqdm bar per movie on stderr
+    (redrawn at most every 0.2 s on a terminal, every 5 s in a log file); None when quiet."""
     if quiet:
         return None
-    state = {"last": 0.0}
-    tty = sys.stderr.isatty()
+    from tqdm import tqdm
+
+    bars: dict = {}
+    interval = 0.2 if sys.stderr.isatty() else 5.0
 
     def show(name: str, done: int, total: int) -> None:
-        now = time.monotonic()
-        if done < total and now - state["last"] < (0.2 if tty else 5.0):
-            return
-        state["last"] = now
-        width = 30
-        fill = int(width * done / max(total, 1))
-        bar = f"{name[:28]:28s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total} frames"
-        if tty:
-            sys.stderr.write("\r" + bar + ("\n" if done >= total else ""))
-        else:
-            sys.stderr.write(bar + "\n")
-        sys.stderr.flush()
+        bar = bars.get(name)
+        if bar is None:
+            bar = bars[name] = tqdm(total=total, desc=name[:28], unit="frame", file=sys.stderr,
+                                    mininterval=interval, dynamic_ncols=True)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
 
     return show
 

@@ -20,7 +20,6 @@ import hashlib
 import json
 import os
 import re
-import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -499,12 +498,3 @@ def run_batch(
     result.attrs["pfsdm"] = attrs
     write_table_csv(result, output, attrs, kind="features")
     return result
-
-
-def _stderr_progress(name: str, done: int, total: int) -> None:  # pragma: no cover - cosmetic
-    width = 30
-    fill = int(width * done / max(total, 1))
-    sys.stderr.write(f"\r{name[:30]:30s} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}")
-    if done >= total:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
