@@ -133,16 +133,20 @@ def _progress_printer(quiet: bool):
 
 
 def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
-    names = ("n_fourier", "n_radii", "n_angles", "sdf", "viscosity", "mapping",
-             "normalization", "radii", "ring_weighting", "mode_exponent", "components",
-             "min_area")
+    from dataclasses import fields
+
+    from .core.params import PFSDMParams
+
+    names = [f.name for f in fields(PFSDMParams)]
     return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
 
 
 def _add_method_options(p: argparse.ArgumentParser) -> None:
-    from .core.descriptor import DEFAULTS
+    from dataclasses import asdict
 
-    D = {"min_area": 20, **DEFAULTS}  # the help shows the core's current defaults
+    from .core.params import CHOICES, PFSDMParams
+
+    D = asdict(PFSDMParams())  # the help shows the core's current defaults and choices
     g = p.add_argument_group(
         "method options (the same as in the napari widget; leave them out for the defaults)"
     )
@@ -154,31 +158,31 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
                         f"(default {D['n_radii']})")
     g.add_argument("--n-angles", dest="n_angles", type=int, metavar="N",
                    help=f"samples around each ring (default {D['n_angles']})")
-    g.add_argument("--sdf", choices=("exact", "viscous"),
+    g.add_argument("--sdf", choices=CHOICES["sdf"],
                    help="distance to the outline: 'exact' (fast) or 'viscous' "
                         "(the paper's smoothed version, ~5x slower); default " + D["sdf"])
     g.add_argument("--viscosity", type=float, metavar="NU",
                    help="smoothing of the viscous distance, in object sizes "
                         f"(default {D['viscosity']})")
-    g.add_argument("--mapping", choices=("harmonic", "bijective", "radial"),
+    g.add_argument("--mapping", choices=CHOICES["mapping"],
                    help="how the unit disk is laid onto the object: 'harmonic' (fast), "
                         "'bijective' (never folds; for snake-like or branched objects), "
                         "'radial' (the paper's; round, star-shaped objects only); default "
                         + D["mapping"])
-    g.add_argument("--normalization", choices=("none", "ring"),
+    g.add_argument("--normalization", choices=CHOICES["normalization"],
                    help="'ring' rescales each ring's modes to unit length as in the paper "
                         "(unstable for near-round objects); default " + D["normalization"])
-    g.add_argument("--radii", choices=("uniform", "boundary"),
+    g.add_argument("--radii", choices=CHOICES["radii"],
                    help="ring placement: 'uniform' or 'boundary' (packed toward the outline, "
                         "where shapes differ most); default " + str(D["radii"]))
     g.add_argument("--ring-weighting", dest="ring_weighting",
-                   choices=("depth", "none", "boundary"),
+                   choices=CHOICES["ring_weighting"],
                    help="extra weight of the outer rings in distances; default "
                         + D["ring_weighting"])
     g.add_argument("--mode-exponent", dest="mode_exponent", type=float, metavar="A",
                    help="distances compare (1 + n)^A |c_n|: higher A stresses fine outline "
                         f"detail, 0 is the paper's choice; default {D['mode_exponent']}")
-    g.add_argument("--components", choices=("largest", "raise"),
+    g.add_argument("--components", choices=CHOICES["components"],
                    help="an object in several pieces: keep the 'largest' (default) or report "
                         "an error for it ('raise')")
     g.add_argument("--min-area", dest="min_area", type=int, metavar="PIXELS",
@@ -216,12 +220,15 @@ def cmd_measure(args: argparse.Namespace) -> int:
             )
         raise UserError("give the label movie(s) to measure, e.g.: pfsdm measure labels.tif "
                         "-o features.csv")
+    from .core.params import PFSDMParams
+
+    options = _measure_options(args)
+    PFSDMParams.from_options(options)  # a bad option fails first, before any file is opened
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
     out = _check_output(args.output, force=args.force,
                         inputs=[*labels, *(intensity or [])])
     movies = pair_movies(labels, intensity)
-    options = _measure_options(args)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
     t0 = time.perf_counter()
     table = run_batch(

@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage as ndi
 
-from ..core.descriptor import DEFAULTS, PFSDMResult, pfsdm
-from ..core.morphometric import mode_weights, ring_radii, ring_weights
+from ..core.descriptor import PFSDMResult, pfsdm
+from ..core.params import PFSDMParams
 from ..core.table_schema import BASE_COLUMNS, feature_columns
 from .tables import failed_rows
 
@@ -130,7 +130,9 @@ def count_objects(labels) -> int:
                    for t in range(n_frames)))
 
 
-def iter_objects(labels, intensity=None, *, frames=None, **options: Any) -> Iterator[ObjectResult]:
+def iter_objects(
+    labels, intensity=None, *, frames=None, params: PFSDMParams | None = None, **options: Any
+) -> Iterator[ObjectResult]:
     """PF-SDM of every object of every frame, one at a time.
 
     Parameters
@@ -140,8 +142,11 @@ def iter_objects(labels, intensity=None, *, frames=None, **options: Any) -> Iter
     intensity : array_like, same shape, optional
     frames : iterable of int, optional
         Frames to process (default all).
+    params : PFSDMParams, optional
+        The method's options as one record (or give them as keywords).
     **options
-        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm`.
+        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm`, checked first by
+        :class:`~napari_pfsdm.core.params.PFSDMParams`.
 
     Yields
     ------
@@ -152,8 +157,18 @@ def iter_objects(labels, intensity=None, *, frames=None, **options: Any) -> Iter
         While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
     n_frames, timelapse = _validate(labels, intensity)
+    options = _checked(params, options)
     with _one_blas_thread():
         yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, options)
+
+
+def _checked(params: PFSDMParams | None, options: dict[str, Any]) -> dict[str, Any]:
+    """The keyword options of :func:`pfsdm`, validated by :class:`PFSDMParams` before any
+    work (an unknown name or a bad value fails at once, in plain words)."""
+    if params is not None and options:
+        raise ValueError("give the options either as params=PFSDMParams(...) or as keywords, "
+                         "not both")
+    return (params or PFSDMParams.from_options(options)).options()
 
 
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
@@ -222,14 +237,9 @@ def _reason(exc: BaseException) -> str:
 
 
 def resolved_options(**options: Any) -> dict[str, Any]:
-    """The options a :func:`pfsdm` call would use, with the rings' radii and weights."""
-    opts = {**DEFAULTS, **options}
-    r = ring_radii(opts["n_radii"], opts["radii"])
-    opts["radii"] = r.tolist()
-    opts["n_radii"] = len(r)
-    opts["weights"] = ring_weights(r, opts["ring_weighting"]).tolist()
-    opts["mode_weights"] = mode_weights(opts["n_fourier"], opts["mode_exponent"]).tolist()
-    return opts
+    """The options a :func:`pfsdm` call would use, with the rings' radii and weights: the
+    record a table carries (:meth:`PFSDMParams.record`)."""
+    return PFSDMParams.from_options(options).record()
 
 
 def table_from_objects(objects, *, with_intensity: bool = False, **options: Any) -> pd.DataFrame:
@@ -395,6 +405,7 @@ def measure(
     intensity=None,
     *,
     progress: Callable[[int, int | None], None] | None = None,
+    params: PFSDMParams | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table: one row per (frame, label).
@@ -407,6 +418,8 @@ def measure(
         Reporter image; adds ``intensity_rXX_nYY`` columns.
     progress : callable(done, total), optional
         Called after every object; ``total`` is None for lazy (non-numpy) inputs.
+    params : PFSDMParams, optional
+        The method's options as one record (or give them as keywords).
     **options
         Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm` (``n_fourier``, ``mapping``, ...).
 
@@ -432,6 +445,7 @@ def measure(
     >>> len(table), list(table.columns[:3])
     (6, ['frame', 'label', 'area'])
     """
+    options = _checked(params, options)  # before counting: a bad option fails at once
     counted = progress is not None and isinstance(labels, np.ndarray)
     total = count_objects(labels) if counted else None
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..core.params import PFSDMParams
 from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
 from .io import Movie, check_labels, open_movie
 
@@ -423,6 +424,7 @@ def run_batch(
         raise ValueError(f"cannot write {output}: the folder {out_dir} does not exist")
     if not os.access(out_dir, os.W_OK):
         raise ValueError(f"cannot write {output}: the folder {out_dir} is not writable")
+    PFSDMParams.from_options(options)  # a bad option fails here, before any movie is read
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
     suffix = ".parquet" if _have_parquet() else ".csv"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -12,23 +12,16 @@ from scipy import ndimage as ndi
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
+from .params import PFSDMParams
 from .pushforward import BijectiveMap, FourierMap, display_turn, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
 __all__ = ["PFSDMResult", "pfsdm", "render_disk", "DEFAULTS"]
 
-#: Default options of :func:`pfsdm`, chosen by ``benchmarks/synthetic.py`` (see README).
+#: Default options of :func:`pfsdm` (those of :class:`~napari_pfsdm.core.params.PFSDMParams`,
+#: chosen by ``benchmarks/synthetic.py``, see README), without ``components`` and ``min_area``.
 DEFAULTS: dict[str, Any] = {
-    "n_fourier": 10,
-    "n_radii": 16,
-    "n_angles": 64,
-    "sdf": "exact",
-    "viscosity": 0.05,
-    "mapping": "harmonic",
-    "normalization": "none",
-    "radii": "uniform",
-    "ring_weighting": "depth",
-    "mode_exponent": 0.25,
+    k: v for k, v in asdict(PFSDMParams()).items() if k not in ("components", "min_area")
 }
 
 

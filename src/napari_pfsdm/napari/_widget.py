@@ -94,16 +94,17 @@ class AnalysisWidget(QWidget):
         self._showing = False
 
         from ..core.descriptor import DEFAULTS
+        from ..core.params import CHOICES
 
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.image_combo = QComboBox(toolTip=TIPS["image"])
         self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(DEFAULTS["n_fourier"]),
                                   toolTip=TIPS["n_fourier"])
         self.mapping = QComboBox(toolTip=TIPS["mapping"])
-        self.mapping.addItems(["harmonic", "bijective", "radial"])
+        self.mapping.addItems(list(CHOICES["mapping"]))
         self.mapping.setCurrentText(DEFAULTS["mapping"])
         self.sdf = QComboBox(toolTip=TIPS["sdf"])
-        self.sdf.addItems(["exact", "viscous"])
+        self.sdf.addItems(list(CHOICES["sdf"]))
         self.sdf.setCurrentText(DEFAULTS["sdf"])
         self.viscosity = QDoubleSpinBox(minimum=0.005, maximum=0.5, singleStep=0.01, decimals=3,
                                         value=float(DEFAULTS["viscosity"]),
