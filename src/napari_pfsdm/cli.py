@@ -292,7 +292,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     opts = dict(table.attrs.get("pfsdm", {}))
     opts["intensity_weight"] = args.intensity_weight
     with _Step(f"writing {out}", args.quiet):
-        write_table_csv(dist, out, opts, index=True, kind="distances",
+        write_table_csv(dist, out, opts, index=True, table_type="distances",
                         extra={"features": str(args.features),
                                "left_out": left.to_dict("records")})
     _say(f"wrote {out}: {n} x {n} PF-SDM distances", args.quiet)
@@ -334,7 +334,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
             scores = s if scores is None else pd.concat(
                 [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
     opts = dict(table.attrs.get("pfsdm", {}))
-    write_table_csv(scores, out, opts, kind="pca", extra={
+    write_table_csv(scores, out, opts, table_type="pca", extra={
         "features": str(args.features),
         "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
         "left_out": left.to_dict("records")})
@@ -472,7 +472,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
              "'nested' is the honest estimate", args.quiet)
     if args.output:
         out = summary.reset_index().rename(columns={"index": "features"})
-        write_table_csv(out, args.output, {}, kind="classification", extra={
+        write_table_csv(out, args.output, {}, table_type="classification", extra={
             "features": str(args.features), "frames": frames, "positive": positive,
             "splits": len(splits), "objects_left_out": dropped,
             "left_out": left.to_dict("records")})

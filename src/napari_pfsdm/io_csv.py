@@ -184,7 +184,7 @@ def write_table_csv(
     options: Mapping[str, Any] | None = None,
     *,
     index: bool = False,
-    kind: str = "table",
+    table_type: str = "table",
     extra: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write a table as plain CSV plus its JSON sidecar (``path + ".json"``).
@@ -201,7 +201,7 @@ def write_table_csv(
         numpy arrays and scalars are stored as JSON lists and numbers.
     index : bool
         Also write the index (e.g. for a distance matrix). Default False.
-    kind : str
+    table_type : str
         What the table is (``"features"``, ``"pca"``, ``"distances"``, ...), for the sidecar.
     extra : mapping, optional
         More sidecar entries, e.g. ``{"left_out": [...]}`` for rows that were left out.
@@ -226,7 +226,7 @@ def write_table_csv(
         options = df.attrs.get("pfsdm") or {}
     side = {
         "written_by": _version(),
-        "table": kind,
+        "table": table_type,
         "csv": Path(path).name,
         "rows": len(df),
         "options": _to_jsonable(dict(options)),

@@ -142,18 +142,18 @@ def format_frames(frames: Iterable[int]) -> str:
 
 def feature_matrix(
     table: pd.DataFrame,
-    kind: str,
+    channel: str,
     frames: Sequence[int] | str | None = None,
     object_col: str = "object",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per-object vectors: the ``{kind}_*`` features of the chosen frames, concatenated.
+    """Per-object vectors: the ``{channel}_*`` features of the chosen frames, concatenated.
 
     Parameters
     ----------
     table : DataFrame
-        A feature table with columns ``frame``, ``object_col`` and ``{kind}_...`` (e.g. from
+        A feature table with columns ``frame``, ``object_col`` and ``{channel}_...`` (e.g. from
         :func:`napari_pfsdm.measure`, with an object column added per movie).
-    kind : str
+    channel : str
         Column prefix: ``"shape"`` or ``"intensity"``.
     frames : sequence of int or str, optional
         Frames to concatenate (default: all frames in the table).
@@ -170,10 +170,10 @@ def feature_matrix(
     for col in ("frame", object_col):
         if col not in table.columns:
             raise ValueError(f"the table has no {col!r} column; it is needed to build vectors.")
-    cols = [c for c in table.columns if c.startswith(f"{kind}_")]
+    cols = [c for c in table.columns if c.startswith(f"{channel}_")]
     if not cols:
         raise ValueError(
-            f"the table has no '{kind}_*' columns; for intensity features, measure with an "
+            f"the table has no '{channel}_*' columns; for intensity features, measure with an "
             "intensity image."
         )
     all_frames = sorted(table["frame"].unique())

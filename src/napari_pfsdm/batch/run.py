@@ -498,5 +498,5 @@ def run_batch(
             "(labels), or pass --allow-empty to write an empty table"
         )
     result.attrs["pfsdm"] = attrs
-    write_table_csv(result, output, attrs, kind="features")
+    write_table_csv(result, output, attrs, table_type="features")
     return result

@@ -9,7 +9,8 @@ arrays are ready to be handed to napari layers: the GUI thread only adds layers.
 from __future__ import annotations
 
 from collections.abc import Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -190,28 +191,39 @@ def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
     return r0, c0, values.reshape(r1 - r0, c1 - c0).astype(np.float32)
 
 
-def pca_scores(table: pd.DataFrame, kind: str = "shape", n_components: int = 5) -> pd.DataFrame:
+def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5) -> pd.DataFrame:
     """The widget's PCA: :func:`napari_pfsdm.analysis.reduction.pca_scores` (the command line's
     too), with the plot's column names ``frame``, ``label``, ``PC1``… and
     ``attrs["explained_variance_ratio"]``; no PC columns with fewer than two measured rows."""
     empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
     empty.attrs["explained_variance_ratio"] = []
-    if not has_channel(table.columns, kind):
+    if not has_channel(table.columns, channel):
         return empty
     try:
-        scores, ratios = _pca(table, kind, n_components)
+        scores, ratios = _pca(table, channel, n_components)
     except ValueError:  # fewer than two measured rows
         return empty
     out = scores[["frame", "label"]].copy()
     for col in scores.columns:
-        if col.startswith(f"{kind}_PC"):
-            out[col[len(kind) + 1:]] = scores[col].to_numpy()
+        if col.startswith(f"{channel}_PC"):
+            out[col[len(channel) + 1:]] = scores[col].to_numpy()
     out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
     return out
 
 
 #: The widget's MDS is the package's one MDS.
 classical_mds = mds_coordinates
+
+
+def _rows_only(obj):
+    """The object with only what its table row needs (embeddings, diagnostics): the full
+    result (SDF, map, skeleton, disks) of every object is not kept for the whole run."""
+    res = obj.result
+    if res is None:
+        return obj
+    light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
+                            intensity_embedding=res.intensity_embedding)
+    return replace(obj, result=light)
 
 
 def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:
@@ -267,7 +279,7 @@ def run_analysis(
     collected = []
     done = 0
     for obj in iter_objects(labels, intensity, **options):
-        collected.append(obj)
+        collected.append(_rows_only(obj))  # the table needs rows, not the whole results
         frame, label = int(obj.frame), int(obj.label)
         res = obj.result
         if res is not None and not obj.error:

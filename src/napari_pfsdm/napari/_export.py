@@ -23,10 +23,11 @@ from ._compute import AnalysisOutput
 MAX_DISTANCE_ROWS = 3000
 
 
-def write_csv(table: pd.DataFrame, path, options: dict | None = None, *, kind: str = "table",
+def write_csv(table: pd.DataFrame, path, options: dict | None = None, *,
+              table_type: str = "table",
               extra: dict | None = None) -> Path:
     """Write ``table`` atomically as plain CSV, ``options`` in its ``.csv.json`` sidecar."""
-    return write_table_csv(table, Path(path), options, kind=kind, extra=extra)
+    return write_table_csv(table, Path(path), options, table_type=table_type, extra=extra)
 
 
 def read_csv(path) -> pd.DataFrame:
@@ -57,7 +58,8 @@ def distance_table(
 
 
 def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
-    """Write ``<prefix>_features.csv``, ``<prefix>_pca_<kind>.csv``, ``<prefix>_distances.csv``."""
+    """Write ``<prefix>_features.csv``, ``<prefix>_pca_<channel>.csv`` and
+    ``<prefix>_distances.csv``, each with its ``.csv.json`` sidecar."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     names = [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in output.pca),
@@ -67,11 +69,12 @@ def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
     dist, left_out = distance_table(output)  # may refuse (too many objects): nothing written
     left = {"left_out": left_out.to_dict("records")}
     opts = dict(output.options)
-    written = [write_csv(output.table, folder / names[0], opts, kind="features")]
-    for kind, scores in output.pca.items():
+    written = [write_csv(output.table, folder / names[0], opts, table_type="features")]
+    for channel, scores in output.pca.items():
         ratios = scores.attrs.get("explained_variance_ratio", [])
-        h = dict(opts, pca_features=kind, explained_variance_ratio=list(ratios))
-        written.append(write_csv(scores, folder / f"{prefix}_pca_{kind}.csv", h, kind="pca"))
-    written.append(write_table_csv(dist, folder / names[-1], opts, index=True, kind="distances",
-                                   extra=left))
+        h = dict(opts, pca_features=channel, explained_variance_ratio=list(ratios))
+        written.append(write_csv(scores, folder / f"{prefix}_pca_{channel}.csv", h,
+                                 table_type="pca"))
+    written.append(write_table_csv(dist, folder / names[-1], opts, index=True,
+                                   table_type="distances", extra=left))
     return written

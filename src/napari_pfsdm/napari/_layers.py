@@ -51,10 +51,10 @@ def go_to(viewer, labels_layer, output: AnalysisOutput, frame: int, label: int) 
     if ax is not None:
         viewer.dims.set_point(ax, labels_layer.translate[0] + frame * labels_layer.scale[0])
     labels_layer.selected_label = int(label)
-    _show_object(viewer, output, label)
+    show_object(viewer, output, label)
 
 
-def _show_object(viewer, output: AnalysisOutput, label: int) -> None:
+def show_object(viewer, output: AnalysisOutput, label: int) -> None:
     idx = output.object_index(label)
     if idx is not None and viewer.dims.ndim > (3 if output.time_lapse else 2):
         viewer.dims.set_point(0, idx)
@@ -172,7 +172,7 @@ def show_results_steps(viewer, labels_layer, output: AnalysisOutput) -> list:
     def select():
         _name_axes(viewer, labels_layer)
         labels_layer.selected_label = label
-        _show_object(viewer, output, label)
+        show_object(viewer, output, label)
         viewer.layers.selection.active = labels_layer
 
     return [features, disk, disk_skeleton, intensity_disk, skeleton, sdf, select]

@@ -289,11 +289,11 @@ class TrajectoryPlotWidget(_LinkedPlot):
         if output is None:
             self.info.setText("Run the PF-SDM analysis to fill this plot.")
             return
-        kind = self.view.currentText()
-        scores = output.pca.get(kind)
+        channel = self.view.currentText()
+        scores = output.pca.get(channel)
         if scores is None or "PC1" not in scores:
-            raise ValueError(f"No {kind} features: analyse with an intensity image first."
-                             if kind == "intensity" else "Not enough objects for a PCA.")
+            raise ValueError(f"No {channel} features: analyse with an intensity image first."
+                             if channel == "intensity" else "Not enough objects for a PCA.")
         n_pc = sum(c.startswith("PC") for c in scores.columns)
         i, j = min(self.pc_x.value(), n_pc), min(self.pc_y.value(), n_pc)
         ratios = scores.attrs.get("explained_variance_ratio", [])
@@ -334,7 +334,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
                 cb.ax.tick_params(colors=c["fg"], labelsize=7)
         ax.set_xlabel(f"PC{i}" + _percent(ratios, i))
         ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
-        ax.set_title(f"{kind} trajectories", fontsize=9)
+        ax.set_title(f"{channel} trajectories", fontsize=9)
         self._points = np.column_stack([x, y])
         self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
         self._axes_points = ax

@@ -386,7 +386,7 @@ class AnalysisWidget(QWidget):
             return
         self._syncing = True
         try:
-            _layers._show_object(self.viewer, output, labels.selected_label)
+            _layers.show_object(self.viewer, output, labels.selected_label)
             _layers.update_sdf(self.viewer, labels, output, labels.selected_label)
         finally:
             self._syncing = False
