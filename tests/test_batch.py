@@ -16,6 +16,7 @@ import napari_pfsdm
 from napari_pfsdm.analysis import features as features_module
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch.io import check_labels
+from napari_pfsdm.core.params import as_params
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
@@ -34,7 +35,7 @@ def make_movie(n_frames: int = 4, shape=(64, 80)) -> tuple[np.ndarray, np.ndarra
     return labels, intensity.astype(np.float32)
 
 
-def fake_measure(labels, intensity=None, *, progress=None, **options):
+def fake_measure(labels, intensity=None, *, progress=None, params=None, **options):
     """Stand-in for the core: frame, label, area, mean intensity (monkeypatched only)."""
     labels = np.asarray(labels)
     if labels.ndim == 2:
@@ -48,7 +49,8 @@ def fake_measure(labels, intensity=None, *, progress=None, **options):
                          "mean": float(np.asarray(intensity[t])[m].mean())
                          if intensity is not None else np.nan, "error": ""})
     df = pd.DataFrame(rows)
-    df.attrs["pfsdm"] = {**options, "radii": np.array([0.25, 0.75])}
+    record = as_params(params, options).record()  # as the real measure records its options
+    df.attrs["pfsdm"] = {**record, "radii": np.array([0.25, 0.75])}
     return df
 
 

@@ -222,8 +222,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
                         "-o features.csv")
     from .core.params import PFSDMParams
 
-    options = _measure_options(args)
-    PFSDMParams.from_options(options)  # a bad option fails first, before any file is opened
+    params = PFSDMParams.from_options(_measure_options(args))  # fails before any file opens
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
     out = _check_output(args.output, force=args.force,
@@ -239,7 +238,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         progress=_progress_printer(args.quiet),
         log=lambda m: _say("  " + m, args.quiet),
         allow_empty=args.allow_empty,
-        **options,
+        params=params,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "

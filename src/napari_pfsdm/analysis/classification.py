@@ -34,6 +34,8 @@ from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
+from ..core.params import PFSDMParams, as_params
+
 __all__ = [
     "ALPHAS",
     "FEATURE_SETS",
@@ -431,6 +433,7 @@ def measure_movies(
     labels: np.ndarray,
     intensity: np.ndarray | None = None,
     frames: Sequence[int] | str | None = None,
+    params: PFSDMParams | None = None,
     **options,
 ) -> pd.DataFrame:
     """:func:`napari_pfsdm.measure` over one-object movies, with an ``object`` column.
@@ -461,10 +464,11 @@ def measure_movies(
             f"intensity has shape {intensity.shape} but labels {labels.shape}; they must match."
         )
     sel = parse_frames(frames, labels.shape[1])
+    p = as_params(params, options)
     tables = []
     for i in range(labels.shape[0]):
         tab = measure(
-            labels[i][sel], None if intensity is None else intensity[i][sel], **options
+            labels[i][sel], None if intensity is None else intensity[i][sel], params=p
         )
         tab["frame"] = np.asarray(sel)[tab["frame"].to_numpy()]
         tab.insert(0, "object", i)

@@ -14,7 +14,7 @@ import pandas as pd
 from scipy import ndimage as ndi
 
 from ..core.descriptor import PFSDMResult, pfsdm
-from ..core.params import PFSDMParams
+from ..core.params import PFSDMParams, as_params
 from ..core.table_schema import BASE_COLUMNS, feature_columns
 from .tables import failed_rows
 
@@ -157,18 +157,9 @@ def iter_objects(
         While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
     n_frames, timelapse = _validate(labels, intensity)
-    options = _checked(params, options)
+    p = as_params(params, options)  # a bad option fails here, before any work
     with _one_blas_thread():
-        yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, options)
-
-
-def _checked(params: PFSDMParams | None, options: dict[str, Any]) -> dict[str, Any]:
-    """The keyword options of :func:`pfsdm`, validated by :class:`PFSDMParams` before any
-    work (an unknown name or a bad value fails at once, in plain words)."""
-    if params is not None and options:
-        raise ValueError("give the options either as params=PFSDMParams(...) or as keywords, "
-                         "not both")
-    return (params or PFSDMParams.from_options(options)).options()
+        yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, p.options())
 
 
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
@@ -242,11 +233,13 @@ def resolved_options(**options: Any) -> dict[str, Any]:
     return PFSDMParams.from_options(options).record()
 
 
-def table_from_objects(objects, *, with_intensity: bool = False, **options: Any) -> pd.DataFrame:
+def table_from_objects(
+    objects, *, with_intensity: bool = False, params: PFSDMParams | None = None, **options: Any
+) -> pd.DataFrame:
     """The feature table of :func:`measure` from objects computed by :func:`iter_objects` with
-    the same ``options`` (one row per object, in the given order). ``objects`` may be a
-    generator: only the rows are kept, not the results."""
-    opts = resolved_options(**options)
+    the same options (``params`` or keywords; one row per object, in the given order).
+    ``objects`` may be a generator: only the rows are kept, not the results."""
+    opts = as_params(params, options).record()
     shape_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
     int_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "intensity") \
         if with_intensity else []
@@ -445,14 +438,14 @@ def measure(
     >>> len(table), list(table.columns[:3])
     (6, ['frame', 'label', 'area'])
     """
-    options = _checked(params, options)  # before counting: a bad option fails at once
+    p = as_params(params, options)  # before counting: a bad option fails at once
     counted = progress is not None and isinstance(labels, np.ndarray)
     total = count_objects(labels) if counted else None
 
     def reporting():
-        for done, obj in enumerate(iter_objects(labels, intensity, **options), start=1):
+        for done, obj in enumerate(iter_objects(labels, intensity, params=p), start=1):
             yield obj  # consumed row by row: no result is kept
             if progress is not None:
                 progress(done, total)
 
-    return table_from_objects(reporting(), with_intensity=intensity is not None, **options)
+    return table_from_objects(reporting(), with_intensity=intensity is not None, params=p)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..core.params import PFSDMParams
+from ..core.params import PFSDMParams, as_params
 from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
 from .io import Movie, check_labels, open_movie
 
@@ -60,14 +60,14 @@ class _Slice:
 
 
 def _measure_chunk(
-    labels: _Slice, intensity: _Slice | None, start: int, options: dict
+    labels: _Slice, intensity: _Slice | None, start: int, params: PFSDMParams
 ) -> pd.DataFrame:
     """Worker task: read frames, measure them, shift ``frame`` to the movie's numbering."""
     from ..analysis.features import measure
 
     lab = labels.load()
     img = intensity.load() if intensity is not None else None
-    table = measure(lab, img, **options)
+    table = measure(lab, img, params=params)
     table = table.copy()
     table["frame"] = table["frame"].astype(np.int64) + int(start)
     return table
@@ -168,6 +168,7 @@ def measure_dask(
     frames_per_task: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     pool: Any = None,
+    params: PFSDMParams | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, frames computed in parallel with dask.
@@ -197,8 +198,10 @@ def measure_dask(
     pool : concurrent.futures.Executor, optional
         Re-use this process pool for the ``"processes"`` scheduler (saves start-up time when
         measuring many movies).
+    params : PFSDMParams, optional
+        The method's options as one record (it travels to the workers as it is).
     **options
-        Passed to :func:`napari_pfsdm.measure` (``n_fourier``, ``mapping``, ``sdf``, ...).
+        Or the options as keywords (``n_fourier``, ``mapping``, ``sdf``, ...).
 
     Returns
     -------
@@ -206,6 +209,7 @@ def measure_dask(
         One row per (frame, label), ``frame`` numbered from 0 over the whole movie;
         ``attrs["pfsdm"]`` holds the options.
     """
+    p = as_params(params, options)
     check_labels(labels, intensity)
     kind, obj = resolve_scheduler(scheduler, client)
     if labels.ndim == 2:  # one image: frame 0 of a one-frame movie
@@ -223,7 +227,7 @@ def measure_dask(
                 _Slice(labels, s, e),
                 _Slice(intensity, s, e) if intensity is not None else None,
                 s,
-                options,
+                p,
             )
             for s, e in spans
         ]
@@ -329,7 +333,7 @@ def _have_parquet() -> bool:
     return True
 
 
-def _part_name(movie: Movie, options: dict) -> str:
+def _part_name(movie: Movie, params: PFSDMParams) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs and options."""
     def stamp(p: Path | None) -> Any:
         if p is None:
@@ -338,7 +342,8 @@ def _part_name(movie: Movie, options: dict) -> str:
         return [str(p), os.path.getmtime(p)]
 
     key = json.dumps(
-        [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(options)], sort_keys=True
+        [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())],
+        sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
     safe = re.sub(r"[^\w.\-]+", "_", movie.name)[:80]
@@ -388,6 +393,7 @@ def run_batch(
     progress: Callable[[str, int, int], None] | None = None,
     log: Callable[[str], None] | None = None,
     allow_empty: bool = True,
+    params: PFSDMParams | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -410,8 +416,10 @@ def run_batch(
     allow_empty : bool
         When False, labels without any object raise ``ValueError`` and no table is written
         (all-background labels are usually the wrong file).
+    params : PFSDMParams, optional
+        The method's options as one record.
     **options
-        Passed to :func:`napari_pfsdm.measure`.
+        Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
     Returns
     -------
@@ -424,7 +432,7 @@ def run_batch(
         raise ValueError(f"cannot write {output}: the folder {out_dir} does not exist")
     if not os.access(out_dir, os.W_OK):
         raise ValueError(f"cannot write {output}: the folder {out_dir} is not writable")
-    PFSDMParams.from_options(options)  # a bad option fails here, before any movie is read
+    p = as_params(params, options)  # a bad option fails here, before any movie is read
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
     suffix = ".parquet" if _have_parquet() else ".csv"
@@ -456,7 +464,7 @@ def run_batch(
     attrs: dict = {}
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
-            part = parts / (_part_name(m, options) + suffix)
+            part = parts / (_part_name(m, p) + suffix)
             side = part.with_suffix(".json")
             if part.exists():
                 say(f"skipped {m.name} (already measured: {part.name})")
@@ -473,7 +481,7 @@ def run_batch(
                     client=cl if kind != "local" else None,
                     scheduler=obj if kind == "local" else None,
                     num_workers=num_workers, frames_per_task=frames_per_task,
-                    progress=_prog, pool=pool, **options,
+                    progress=_prog, pool=pool, params=p,
                 )
                 attrs = _to_jsonable(table.attrs.get("pfsdm") or attrs)
                 table = table.copy()
@@ -489,7 +497,7 @@ def run_batch(
         t.attrs = {}
     result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
     if not attrs:
-        attrs = dict(options)
+        attrs = p.record()
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
         raise ValueError(

@@ -26,7 +26,7 @@ from .morphometric import (
 from .pushforward import MAPPINGS
 from .sdf import SDF_KINDS
 
-__all__ = ["CHOICES", "PFSDMParams"]
+__all__ = ["CHOICES", "PFSDMParams", "as_params"]
 
 #: Allowed values of the options that are a choice.
 CHOICES: dict[str, tuple[str, ...]] = {
@@ -139,3 +139,15 @@ class PFSDMParams:
         out["weights"] = ring_weights(r, self.ring_weighting).tolist()
         out["mode_weights"] = mode_weights(self.n_fourier, self.mode_exponent).tolist()
         return out
+
+
+def as_params(params: PFSDMParams | None = None, options: dict[str, Any] | None = None
+              ) -> PFSDMParams:
+    """The one record of a call's options, given as ``params=`` or as keyword ``options``
+    (validated); both at once is refused rather than merged silently."""
+    if params is not None and options:
+        raise ValueError("give the options either as params=PFSDMParams(...) or as keywords, "
+                         "not both")
+    if params is not None and not isinstance(params, PFSDMParams):
+        raise TypeError(f"params must be a PFSDMParams, got {type(params).__name__}")
+    return params if params is not None else PFSDMParams.from_options(options)

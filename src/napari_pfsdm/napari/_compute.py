@@ -17,6 +17,7 @@ import pandas as pd
 
 from ..analysis.reduction import mds_coordinates
 from ..analysis.reduction import pca_scores as _pca
+from ..core.params import PFSDMParams
 from ..core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
 from ..core.table_schema import has_channel
 
@@ -226,13 +227,6 @@ def _rows_only(obj):
     return replace(obj, result=light)
 
 
-def table_from_objects(objects: list, options: dict, with_intensity: bool) -> pd.DataFrame:
-    """The feature table of :func:`napari_pfsdm.measure` from already computed objects."""
-    from ..analysis.features import table_from_objects as build
-
-    return build(objects, with_intensity=with_intensity, **options)
-
-
 def disk_size_for(n_slots: int, largest: int = DISK_SIZE) -> int:
     """Disk side so that ``n_slots`` (object × frame) disks stay within the pixel budget."""
     side = int(np.sqrt(DISK_PIXEL_BUDGET / max(n_slots, 1)))
@@ -242,18 +236,21 @@ def disk_size_for(n_slots: int, largest: int = DISK_SIZE) -> int:
 def run_analysis(
     labels,
     intensity=None,
-    options: dict | None = None,
+    options: PFSDMParams | dict | None = None,
     disk_size: int | None = None,
 ) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
     """Analyse every (frame, label) object; a generator for worker threads.
 
-    Yields ``(done, total, frame, label)`` after each object; returns an :class:`AnalysisOutput`.
-    Closing the generator (or the worker stopping at a yield) stops the work and keeps nothing.
+    ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
+    as a dict of keywords). Yields ``(done, total, frame, label)`` after each object; returns an
+    :class:`AnalysisOutput`. Closing the generator (or the worker stopping at a yield) stops the
+    work and keeps nothing.
     """
-    from ..analysis.features import iter_objects
+    from ..analysis.features import iter_objects, table_from_objects
     from ..core.descriptor import render_disk
 
-    options = dict(options or {})
+    params = (options if isinstance(options, PFSDMParams)
+              else PFSDMParams.from_options(dict(options or {})))
     validate_layers_data(labels, intensity)
     time_lapse = labels.ndim == 3
     n_frames = labels.shape[0] if time_lapse else 1
@@ -267,7 +264,7 @@ def run_analysis(
     n_obj = len(object_labels)
     if disk_size is None:
         # rendering evaluates the SDF at ~size²/2 points: cheaper disks for the costly options
-        costly = options.get("sdf") == "viscous" or options.get("mapping") == "bijective"
+        costly = params.sdf == "viscous" or params.mapping == "bijective"
         disk_size = disk_size_for(n_obj * n_frames, largest=64 if costly else DISK_SIZE)
     disk = np.full((n_obj, n_frames, disk_size, disk_size), np.nan, dtype=np.float32)
     idisk = disk.copy() if intensity is not None else None
@@ -278,7 +275,7 @@ def run_analysis(
     skeleton_errors: dict = {}
     collected = []
     done = 0
-    for obj in iter_objects(labels, intensity, **options):
+    for obj in iter_objects(labels, intensity, params=params):
         collected.append(_rows_only(obj))  # the table needs rows, not the whole results
         frame, label = int(obj.frame), int(obj.label)
         res = obj.result
@@ -298,11 +295,11 @@ def run_analysis(
             patches[(frame, label)] = sdf_patch(res, obj.bbox, frame_shape)
         done += 1
         yield done, total, frame, label
-    table = table_from_objects(collected, options, with_intensity=intensity is not None)
+    table = table_from_objects(collected, with_intensity=intensity is not None, params=params)
     pca = {"shape": pca_scores(table, "shape")}
     if intensity is not None:
         pca["intensity"] = pca_scores(table, "intensity")
-    opts = dict(table.attrs.get("pfsdm", options))
+    opts = dict(table.attrs.get("pfsdm") or params.record())
     if not time_lapse:
         disk, dskel, skel = disk[:, 0], dskel[:, 0], skel[0]
         idisk = idisk[:, 0] if idisk is not None else None

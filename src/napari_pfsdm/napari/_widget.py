@@ -25,6 +25,7 @@ from qtpy.QtWidgets import (
 
 import napari
 
+from ..core.params import PFSDMParams
 from . import _layers
 from ._compute import AnalysisOutput, run_analysis, validate_layers_data
 from ._export import export_results
@@ -209,13 +210,13 @@ class AnalysisWidget(QWidget):
             return None
         return self.viewer.layers[name]
 
-    def options(self) -> dict:
-        """The method options chosen in the widget (keyword arguments of ``iter_objects``)."""
+    def options(self) -> PFSDMParams:
+        """The method options chosen in the widget, as the core's one record of them."""
         opts = {"n_fourier": self.n_fourier.value(), "mapping": self.mapping.currentText(),
                 "sdf": self.sdf.currentText()}
         if opts["sdf"] == "viscous":
             opts["viscosity"] = self.viscosity.value()
-        return opts
+        return PFSDMParams.from_options(opts)
 
     def _on_sdf_changed(self, text: str) -> None:
         self.viscosity.setEnabled(text == "viscous")
