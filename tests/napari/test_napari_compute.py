@@ -178,3 +178,22 @@ def test_cli_and_widget_give_the_same_pca_mds_and_distance_table(tmp_path):
     pd.testing.assert_frame_equal(d_cli, d_widget)
     np.testing.assert_array_equal(classical_mds(d_widget.to_numpy()),
                                   mds_coordinates(d_cli.to_numpy()))
+
+
+def test_each_viewer_has_its_own_result_store():
+    import weakref
+
+    from napari.components import ViewerModel
+    from napari.layers import Labels
+
+    from napari_pfsdm.napari._store import _STORES, store_for
+
+    a, b = ViewerModel(), ViewerModel()
+    assert store_for(a) is store_for(a) and store_for(a) is not store_for(b)
+    layer = Labels(np.zeros((8, 8), np.uint8))
+    heard = []
+    store_for(b).results_changed.connect(heard.append)
+    store_for(a).set(layer, "output of a")
+    assert store_for(a).get(layer) == "output of a" and store_for(b).get(layer) is None
+    assert heard == []  # b's plots are not told about a's results
+    assert isinstance(_STORES, weakref.WeakKeyDictionary)  # kept only while the viewer lives

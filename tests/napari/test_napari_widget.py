@@ -11,7 +11,7 @@ import pytest
 from napari_helpers import RUN_TIMEOUT_MS, many_objects, run_and_wait
 
 from napari_pfsdm.napari import _layers
-from napari_pfsdm.napari._store import STORE
+from napari_pfsdm.napari._store import store_for
 
 pytestmark = pytest.mark.gui
 
@@ -116,7 +116,7 @@ def test_cancel_stops_within_a_second_and_keeps_nothing(make_napari_viewer, qtbo
     assert blocker.args == ["cancelled"]
     assert elapsed < 1.0, f"cancel took {elapsed:.2f} s"
     assert [layer.name for layer in viewer.layers] == ["many"]
-    assert STORE.get(labels_layer) is None
+    assert store_for(viewer).get(labels_layer) is None
     assert len(labels_layer.features) == 0
     assert widget.run_button.isEnabled()
 

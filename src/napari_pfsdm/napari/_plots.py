@@ -29,7 +29,7 @@ import napari
 from ..analysis.reduction import read_groups
 from . import _layers
 from ._compute import classical_mds
-from ._store import STORE
+from ._store import store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
@@ -80,7 +80,8 @@ class _LinkedPlot(QWidget):
         self._axes_points = None
         self.canvas.mpl_connect("button_press_event", self._on_click)
         self.layer_combo.currentIndexChanged.connect(self._on_layer_choice)
-        STORE.results_changed.connect(self._on_results)
+        self._store = store_for(napari_viewer)
+        self._store.results_changed.connect(self._on_results)
         for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed):
             event.connect(self._refresh_layers)
         napari_viewer.dims.events.current_step.connect(self._on_step)
@@ -93,14 +94,14 @@ class _LinkedPlot(QWidget):
 
     def _disconnect(self, *args) -> None:
         try:
-            STORE.results_changed.disconnect(self._on_results)
+            self._store.results_changed.disconnect(self._on_results)
         except (TypeError, ValueError, RuntimeError):
             pass
 
     # --------------------------------------------------------------- layers
     def _analysed(self) -> list[Labels]:
         return [lay for lay in self.viewer.layers
-                if isinstance(lay, Labels) and STORE.get(lay) is not None]
+                if isinstance(lay, Labels) and self._store.get(lay) is not None]
 
     def _refresh_layers(self, event=None) -> None:
         names = [lay.name for lay in self._analysed()]
@@ -143,7 +144,7 @@ class _LinkedPlot(QWidget):
 
     @property
     def output(self):
-        return STORE.get(self._layer)
+        return self._store.get(self._layer)
 
     # ------------------------------------------------------------- linking
     def current(self) -> tuple[int, int]:

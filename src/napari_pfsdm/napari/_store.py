@@ -1,8 +1,10 @@
-"""Where the widgets find the last analysis of a Labels layer.
+"""Where the widgets of one viewer find the last analysis of a Labels layer.
 
 The feature table also goes into ``labels_layer.features`` (for napari's own table and other
-plugins); the full :class:`AnalysisOutput` (SDF patches, PCA, options) is kept here, keyed weakly
-by the layer, and ``results_changed`` tells the plot widgets to redraw.
+plugins); the full :class:`AnalysisOutput` (SDF patches, PCA, options) is kept in the viewer's
+:class:`ResultStore`, keyed weakly by the layer, and ``results_changed`` tells that viewer's
+plot widgets to redraw. Each viewer has its own store (:func:`store_for`), kept only as long as
+the viewer lives: two viewers never see each other's results or signals.
 """
 
 from __future__ import annotations
@@ -13,8 +15,12 @@ from psygnal import Signal
 
 from ._compute import AnalysisOutput
 
+__all__ = ["ResultStore", "store_for"]
 
-class _Store:
+
+class ResultStore:
+    """The analyses of one viewer's Labels layers."""
+
     results_changed = Signal(object)  # the Labels layer whose results changed
 
     def __init__(self) -> None:
@@ -33,4 +39,12 @@ class _Store:
         return self._outputs.get(layer)
 
 
-STORE = _Store()
+_STORES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def store_for(viewer) -> ResultStore:
+    """The :class:`ResultStore` of ``viewer`` (made on first use, gone with the viewer)."""
+    store = _STORES.get(viewer)
+    if store is None:
+        store = _STORES[viewer] = ResultStore()
+    return store

@@ -29,7 +29,7 @@ from ..core.params import PFSDMParams
 from . import _layers
 from ._compute import AnalysisOutput, run_analysis, validate_layers_data
 from ._export import export_results
-from ._store import STORE
+from ._store import store_for
 
 NONE = "(none)"
 
@@ -319,7 +319,7 @@ class AnalysisWidget(QWidget):
 
     def _results_shown(self, labels: Labels, output: AnalysisOutput) -> None:
         self.last_output = output
-        STORE.set(labels, output)
+        store_for(self.viewer).set(labels, output)
         self._link(labels)
         from ..analysis.features import warnings_summary
 
@@ -366,7 +366,7 @@ class AnalysisWidget(QWidget):
     # ---------------------------------------------------------------- linking
     def _link_selected_layer(self, *args) -> None:
         layer = self.labels_layer
-        if layer is not None and STORE.get(layer) is not None:
+        if layer is not None and store_for(self.viewer).get(layer) is not None:
             self._link(layer)
 
     def _link(self, labels: Labels) -> None:
@@ -382,7 +382,7 @@ class AnalysisWidget(QWidget):
 
     def _on_selected_label(self, event=None) -> None:
         labels = self._linked_layer
-        output = STORE.get(labels)
+        output = store_for(self.viewer).get(labels)
         if output is None or self._syncing:
             return
         self._syncing = True
@@ -394,7 +394,7 @@ class AnalysisWidget(QWidget):
 
     def _on_step(self, event=None) -> None:
         labels = self._linked_layer
-        output = STORE.get(labels)
+        output = store_for(self.viewer).get(labels)
         if output is None or self._syncing or labels not in self.viewer.layers:
             return
         if self.viewer.dims.ndim <= labels.ndim or len(output.object_labels) == 0:
@@ -413,7 +413,7 @@ class AnalysisWidget(QWidget):
     def export(self, folder) -> list:
         """Write the last results as CSV files into ``folder``; returns the paths."""
         labels = self._linked_layer
-        output = STORE.get(labels) if labels is not None else self.last_output
+        output = store_for(self.viewer).get(labels) if labels is not None else self.last_output
         if output is None:
             raise ValueError("Run the analysis first: there is nothing to export yet.")
         prefix = labels.name if labels is not None else "pfsdm"
