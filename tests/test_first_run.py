@@ -320,3 +320,19 @@ def test_written_files_follow_the_umask(tmp_path, umask, mode):
         os.umask(old)
     for name in ("t.csv", "t.csv.json"):
         assert (tmp_path / name).stat().st_mode & 0o777 == mode
+
+
+def test_the_demo_runs_again_over_an_older_demos_folder(tmp_path):
+    """An earlier version's results (a table with the old comment line, plots without
+    pfsdm's PNG mark) are the demo's own: a new run replaces them instead of refusing."""
+    (tmp_path / "features.csv").write_text('# pfsdm: {"n_fourier": 10}\nframe,label\n0,1\n')
+    (tmp_path / "pca.png").write_bytes(b"\x89PNG\r\n\x1a\n an old plot")
+    assert main(["demo", "--quick-only", "-o", str(tmp_path), "--scheduler", "sync", "-q"]) == 0
+    assert pd.read_csv(tmp_path / "features.csv").shape[0] == 72
+    assert b"napari-pfsdm" in (tmp_path / "pca.png").read_bytes()[:4096]
+    # a folder of someone else's files is still protected
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "features.csv").write_text("my,own\n1,2\n")
+    assert main(["demo", "--quick-only", "-o", str(other), "-q"]) == 2
+    assert (other / "features.csv").read_text() == "my,own\n1,2\n"

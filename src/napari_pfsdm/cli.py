@@ -489,6 +489,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
+    from .io_csv import written_by_pfsdm
+
+    # a folder an earlier demo filled (its features.csv is pfsdm's): the demo may replace its
+    # own outputs there, plots of older versions (written without pfsdm's PNG mark) included
+    own_folder = written_by_pfsdm(out / "features.csv")
     _check_output(out / "features.csv")
     failed = []
 
@@ -536,7 +541,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         out / "groups.csv", index=False)
     _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
          f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
-    common = ["--quiet"] if args.quiet else []
+    common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
     rc = main(["measure", str(out / "montage_labels.tif"),
                "--intensity", str(out / "montage_intensity.tif"),
                "-o", str(out / "features.csv"), "--scheduler", args.scheduler, *common])
