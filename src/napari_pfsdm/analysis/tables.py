@@ -97,13 +97,18 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
             "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
         )
     shape, weights = embeddings_from_table(table, "shape")
-    opts = table.attrs["pfsdm"]
-    mw = opts.get("mode_weights")
-    if mw is None:  # tables from before the mode weights: (1 + n)^exponent, 0 when absent
-        mw = mode_weights(shape.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
     intensity = embeddings_from_table(table, "intensity")[0] if "intensity" in channels else None
     return Embeddings(shape=shape, weights=weights,
-                      mode_weights=np.asarray(mw, float)[: shape.shape[2]], intensity=intensity)
+                      mode_weights=_mode_weights(table, shape.shape[2]), intensity=intensity)
+
+
+def _mode_weights(table, n_modes: int) -> np.ndarray:
+    """The table's mode weights; tables from before them: (1 + n)^exponent (0 when absent)."""
+    opts = table.attrs["pfsdm"]
+    mw = opts.get("mode_weights")
+    if mw is None:
+        mw = mode_weights(n_modes - 1, float(opts.get("mode_exponent", 0.0)))
+    return np.asarray(mw, float)[:n_modes]
 
 
 def weighted_features(items, channel: str = "shape") -> np.ndarray:
@@ -114,12 +119,8 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
     if not is_table(items):
         return _core.weighted_features(items, channel)
     emb, weights = embeddings_from_table(items, channel)
-    opts = items.attrs["pfsdm"]
-    mw = opts.get("mode_weights")
-    if mw is None:
-        mw = mode_weights(emb.shape[2] - 1, float(opts.get("mode_exponent", 0.0)))
     return _core.weighted_features(
-        Embeddings(shape=emb, weights=weights, mode_weights=np.asarray(mw, float)[: emb.shape[2]]))
+        Embeddings(shape=emb, weights=weights, mode_weights=_mode_weights(items, emb.shape[2])))
 
 
 def distance_matrix(
