@@ -712,8 +712,8 @@ def main(argv=None) -> int:
               + ", ".join(f"{c} {diff[c]:+.0f}" for c in order[:6]))
         print(f"largest gains vs {ref}: "
               + ", ".join(f"{c} {diff[c]:+.0f}" for c in order[::-1][:6]))
-    print(f"wrote {args.out}/mpeg7_results.csv, mpeg7_per_class.csv, mpeg7_per_class.png, "
-          "mpeg7_gallery.png")
+    plots = ("mpeg7_per_class.png, " if ref in table else "") + "mpeg7_gallery.png"
+    print(f"wrote {args.out}/mpeg7_results.csv, mpeg7_per_class.csv, {plots}")
     return 0
 
 
