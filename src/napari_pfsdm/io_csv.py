@@ -329,8 +329,10 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     what = _looks_binary(path)
     if what is not None:
         raise ValueError(f"{path} is {what}, not a CSV table")
-    side_options = read_options(path)
-    legacy = _legacy_options(path) is not None
+    legacy_options = _legacy_options(path)  # the first line is read once
+    side = read_sidecar(path)
+    side_options = dict(side.get("options") or {}) if side is not None else legacy_options
+    legacy = legacy_options is not None
     text_cols = {"error": str, "movie": str, "warnings": str}
     try:
         df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .tables import weighted_features
+from .tables import embeddings_from_table, weighted_features
 
 __all__ = [
     "KEY_COLUMNS",
@@ -99,13 +99,10 @@ def pca_scores(
     """
     ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
           if "error" in table.columns else np.ones(len(table), bool))
-    x = weighted_features(table, channel=channel)
-    if standardize:
-        from ..core.table_schema import feature_columns
-
-        opts = table.attrs["pfsdm"]
-        cols = feature_columns(len(opts["weights"]), int(opts["n_fourier"]), channel)
-        x = table[cols].to_numpy(float)
+    if standardize:  # the raw magnitudes; standardised below
+        x = embeddings_from_table(table, channel)[0].reshape(len(table), -1)
+    else:
+        x = weighted_features(table, channel=channel)
     ok &= np.isfinite(x).all(axis=1)
     x = x[ok]
     if len(x) < 2:

@@ -17,7 +17,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 
 from ..core.contour import DEFAULT_MIN_AREA
 from ..core.descriptor import DEFAULTS, pfsdm
-from ..core.morphometric import mode_weights, ring_radii, ring_weights
+from ..core.params import PFSDMParams
 from ..core.table_schema import feature_columns
 
 __all__ = ["PFSDMTransformer"]
@@ -80,15 +80,16 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
         self.min_area = min_area
         self.weighted = weighted
 
-    def _options(self) -> dict:
+    def _params(self) -> PFSDMParams:
+        """The options as the core's validated record (a bad value fails in plain words)."""
         params = self.get_params()
         params.pop("weighted")
-        return params
+        return PFSDMParams.from_options(params)
 
-    def _scale(self) -> np.ndarray:
-        r = ring_radii(self.n_radii, self.radii)
-        w = np.sqrt(ring_weights(r, self.ring_weighting))[:, None]
-        return (w * mode_weights(self.n_fourier, self.mode_exponent)[None, :]).ravel()
+    def _scale(self, record: dict) -> np.ndarray:
+        """√(ring weight) × mode weight per column: Euclidean = PF-SDM (magnitude) distance."""
+        w = np.sqrt(np.asarray(record["weights"]))[:, None]
+        return (w * np.asarray(record["mode_weights"])[None, :]).ravel()
 
     def fit(self, X: Sequence[np.ndarray], y=None) -> PFSDMTransformer:
         """Nothing to learn (the descriptor is fixed); checks the parameters and records the
@@ -115,20 +116,23 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
             A mask that cannot be described (empty, too small, ...): the message names its
             position.
         """
-        options = self._options()
+        params = self._params()
+        options, record = params.options(), params.record()
         rows = []
         for i, mask in enumerate(X):
             try:
                 rows.append(pfsdm(np.asarray(mask), **options).embedding.ravel())
             except ValueError as exc:
                 raise ValueError(f"mask {i}: {exc}") from exc
-        out = np.vstack(rows) if rows else np.zeros((0, len(self._scale())))
-        return out * self._scale()[None, :] if self.weighted else out
+        scale = self._scale(record)
+        out = np.vstack(rows) if rows else np.zeros((0, len(scale)))
+        return out * scale[None, :] if self.weighted else out
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """The table's column names ``shape_rXX_nYY`` (ring-major), as an object array."""
-        n_radii = len(ring_radii(self.n_radii, self.radii))
-        return np.asarray(feature_columns(n_radii, self.n_fourier, "shape"), dtype=object)
+        record = self._params().record()
+        return np.asarray(feature_columns(record["n_radii"], record["n_fourier"], "shape"),
+                          dtype=object)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
