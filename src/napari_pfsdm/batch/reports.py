@@ -165,13 +165,13 @@ def plot_mds(
     return Path(path)
 
 
-def load_features(path: str | os.PathLike, *, allow_empty: bool = False) -> pd.DataFrame:
+def load_features(path: str | os.PathLike) -> pd.DataFrame:
     """Read a features CSV and check it is a complete :func:`napari_pfsdm.measure` table.
 
     Refused, with a message that says what to do: a file that is not a CSV table (an image
     given by mistake), a table without ``frame``/``label`` or feature columns, a table whose
     options (the ``.csv.json`` sidecar, or the comment line of older tables) cannot be found,
-    a table missing some feature columns, and (unless ``allow_empty``) a table with no rows.
+    a table missing some feature columns, and a table with no rows.
     """
     try:
         table = read_table_csv(path)
@@ -187,7 +187,7 @@ def load_features(path: str | os.PathLike, *, allow_empty: bool = False) -> pd.D
             "columns); make one with: pfsdm measure LABELS -o features.csv"
         )
     check_feature_table(table, ["shape"], where=str(path))
-    if len(table) == 0 and not allow_empty:
+    if len(table) == 0:
         raise ValueError(
             f"{path} holds no objects (0 rows): its labels had only background; measure "
             "labels that contain objects"
