@@ -25,3 +25,13 @@ def viewer_widget(make_napari_viewer, sample_layers):
     widget = AnalysisWidget(viewer)
     viewer.window.add_dock_widget(widget, name="PF-SDM analysis")
     return viewer, widget
+
+
+@pytest.fixture(autouse=True)
+def _workers_done():
+    """Let the widgets' background workers (pictures made ahead of time) finish before the
+    next test and before the interpreter exits (napari waits for them when its window closes)."""
+    yield
+    from superqt.utils._qthreading import WorkerBase
+
+    WorkerBase.await_workers(msecs=30_000)

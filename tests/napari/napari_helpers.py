@@ -16,6 +16,14 @@ def run_and_wait(qtbot, widget, **kwargs):
     return widget.last_output
 
 
+def wait_pictures(qtbot, widget, key=None, timeout: int = 30_000):
+    """Wait until the pictures of ``key`` = (frame, label) (default: whatever is selected
+    first) are shown; return them."""
+    qtbot.waitUntil(lambda: widget.shown_key is not None
+                    and (key is None or widget.shown_key == tuple(key)), timeout=timeout)
+    return widget.pictures.get(widget.shown_key)
+
+
 def many_objects(n_rows: int = 10, n_cols: int = 20, cell: int = 24) -> np.ndarray:
     """A 2-D label image with n_rows × n_cols small ellipses (labels 1 … n)."""
     yy, xx = np.mgrid[0:cell, 0:cell] - (cell - 1) / 2

@@ -8,18 +8,22 @@ import pytest
 
 from napari_pfsdm.io_csv import read_table_csv
 from napari_pfsdm.napari._compute import (
+    PictureCache,
     classical_mds,
+    count_objects,
     disk_pixels,
-    list_objects,
+    layer_features,
+    object_pictures,
     pca_scores,
     run_analysis,
+    status_line,
     validate_layers_data,
 )
 from napari_pfsdm.napari._export import export_results, read_csv
 
 
 def _run(labels, intensity=None, **options):
-    gen = run_analysis(labels, intensity, options, disk_size=48)
+    gen = run_analysis(labels, intensity, options)
     progress = []
     try:
         while True:
@@ -39,33 +43,62 @@ def two_frames():
     return labels, intensity
 
 
-def test_run_analysis_arrays(two_frames):
+def test_run_keeps_rows_and_pictures_are_made_on_demand(two_frames):
     labels, intensity = two_frames
     out, progress = _run(labels, intensity)
     assert [p[:2] for p in progress] == [(1, 3), (2, 3), (3, 3)]
-    assert list_objects(labels) == out.objects == [(0, 3), (1, 3), (1, 7)]
-    assert list(out.object_labels) == [3, 7]
-    assert out.disk.shape == out.intensity_disk.shape == out.disk_skeleton.shape == (2, 2, 48, 48)
-    assert np.isnan(out.disk[1, 0]).all()  # label 7 is absent from frame 0
-    # rotation invariance: the disk of the turned ellipse has the same values, turned
-    a, b = out.disk[0, 0], out.disk[0, 1]
-    assert np.nanmin(a) < -0.3 and np.nanmax(a) <= 1e-6
-    assert abs(np.nanmean(a) - np.nanmean(b)) < 0.02
-    # skeleton of the disk-shaped object is small; of the ellipse, along its long axis (rows)
-    rr, cc = np.nonzero(out.skeleton[0] == 3)
-    assert np.ptp(rr) > 3 * max(np.ptp(cc), 1)
-    # SDF patch: negative inside (about -radius at the centre), 0 at the outline, positive out
-    s = out.sdf_stack(7)[1]
-    assert s[40, 90] == pytest.approx(-15, abs=1.0)
-    assert abs(s[40, 105]) < 1.0 and s[40, 110] > 3
-    assert np.isnan(out.sdf_stack(7)[0]).all()
-    window, (r0, c0) = out.sdf_window(7)
-    assert window.shape[0] == 2 and window.shape[1] < 80 and window.shape[2] < 120
-    np.testing.assert_array_equal(
-        window, out.sdf_stack(7)[:, r0:r0 + window.shape[1], c0:c0 + window.shape[2]])
+    assert count_objects(labels) == 3
     table = out.table
-    assert list(zip(table["frame"], table["label"], strict=True)) == out.objects
+    assert list(zip(table["frame"], table["label"], strict=True)) == [(0, 3), (1, 3), (1, 7)]
     assert table.attrs["pfsdm"]["n_fourier"] == 10
+    assert sorted(out.boxes) == [(0, 3), (1, 3), (1, 7)]
+    assert list(out.labels_in(1)) == [3, 7] and list(out.frames_of(7)) == [1]
+    assert out.row_index(0, 7) is None and out.row_index(1, 7) == 2
+    # pictures of one object, made from the run's own arrays and options
+    a = object_pictures(labels, intensity, out, 0, 3, size=48)
+    b = object_pictures(labels, intensity, out, 1, 3, size=48)
+    assert a.disk.shape == a.intensity_disk.shape == (48, 48)
+    assert np.isnan(a.disk[0, 0]) and np.nanmin(a.disk) < -0.3 and np.nanmax(a.disk) <= 1e-6
+    # rotation invariance: the disk of the turned ellipse has the same values, turned
+    assert abs(np.nanmean(a.disk) - np.nanmean(b.disk)) < 0.02
+    # the skeleton of the ellipse runs along its long axis (rows in frame 0), as lines
+    pts = np.vstack(a.skeleton_image)
+    assert np.ptp(pts[:, 0]) > 3 * max(np.ptp(pts[:, 1]), 1)
+    for path in a.skeleton_image:  # consecutive points of a line are neighbours
+        assert np.abs(np.diff(path, axis=0)).max() <= 1.0
+    # SDF: negative inside (about -radius at the centre), 0 at the outline, positive out
+    c = object_pictures(labels, intensity, out, 1, 7, size=48)
+    r0, c0 = c.sdf_corner
+    assert c.sdf[40 - r0, 90 - c0] == pytest.approx(-15, abs=1.0)
+    assert abs(c.sdf[40 - r0, 105 - c0]) < 1.0 and c.sdf[40 - r0, 110 - c0] > 3
+    assert c.sdf.shape[0] < 80 and c.sdf.shape[1] < 120
+    assert np.hypot(*(c.outline - (40, 90)).T).mean() == pytest.approx(15, abs=0.7)
+    with pytest.raises(KeyError):
+        object_pictures(labels, intensity, out, 0, 7)
+
+
+def test_picture_cache_is_bounded_and_least_recently_used_goes_first():
+    cache = PictureCache(maxsize=2)
+    cache.put((0, 1), "a")
+    cache.put((0, 2), "b")
+    assert cache.get((0, 1)) == "a"  # now the most recent
+    cache.put((0, 3), "c")
+    assert (0, 2) not in cache and (0, 1) in cache and len(cache) == 2
+
+
+def test_layer_features_are_numbers_with_pc_scores_and_status_is_short(two_frames):
+    labels, intensity = two_frames
+    out, _ = _run(labels, intensity)
+    feats = layer_features(out)
+    assert list(feats.columns[:3]) == ["index", "frame", "label"]
+    assert all(pd.api.types.is_numeric_dtype(feats[c]) for c in feats.columns)
+    assert {"shape_PC1", "intensity_PC1", "failed"} <= set(feats.columns)
+    np.testing.assert_allclose(feats["shape_PC1"], out.pca["shape"]["PC1"])
+    num = [c for c in out.table.columns if c not in ("error", "warnings", "touches_border")]
+    np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
+    line = status_line(out, 1, 7)
+    assert line.startswith("frame 1 · label 7 · area ") and "PC1" in line and len(line) < 100
+    assert status_line(out, 0, 7) == "label 7: not present in frame 0"
 
 
 def test_table_matches_measure(two_frames):
@@ -114,6 +147,9 @@ def test_validation_messages():
         validate_layers_data(np.zeros((4, 4), int), np.zeros((4, 5)))
     with pytest.raises(ValueError, match="no objects"):
         _run(np.zeros((10, 10), int))
+    with pytest.raises(ValueError, match="3-D objects are not measured yet"):
+        validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="z")
+    validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="time")
 
 
 def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.backend_bases import MouseEvent
-from napari_helpers import run_and_wait
+from napari_helpers import run_and_wait, wait_pictures
 
 from napari_pfsdm.napari import _layers
 from napari_pfsdm.napari._plots import (
@@ -50,9 +50,13 @@ def test_trajectory_click_moves_viewer_and_selection_highlights(viewer_widget, q
     assert plot.highlighted_keys() == [(7, 5)]
     # moving napari's time slider and selecting another label moves the highlight
     axis = _layers.frame_axis(viewer, labels_layer)
+    n_artists = len(plot._axes_points.collections) + len(plot._axes_points.lines)
     viewer.dims.set_point(axis, 2)
     labels_layer.selected_label = 3
+    plot.flush()  # plots follow once the slider is still (debounced)
     assert plot.highlighted_keys() == [(2, 3)]
+    # the previous highlight is gone: one star, one thick line, whatever happened before
+    assert len(plot._axes_points.collections) + len(plot._axes_points.lines) == n_artists
     star = [a for a in plot._highlight_artists if hasattr(a, "get_offsets")][-1]
     np.testing.assert_allclose(star.get_offsets()[0], plot._points[keys.index((2, 3))])
     # a click far from any point does nothing
@@ -93,6 +97,7 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     viewer.window.add_dock_widget(comp, name="comparison")
     axis = _layers.frame_axis(viewer, labels_layer)
     viewer.dims.set_point(axis, 4)
+    comp.flush()
     n = len(np.unique(labels_layer.data[4])) - 1
     assert comp.distances.shape == (n, n)
     assert all(f == 4 for f, _ in comp._keys)
@@ -108,6 +113,34 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     _click(comp, target)
     assert labels_layer.selected_label == 6
     assert _frame(viewer, labels_layer) == 4
+    # all frames: every measured object, coloured by frame, distances computed once
+    comp.frame_choice.setCurrentText("all frames")
+    assert comp.distances.shape == (len(table),) * 2
+    cached = len(comp._cache)
+    comp.redraw()
+    assert len(comp._cache) == cached
+    # removing the layers with the plots open: no error, the plots say there is nothing
+    for name in [layer.name for layer in viewer.layers]:
+        viewer.layers.remove(name)
+    comp.flush()
+    comp.highlight()
+    assert comp.output is None
+
+
+def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_layers, qtbot):
+    from napari_pfsdm.napari._sample_data import benchmark_shapes
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers + benchmark_shapes():
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = AnalysisWidget(viewer)
+    viewer.window.add_dock_widget(widget, name="PF-SDM analysis")
+    run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
+    widget.labels_combo.setCurrentText("five shapes")
+    run_and_wait(qtbot, widget)
+    widget.open_plots()
+    assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
 
 def _nonblank(region: np.ndarray) -> bool:
@@ -134,6 +167,7 @@ def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample
     labels_layer = viewer.layers["gastruloids"]
     viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 9)
     labels_layer.selected_label = 5
+    wait_pictures(qtbot, widget, (9, 5))
     viewer.layers["gastruloids reporter"].visible = False
     qtbot.wait(500)  # let the docks take their place before fitting the view
     viewer.reset_view()
@@ -154,7 +188,7 @@ def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample
     canvas = viewer.window._qt_viewer.canvas.native
     origin = canvas.mapTo(window, QPoint(0, 0))
     disk = viewer.layers["gastruloids PF-SDF disk"]
-    size = disk.data.shape[-1]
+    size = disk.data.shape[0]  # a square disk, its colour bar on the right
     centre = np.asarray(disk.translate[-2:]) + np.asarray(disk.scale[-2:]) * size / 2
     cam = viewer.scene.camera
     offset = (centre - np.asarray(cam.center[-2:])) * cam.zoom

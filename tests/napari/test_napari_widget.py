@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-from napari_helpers import RUN_TIMEOUT_MS, many_objects, run_and_wait
+from napari_helpers import RUN_TIMEOUT_MS, many_objects, run_and_wait, wait_pictures
 
 from napari_pfsdm.napari import _layers
 from napari_pfsdm.napari._store import store_for
@@ -20,12 +20,14 @@ def _expected_objects(labels: np.ndarray) -> list[tuple[int, int]]:
     return [(t, int(lab)) for t in range(labels.shape[0]) for lab in np.unique(labels[t]) if lab]
 
 
-def _full_frame(sdf_layer, labels_layer) -> np.ndarray:
-    """The SDF layer's window put back into a full-size stack (NaN elsewhere)."""
-    full = np.full(labels_layer.data.shape, np.nan, dtype=np.float32)
-    r0, c0 = (int(round(v)) for v in sdf_layer.translate[-2:])
-    h, w = sdf_layer.data.shape[-2:]
-    full[..., r0:r0 + h, c0:c0 + w] = sdf_layer.data
+def _sdf_in_frame(sdf_layer, labels_layer, pics) -> np.ndarray:
+    """The SDF picture (without its colour bar) put back into a full frame (NaN elsewhere)."""
+    full = np.full(labels_layer.data.shape[-2:], np.nan, dtype=np.float32)
+    patch = sdf_layer.data[:, :pics.sdf.shape[1]]
+    np.testing.assert_array_equal(patch, pics.sdf)
+    r0, c0 = pics.sdf_corner
+    h, w = patch.shape
+    full[r0:r0 + h, c0:c0 + w] = patch
     return full
 
 
@@ -34,69 +36,115 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     labels_layer = viewer.layers["gastruloids"]
     assert widget.labels_combo.currentText() == "gastruloids"
     assert widget.image_combo.currentText() == "gastruloids reporter"
+    assert widget.first_axis.isVisibleTo(widget)  # a 3-D layer: time or Z?
     before = [layer.name for layer in viewer.layers]
-    out = run_and_wait(qtbot, widget)
+    run_and_wait(qtbot, widget)
+    pics = wait_pictures(qtbot, widget)
 
     names = _layers.layer_names("gastruloids")
     new = [layer.name for layer in viewer.layers if layer.name not in before]
     assert sorted(new) == sorted(names.values())
-    t, y, x = labels_layer.data.shape
-    n_obj = len(np.unique(labels_layer.data)) - 1
-    size = out.disk.shape[-1]
-    assert viewer.layers[names["disk"]].data.shape == (n_obj, t, size, size)
-    assert viewer.layers[names["intensity_disk"]].data.shape == (n_obj, t, size, size)
-    assert viewer.layers[names["disk_skeleton"]].data.shape == (n_obj, t, size, size)
-    assert viewer.layers[names["skeleton"]].data.shape == (t, y, x)
-    sdf_layer = viewer.layers[names["sdf"]]
-    assert sdf_layer.data.ndim == 3 and sdf_layer.data.shape[0] == t
-    # the disk is NaN outside the unit disk and finite inside for every present object
+    # napari's axes are the labels' own: no slider was added, the first one is time
+    assert viewer.dims.ndim == 3 and viewer.dims.axis_labels[0] == "t"
+    for key in ("sdf", "disk", "intensity_disk", "skeleton", "legend"):
+        assert viewer.layers[names[key]].ndim == 2, key
+    # pictures of the selected label in the frame shown
+    frame = _layers.current_frame(viewer, labels_layer)
+    assert widget.shown_key == (frame, labels_layer.selected_label)
+    size = pics.disk.shape[0]
     disk = viewer.layers[names["disk"]].data
-    assert np.isnan(disk[0, 0, 0, 0]) and np.isfinite(disk[:, :, size // 2, size // 2]).all()
-    # skeleton pixels lie inside their own object
-    skel = viewer.layers[names["skeleton"]].data
-    on = skel > 0
-    assert on.sum() > 10 * t
-    assert np.mean(labels_layer.data[on] == skel[on]) > 0.95
-    # the SDF of the selected object: negative inside it, positive around it, NaN far away
-    sdf = _full_frame(sdf_layer, labels_layer)
-    label = labels_layer.selected_label
-    inside = labels_layer.data == label
+    assert disk.shape[0] == size and disk.shape[1] > size  # the disk and its colour bar
+    assert np.isnan(disk[0, 0]) and np.isfinite(disk[size // 2, size // 2])
+    bar = disk[:, -1]
+    assert bar[0] > 0 > bar[-1]  # colour bar: + at the top, - at the bottom
+    # the SDF of the selected object: negative inside it, positive around it
+    inside = labels_layer.data[frame] == labels_layer.selected_label
+    sdf = _sdf_in_frame(viewer.layers[names["sdf"]], labels_layer, pics)
     assert np.nanmax(sdf[inside]) <= 1.0 and np.nanmin(sdf[inside]) < -3
-    assert np.nanmax(sdf) > 3 and np.isnan(sdf).any()
+    assert np.nanmax(sdf) > 3
     cl = viewer.layers[names["sdf"]].contrast_limits
-    assert cl[0] == pytest.approx(-cl[1])  # diverging colormap centred on 0
+    assert cl[0] == pytest.approx(-cl[1])  # diverging colormap centred on 0, per object
+    assert cl[1] == pytest.approx(np.percentile(np.abs(pics.sdf), 99.5), rel=1e-3)
+    # the skeleton is drawn as lines, inside the object
+    shapes = viewer.layers[names["skeleton"]]
+    assert set(shapes.shape_type) == {"path"}
+    on_object = np.vstack(pics.skeleton_image)
+    rows, cols = np.rint(on_object).astype(int).T
+    assert np.mean(inside[rows, cols]) > 0.95
+    # legends say what the disk shows
+    texts = list(viewer.layers[names["legend"]].features["text"])
+    assert "rim = outline" in texts and any("label" in t for t in texts)
+    assert "centre" in widget.reading.text() and widget.reading.isVisibleTo(widget)
 
-    # the features table: one row per (frame, label), frame and label columns
+    # the features table: one row per (frame, label), numbers only, with the PC scores
     feats = labels_layer.features
     assert list(zip(feats["frame"], feats["label"], strict=True)) == _expected_objects(
         labels_layer.data)
-    assert {"area", "error"} <= set(feats.columns)
     assert (feats["index"] == feats["label"]).all()  # napari's label -> row convention
+    assert all(pd.api.types.is_numeric_dtype(feats[c]) for c in feats.columns)
+    assert {"area", "failed", "shape_PC1", "shape_PC2", "intensity_PC1"} <= set(feats.columns)
     assert any(c.startswith("shape_r") for c in feats.columns)
     assert any(c.startswith("intensity_r") for c in feats.columns)
-    assert (feats["error"] == "").all()
+    assert "error" not in feats.columns and (feats["failed"] == 0).all()
+    # the status bar: the row of the frame shown, short
+    t, label = frame, labels_layer.selected_label
+    r, c = np.argwhere(labels_layer.data[t] == label)[0]
+    status = labels_layer._get_properties((t, r, c))
+    assert status == [f"frame {t} · label {label} · area "
+                      f"{int(np.sum(labels_layer.data[t] == label))} px · "
+                      + status[0].split(" px · ")[1]]
+    assert "PC1" in status[0] and len(status[0]) < 120
 
     # re-run: the layers are replaced, not duplicated
     n_layers = len(viewer.layers)
     run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
     assert len(viewer.layers) == n_layers
     assert sorted(layer.name for layer in viewer.layers) == sorted(before + new)
 
 
-def test_selecting_a_label_updates_disk_and_sdf(viewer_widget, qtbot):
+def test_selection_and_frame_follow_and_are_cached(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     labels_layer = viewer.layers["gastruloids"]
-    out = run_and_wait(qtbot, widget)
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
     names = _layers.layer_names("gastruloids")
+    frame = _layers.current_frame(viewer, labels_layer)
     labels_layer.selected_label = 4
-    assert int(round(viewer.dims.point[0])) == out.object_index(4)
-    sdf = _full_frame(viewer.layers[names["sdf"]], labels_layer)
-    assert np.nanmin(sdf[labels_layer.data == 4]) < -3
-    assert np.all(np.isnan(sdf[labels_layer.data == 2]))
-    # moving the object slider selects the object
-    viewer.dims.set_point(0, out.object_index(2))
-    assert labels_layer.selected_label == 2
+    pics = wait_pictures(qtbot, widget, (frame, 4))
+    inside = labels_layer.data[frame] == 4
+    sdf = _sdf_in_frame(viewer.layers[names["sdf"]], labels_layer, pics)
+    assert np.nanmin(sdf[inside]) < -3
+    # moving the time slider shows the same label in the new frame
+    viewer.dims.set_point(0, frame + 1)
+    wait_pictures(qtbot, widget, (frame + 1, 4))
+    # the neighbouring frames are made ahead of time, so going back is served from the cache
+    qtbot.waitUntil(lambda: (frame + 2, 4) in widget.pictures, timeout=20_000)
+    viewer.dims.set_point(0, frame)
+    assert widget.shown_key == (frame, 4)  # at once, no worker needed
+    # a label that is not in this frame hides the pictures and says so
+    labels_layer.selected_label = 99
+    assert not viewer.layers[names["disk"]].visible
+    assert any("not in this frame" in t for t in viewer.layers[names["legend"]].features["text"])
+    labels_layer.selected_label = 4
+    assert viewer.layers[names["disk"]].visible
 
+
+def test_a_z_stack_is_refused_until_3d_objects_are_supported(make_napari_viewer, qtbot):
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    viewer = make_napari_viewer()
+    stack = np.zeros((5, 40, 40), np.uint8)
+    stack[1:4, 10:30, 10:30] = 1
+    viewer.add_labels(stack, name="stack")
+    viewer.dims.axis_labels = ("z", "y", "x")
+    widget = AnalysisWidget(viewer)
+    assert widget.first_axis_meaning() == "z"  # napari's axis name says so
+    assert widget.run() is None
+    assert "3-D objects are not measured yet" in widget.status.text()
+    assert [layer.name for layer in viewer.layers] == ["stack"]
+    widget.first_axis.setCurrentIndex(0)  # "time": the user says these are frames
+    assert widget.first_axis_meaning() == "time"
 
 
 def test_cancel_stops_within_a_second_and_keeps_nothing(make_napari_viewer, qtbot):
@@ -222,17 +270,19 @@ def test_two_dimensional_labels_five_shapes(make_napari_viewer, qtbot):
     labels_layer = viewer.add_labels(data, **kwargs)
     widget = AnalysisWidget(viewer)
     assert widget.image_combo.currentText() == "(none)"
-    out = run_and_wait(qtbot, widget)
+    assert not widget.first_axis.isVisibleTo(widget)  # a 2-D layer: nothing to ask
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
     names = _layers.layer_names("five shapes")
     n = len(np.unique(data)) - 1
-    size = out.disk.shape[-1]
-    assert viewer.layers[names["disk"]].data.shape == (n, size, size)
-    assert viewer.layers[names["skeleton"]].data.shape == data.shape
     assert names["intensity_disk"] not in viewer.layers
     assert len(labels_layer.features) == n and (labels_layer.features["frame"] == 0).all()
-    assert viewer.dims.axis_labels == ("object", "y", "x")
+    assert viewer.dims.ndim == 2
     labels_layer.selected_label = 7
-    assert int(round(viewer.dims.point[0])) == out.object_index(7) == 6
+    pics = wait_pictures(qtbot, widget, (0, 7))
+    assert pics.intensity_disk is None
+    rows, cols = np.rint(np.vstack(pics.skeleton_image)).astype(int).T
+    assert np.mean(data[rows, cols] == 7) > 0.95
 
 
 def test_plugin_sample_and_widget_through_napari(make_napari_viewer):
@@ -275,4 +325,11 @@ def test_run_summary_names_suspect_objects_on_coins(make_napari_viewer, qtbot):
     assert summary.startswith(f"{n_err} objects have no features (see the error column)")
     assert f"{n_border} objects touch the border" in summary and "% folded" in summary
     assert "see the warnings column" in widget.status.text()
-    assert "warnings" in viewer.layers["coins labels"].features.columns
+    # text stays out of layer.features (plotters offer every column as an axis) ...
+    feats = viewer.layers["coins labels"].features
+    assert "warnings" not in feats.columns and int(feats["failed"].sum()) == n_err
+    # ... and reaches the user in the status bar, for the row under the cursor
+    bad = out.table[out.table["error"] != ""].iloc[0]
+    labels = viewer.layers["coins labels"]
+    r, c = np.argwhere(labels.data == bad["label"])[0]
+    assert "no features:" in labels._get_properties((r, c))[0]

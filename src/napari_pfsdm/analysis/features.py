@@ -22,6 +22,7 @@ __all__ = [
     "ObjectResult",
     "FOLDED_WARNING",
     "count_objects",
+    "describe_object",
     "drop_failed",
     "feature_columns",
     "iter_objects",
@@ -174,21 +175,66 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
         image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
         boxes = ndi.find_objects(frame)
         for index, box in enumerate(boxes):
-            if box is None:
-                continue
-            label = index + 1
-            big = tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
-                        zip(box, frame.shape, strict=True))
-            mask = frame[big] == label
-            area = int(mask.sum())
-            centroid = np.array(ndi.center_of_mass(mask)) + [big[0].start, big[1].start]
-            touches = bool(box[0].start == 0 or box[1].start == 0
-                           or box[0].stop == frame.shape[0] or box[1].stop == frame.shape[1])
-            res, error, int_error = _describe(mask, None if image is None else image[big],
-                                              (big[0].start, big[1].start), options)
-            yield ObjectResult(frame=int(t), label=label, bbox=box, area=area, centroid=centroid,
-                               touches_border=touches, result=res, error=error,
-                               intensity_error=int_error)
+            if box is not None:
+                yield _object_in_frame(frame, image, int(t), index + 1, box, options)
+
+
+def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectResult:
+    """The :class:`ObjectResult` of ``label`` in one 2-D frame (``box``: its bounding box)."""
+    big = tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
+                zip(box, frame.shape, strict=True))
+    mask = frame[big] == label
+    area = int(mask.sum())
+    centroid = np.array(ndi.center_of_mass(mask)) + [big[0].start, big[1].start]
+    touches = bool(box[0].start == 0 or box[1].start == 0
+                   or box[0].stop == frame.shape[0] or box[1].stop == frame.shape[1])
+    res, error, int_error = _describe(mask, None if image is None else image[big],
+                                      (big[0].start, big[1].start), options)
+    return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,
+                        touches_border=touches, result=res, error=error,
+                        intensity_error=int_error)
+
+
+def describe_object(
+    labels, intensity, frame: int, label: int, *, params: PFSDMParams | None = None,
+    box: tuple[slice, slice] | None = None,
+) -> ObjectResult:
+    """The full :class:`ObjectResult` of one (frame, label), exactly as :func:`iter_objects`
+    computes it (same crop, same options): for pictures of one object after :func:`measure`.
+
+    Parameters
+    ----------
+    labels, intensity
+        As for :func:`iter_objects`; only ``frame`` is read.
+    frame, label : int
+        The object (``frame`` is ignored for a 2-D image).
+    params : PFSDMParams, optional
+        The options of the run the object belongs to.
+    box : tuple of slice, optional
+        Its bounding box in the frame, if known (saves a search of the frame).
+
+    Raises
+    ------
+    KeyError
+        When ``label`` is not in that frame.
+    """
+    n_frames, timelapse = _validate(labels, intensity)
+    p = as_params(params, {})
+    t = int(frame) if timelapse else 0
+    if not 0 <= t < n_frames:
+        raise KeyError(f"frame {frame} is not in the labels ({n_frames} frames)")
+    plane = _frame(labels, t, timelapse)
+    if plane.dtype == bool:
+        plane = plane.astype(np.uint8)
+    if box is None:
+        rows, cols = np.nonzero(plane == label)
+        if rows.size == 0:
+            raise KeyError(f"label {label} is not in frame {frame}")
+        box = (slice(int(rows.min()), int(rows.max()) + 1),
+               slice(int(cols.min()), int(cols.max()) + 1))
+    image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
+    with _one_blas_thread():
+        return _object_in_frame(plane, image, t, int(label), box, p.options())
 
 
 def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, str]:

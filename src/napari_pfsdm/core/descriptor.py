@@ -16,7 +16,7 @@ from .params import PFSDMParams
 from .pushforward import BijectiveMap, FourierMap, display_turn, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
-__all__ = ["PFSDMResult", "pfsdm", "render_disk", "DEFAULTS"]
+__all__ = ["PFSDMResult", "pfsdm", "render_disk", "render_disks", "DEFAULTS"]
 
 #: Default options of :func:`pfsdm` (those of :class:`~napari_pfsdm.core.params.PFSDMParams`,
 #: chosen by ``benchmarks/synthetic.py``, see README), without ``components`` and ``min_area``.
@@ -287,21 +287,41 @@ def render_disk(result: PFSDMResult, size: int = 128, channel: str = "sdf") -> n
     -------
     ndarray of float, shape (size, size); NaN outside the disk.
     """
-    if channel not in ("sdf", "intensity"):
-        raise ValueError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
-    if channel == "intensity" and result.intensity_image is None:
+    return render_disks(result, size, (channel,))[channel]
+
+
+def render_disks(result: PFSDMResult, size: int = 128,
+                 channels: tuple[str, ...] = ("sdf", "intensity")) -> dict[str, np.ndarray]:
+    """:func:`render_disk` of several channels at once (the map is evaluated once).
+
+    Returns
+    -------
+    dict
+        ``{channel: image}``, for the channels asked for; ``"intensity"`` is left out when the
+        result has no intensity.
+    """
+    for channel in channels:
+        if channel not in ("sdf", "intensity"):
+            raise ValueError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
+    if channels == ("intensity",) and result.intensity_image is None:
         raise ValueError("This result has no intensity: pass an intensity image to pfsdm.")
     # about two samples per output pixel along each ring: the SDF evaluation is the cost
     n_r, n_t = max(size // 2, 4), max(64, 2 * size)
     pts = result.mapping.polar((np.arange(n_r) + 0.5) / n_r, n_t)
-    if channel == "sdf":
-        values = result.sdf(pts.reshape(-1, 2)).reshape(n_r, n_t)
-    else:
-        values = sample_intensity(result, pts)
     # θ = 0 is where the outline's parametrisation starts; turn the disk so that this point
     # shows at its own polar angle around the centroid: the disk then shows the object roughly
     # in the image's orientation.
-    return _polar_to_cartesian(values, size, turn=display_turn(result))
+    turn = display_turn(result)
+    out = {}
+    for channel in channels:
+        if channel == "sdf":
+            values = result.sdf(pts.reshape(-1, 2)).reshape(n_r, n_t)
+        elif result.intensity_image is not None:
+            values = sample_intensity(result, pts)
+        else:
+            continue
+        out[channel] = _polar_to_cartesian(values, size, turn=turn)
+    return out
 
 
 def sample_intensity(result: PFSDMResult, points: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from skimage.morphology import skeletonize
 from .pushforward import push_to_disk
 from .sdf import ViscousSDF
 
-__all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points"]
+__all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points", "branch_paths"]
 
 _EIGHT = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]])
 
@@ -46,6 +46,15 @@ class Skeleton:
     disk_points: np.ndarray
     depth: np.ndarray
 
+    def paths(self, where: str = "image") -> list[np.ndarray]:
+        """The skeleton as polylines (one per branch), for drawing it as lines.
+
+        ``where`` is ``"image"`` (``(row, col)`` pixels) or ``"disk"`` (``(u, v)`` on the
+        unit disk); see :func:`branch_paths`.
+        """
+        coords = self.points if where == "image" else self.disk_points
+        return [np.asarray(coords)[idx] for idx in branch_paths(self.points)]
+
     @property
     def n_end_points(self) -> int:
         """Number of branch ends (pixels with one 8-neighbour)."""
@@ -57,6 +66,76 @@ def _as_image(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     img = np.zeros(tuple(points.max(axis=0) - lo + 2), bool)
     img[tuple((points - lo).T)] = True
     return img, lo
+
+
+def branch_paths(points: np.ndarray) -> list[np.ndarray]:
+    """Split a one-pixel-wide skeleton into branches: index arrays into ``points``.
+
+    A branch runs between two nodes (ends, with one 8-neighbour, or junctions, with three or
+    more) through pixels with exactly two neighbours; a closed loop without nodes is one branch
+    that returns to its start. Every pixel lies on at least one branch, and consecutive pixels of
+    a branch are 8-neighbours, so each branch draws as a connected line.
+
+    Parameters
+    ----------
+    points : ndarray of int, shape (K, 2)
+
+    Returns
+    -------
+    list of ndarray of int
+        Each of length ≥ 2 (a single isolated pixel gives ``[i, i]``).
+
+    Examples
+    --------
+    >>> pts = np.array([[0, 0], [0, 1], [0, 2], [1, 1], [2, 1]])  # a T
+    >>> [b.tolist() for b in branch_paths(pts)]
+    [[0, 1], [1, 2], [1, 3, 4]]
+    """
+    points = np.asarray(points, dtype=int).reshape(-1, 2)
+    if len(points) == 0:
+        return []
+    index = {(int(r), int(c)): i for i, (r, c) in enumerate(points)}
+    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+
+    def linked(r: int, c: int, dr: int, dc: int) -> bool:
+        # a diagonal step is an edge only when no 4-neighbour path of two steps exists:
+        # otherwise the staircase would be drawn twice, as a triangle
+        if (r + dr, c + dc) not in index:
+            return False
+        return not (dr and dc) or ((r + dr, c) not in index and (r, c + dc) not in index)
+
+    nbrs = [[index[(int(r) + dr, int(c) + dc)] for dr, dc in offsets
+             if linked(int(r), int(c), dr, dc)] for r, c in points]
+    node = [len(n) != 2 for n in nbrs]
+    used: set[tuple[int, int]] = set()  # undirected edges already drawn
+    paths: list[np.ndarray] = []
+
+    def walk(start: int, nxt: int) -> list[int]:
+        path, prev, cur = [start], start, nxt
+        used.add((min(start, nxt), max(start, nxt)))
+        while True:
+            path.append(cur)
+            if node[cur] or cur == start:
+                return path
+            step = next((n for n in nbrs[cur] if n != prev
+                         and (min(cur, n), max(cur, n)) not in used), None)
+            if step is None:
+                return path
+            used.add((min(cur, step), max(cur, step)))
+            prev, cur = cur, step
+
+    for i in range(len(points)):
+        if node[i]:
+            if not nbrs[i]:
+                paths.append(np.array([i, i]))
+            for n in nbrs[i]:
+                if (min(i, n), max(i, n)) not in used:
+                    paths.append(np.array(walk(i, n)))
+    for i in range(len(points)):  # loops without nodes
+        for n in nbrs[i]:
+            if (min(i, n), max(i, n)) not in used:
+                paths.append(np.array(walk(i, n)))
+    return paths
 
 
 def end_points(points: np.ndarray) -> np.ndarray:

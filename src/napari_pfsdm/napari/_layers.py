@@ -1,18 +1,37 @@
-"""Result layers: add or replace them, and keep them linked to the selected object and frame."""
+"""Result layers of the object being looked at, placed beside the Labels layer.
+
+The Labels layer keeps its own axes (T × Y × X or Y × X): no result layer adds a slider. The SDF,
+the pushed-forward disk and the intensity disk of the selected object are 2-D Image layers in a
+panel to the right of the labels; the skeleton (on the object, on the SDF and on the disk) and the
+outline are one Shapes layer of lines; a Points layer holds the plain-words legends. All are
+replaced when the selected label or the frame changes (docs/design.md §3).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._compute import AnalysisOutput
+from ._compute import AnalysisOutput, ObjectPictures, layer_features, status_line
 
 #: Layer-name suffixes, after the source Labels layer's name.
 SUFFIXES = {
+    "sdf": "SDF",
     "disk": "PF-SDF disk",
     "intensity_disk": "intensity disk",
-    "disk_skeleton": "skeleton on disk",
     "skeleton": "skeleton",
-    "sdf": "SDF",
+    "legend": "legend",
+}
+#: The panel: cell side and gap between cells, as fractions of the labels' height.
+CELL = 0.36
+GAP = 0.1
+SKELETON_COLOR = "#ffd000"
+OUTLINE_COLOR = "#202020"
+
+#: Title above and key below each picture: short, they are drawn at the canvas' zoom.
+LEGENDS = {
+    "sdf": ("SDF (px)", "blue = inside"),
+    "disk": ("PF-SDF disk", "rim = outline"),
+    "intensity_disk": ("reporter", "1 = mean"),
 }
 
 
@@ -45,70 +64,71 @@ def current_frame(viewer, labels_layer) -> int:
     return int(np.clip(np.rint(t), 0, _shape(labels_layer)[0] - 1))
 
 
-def go_to(viewer, labels_layer, output: AnalysisOutput, frame: int, label: int) -> None:
-    """Move the time slider to ``frame`` and select ``label`` (disk stack follows)."""
+def go_to(viewer, labels_layer, frame: int, label: int) -> None:
+    """Move the time slider to ``frame`` and select ``label`` (the pictures follow)."""
     ax = frame_axis(viewer, labels_layer)
     if ax is not None:
         viewer.dims.set_point(ax, labels_layer.translate[0] + frame * labels_layer.scale[0])
     labels_layer.selected_label = int(label)
-    show_object(viewer, output, label)
 
 
-def show_object(viewer, output: AnalysisOutput, label: int) -> None:
-    idx = output.object_index(label)
-    if idx is not None and viewer.dims.ndim > (3 if output.time_lapse else 2):
-        viewer.dims.set_point(0, idx)
+def name_axes(viewer, labels_layer) -> None:
+    """Call the axes of a time-lapse 't', 'y', 'x' when napari still shows its default numbers
+    (short names: the slider's label box shows about four characters)."""
+    if labels_layer.ndim == 3 and viewer.dims.ndim == 3:
+        if all(str(a).lstrip("-").isdigit() for a in viewer.dims.axis_labels):
+            viewer.dims.axis_labels = ("t", "y", "x")
 
 
-def _window_translate(labels_layer, corner: tuple[int, int]) -> tuple:
-    """World translate of an array whose pixel (0, 0) is the labels' pixel ``corner``."""
-    t = list(labels_layer.translate)
-    t[-2] += corner[0] * labels_layer.scale[-2]
-    t[-1] += corner[1] * labels_layer.scale[-1]
-    return tuple(t)
-
-
-def _name_axes(viewer, labels_layer) -> None:
-    """Call the slider axes 'object' and 'frame' when the dims are exactly ours."""
-    names = ["object", "frame", "y", "x"] if labels_layer.ndim == 3 else ["object", "y", "x"]
-    if viewer.dims.ndim == len(names):
-        viewer.dims.axis_labels = names
-
-
-def _disk_geometry(labels_layer, output: AnalysisOutput, slot: int):
-    """Scale and translate that put a disk image beside the labels (slot 0, 1, ...)."""
+def cells(labels_layer) -> dict[str, tuple[float, float, float]]:
+    """World ``(top, left, side)`` of the panel's square cells beside the labels."""
     ny, nx = _shape(labels_layer)[-2:]
     sy, sx = labels_layer.scale[-2:]
     ty, tx = labels_layer.translate[-2:]
-    size = output.disk.shape[-1]
     height = ny * sy
-    s = height / size
-    gap = 0.05 * height
-    lead = output.disk.ndim - 2  # object (+ frame) axes
-    scale = [1.0] * lead + [s, s]
-    translate = [0.0] * lead + [ty, tx + nx * sx + gap + slot * (height + gap)]
-    if output.time_lapse:
-        scale[1], translate[1] = labels_layer.scale[0], labels_layer.translate[0]
-    return scale, translate
+    side, gap = CELL * height, GAP * height
+    left, top = tx + nx * sx + gap, ty + 0.1 * height
+    return {"sdf": (top, left, side), "disk": (top, left + side + gap, side),
+            "intensity_disk": (top, left + 2 * (side + gap), side),
+            "notes": (top + side + 0.2 * height, left, side)}
 
 
-def _replace(viewer, name: str, kind: str, data, **kwargs):
-    """Replace the layer called ``name`` (same kind) or add it."""
-    if name in viewer.layers:
-        old = viewer.layers[name]
-        same = type(old).__name__.lower() == kind and old.data.shape == data.shape
-        if same:
-            for key, value in kwargs.items():
-                if key in ("scale", "translate", "colormap", "contrast_limits", "opacity",
-                           "blending"):
-                    setattr(old, key, value)
-            old.data = data
-            return old
-        viewer.layers.remove(old)
-    return getattr(viewer, f"add_{kind}")(data, name=name, **kwargs)
+def _world_2d(labels_layer, rc: np.ndarray) -> np.ndarray:
+    """Frame pixels (row, col) → world coordinates of the last two axes."""
+    return np.asarray(rc, float) * np.asarray(labels_layer.scale[-2:]) + np.asarray(
+        labels_layer.translate[-2:])
 
 
-def _limits(a: np.ndarray) -> tuple[float, float]:
+def _replace_image(viewer, name: str, data, **kwargs):
+    """Replace the data of the Image layer ``name`` (or add it) with 2-D ``data``."""
+    layer = viewer.layers[name] if name in viewer.layers else None
+    if layer is not None and (type(layer).__name__ != "Image" or layer.ndim != 2):
+        viewer.layers.remove(layer)
+        layer = None
+    if layer is None:
+        # each picture carries its own colour bar (:func:`with_colorbar`): napari's canvas
+        # colour bars would stack in a corner, unlabelled
+        return viewer.add_image(data, name=name, **kwargs)
+    # each change redraws the canvas: change only what differs, the data last but one
+    for key in ("scale", "translate"):
+        if key in kwargs and not np.allclose(getattr(layer, key), kwargs[key]):
+            setattr(layer, key, kwargs[key])
+    if "colormap" in kwargs and layer.colormap.name != kwargs["colormap"]:
+        layer.colormap = kwargs["colormap"]
+    limits = kwargs.get("contrast_limits")
+    if limits is not None:
+        with layer.events.contrast_limits.blocker():
+            layer.contrast_limits_range = (min(limits[0], layer.contrast_limits_range[0]),
+                                           max(limits[1], layer.contrast_limits_range[1]))
+    layer.data = data
+    if limits is not None:
+        layer.contrast_limits = limits
+    if not layer.visible:
+        layer.visible = True
+    return layer
+
+
+def symmetric_limits(a: np.ndarray) -> tuple[float, float]:
     """Contrast limits centred on 0 (diverging colormap), robust to a few extreme values."""
     finite = np.abs(a[np.isfinite(a)])
     if finite.size == 0:
@@ -117,85 +137,192 @@ def _limits(a: np.ndarray) -> tuple[float, float]:
     return (-m, m)
 
 
-def show_results_steps(viewer, labels_layer, output: AnalysisOutput) -> list:
-    """The steps that add (or replace) the result layers of one run, one layer per step.
+def _range_limits(a: np.ndarray) -> tuple[float, float]:
+    finite = a[np.isfinite(a)]
+    if finite.size == 0:
+        return (0.0, 1.0)
+    lo, hi = float(np.percentile(finite, 0.5)), float(np.percentile(finite, 99.5))
+    return (lo, hi if hi > lo else lo + 1.0)
 
-    Run them one per event-loop iteration (the widget does) so that the viewer redraws and takes
-    clicks between two layers; or call :func:`show_results` to do all at once.
+
+def with_colorbar(image: np.ndarray, limits: tuple[float, float]) -> np.ndarray:
+    """``image`` with a colour bar on its right (NaN gap, then a strip from ``limits[1]`` at
+    the top to ``limits[0]`` at the bottom): one layer, one colormap, one contrast."""
+    h, w = image.shape
+    gap = max(2, int(round(0.05 * max(h, w))))
+    bar = max(3, int(round(0.07 * max(h, w))))
+    out = np.full((h, w + gap + bar), np.nan, dtype=np.float32)
+    out[:, :w] = image
+    out[:, w + gap:] = np.linspace(limits[1], limits[0], h, dtype=np.float32)[:, None]
+    return out
+
+
+def _ticks(lo: float, hi: float, unit: str) -> list[str]:
+    fmt = (lambda v: f"{v:+.2g}") if lo < 0 < hi else (lambda v: f"{v:.2g}")
+    mid = "0" if lo < 0 < hi else fmt((lo + hi) / 2)
+    return [f"{fmt(hi)} {unit}".strip(), mid, fmt(lo)]
+
+
+def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
+    """Show one object's pictures in the result layers (added on first use); returns them.
+
+    Each picture carries its own colour bar (per-object contrast); the legend layer gives the
+    bar's values and says in words what the picture shows.
     """
     names = layer_names(labels_layer.name)
-    scale, translate = _disk_geometry(labels_layer, output, 0)
-    geo = {"scale": tuple(labels_layer.scale), "translate": tuple(labels_layer.translate)}
-    label = labels_layer.selected_label
-    if output.object_index(label) is None:
-        label = int(output.object_labels[0])
+    geo = cells(labels_layer)
+    out, bars = {}, {}
 
-    def features():
-        table = output.table.copy()
-        table.attrs = {}
-        # napari's convention: an 'index' column says which label a row belongs to (its
-        # status bar then shows one row per label, the last frame's; the 'frame' column says so)
-        table.insert(0, "index", table["label"].to_numpy())
-        labels_layer.features = table
+    def picture(key, image, colormap, limits, unit, scale, where):
+        top, left = where
+        data = with_colorbar(image, limits)
+        out[key] = _replace_image(viewer, names[key], data, colormap=colormap,
+                                  contrast_limits=limits, scale=(scale, scale),
+                                  translate=(top, left))
+        bars[key] = (top, left + data.shape[1] * scale, image.shape[0] * scale,
+                     _ticks(*limits, unit))
 
-    def disk():
-        _replace(viewer, names["disk"], "image", output.disk, colormap="RdBu_r",
-                 contrast_limits=_limits(output.disk), scale=scale, translate=translate)
-
-    def disk_skeleton():
-        _replace(viewer, names["disk_skeleton"], "labels", output.disk_skeleton, scale=scale,
-                 translate=translate)
-
-    def intensity_disk():
-        if output.intensity_disk is None:
-            if names["intensity_disk"] in viewer.layers:
-                viewer.layers.remove(names["intensity_disk"])
-            return
-        scale2, translate2 = _disk_geometry(labels_layer, output, 1)
-        finite = output.intensity_disk[np.isfinite(output.intensity_disk)]
-        hi = float(finite.max()) if finite.size else 1.0
-        lo = float(finite.min()) if finite.size else 0.0
-        _replace(viewer, names["intensity_disk"], "image", output.intensity_disk,
-                 colormap="magma", contrast_limits=(lo, hi if hi > lo else lo + 1),
-                 scale=scale2, translate=translate2)
-
-    def skeleton():
-        _replace(viewer, names["skeleton"], "labels", output.skeleton, **geo)
-
-    def sdf():
-        window, corner = output.sdf_window(label)
-        layer = _replace(viewer, names["sdf"], "image", window, colormap="RdBu_r",
-                         contrast_limits=_limits(window), opacity=0.6, scale=geo["scale"],
-                         translate=_window_translate(labels_layer, corner))
-        layer.metadata["pfsdm_label"] = label
-
-    def select():
-        _name_axes(viewer, labels_layer)
-        labels_layer.selected_label = label
-        show_object(viewer, output, label)
-        viewer.layers.selection.active = labels_layer
-
-    return [features, disk, disk_skeleton, intensity_disk, skeleton, sdf, select]
+    # the SDF, scaled to fill its cell
+    top, left, side = geo["sdf"]
+    h, w = pictures.sdf.shape
+    s_sdf = side / max(h, w)
+    picture("sdf", pictures.sdf, "RdBu_r", symmetric_limits(pictures.sdf), "px", s_sdf,
+            (top, left))
+    top_d, left_d, side_d = geo["disk"]
+    size = pictures.disk.shape[0]
+    s_disk = side_d / size
+    picture("disk", pictures.disk, "RdBu_r", symmetric_limits(pictures.disk), "", s_disk,
+            (top_d, left_d))
+    if pictures.intensity_disk is not None:
+        top_i, left_i, side_i = geo["intensity_disk"]
+        picture("intensity_disk", pictures.intensity_disk, "magma",
+                _range_limits(pictures.intensity_disk), "× mean", side_i / size, (top_i, left_i))
+    elif names["intensity_disk"] in viewer.layers:
+        viewer.layers.remove(names["intensity_disk"])
+    # lines: skeleton on the object, on the SDF and on the disk; the outline on the SDF
+    corner = np.asarray(pictures.sdf_corner, float)
+    paths, colors = [], []
+    for p in pictures.skeleton_image:
+        paths += [_world_2d(labels_layer, p), (p - corner) * s_sdf + (top, left)]
+        colors += [SKELETON_COLOR, SKELETON_COLOR]
+    for p in pictures.skeleton_disk:
+        paths.append(np.asarray(p, float) * s_disk + (top_d, left_d))
+        colors.append(SKELETON_COLOR)
+    paths.append((pictures.outline - corner) * s_sdf + (top, left))
+    colors.append(OUTLINE_COLOR)
+    paths = [p if len(p) > 1 else np.vstack([p, p]) for p in paths]
+    out["skeleton"] = _replace_lines(viewer, names["skeleton"], paths, colors)
+    out["legend"] = _legend(viewer, labels_layer, pictures, bars=bars)
+    return out
 
 
-def show_results(viewer, labels_layer, output: AnalysisOutput) -> list:
-    """Add (or replace) the result layers of one run at once; return them."""
-    for step in show_results_steps(viewer, labels_layer, output):
-        step()
-    return [viewer.layers[n] for n in layer_names(labels_layer.name).values()
-            if n in viewer.layers]
+def _replace_lines(viewer, name: str, paths: list, colors: list):
+    layer = viewer.layers[name] if name in viewer.layers else None
+    if layer is not None and (type(layer).__name__ != "Shapes" or layer.ndim != 2):
+        viewer.layers.remove(layer)
+        layer = None
+    if layer is None:
+        return viewer.add_shapes(paths, shape_type="path", edge_color=colors, edge_width=1.5,
+                                 name=name, blending="translucent_no_depth")
+    with layer.events.blocker_all():
+        layer.data = []
+    layer.add_paths(paths, edge_color=colors, edge_width=1.5)
+    if not layer.visible:
+        layer.visible = True
+    return layer
 
 
-def update_sdf(viewer, labels_layer, output: AnalysisOutput, label: int) -> None:
-    """Show the SDF of ``label`` in the SDF layer (if that layer is still there)."""
-    name = layer_names(labels_layer.name)["sdf"]
-    if name not in viewer.layers or output.object_index(label) is None:
-        return
-    layer = viewer.layers[name]
-    if layer.metadata.get("pfsdm_label") == label:
-        return
-    window, corner = output.sdf_window(label)
-    layer.translate = _window_translate(labels_layer, corner)
-    layer.data = window
-    layer.contrast_limits = _limits(window)
-    layer.metadata["pfsdm_label"] = label
+def _legend(viewer, labels_layer, pictures: ObjectPictures | None, note: str = "",
+            bars: dict | None = None):
+    """Titles above each picture, a plain-words key below, the colour bars' values; a Points
+    layer of texts."""
+    name = layer_names(labels_layer.name)["legend"]
+    geo = cells(labels_layer)
+    height = _shape(labels_layer)[-2] * labels_layer.scale[-2]
+    where, texts = [], []
+    keys = ["sdf", "disk"] + (["intensity_disk"]
+                              if pictures is not None and pictures.intensity_disk is not None
+                              else [])
+    for key in keys:
+        top, left, side = geo[key]
+        title, key_text = LEGENDS[key]
+        where += [(top - 0.01 * height, left), (top + side + 0.08 * height, left)]
+        texts += [title, key_text]
+    for top, right, height, ticks in (bars or {}).values():
+        for y, text in zip((top + 0.16 * height, top + 0.56 * height, top + height), ticks,
+                           strict=True):
+            where.append((y, right + 0.01 * height))
+            texts.append(text)
+    top, left, side = geo["notes"]
+    head = note or (f"frame {pictures.frame} · label {pictures.label}"
+                    if pictures is not None else "")
+    if pictures is not None:
+        head += " · yellow = skeleton"
+        if pictures.notes:
+            head += "\n" + "\n".join(pictures.notes)
+    where.append((top, left))
+    texts.append(head)
+    # an empty text at the panel's far corner: "fit to view" then leaves room for the texts
+    last_top, last_left, last_side = geo["intensity_disk"]
+    where.append((top + 0.1 * height, last_left + 1.35 * last_side))
+    texts.append("")
+    data = np.asarray(where, float)
+    features = {"text": texts}
+    layer = viewer.layers[name] if name in viewer.layers else None
+    if layer is not None and type(layer).__name__ != "Points":
+        viewer.layers.remove(layer)
+        layer = None
+    if layer is None:
+        layer = viewer.add_points(
+            data, features=features, name=name, size=1, face_color="transparent",
+            border_width=0, text={"string": "{text}", "size": 8, "color": "white",
+                                  "anchor": "lower_left"})
+    elif list(layer.features["text"]) != texts or not np.array_equal(layer.data, data):
+        with layer.events.blocker_all():
+            layer.data = data
+        layer.features = features
+        layer.refresh()
+    layer.editable = False
+    return layer
+
+
+def hide_pictures(viewer, labels_layer, note: str) -> None:
+    """Hide the picture layers (the selected label is not in this frame, or has no
+    features) and say why in the legend."""
+    names = layer_names(labels_layer.name)
+    for key in ("sdf", "disk", "intensity_disk", "skeleton"):
+        if names[key] in viewer.layers:
+            viewer.layers[names[key]].visible = False
+    _legend(viewer, labels_layer, None, note=note)
+
+
+def set_features(labels_layer, output: AnalysisOutput) -> None:
+    """Give the Labels layer its numeric feature table and a short status-bar line.
+
+    ``labels_layer.features`` gets :func:`~._compute.layer_features` (numbers, PC scores; one
+    row per (frame, label), napari's ``index`` column = the label). napari's status bar would
+    show every column of the last frame's row of the label under the cursor; the layer's
+    properties text is replaced by :func:`~._compute.status_line` for the frame shown.
+    """
+    labels_layer.features = layer_features(output)
+    labels_layer.metadata["pfsdm_errors"] = {
+        f"{int(f)}:{int(lab)}": str(e) for f, lab, e in
+        zip(output.table["frame"], output.table["label"], output.table["error"], strict=True)
+        if str(e)}
+
+    def _get_properties(position, *, view_direction=None, dims_displayed=None, world=False):
+        value = labels_layer.get_value(position, view_direction=view_direction,
+                                       dims_displayed=dims_displayed, world=world)
+        if value is None:
+            return []
+        label = int(value[1] if labels_layer.multiscale else value)
+        if label == 0:
+            return []
+        frame = 0
+        if labels_layer.ndim == 3 and len(position) >= 3:
+            pos = np.asarray(position, float)
+            data_pos = labels_layer.world_to_data(pos) if world else pos
+            frame = int(np.rint(data_pos[-3]))
+        return [status_line(output, frame, label)]
+
+    labels_layer._get_properties = _get_properties  # the status bar's properties text

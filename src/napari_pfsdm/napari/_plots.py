@@ -13,6 +13,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from napari.layers import Labels
 from napari.utils.notifications import show_error
+from qtpy.QtCore import QTimer
 from qtpy.QtWidgets import (
     QComboBox,
     QFileDialog,
@@ -33,6 +34,8 @@ from ._store import store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
+#: Plots follow the slider and the selection once they have been still this long (ms).
+DEBOUNCE_MS = 120
 
 
 def read_groups_csv(path) -> dict[int, str]:
@@ -60,6 +63,13 @@ class _LinkedPlot(QWidget):
     def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
+        self._highlight_artists: list = []
+        self._axes_points = None
+        # redraws and highlights wait until the slider or selection has been still for a moment:
+        # scrubbing through frames does not redraw the figure at every step
+        self._pending: str | None = None
+        self._timer = QTimer(self, singleShot=True, interval=DEBOUNCE_MS)
+        self._timer.timeout.connect(self._flush)
         self.layer_combo = QComboBox(toolTip="The analysed Labels layer whose results are shown.")
         self.figure = Figure(figsize=(4, 3.2), constrained_layout=True)
         self.canvas = FigureCanvasQTAgg(self.figure)
@@ -154,15 +164,44 @@ class _LinkedPlot(QWidget):
         return _layers.current_frame(self.viewer, self._layer), int(self._layer.selected_label)
 
     def _on_step(self, event=None) -> None:
-        self.highlight()
+        self.schedule("highlight")
 
     def _on_selection(self, event=None) -> None:
-        self.highlight()
+        self.schedule("highlight")
+
+    def schedule(self, what: str) -> None:
+        """Redraw (``"redraw"``) or re-highlight (``"highlight"``) soon, once."""
+        if what == "redraw" or self._pending is None:
+            self._pending = what
+        self._timer.start()
+
+    def _flush(self) -> None:
+        what, self._pending = self._pending, None
+        try:
+            if what == "redraw":
+                self.redraw()
+            elif what == "highlight":
+                self.highlight()
+        except RuntimeError:  # the Qt widget is gone
+            self._disconnect()
+
+    def flush(self) -> None:
+        """Do the pending redraw or highlight now (for scripts and tests)."""
+        if self._pending is not None:
+            self._timer.stop()
+            self._flush()
+
+    def show_layer(self, layer) -> None:
+        """Show the results of ``layer`` (an analysed Labels layer)."""
+        self._refresh_layers()
+        if layer is not None and self.layer_combo.findText(layer.name) >= 0:
+            self.layer_combo.setCurrentText(layer.name)
+            self._bind(layer)
 
     def select_point(self, index: int) -> None:
         """Go to the frame and label of clickable point ``index``."""
         frame, label = self._keys[index]
-        _layers.go_to(self.viewer, self._layer, self.output, frame, label)
+        _layers.go_to(self.viewer, self._layer, frame, label)
         self.highlight()
 
     def _on_click(self, event) -> None:
@@ -220,7 +259,7 @@ class _LinkedPlot(QWidget):
 
     def _clear_highlight(self):
         """Remove the highlight markers; the axes to draw new ones on, or None if no points."""
-        for artist in getattr(self, "_highlight_artists", []):
+        for artist in self._highlight_artists:
             try:
                 artist.remove()
             except (ValueError, NotImplementedError):
@@ -260,7 +299,6 @@ class TrajectoryPlotWidget(_LinkedPlot):
         for box in (self.pc_x, self.pc_y):
             box.valueChanged.connect(lambda *a: self.redraw())
         self.groups_button.clicked.connect(self._groups_dialog)
-        self._highlight_artists: list = []
 
     def load_groups(self, path) -> None:
         """Colour by the groups of a CSV (label → group)."""
@@ -380,26 +418,27 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.frame_choice = QComboBox(toolTip="Compare the objects of the frame shown by the "
                                               "time slider, or of all frames together.")
         self.frame_choice.addItems(["current frame", "all frames"])
+        self._shown_frame: int | None = None
+        self._matrix_keys: list[tuple[int, int]] = []
+        self._ax_matrix = None
+        self._cache: dict = {}  # (id(output), frame or None, weight) → (keys, distances, xy)
         super().__init__(napari_viewer)
         self.controls.addWidget(QLabel("Objects of"))
         self.controls.addWidget(self.frame_choice, 1)
         self.frame_choice.currentIndexChanged.connect(lambda *a: self.redraw())
-        self._shown_frame: int | None = None
-        self._highlight_artists: list = []
-        self._matrix_keys: list[tuple[int, int]] = []
-        self._ax_matrix = None
 
     def _on_step(self, event=None) -> None:
         if self.frame_choice.currentText() == "current frame" and self._layer is not None:
             if self.current()[0] != self._shown_frame:
-                self.redraw()
+                self.schedule("redraw")
                 return
-        self.highlight()
+        self.schedule("highlight")
 
     def draw_plot(self) -> None:
         from ..analysis.features import split_failed
         from ..analysis.tables import distance_matrix
 
+        self._ax_matrix = None
         output = self.output
         if output is None:
             self.info.setText("Run the PF-SDM analysis to fill this view.")
@@ -424,26 +463,54 @@ class ShapeComparisonWidget(_LinkedPlot):
             sub = split_failed(sub, ("shape", "intensity"))[0]
             if len(sub) < 2:
                 raise ValueError("Fewer than two objects with intensity features here.")
-        d = np.asarray(distance_matrix(sub, intensity_weight=w))
-        xy = classical_mds(d, 2)
+        key = (id(output), self._shown_frame, float(w))
+        if key not in self._cache:  # a frame's distances are computed once per run
+            if len(self._cache) > 256:
+                self._cache.clear()
+            d = np.asarray(distance_matrix(sub, intensity_weight=w))
+            self._cache[key] = (d, classical_mds(d, 2))
+        d, xy = self._cache[key]
         c = self._theme()
         ax_m = self.figure.add_subplot(121)
         ax_p = self.figure.add_subplot(122)
         for ax in (ax_m, ax_p):
             self._style(ax)
-        ax_m.imshow(d, cmap="viridis", interpolation="nearest")
+        im = ax_m.imshow(d, cmap="viridis", interpolation="nearest")
+        cb = self.figure.colorbar(im, ax=ax_m, fraction=0.046, pad=0.02)
+        cb.set_label("PF-SDM distance", color=c["fg"], fontsize=7)
+        cb.ax.tick_params(colors=c["fg"], labelsize=6)
         keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        frames = np.array([f for f, _ in keys])
         if len(keys) <= 20:
             ticks = [str(lb) if self._shown_frame is not None else f"{f}:{lb}" for f, lb in keys]
             ax_m.set_xticks(range(len(keys)), ticks, fontsize=6, rotation=90)
             ax_m.set_yticks(range(len(keys)), ticks, fontsize=6)
+            ax_m.set_xlabel("label" if self._shown_frame is not None else "frame:label",
+                            fontsize=7)
+        elif self._shown_frame is None:  # rows are sorted by frame: mark where frames start
+            starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]])
+            step = max(1, len(starts) // 8)
+            ax_m.set_xticks(starts[::step], [str(frames[i]) for i in starts[::step]], fontsize=6)
+            ax_m.set_yticks(starts[::step], [str(frames[i]) for i in starts[::step]], fontsize=6)
+            ax_m.set_xlabel("objects, by frame (tick = first object of that frame)", fontsize=7)
+        else:
+            ax_m.set_xticks([])
+            ax_m.set_yticks([])
+            ax_m.set_xlabel(f"{len(keys)} objects, by label", fontsize=7)
         ax_m.set_title(f"distances, {title}", fontsize=9)
-        ax_p.scatter(xy[:, 0], xy[:, 1], s=30, color=c["grid"], edgecolors=c["fg"], lw=0.5)
+        if self._shown_frame is None and output.time_lapse:
+            sc = ax_p.scatter(xy[:, 0], xy[:, 1], s=14, c=frames, cmap="viridis",
+                              edgecolors="none")
+            cb2 = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
+            cb2.set_label("frame", color=c["fg"], fontsize=7)
+            cb2.ax.tick_params(colors=c["fg"], labelsize=6)
+        else:
+            ax_p.scatter(xy[:, 0], xy[:, 1], s=30, color=c["grid"], edgecolors=c["fg"], lw=0.5)
         if len(keys) <= 30:
             for (_f, lb), (px, py) in zip(keys, xy, strict=True):
                 ax_p.annotate(str(lb), (px, py), fontsize=7, color=c["fg"],
                               xytext=(3, 3), textcoords="offset points")
-        ax_p.set_title("MDS map", fontsize=9)
+        ax_p.set_title("MDS map (close = similar shapes)", fontsize=9)
         ax_p.set_xticks([])
         ax_p.set_yticks([])
         self._points = xy
@@ -477,7 +544,7 @@ class ShapeComparisonWidget(_LinkedPlot):
             self._highlight_artists.append(ax.scatter(
                 *self._points[sel].T, s=120, marker="*", color=c["accent"], edgecolors=c["fg"],
                 zorder=4))
-            for i in np.flatnonzero(sel):
+            for i in np.flatnonzero(sel) if self._ax_matrix is not None else []:
                 self._highlight_artists.append(self._ax_matrix.axhline(
                     i, color=c["accent"], lw=1.0, alpha=0.8))
         if draw:

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
 from napari.layers import Image, Labels
 from napari.qt.threading import GeneratorWorker, thread_worker
 from napari.utils.notifications import show_error, show_info
-from qtpy.QtCore import QTimer, Signal
+from qtpy.QtCore import Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -27,11 +26,23 @@ import napari
 
 from ..core.params import PFSDMParams
 from . import _layers
-from ._compute import AnalysisOutput, run_analysis, validate_layers_data
+from ._compute import (
+    AnalysisOutput,
+    PictureCache,
+    object_pictures,
+    run_analysis,
+    status_line,
+    validate_layers_data,
+)
 from ._export import export_results
 from ._store import store_for
 
 NONE = "(none)"
+#: Seconds between two progress-bar updates during a run. Qt repaints the window while
+#: holding Python's interpreter lock, so frequent updates slow the worker thread down.
+PROGRESS_INTERVAL = 0.5
+#: Pictures made ahead of time, in the frames on each side of the one shown.
+PREFETCH_FRAMES = 2
 
 TIPS = {
     "labels": "The segmentation: one integer label per object (0 = background). A 2-D image or a "
@@ -56,7 +67,23 @@ TIPS = {
     "export": "Save the feature table, the PCA scores and the distance matrix as CSV files "
               "(plain CSV; the options used in a .csv.json file beside each).",
     "plots": "Open the PCA trajectory plot and the shape comparison view.",
+    "first_axis": "What the first axis of a 3-D Labels layer is: the frames of a movie (time), "
+                  "or the slices of a 3-D stack (Z). napari cannot tell them apart.",
 }
+
+#: How to read the pictures beside the image (shown under the buttons after a run).
+READING = (
+    "<b>Pictures of the selected label</b> (right of the image; select a label or move the time "
+    "slider). <b>SDF</b>: the signed distance to the outline in pixels, blue inside, red "
+    "outside, the dark line is the outline. <b>PF-SDF disk</b>: the same distances moved onto "
+    "a standard disk, the numbers PF-SDM measures: the centre is the object's centre, the rim "
+    "is its outline, so two objects of the same shape give the same disk whatever their size, "
+    "position or turn. <b>reporter</b>: the intensity on the same disk, 1 = the object's "
+    "mean. Yellow lines: the skeleton (medial axis). Each picture has its own colour bar."
+)
+
+#: The choices of the 'First axis' menu and what they mean for the analysis.
+FIRST_AXIS_CHOICES = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
 
 
 def _data(layer):
@@ -93,11 +120,19 @@ class AnalysisWidget(QWidget):
         self._syncing = False
         self._linked_layer: Labels | None = None
         self._showing = False
+        #: Pictures of the objects looked at (bounded); cleared by a new run.
+        self.pictures = PictureCache()
+        self._picture_worker = None
+        self._wanted: tuple | None = None  # (layer, frame, label) whose pictures are wanted
+        self.shown_key: tuple[int, int] | None = None  # (frame, label) in the picture layers
+        self._refit = False  # fit the view once the first pictures are shown
 
         from ..core.descriptor import DEFAULTS
         from ..core.params import CHOICES
 
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
+        self.first_axis = QComboBox(toolTip=TIPS["first_axis"])
+        self.first_axis.addItems(list(FIRST_AXIS_CHOICES))
         self.image_combo = QComboBox(toolTip=TIPS["image"])
         self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(DEFAULTS["n_fourier"]),
                                   toolTip=TIPS["n_fourier"])
@@ -119,11 +154,14 @@ class AnalysisWidget(QWidget):
         self.progress = QProgressBar(minimum=0, maximum=1, value=0)
         self.progress.setFormat("%v / %m objects")
         self.status = QLabel("", wordWrap=True)
+        self.reading = QLabel(READING, wordWrap=True, visible=False)
         self.export_button = QPushButton("Export CSV…", enabled=False, toolTip=TIPS["export"])
         self.plots_button = QPushButton("Open plots", toolTip=TIPS["plots"])
 
         form = QFormLayout()
         form.addRow("Labels", self.labels_combo)
+        form.addRow("First axis", self.first_axis)
+        self._first_axis_label = form.labelForField(self.first_axis)
         form.addRow("Intensity image", self.image_combo)
         form.addRow("Fourier harmonics", self.n_fourier)
         form.addRow("Disk map", self.mapping)
@@ -146,6 +184,7 @@ class AnalysisWidget(QWidget):
         layout.addLayout(buttons)
         layout.addWidget(self.progress)
         layout.addWidget(self.status)
+        layout.addWidget(self.reading)
         layout.addLayout(after)
         layout.addStretch(1)
 
@@ -156,6 +195,7 @@ class AnalysisWidget(QWidget):
         self.export_button.clicked.connect(self._export_dialog)
         self.plots_button.clicked.connect(self.open_plots)
         self.labels_combo.currentIndexChanged.connect(self._refresh_images)
+        self.labels_combo.currentIndexChanged.connect(self._refresh_first_axis)
         self.labels_combo.currentIndexChanged.connect(self._link_selected_layer)
         for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed,
                       napari_viewer.layers.events.reordered):
@@ -177,7 +217,26 @@ class AnalysisWidget(QWidget):
             self.labels_combo.setCurrentText(current)
         self.labels_combo.blockSignals(False)
         self._refresh_images()
+        self._refresh_first_axis()
         self._link_selected_layer()
+
+    def _refresh_first_axis(self, *args) -> None:
+        """Show the 'First axis' menu for 3-D labels only; guess from napari's axis label."""
+        labels = self.labels_layer
+        three_d = labels is not None and labels.ndim == 3
+        self.first_axis.setVisible(three_d)
+        if self._first_axis_label is not None:
+            self._first_axis_label.setVisible(three_d)
+        if three_d and self.viewer.dims.ndim >= 3:
+            name = str(self.viewer.dims.axis_labels[-3]).lower()
+            if name in ("z", "depth", "plane", "slice"):
+                self.first_axis.setCurrentIndex(1)
+            elif name in ("t", "time", "frame"):
+                self.first_axis.setCurrentIndex(0)
+
+    def first_axis_meaning(self) -> str:
+        """'time' or 'z': what the first axis of a 3-D Labels layer is taken to be."""
+        return FIRST_AXIS_CHOICES[self.first_axis.currentText()]
 
     def _is_result(self, layer) -> bool:
         return any(layer.name.endswith(" " + s) for s in _layers.SUFFIXES.values())
@@ -232,7 +291,8 @@ class AnalysisWidget(QWidget):
             raise ValueError(f"'{image.name}' is not an Image layer.")
         if image is not None and getattr(image, "rgb", False):
             raise ValueError(f"'{image.name}' is an RGB image: pick a single-channel image.")
-        validate_layers_data(_data(labels), None if image is None else _data(image))
+        validate_layers_data(_data(labels), None if image is None else _data(image),
+                             self.first_axis_meaning() if labels.ndim == 3 else "time")
 
     def _message(self, text: str, error: bool = False) -> None:
         self.status.setText(text)
@@ -265,8 +325,9 @@ class AnalysisWidget(QWidget):
         self._last_progress = 0.0
         self._t0 = time.perf_counter()
         # errors are shown by _on_error (not re-raised into the event loop)
+        first_axis = self.first_axis_meaning() if labels.ndim == 3 else "time"
         worker = _analysis_worker(_data(labels), None if image is None else _data(image), options,
-                                  _ignore_errors=True)
+                                  first_axis, _ignore_errors=True)
         worker.yielded.connect(self._on_progress)
         worker.returned.connect(lambda out: self._on_returned(labels, out, weight))
         worker.errored.connect(self._on_error)
@@ -285,12 +346,17 @@ class AnalysisWidget(QWidget):
     def _on_progress(self, value) -> None:
         done, total, frame, label = value
         now = time.perf_counter()
-        if done < total and now - self._last_progress < 0.05:
-            return  # at most 20 updates a second
+        if done < total and now - self._last_progress < PROGRESS_INTERVAL:
+            return  # each repaint of the window holds Python's lock: few updates
         self._last_progress = now
         self.progress.setRange(0, total)
         self.progress.setValue(done)
         self.progress.setFormat(f"%v / %m objects (frame {frame}, label {label})")
+
+    def _reset_progress(self) -> None:
+        self.progress.setRange(0, 1)
+        self.progress.setValue(0)
+        self.progress.setFormat("%v / %m objects")
 
     def _on_returned(self, labels: Labels, output: AnalysisOutput, weight: float) -> None:
         output.options["intensity_weight"] = weight
@@ -298,56 +364,61 @@ class AnalysisWidget(QWidget):
         if labels not in self.viewer.layers:
             self._message("The Labels layer was removed during the run; nothing shown.", True)
             return
-        self._message("Showing the results…")
         self._showing = True
-        steps = _layers.show_results_steps(self.viewer, labels, output)
-        steps.append(lambda: self._results_shown(labels, output))
-        self._run_steps(steps)
-
-    def _run_steps(self, steps: list) -> None:
-        """One layer per event-loop iteration: the viewer redraws between them."""
-        step, rest = steps[0], steps[1:]
         try:
-            step()
-        except Exception as err:  # noqa: BLE001 - reported to the user
-            self._showing = False
+            self._show_results(labels, output)
+        except Exception as err:  # noqa: BLE001 - reported to the user, the viewer lives on
             self._on_error(err)
+        finally:
+            self._showing = False
             self._after_run()
-            return
-        if rest:
-            QTimer.singleShot(0, lambda: self._run_steps(rest))
 
-    def _results_shown(self, labels: Labels, output: AnalysisOutput) -> None:
-        self.last_output = output
-        store_for(self.viewer).set(labels, output)
-        self._link(labels)
+    def _show_results(self, labels: Labels, output: AnalysisOutput) -> None:
         from ..analysis.features import warnings_summary
 
+        self.pictures.clear()
+        self.shown_key = None
+        self.last_output = output
+        _layers.set_features(labels, output)
+        _layers.name_axes(self.viewer, labels)
+        first_run = _layers.layer_names(labels.name)["disk"] not in self.viewer.layers
+        store_for(self.viewer).set(labels, output)
+        self._link(labels, force=True)
+        frame = _layers.current_frame(self.viewer, labels)
+        present = output.labels_in(frame)
+        if labels.selected_label not in present and len(present):
+            self._syncing = True
+            try:
+                labels.selected_label = int(present[0])
+            finally:
+                self._syncing = False
+        self.viewer.layers.selection.active = labels
+        # make room for the pictures beside the labels: fit the view once they are there
+        self._refit = first_run
+        self.request_pictures()
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
-               "move the sliders to see its disk, skeleton and SDF.")
+               "move the time slider: its SDF, disk and skeleton show beside the image.")
         summary = warnings_summary(output.table)
-        if output.skeleton_errors:
-            (f, lab), why = next(iter(output.skeleton_errors.items()))
-            n = len(output.skeleton_errors)
-            summary += ("; " if summary else "") + (
-                f"no skeleton for {n} object{'s' if n > 1 else ''} (e.g. frame {f} label "
-                f"{lab}: {why})")
         if summary:
             msg += f" {summary[0].upper()}{summary[1:]}."
         self.run_summary = summary
         self._message(msg)
         self.export_button.setEnabled(True)
-        self._showing = False
-        self._after_run()
+        self.reading.setVisible(True)
+        self._reset_progress()
+        self.progress.setRange(0, len(output.table))
+        self.progress.setValue(len(output.table))
         self.finished.emit(labels)
 
     def _on_error(self, err: Exception) -> None:
+        self._reset_progress()
         self.last_error = str(err)
         self._message(f"The analysis stopped: {err}", error=True)
         show_error(f"PF-SDM analysis failed: {err}")
         self.stopped.emit(str(err))
 
     def _on_aborted(self) -> None:
+        self._reset_progress()
         self._message("Cancelled; no results were kept.")
         self.stopped.emit("cancelled")
 
@@ -360,8 +431,7 @@ class AnalysisWidget(QWidget):
         self.run_button.setEnabled(True)
         self.cancel_button.setEnabled(False)
         if self.progress.maximum() == 0:
-            self.progress.setRange(0, 1)
-            self.progress.setValue(0)
+            self._reset_progress()
 
     # ---------------------------------------------------------------- linking
     def _link_selected_layer(self, *args) -> None:
@@ -369,8 +439,8 @@ class AnalysisWidget(QWidget):
         if layer is not None and store_for(self.viewer).get(layer) is not None:
             self._link(layer)
 
-    def _link(self, labels: Labels) -> None:
-        if self._linked_layer is labels:
+    def _link(self, labels: Labels, force: bool = False) -> None:
+        if self._linked_layer is labels and not force:
             return
         if self._linked_layer is not None:
             try:
@@ -381,33 +451,134 @@ class AnalysisWidget(QWidget):
         labels.events.selected_label.connect(self._on_selected_label)
 
     def _on_selected_label(self, event=None) -> None:
-        labels = self._linked_layer
-        output = store_for(self.viewer).get(labels)
-        if output is None or self._syncing:
-            return
-        self._syncing = True
-        try:
-            _layers.show_object(self.viewer, output, labels.selected_label)
-            _layers.update_sdf(self.viewer, labels, output, labels.selected_label)
-        finally:
-            self._syncing = False
+        if not self._syncing:
+            self.request_pictures()
 
     def _on_step(self, event=None) -> None:
         labels = self._linked_layer
+        if self._syncing or labels is None or labels not in self.viewer.layers \
+                or labels.ndim != 3:
+            return
+        if store_for(self.viewer).get(labels) is None:
+            return
+        if self.shown_key is None or self.shown_key[0] != _layers.current_frame(
+                self.viewer, labels):
+            self.request_pictures()
+
+    # ---------------------------------------------------------------- pictures
+    def request_pictures(self) -> None:
+        """Show the pictures of the selected label in the current frame: at once when they
+        are cached, otherwise made in a worker (only the last request is served)."""
+        labels = self._linked_layer
         output = store_for(self.viewer).get(labels)
-        if output is None or self._syncing or labels not in self.viewer.layers:
+        if self._syncing or output is None or labels not in self.viewer.layers:
             return
-        if self.viewer.dims.ndim <= labels.ndim or len(output.object_labels) == 0:
+        frame = _layers.current_frame(self.viewer, labels)
+        label = int(labels.selected_label)
+        self.viewer.status = status_line(output, frame, label)
+        key = (frame, label)
+        if key == self.shown_key:
             return
-        idx = int(np.clip(np.rint(self.viewer.dims.point[0]), 0, len(output.object_labels) - 1))
-        label = int(output.object_labels[idx])
-        if label != labels.selected_label:
+        i = output.row_index(frame, label)
+        if i is None or str(output.table["error"].iat[i]):
+            why = ("not in this frame" if i is None
+                   else f"no features: {output.table['error'].iat[i]}")
             self._syncing = True
             try:
-                labels.selected_label = label
-                _layers.update_sdf(self.viewer, labels, output, label)
+                _layers.hide_pictures(self.viewer, labels, f"frame {frame} · label {label}: {why}")
             finally:
                 self._syncing = False
+            self.shown_key = key
+            return
+        cached = self.pictures.get(key)
+        if cached is not None:
+            self._show_pictures(labels, cached)
+            return
+        self._wanted = (labels, frame, label)
+        if self._picture_worker is None:
+            self._start_picture_worker()
+
+    def _start_picture_worker(self, job: tuple | None = None) -> None:
+        labels, frame, label = job or self._wanted
+        output = store_for(self.viewer).get(labels)
+        worker = _pictures_worker(output.labels, output.intensity, output, frame, label,
+                                  _ignore_errors=True)
+        worker.returned.connect(lambda pics: self._on_pictures(labels, pics))
+        worker.errored.connect(lambda err: self._on_pictures_error(labels, frame, label, err))
+        worker.finished.connect(self._on_pictures_finished)
+        self._picture_worker = worker
+        worker.start()
+
+    def _on_pictures(self, labels: Labels, pics) -> None:
+        self.pictures.put((pics.frame, pics.label), pics)
+        if self._wanted is not None and self._wanted[0] is labels \
+                and self._wanted[1:] == (pics.frame, pics.label):
+            self._wanted = None
+            if labels in self.viewer.layers:
+                self._show_pictures(labels, pics)
+
+    def _on_pictures_error(self, labels, frame, label, err) -> None:
+        if self._wanted is not None and self._wanted[1:] == (frame, label):
+            self._wanted = None
+            if labels in self.viewer.layers:
+                self._syncing = True
+                try:
+                    _layers.hide_pictures(self.viewer, labels,
+                                          f"frame {frame} · label {label}: no pictures ({err})")
+                finally:
+                    self._syncing = False
+                self.shown_key = (frame, label)
+
+    def _on_pictures_finished(self) -> None:
+        self._picture_worker = None
+        if self._wanted is not None:  # the selection moved on while this one was made
+            labels, frame, label = self._wanted
+            cached = self.pictures.get((frame, label))
+            if cached is not None:
+                self._wanted = None
+                self._show_pictures(labels, cached)
+            elif labels in self.viewer.layers:
+                self._start_picture_worker()
+                return
+            else:
+                self._wanted = None
+        job = self._next_prefetch()
+        if job is not None:
+            self._start_picture_worker(job)
+
+    def _next_prefetch(self) -> tuple | None:
+        """While idle, make the pictures of the shown label in the frames around the one shown
+        (browsing time is then instant): up to :data:`PREFETCH_FRAMES` each way."""
+        labels = self._linked_layer
+        output = store_for(self.viewer).get(labels)
+        if output is None or self.shown_key is None or labels not in self.viewer.layers:
+            return None
+        frame, label = self.shown_key
+        for step in range(1, PREFETCH_FRAMES + 1):
+            for f in (frame + step, frame - step):
+                i = output.row_index(f, label)
+                if i is not None and (f, label) not in self.pictures \
+                        and not str(output.table["error"].iat[i]):
+                    return labels, f, label
+        return None
+
+    def _show_pictures(self, labels: Labels, pics) -> None:
+        # adding a layer moves napari's dims: the events it sends must not start a second
+        # showing inside this one (nested layer insertions crash napari's layer list)
+        self._syncing = True
+        try:
+            _layers.show_pictures(self.viewer, labels, pics)
+            self.shown_key = (pics.frame, pics.label)
+            self.viewer.layers.selection.active = labels
+            if self._refit:
+                self._refit = False
+                self.viewer.reset_view()
+        finally:
+            self._syncing = False
+        if self._picture_worker is None:
+            job = self._next_prefetch()
+            if job is not None:
+                self._start_picture_worker(job)
 
     # ------------------------------------------------------------ export/plots
     def export(self, folder) -> list:
@@ -437,19 +608,34 @@ class AnalysisWidget(QWidget):
         from ._plots import ShapeComparisonWidget, TrajectoryPlotWidget
 
         window = self.viewer.window
+        labels = self._linked_layer
+        self.plots = []
         for cls, name in ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
                           (ShapeComparisonWidget, "PF-SDM shape comparison")):
+            widget = None
             try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice
-                window.add_plugin_dock_widget("napari-pfsdm", name)
-                continue
+                _dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name)
             except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
-                pass
-            if name not in getattr(window, "dock_widgets", {}):
-                window.add_dock_widget(cls(self.viewer), name=name, area="right")
+                docks = getattr(window, "dock_widgets", {})
+                if name in docks:
+                    widget = docks[name].widget() if hasattr(docks[name], "widget") else None
+                else:
+                    widget = cls(self.viewer)
+                    window.add_dock_widget(widget, name=name, area="right")
+            if isinstance(widget, cls):
+                self.plots.append(widget)
+                if labels is not None:  # the layer this widget analysed last, not the first
+                    widget.show_layer(labels)
 
 
 @thread_worker(start_thread=False)
-def _analysis_worker(labels, intensity, options):
+def _analysis_worker(labels, intensity, options, first_axis):
     """Worker generator: the analysis, stoppable at each object."""
-    output = yield from run_analysis(labels, intensity, options)
+    output = yield from run_analysis(labels, intensity, options, first_axis)
     return output
+
+
+@thread_worker(start_thread=False)
+def _pictures_worker(labels, intensity, output, frame, label):
+    """Worker: the pictures of one object."""
+    return object_pictures(labels, intensity, output, frame, label)
