@@ -69,9 +69,14 @@ def test_run_keeps_rows_and_pictures_are_made_on_demand(two_frames):
     # SDF: negative inside (about -radius at the centre), 0 at the outline, positive out
     c = object_pictures(labels, intensity, out, 1, 7, size=48)
     r0, c0 = c.sdf_corner
-    assert c.sdf[40 - r0, 90 - c0] == pytest.approx(-15, abs=1.0)
-    assert abs(c.sdf[40 - r0, 105 - c0]) < 1.0 and c.sdf[40 - r0, 110 - c0] > 3
-    assert c.sdf.shape[0] < 80 and c.sdf.shape[1] < 120
+
+    def at(r, col):  # the SDF sample nearest to frame position (r, col)
+        return c.sdf[int(round((r - r0) / c.sdf_step)), int(round((col - c0) / c.sdf_step))]
+
+    # 31 px box: (31 * 1.5 + 4) px on 48 samples
+    assert c.sdf.shape == (48, 48) and c.sdf_step == pytest.approx((31 * 1.5 + 4) / 48)
+    assert at(40, 90) == pytest.approx(-15, abs=1.0)
+    assert abs(at(40, 105)) < 1.0 and at(40, 110) > 3
     assert np.hypot(*(c.outline - (40, 90)).T).mean() == pytest.approx(15, abs=0.7)
     with pytest.raises(KeyError):
         object_pictures(labels, intensity, out, 0, 7)

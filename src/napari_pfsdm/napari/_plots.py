@@ -290,6 +290,8 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self.groups_button = QPushButton("Groups CSV…", toolTip="Load a CSV with columns "
                                          "label,group (e.g. 3,multi-axes) to colour by group.")
         self.groups: dict[int, str] = {}
+        #: Sentences on what PC1 and PC2 follow (classic measures), after each draw.
+        self.explanation: list[str] = []
         super().__init__(napari_viewer)
         for w in (self.view, QLabel("PC"), self.pc_x, QLabel("vs"), self.pc_y, self.color_by,
                   self.groups_button):
@@ -377,7 +379,14 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self._points = np.column_stack([x, y])
         self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
         self._axes_points = ax
-        self.info.setText("Click a point to go to that object and frame.")
+        from ..analysis.interpretation import explain_components
+
+        words = []
+        if output.measures is not None and channel == "shape":
+            words = explain_components(scores, output.measures, ratios, n=2)
+        self.explanation = words
+        self.info.setText(("; ".join(words) + ". " if words else "")
+                          + "Click a point to go to that object and frame.")
 
     def highlight(self, draw: bool = True) -> None:
         ax = self._clear_highlight()

@@ -7,7 +7,7 @@ import time
 from napari.layers import Image, Labels
 from napari.qt.threading import GeneratorWorker, thread_worker
 from napari.utils.notifications import show_error, show_info
-from qtpy.QtCore import Signal
+from qtpy.QtCore import QTimer, Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -41,8 +41,10 @@ NONE = "(none)"
 #: Seconds between two progress-bar updates during a run. Qt repaints the window while
 #: holding Python's interpreter lock, so frequent updates slow the worker thread down.
 PROGRESS_INTERVAL = 0.5
-#: Pictures made ahead of time, in the frames on each side of the one shown.
+#: Pictures made ahead of time, in the frames on each side of the one shown ...
 PREFETCH_FRAMES = 2
+#: ... after the selection and the time slider have been still this long (ms).
+PREFETCH_DELAY_MS = 250
 
 TIPS = {
     "labels": "The segmentation: one integer label per object (0 = background). A 2-D image or a "
@@ -126,6 +128,10 @@ class AnalysisWidget(QWidget):
         self._wanted: tuple | None = None  # (layer, frame, label) whose pictures are wanted
         self.shown_key: tuple[int, int] | None = None  # (frame, label) in the picture layers
         self._refit = False  # fit the view once the first pictures are shown
+        # pictures are made ahead only once the user has paused: a job under way delays the
+        # next selection's pictures by up to one job
+        self._prefetch_timer = QTimer(self, singleShot=True, interval=PREFETCH_DELAY_MS)
+        self._prefetch_timer.timeout.connect(self._prefetch)
 
         from ..core.descriptor import DEFAULTS
         from ..core.params import CHOICES
@@ -542,9 +548,13 @@ class AnalysisWidget(QWidget):
                 return
             else:
                 self._wanted = None
-        job = self._next_prefetch()
-        if job is not None:
-            self._start_picture_worker(job)
+        self._prefetch_timer.start()
+
+    def _prefetch(self) -> None:
+        if self._picture_worker is None and self._wanted is None:
+            job = self._next_prefetch()
+            if job is not None:
+                self._start_picture_worker(job)
 
     def _next_prefetch(self) -> tuple | None:
         """While idle, make the pictures of the shown label in the frames around the one shown
@@ -575,10 +585,7 @@ class AnalysisWidget(QWidget):
                 self.viewer.reset_view()
         finally:
             self._syncing = False
-        if self._picture_worker is None:
-            job = self._next_prefetch()
-            if job is not None:
-                self._start_picture_worker(job)
+        self._prefetch_timer.start()
 
     # ------------------------------------------------------------ export/plots
     def export(self, folder) -> list:
