@@ -404,6 +404,14 @@ class AnalysisWidget(QWidget):
         self.request_pictures()
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
                "move the time slider: its SDF, disk and skeleton show beside the image.")
+        from ..analysis.interpretation import explain_components
+
+        scores = output.pca.get("shape")
+        if output.measures is not None and scores is not None and "PC1" in scores:
+            words = explain_components(scores, output.measures,
+                                       scores.attrs.get("explained_variance_ratio"), n=1)
+            if words:
+                msg += f" {words[0]}."
         summary = warnings_summary(output.table)
         if summary:
             msg += f" {summary[0].upper()}{summary[1:]}."
