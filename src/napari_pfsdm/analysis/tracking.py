@@ -382,12 +382,12 @@ def link_centroids(
     ``"centroid"``: between consecutive frames the one-to-one matching of centroids with the
     least summed distance (Hungarian algorithm), pairs further apart than ``max_distance``
     excluded; a track without successor may be continued up to ``max_gap`` frames later by an
-    unmatched object within ``max_distance`` of its last centroid. ``"laptrack"``: the linear-assignment tracker of Jaqaman et al. (2008) as
-    implemented by the ``laptrack`` package (``pip install laptrack``), with gap closing over
-    ``max_gap`` missing frames. Neither needs the label images, only the ``frame``,
-    ``centroid_y``, ``centroid_x`` (and ``area``) columns, so they work on a table read from
-    CSV; overlap linking (:func:`link_labels`) needs the labels and measured better on
-    deforming, touching objects (``benchmarks/linking.py``).
+    unmatched object within ``max_distance`` of its last centroid. ``"laptrack"``: the
+    linear-assignment tracker of Jaqaman et al. (2008) as implemented by the ``laptrack``
+    package (``pip install laptrack``), with gap closing over ``max_gap`` missing frames.
+    Neither needs the label images, only the ``frame``, ``centroid_y``, ``centroid_x`` (and
+    ``area``) columns, so they work on a table read from CSV. Overlap linking
+    (:func:`link_labels`) needs the labels; see ``benchmarks/linking.py`` for how they compare.
 
     Parameters
     ----------
@@ -692,7 +692,7 @@ def track_ids_from_tracks(
                 if d[i, j] <= dist:
                     candidates.append((float(d[i, j]), int(rows[j]), int(tid[sel[i]])))
     taken: set[tuple[int, int]] = set()  # (track, frame) already placed
-    for d, row, track in sorted(candidates):
+    for _d, row, track in sorted(candidates):
         key = (track, int(frame[row]))
         if out[row] != NO_TRACK or key in taken:
             continue
