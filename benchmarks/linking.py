@@ -1,4 +1,4 @@
-"""Linking per-frame labels into tracks: overlap matching against centroid LAP (laptrack).
+"""Linking per-frame labels into tracks: overlap matching, centroid LAP (built in), laptrack.
 
 Movies from :func:`napari_pfsdm.data.moving_blobs.make_moving_blobs` (512 × 512, 40 frames,
 25 deforming, drifting, touching blobs, 4 entering and 4 leaving the field, one division: about
@@ -37,6 +37,9 @@ SCENARIOS = {
     "drifting, touching, 1 division": dict(),
     "+ 2 % of objects missed per frame": dict(dropout=0.02),
     "fast (speed 5, drift 3 px/frame)": dict(speed=5.0, drift=3.0),
+    "faster (speed 9, drift 4 px/frame)": dict(speed=9.0, drift=4.0),
+    "crowded (70 objects, radius 20-32 px)": dict(n_objects=70, radius=(20.0, 32.0)),
+    "small and fast (radius 6-12, speed 6)": dict(radius=(6.0, 12.0), speed=6.0, drift=2.0),
 }
 
 
@@ -85,16 +88,20 @@ def score(table: pd.DataFrame, true_id: np.ndarray, track: np.ndarray,
 
 def methods(radius: float) -> dict:
     return {
-        "overlap IoU≥0.1, gap 1 (default)": lambda lab, tab: tk.add_track_ids(
+        "overlap IoU≥0.1, gap 1": lambda lab, tab: tk.add_track_ids(
             tab, tk.link_labels(lab))["track_id"].to_numpy(),
         "overlap IoU≥0.1, no gap": lambda lab, tab: tk.add_track_ids(
             tab, tk.link_labels(lab, max_gap=0))["track_id"].to_numpy(),
         "overlap IoU≥0.3, gap 1": lambda lab, tab: tk.add_track_ids(
             tab, tk.link_labels(lab, min_iou=0.3))["track_id"].to_numpy(),
-        "centroid LAP ≤1 radius, gap 1": lambda lab, tab: tk.link_centroids(tab, method="centroid"),
-        "centroid LAP ≤1 radius, no gap": lambda lab, tab: tk.link_centroids(
+        "centroid LAP ≤1 radius, gap 1": lambda lab, tab: tk.link_centroids(
+            tab, method="centroid", max_distance=radius),
+        "centroid LAP ≤2 radii, no gap": lambda lab, tab: tk.link_centroids(
             tab, method="centroid", max_gap=0),
-        "laptrack ≤1 radius, gap 1": lambda lab, tab: tk.link_centroids(tab, method="laptrack"),
+        "centroid LAP ≤2 radii, gap 1 (default)": lambda lab, tab: tk.link_centroids(
+            tab, method="centroid"),
+        "laptrack ≤1 radius, gap 1": lambda lab, tab: tk.link_centroids(
+            tab, method="laptrack", max_distance=radius),
         "laptrack ≤2 radii, gap 1": lambda lab, tab: tk.link_centroids(
             tab, method="laptrack", max_distance=2 * radius),
     }
@@ -118,7 +125,8 @@ def main() -> None:
                 check_rows.append({"scenario": name, "labels": how, "seed": seed,
                                    "verdict": c.verdict, "median jump px": c.median_jump,
                                    "median jump radii": c.median_jump_radii,
-                                   "jumping": c.jumping, "persistence": c.persistence})
+                                   "jumping": c.jumping, "switched": c.switched,
+                                   "persistence": c.persistence})
             lab = relabel(movie.labels, "shuffled", seed=seed + 100)
             tab = centroid_table(lab)
             truth = movie.truth(lab)
@@ -153,10 +161,11 @@ def main() -> None:
             verdicts=("verdict", lambda s: ", ".join(sorted(set(s)))),
             median_jump_px=("median jump px", "median"),
             median_jump_radii=("median jump radii", "median"),
-            jumping_max=("jumping", "max"), jumping_min=("jumping", "min"),
+            jumping_max=("jumping", "max"),
+            switched_min=("switched", "min"), switched_max=("switched", "max"),
             persistence_min=("persistence", "min"), persistence_max=("persistence", "max"))
-        print(f"check_tracking (untracked when jumping > {tk.MAX_JUMPING} or persistence < "
-              f"{tk.MIN_PERSISTENCE}; a jump is a step > {tk.JUMP_RADII} object radius)")
+        print(f"check_tracking (untracked when switched > {tk.MAX_SWITCHED} or persistence < "
+              f"{tk.MIN_PERSISTENCE}; 'jumping': steps > {tk.JUMP_RADII} object radius)")
         print(summary.round(3).to_string())
 
 

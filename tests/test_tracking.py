@@ -63,10 +63,13 @@ def test_check_tracking_flags_renumbered_labels(movie, how, tracked):
     assert check.verdict == ("tracked" if tracked else "untracked")
     if how == "tracked":  # entering, leaving and the division do not make it "untracked"
         assert check.median_jump_radii < 0.3 and check.jumping < 0.05
+        assert check.switched < 0.01
         assert check.persistence > 0.9
         assert "follow objects" in check.message
     else:
         assert "do not follow objects" in check.message and "Link" in check.message
+    if how == "scan_order":  # most ids stay put; those that move land on another object
+        assert check.median_jump_radii < 0.5 and check.switched > 0.1
     if how == "shuffled":  # the figure: the median label jumps across the field
         assert check.median_jump > 40 and check.median_jump_radii > 3
         assert "px" in check.message and "object radii" in check.message
@@ -171,7 +174,7 @@ def test_link_movie_auto(movie):
     np.testing.assert_array_equal(out[TRACK_COLUMN], out["label"])
     shuffled = relabel(movie.labels, "shuffled", seed=1)
     out, check, used = tk.link_movie(centroids(shuffled), shuffled, "auto")
-    assert not check.tracked and used == "overlap"
+    assert not check.tracked and used == tk.DEFAULT_LINK == "centroid"
     assert list(out.columns[:3]) == ["frame", "label", TRACK_COLUMN]
     assert TRACK_COLUMN not in tk.link_movie(tracked, None, "none")[0].columns
 
@@ -247,3 +250,78 @@ def test_trajectories_follow_tracks():
     by_track = scores.groupby(object_ids(scores))["shape_PC1"].std()
     by_label = scores.groupby(object_ids(scores.drop(columns=TRACK_COLUMN)))["shape_PC1"].std()
     assert by_track.max() < 1e-9 < by_label.min()  # a track keeps its shape; a label does not
+
+
+# ------------------------------------------------------------------------------------------
+# the command line
+# ------------------------------------------------------------------------------------------
+
+CLI_OPTS = ["--n-fourier", "4", "--n-radii", "6", "--scheduler", "threads"]
+
+
+@pytest.fixture(scope="module")
+def cli_movie(tmp_path_factory):
+    import tifffile
+
+    movie = make_moving_blobs(6, 8, 160, radius=(10.0, 14.0), entering=1, leaving=1,
+                              division=False, seed=4)
+    folder = tmp_path_factory.mktemp("cli")
+    shuffled = relabel(movie.labels, "shuffled", seed=3)
+    tifffile.imwrite(folder / "shuffled.tif", shuffled)
+    tifffile.imwrite(folder / "tracked.tif", movie.labels)
+    return movie, shuffled, folder
+
+
+def test_cli_warns_refuses_and_links(cli_movie, capsys):
+    from napari_pfsdm.cli import main
+
+    movie, shuffled, d = cli_movie
+    assert main(["measure", str(d / "shuffled.tif"), "-o", str(d / "plain.csv"),
+                 "--link", "none", *CLI_OPTS]) == 0
+    err = capsys.readouterr().err
+    assert "do not follow objects" in err and "--link auto" in err
+    assert TRACK_COLUMN not in read_table_csv(d / "plain.csv").columns
+    # trajectories by label would be meaningless: refused, in one plain line
+    assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "do not follow objects" in err[0] and "--link centroid" in err[0]
+    assert not (d / "pca.csv").exists()
+    # ... unless linked from the table, or drawn by label on purpose
+    assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca.csv"),
+                 "--link", "centroid", "--plot", str(d / "pca.png")]) == 0
+    pca = read_table_csv(d / "pca.csv")
+    assert TRACK_COLUMN in pca.columns and (d / "pca.png").is_file()
+    assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca_l.csv"), "--force",
+                 "--link", "none"]) == 0
+    assert "drawing by label anyway" in capsys.readouterr().err
+    # classify over several frames refuses too (one frame is fine: no identity over time)
+    groups = d / "groups.csv"
+    groups.write_text("label,group\n" + "".join(f"{i},{'ab'[i % 2]}\n" for i in range(1, 9)))
+    assert main(["classify", str(d / "plain.csv"), "--groups", str(groups),
+                 "--frames", "0-3"]) == 2
+    assert "mix different objects" in capsys.readouterr().err
+
+
+def test_cli_measure_links_untracked_labels_by_default(cli_movie, capsys):
+    from napari_pfsdm.cli import main
+
+    movie, shuffled, d = cli_movie
+    assert main(["measure", str(d / "shuffled.tif"), "-o", str(d / "linked.csv"),
+                 *CLI_OPTS]) == 0
+    out = capsys.readouterr().out
+    assert "linked by centroid" in out
+    table = read_table_csv(d / "linked.csv")
+    assert list(table.columns[:4]) == ["movie", "frame", "label", TRACK_COLUMN]
+    truth = truth_ids(movie, shuffled, table)
+    # every track is one object and every object one track (no division here)
+    assert (table.groupby(TRACK_COLUMN)["frame"].count().sum() == len(table))
+    assert pd.crosstab(table[TRACK_COLUMN], truth).gt(0).sum(axis=1).max() == 1
+    assert table[TRACK_COLUMN].nunique() == len(set(truth))
+    assert main(["trajectories", str(d / "linked.csv"), "-o", str(d / "pca2.csv")]) == 0
+    pca = read_table_csv(d / "pca2.csv")
+    measured = table["error"] == ""  # an object entering in the last frame is too small
+    assert object_ids(pca).nunique() == table.loc[measured, TRACK_COLUMN].nunique() == 5
+    # tracked labels: nothing to link, no track_id column (the labels are the identities)
+    assert main(["measure", str(d / "tracked.tif"), "-o", str(d / "tracked.csv"),
+                 *CLI_OPTS]) == 0
+    assert TRACK_COLUMN not in read_table_csv(d / "tracked.csv").columns

@@ -276,9 +276,8 @@ def _warn_untracked(table, quiet: bool) -> None:
         names = ", ".join(n for n, _ in bad[:3] if n) + (" …" if len(bad) > 3 else "")
         first = bad[0][1].message.split(". Link")[0]
         _note(f"warning: {len(bad)} movie(s){' (' + names + ')' if names else ''}: {first}. "
-              "Trajectories by label would be meaningless: measure again with --link auto "
-              "(or --link overlap), or link the table with "
-              "'pfsdm trajectories --link centroid'", quiet)
+              "Trajectories by label would be meaningless: measure again with --link auto, or "
+              "link the table with 'pfsdm trajectories --link centroid'", quiet)
 
 
 def _select_frames(table, frames: str | None):
@@ -416,9 +415,8 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
             "(movie,track_id,group); or classify one frame at a time")
     raise UserError(
         f"{where}{first}, so trajectories drawn by label would jump between objects. Link "
-        "them: add --link centroid here (from the table's centroids), or measure again with "
-        "'pfsdm measure ... --link overlap' (from the labels, the most accurate); --link "
-        "none draws by label anyway")
+        "them: add --link centroid here (the linking 'pfsdm measure' does by default), or "
+        "--link none to draw by label anyway")
 
 
 def _check_groups(table, groups, path: str) -> None:
@@ -694,7 +692,8 @@ command again after an interruption and finished movies are skipped.
 
 Objects are followed over time: labels from per-frame segmentation (cellpose, StarDist), whose
 ids change between frames, are detected and linked by the overlap of their masks into a
-track_id column (--link; 'pfsdm trajectories' follows it).
+track_id column (--link; 'pfsdm trajectories' follows it). Labels that already follow the
+objects (from a tracker) are kept as they are.
 
 examples:
   pfsdm measure embryo01_labels.tif --intensity embryo01_reporter.tif -o features.csv
@@ -716,10 +715,11 @@ examples:
     p.add_argument("--link", choices=("auto", "overlap", "centroid", "laptrack", "none"),
                    default="auto",
                    help="follow objects over time (a track_id column): 'auto' (default) "
-                        "checks each movie and links it by overlap of the labels only when "
-                        "its label ids do not follow the objects (per-frame segmentation); "
-                        "'overlap', 'centroid' or 'laptrack' always link; 'none' never "
-                        "(a warning says when the labels look untracked)")
+                        "checks each movie and, only when its label ids do not follow the "
+                        "objects (per-frame segmentation), links them by their centroids "
+                        "('centroid'); 'centroid', 'overlap' (of the label masks) or "
+                        "'laptrack' (pip install laptrack) always link; 'none' never (a "
+                        "warning says when the labels look untracked)")
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -765,8 +765,8 @@ distances in the PCA space are PF-SDM distances.
 
 An object is its track (the table's track_id column, from 'pfsdm measure --link') or, without
 one, its label. Labels that do not follow objects between frames (each frame segmented and
-numbered anew) are refused with a message: link them with --link centroid, or measure with
---link overlap.
+numbered anew) are refused with a message: link them with --link centroid (as 'pfsdm
+measure' does by default).
 
 examples:
   pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
