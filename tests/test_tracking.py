@@ -137,7 +137,7 @@ def test_centroid_linking_from_the_table(movie):
     assert len(pred - true) <= 2
     with pytest.raises(ValueError, match="needs the label images"):
         tk.link(table, method="overlap")
-    with pytest.raises(ValueError, match="one of overlap"):
+    with pytest.raises(ValueError, match="one of centroid, overlap, laptrack"):
         tk.link(table, method="nearest")
 
 

@@ -258,8 +258,9 @@ def _untracked_movies(table) -> list[tuple[str, Any]]:
     """(movie name, TrackingCheck) of each movie whose label ids do not follow objects."""
     from .analysis.tracking import check_tracking
 
-    if len(table) == 0:
-        return []
+    need = {"frame", "label", "area", "centroid_y", "centroid_x"}
+    if len(table) == 0 or not need <= set(table.columns):
+        return []  # nothing to check (a table not from 'pfsdm measure' has no centroids)
     movies = table.groupby("movie", sort=False) if "movie" in table.columns else [("", table)]
     found = []
     for name, rows in movies:
@@ -691,8 +692,8 @@ Long runs can be resumed: each finished movie is saved in FEATURES.csv.parts/; r
 command again after an interruption and finished movies are skipped.
 
 Objects are followed over time: labels from per-frame segmentation (cellpose, StarDist), whose
-ids change between frames, are detected and linked by the overlap of their masks into a
-track_id column (--link; 'pfsdm trajectories' follows it). Labels that already follow the
+ids change between frames, are detected and linked by their centroids into a track_id
+column (--link; 'pfsdm trajectories' follows it). Labels that already follow the
 objects (from a tracker) are kept as they are.
 
 examples:
@@ -712,7 +713,7 @@ examples:
                    help="write an empty table when the labels hold no object (default: an "
                         "error, as labels with only background are usually the wrong file)")
     _add_force(p)
-    p.add_argument("--link", choices=("auto", "overlap", "centroid", "laptrack", "none"),
+    p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
                    default="auto",
                    help="follow objects over time (a track_id column): 'auto' (default) "
                         "checks each movie and, only when its label ids do not follow the "

@@ -48,9 +48,9 @@ __all__ = [
     "track_ids_from_tracks",
 ]
 
-#: Linking methods: ``"overlap"`` (from the labels), ``"centroid"`` and ``"laptrack"``
-#: (from the table's centroids).
-LINK_METHODS = ("overlap", "centroid", "laptrack")
+#: Linking methods: ``"centroid"`` and ``"laptrack"`` (from the table's centroids),
+#: ``"overlap"`` (from the labels). ``pfsdm measure --link`` offers these plus auto and none.
+LINK_METHODS = ("centroid", "overlap", "laptrack")
 #: The method used when none is named: the best of ``benchmarks/linking.py`` (as accurate as
 #: laptrack at the same settings or better, 70-100x faster; better than overlap when objects
 #: move fast; needs no labels, so the table alone is enough).
@@ -211,8 +211,9 @@ def check_tracking(table: pd.DataFrame) -> TrackingCheck:
     if len(table) == 0:
         return TrackingCheck("no objects", True, message="no objects to check", **common)
     if n_could == 0:
-        return TrackingCheck(
-            "one frame", True, message="one frame only: there is nothing to track", **common)
+        msg = ("one frame only: there is nothing to track" if n_frames < 2 else
+               "no two consecutive frames: whether labels follow objects cannot be checked")
+        return TrackingCheck("one frame", True, message=msg, **common)
     advice = ("Link the objects (napari: the Link step; command line: pfsdm measure --link "
               "auto) before reading trajectories: until then a label's 'trajectory' jumps "
               "between objects")
