@@ -270,13 +270,22 @@ def _untracked_movies(table) -> list[tuple[str, Any]]:
     return found
 
 
+def _which_movies(bad: list[tuple[str, Any]]) -> str:
+    """``"movie01: "``, ``"3 movies (movie01, movie02, …); in movie01: "`` or ``""``."""
+    if not bad or not bad[0][0]:
+        return ""
+    if len(bad) == 1:
+        return f"{bad[0][0]}: "
+    names = ", ".join(n for n, _ in bad[:3]) + (", …" if len(bad) > 3 else "")
+    return f"{len(bad)} movies ({names}); in {bad[0][0]}: "
+
+
 def _warn_untracked(table, quiet: bool) -> None:
     """Say on stderr which movies' labels are not tracked (measure --link none)."""
     bad = _untracked_movies(table)
     if bad:
-        names = ", ".join(n for n, _ in bad[:3] if n) + (" …" if len(bad) > 3 else "")
         first = bad[0][1].message.split(". Link")[0]
-        _note(f"warning: {len(bad)} movie(s){' (' + names + ')' if names else ''}: {first}. "
+        _note(f"warning: {_which_movies(bad)}{first}. "
               "Trajectories by label would be meaningless: measure again with --link auto, or "
               "link the table with 'pfsdm trajectories --link centroid'", quiet)
 
@@ -404,7 +413,7 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
     if not bad:
         return table
     first = bad[0][1].message.split(". Link")[0]
-    where = f"{len(bad)} movie(s), e.g. {bad[0][0]}: " if bad[0][0] else ""
+    where = _which_movies(bad)
     if link == "none":
         _note(f"warning: {where}{first}; drawing by label anyway (--link none)", quiet)
         return table
