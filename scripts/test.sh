@@ -43,8 +43,8 @@ if [ ! -x .venv/bin/python ]; then
   fi
 fi
 
-say "pip install -e .[napari,batch,testing]"
-.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[napari,batch,testing]"
+say "pip install -e .[napari,batch,testing,tracking]"
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[napari,batch,testing,tracking]"
 
 say "ruff check"
 .venv/bin/ruff check .

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import napari_pfsdm as P
+from napari_pfsdm.analysis.tracking import LINK_METHODS
 from napari_pfsdm.cli import build_parser, main
 from napari_pfsdm.core.morphometric import ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, PFSDMParams
@@ -57,6 +58,8 @@ def test_the_command_line_offers_exactly_the_cores_choices(tmp_path, capsys):
     measure = next(a for a in build_parser()._subparsers._group_actions
                    if isinstance(a, argparse._SubParsersAction)).choices["measure"]
     offered = {a.dest: tuple(a.choices) for a in measure._actions if a.choices}
+    # --link (following objects over time) is not a method option: it is the tracking's
+    assert offered.pop("link") == ("auto", "none", *LINK_METHODS)
     assert offered == CHOICES
     assert main(["measure", str(tmp_path / "none.tif"), "-o", str(tmp_path / "f.csv"),
                  "--n-fourier", "40"]) == 2

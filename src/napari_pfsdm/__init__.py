@@ -34,6 +34,9 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "drop_failed": (".analysis.features", "drop_failed"),
     "iter_objects": (".analysis.features", "iter_objects"),
     "measure": (".analysis.features", "measure"),
+    "check_tracking": (".analysis.tracking", "check_tracking"),
+    "link": (".analysis.tracking", "link"),
+    "track_ids_from_tracks": (".analysis.tracking", "track_ids_from_tracks"),
     "read_table": (".io_csv", "read_table_csv"),
     "write_table": (".io_csv", "write_table_csv"),
 }
@@ -45,16 +48,19 @@ __all__ = [
     "PFSDMTransformer",
     "PFSDMResult",
     "Skeleton",
+    "check_tracking",
     "distance",
     "distance_matrix",
     "drop_failed",
     "embeddings_from_table",
     "iter_objects",
+    "link",
     "measure",
     "pfsdm",
     "read_table",
     "render_disk",
     "skeleton",
+    "track_ids_from_tracks",
     "weighted_features",
     "write_table",
 ]
@@ -77,6 +83,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
     from .analysis.tables import distance_matrix, embeddings_from_table, weighted_features
+    from .analysis.tracking import check_tracking, link, track_ids_from_tracks
     from .analysis.transformer import PFSDMTransformer
     from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
     from .core.distances import distance

@@ -239,6 +239,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         log=lambda m: _say("  " + m, args.quiet),
         allow_empty=args.allow_empty,
         params=params,
+        link=args.link,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -246,9 +247,47 @@ def cmd_measure(args: argparse.Namespace) -> int:
     summary = warnings_summary(table)
     if summary:
         _say(summary[0].upper() + summary[1:], args.quiet)
+    if args.link == "none":
+        _warn_untracked(table, args.quiet)
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
     _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
     return 0
+
+
+def _untracked_movies(table) -> list[tuple[str, Any]]:
+    """(movie name, TrackingCheck) of each movie whose label ids do not follow objects."""
+    from .analysis.tracking import check_tracking
+
+    need = {"frame", "label", "area", "centroid_y", "centroid_x"}
+    if len(table) == 0 or not need <= set(table.columns):
+        return []  # nothing to check (a table not from 'pfsdm measure' has no centroids)
+    movies = table.groupby("movie", sort=False) if "movie" in table.columns else [("", table)]
+    found = []
+    for name, rows in movies:
+        check = check_tracking(rows)
+        if not check.tracked:
+            found.append((str(name), check))
+    return found
+
+
+def _which_movies(bad: list[tuple[str, Any]]) -> str:
+    """``"movie01: "``, ``"3 movies (movie01, movie02, …); in movie01: "`` or ``""``."""
+    if not bad or not bad[0][0]:
+        return ""
+    if len(bad) == 1:
+        return f"{bad[0][0]}: "
+    names = ", ".join(n for n, _ in bad[:3]) + (", …" if len(bad) > 3 else "")
+    return f"{len(bad)} movies ({names}); in {bad[0][0]}: "
+
+
+def _warn_untracked(table, quiet: bool) -> None:
+    """Say on stderr which movies' labels are not tracked (measure --link none)."""
+    bad = _untracked_movies(table)
+    if bad:
+        first = bad[0][1].message.split(". Link")[0]
+        _note(f"warning: {_which_movies(bad)}{first}. "
+              "Trajectories by label would be meaningless: measure again with --link auto, or "
+              "link the table with 'pfsdm trajectories --link centroid'", quiet)
 
 
 def _select_frames(table, frames: str | None):
@@ -315,6 +354,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     if args.plot:
         _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
     table = load_features(args.features)
+    table = _follow_objects(table, args.link, args.quiet)
     if args.groups:
         table = attach_groups(table, read_groups(args.groups))
     has_int = has_channel(table.columns, "intensity")
@@ -348,6 +388,45 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
             plot_trajectories(scores, args.plot, components=tuple(args.show))
         _say(f"wrote {args.plot}", args.quiet)
     return 0
+
+
+def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajectories"):
+    """The table whose object ids follow objects over time: its ``track_id`` when it has one,
+    a linked copy with ``--link centroid|laptrack``; refuses untracked labels otherwise."""
+    from .analysis.tracking import link as link_table
+    from .core.table_schema import NO_TRACK, TRACK_COLUMN
+
+    if link in ("centroid", "laptrack"):
+        with _Step(f"linking {len(table):,} objects into tracks ({link})", quiet):
+            table = link_table(table, method=link)
+        n = table.loc[table[TRACK_COLUMN] != NO_TRACK, TRACK_COLUMN].nunique()
+        _note(f"linked by {link}: {n} tracks; trajectories follow them", quiet)
+        return table
+    if TRACK_COLUMN in table.columns:
+        n_off = int((table[TRACK_COLUMN] == NO_TRACK).sum())
+        if n_off:
+            _note(f"left out {n_off} of {len(table)} rows that belong to no track "
+                  f"({TRACK_COLUMN} = {NO_TRACK})", quiet)
+        return table[table[TRACK_COLUMN] != NO_TRACK].reset_index(drop=True) \
+            if n_off else table
+    bad = _untracked_movies(table)
+    if not bad:
+        return table
+    first = bad[0][1].message.split(". Link")[0]
+    where = _which_movies(bad)
+    if link == "none":
+        _note(f"warning: {where}{first}; drawing by label anyway (--link none)", quiet)
+        return table
+    if command == "classify":
+        raise UserError(
+            f"{where}{first}, so an object's features over several frames would mix "
+            "different objects. Measure again with 'pfsdm measure ... --link auto' (it links "
+            "them into a track_id column), then name the tracks in the groups file "
+            "(movie,track_id,group); or classify one frame at a time")
+    raise UserError(
+        f"{where}{first}, so trajectories drawn by label would jump between objects. Link "
+        "them: add --link centroid here (the linking 'pfsdm measure' does by default), or "
+        "--link none to draw by label anyway")
 
 
 def _check_groups(table, groups, path: str) -> None:
@@ -417,6 +496,8 @@ def cmd_classify(args: argparse.Namespace) -> int:
         raise UserError(f"no rows in frames {args.frames}: the table has frames "
                         f"{clf.format_frames(table['frame'])}; choose frames among these")
     table = table[table["frame"].isin(frames)]
+    if len(frames) > 1:  # one object over several frames: its id must follow it
+        table = _follow_objects(table, None, args.quiet, command="classify")
     _check_groups(table, groups, args.groups)
     table = table[table["group"] != ""].copy()
     table["object"] = object_ids(table)
@@ -619,6 +700,11 @@ as the labels; with several movies they pair by name: movie01_labels.tif <-> mov
 Long runs can be resumed: each finished movie is saved in FEATURES.csv.parts/; run the same
 command again after an interruption and finished movies are skipped.
 
+Objects are followed over time: labels from per-frame segmentation (cellpose, StarDist), whose
+ids change between frames, are detected and linked by their centroids into a track_id
+column (--link; 'pfsdm trajectories' follows it). Labels that already follow the
+objects (from a tracker) are kept as they are.
+
 examples:
   pfsdm measure embryo01_labels.tif --intensity embryo01_reporter.tif -o features.csv
   pfsdm measure 'plate1/*_labels.zarr' --intensity 'plate1/*_reporter.zarr' -o plate1.csv
@@ -636,6 +722,14 @@ examples:
                    help="write an empty table when the labels hold no object (default: an "
                         "error, as labels with only background are usually the wrong file)")
     _add_force(p)
+    p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
+                   default="auto",
+                   help="follow objects over time (a track_id column): 'auto' (default) "
+                        "checks each movie and, only when its label ids do not follow the "
+                        "objects (per-frame segmentation), links them by their centroids "
+                        "('centroid'); 'centroid', 'overlap' (of the label masks) or "
+                        "'laptrack' (pip install laptrack) always link; 'none' never (a "
+                        "warning says when the labels look untracked)")
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
@@ -679,8 +773,14 @@ figure with one line per object, coloured by time or by --groups (shape and repo
 side when the table has reporter features). Rings are weighted as in the distance, so
 distances in the PCA space are PF-SDM distances.
 
-example:
+An object is its track (the table's track_id column, from 'pfsdm measure --link') or, without
+one, its label. Labels that do not follow objects between frames (each frame segmented and
+numbered anew) are refused with a message: link them with --link centroid (as 'pfsdm
+measure' does by default).
+
+examples:
   pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
+  pfsdm trajectories cellpose_features.csv --link centroid -o pca.csv --plot pca.png
 """)
     p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
@@ -693,6 +793,11 @@ example:
                    help="principal components to keep (default 3)")
     p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
+    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
+                   help="link untracked labels from the table's centroids first "
+                        "('centroid', or 'laptrack' when installed); 'none' draws by label "
+                        "anyway. Default: follow the table's track_id, or its labels when "
+                        "they follow the objects; refuse untracked labels")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_trajectories)

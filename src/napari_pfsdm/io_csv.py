@@ -31,6 +31,8 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
+from .core.table_schema import NO_TRACK, TRACK_COLUMN
+
 __all__ = [
     "HEADER_PREFIX",
     "SIDECAR_SUFFIX",
@@ -311,7 +313,8 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
     Floats are parsed so that they round-trip exactly; the ``error``, ``warnings`` and
-    ``movie`` columns come back as strings with ``""`` for empty cells; the sidecar's options
+    ``movie`` columns come back as strings with ``""`` for empty cells, ``track_id`` as whole
+    numbers (an empty cell: -1, no track); the sidecar's options
     are in ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for
     a CSV from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
     when re-saving) is dropped.
@@ -349,6 +352,11 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     for col in text_cols:
         if col in df.columns:
             df[col] = df[col].fillna("")
+    if TRACK_COLUMN in df.columns and df[TRACK_COLUMN].dtype.kind == "f":
+        # empty cells (a table edited by hand): no track, and whole numbers again
+        tracks = df[TRACK_COLUMN].fillna(NO_TRACK)
+        if np.array_equal(tracks, np.round(tracks)):
+            df[TRACK_COLUMN] = tracks.astype(np.int64)
     if side_options is not None:
         df.attrs["pfsdm"] = side_options
     return df

@@ -15,7 +15,7 @@ from scipy import ndimage as ndi
 
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
-from ..core.table_schema import BASE_COLUMNS, feature_columns
+from ..core.table_schema import BASE_COLUMNS, TRACK_COLUMN, feature_columns
 from .tables import failed_rows
 
 __all__ = [
@@ -398,7 +398,8 @@ def split_failed(
     measured : DataFrame
         The rows with features (index reset, ``attrs`` kept).
     left_out : DataFrame
-        ``movie`` (when present), ``frame``, ``label``, ``reason`` of the others.
+        ``movie`` (when present), ``frame``, ``label``, ``track_id`` (when present),
+        ``reason`` of the others.
     """
     bad = failed_rows(table, channels)
     pos = [b[0] for b in bad]
@@ -408,6 +409,8 @@ def split_failed(
     measured.attrs = dict(table.attrs)
     left = pd.DataFrame({"frame": [b[1] for b in bad], "label": [b[2] for b in bad],
                          "reason": [b[3] for b in bad]})
+    if TRACK_COLUMN in table.columns:
+        left.insert(2, TRACK_COLUMN, table[TRACK_COLUMN].to_numpy()[pos] if pos else [])
     if "movie" in table.columns:
         left.insert(0, "movie", table["movie"].to_numpy()[pos] if pos else [])
     return measured, left

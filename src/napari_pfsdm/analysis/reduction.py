@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from .tables import embeddings_from_table, weighted_features
 
 __all__ = [
@@ -28,15 +29,37 @@ __all__ = [
     "row_ids",
 ]
 
-#: Columns that identify an object across frames in a groups file.
-KEY_COLUMNS = ("movie", "label")
+#: Columns that identify an object across frames in a groups file (``track_id`` for a linked
+#: table, whose labels may change between frames).
+KEY_COLUMNS = ("movie", "label", TRACK_COLUMN)
 
 
 def object_ids(table: pd.DataFrame) -> pd.Series:
-    """One id per object of a table: ``"movie/label"`` (or the label alone without movies)."""
+    """One id per object of a table, which trajectories follow through time.
+
+    With a ``track_id`` column (a linked table, see :mod:`napari_pfsdm.analysis.tracking`) an
+    object is its track: ``"movie/track7"`` (``"track7"`` without movies); a row without a
+    track (``track_id`` -1) is an object of its own, ``"movie/t<frame>/l<label>"``. Without
+    ``track_id`` an object is its label: ``"movie/label"`` (or the label alone).
+
+    Examples
+    --------
+    >>> t = pd.DataFrame({"frame": [0, 1, 1], "label": [4, 9, 4], "track_id": [1, 1, -1]})
+    >>> object_ids(t).tolist()
+    ['track1', 'track1', 't1/l4']
+    >>> object_ids(t.drop(columns="track_id")).tolist()
+    ['4', '9', '4']
+    """
+    if TRACK_COLUMN in table.columns:
+        tracks = table[TRACK_COLUMN].to_numpy()
+        ids = pd.Series(np.where(tracks != NO_TRACK, "track" + table[TRACK_COLUMN].astype(str),
+                                 "t" + table["frame"].astype(str) + "/l"
+                                 + table["label"].astype(str)), index=table.index)
+    else:
+        ids = table["label"].astype(str)
     if "movie" in table.columns:
-        return table["movie"].astype(str) + "/" + table["label"].astype(str)
-    return table["label"].astype(str)
+        return table["movie"].astype(str) + "/" + ids
+    return ids
 
 
 def row_ids(table: pd.DataFrame) -> list[str]:
@@ -76,7 +99,7 @@ def pca_scores(
     Returns
     -------
     scores : DataFrame
-        The key columns (``movie``, ``frame``, ``label``, ``group`` when present) and
+        The key columns (``movie``, ``frame``, ``label``, ``track_id``, ``group`` when present) and
         ``{channel}_PC1`` …, one row per measured row, in table order.
     explained : ndarray
         Fraction of the variance explained by each component.
@@ -117,7 +140,7 @@ def pca_scores(
     k = int(min(n_components, x.shape[0], x.shape[1]))
     z = (u * s * signs)[:, :k]
     var = s**2
-    keys = [c for c in ("movie", "frame", "label", "group") if c in table.columns]
+    keys = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "group") if c in table.columns]
     scores = table.loc[ok, keys].reset_index(drop=True)
     scores.attrs = {}
     for i in range(k):
@@ -167,7 +190,9 @@ def distance_table(table: pd.DataFrame, d: np.ndarray) -> pd.DataFrame:
 
 
 def read_groups(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a groups CSV: a ``group`` column plus ``label`` and/or ``movie`` columns.
+    """Read a groups CSV: a ``group`` column plus ``label``, ``track_id`` and/or ``movie``
+    columns (``track_id`` names the objects of a linked table, whose labels change between
+    frames).
 
     Examples of valid files::
 
@@ -194,16 +219,18 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
     keys = [k for k in KEY_COLUMNS if k in groups.columns]
     if "group" not in groups.columns or not keys:
         raise ValueError(
-            f"{p} must have a 'group' column and a 'label' and/or 'movie' column "
+            f"{p} must have a 'group' column and a 'label', 'track_id' and/or 'movie' column "
             f"(it has {list(groups.columns)}), e.g. label,group then 3,multi-axes"
         )
     groups = groups[keys + ["group"]].dropna()
-    if "label" in keys:
+    for key in ("label", TRACK_COLUMN):
+        if key not in keys:
+            continue
         try:
-            groups["label"] = groups["label"].str.strip().astype(int).astype(str)
+            groups[key] = groups[key].str.strip().astype(int).astype(str)
         except ValueError:
             raise ValueError(
-                f"The 'label' column of the group file {p.name} must hold whole numbers."
+                f"The {key!r} column of the group file {p.name} must hold whole numbers."
             ) from None
     if groups.duplicated(keys).any():
         raise ValueError(f"{p} gives several groups to the same {'/'.join(keys)}")

@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.params import PFSDMParams, as_params
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
 from .io import Movie, check_labels, open_movie
 
@@ -375,6 +376,26 @@ def _read_part(path: Path) -> pd.DataFrame:
     return df
 
 
+def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
+          say: Callable[[str], None]) -> tuple[pd.DataFrame, str]:
+    """Check and link one movie's table (see :func:`run_batch`'s ``link``)."""
+    from ..analysis.tracking import link_movie
+
+    source = getattr(lab, "_pfsdm_source", lab)  # read frames straight from the file
+    if len(lab.shape) == 2:  # one frame
+        source = np.asarray(source[:])[None]
+    attrs = table.attrs
+    out, check, used = link_movie(table, source, how)
+    out.attrs = attrs
+    if used:
+        n = out.loc[out[TRACK_COLUMN] >= 0, TRACK_COLUMN].nunique()
+        why = check.message.split(". Link")[0] if not check.tracked else check.message
+        say(f"{name}: {why}; linked by {used}: {n} tracks in the track_id column")
+    elif how != "none" and check.verdict == "tracked":
+        say(f"{name}: {check.message}: track_id = label")
+    return out, used
+
+
 def default_parts_dir(output: str | os.PathLike) -> Path:
     """Where :func:`run_batch` keeps per-movie parts for ``output``: ``<output>.parts/``."""
     output = Path(output)
@@ -394,6 +415,7 @@ def run_batch(
     log: Callable[[str], None] | None = None,
     allow_empty: bool = True,
     params: PFSDMParams | None = None,
+    link: str = "none",
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -418,6 +440,13 @@ def run_batch(
         (all-background labels are usually the wrong file).
     params : PFSDMParams, optional
         The method's options as one record.
+    link : {"none", "auto", "overlap", "centroid", "laptrack"}
+        Link each movie's objects into tracks (a ``track_id`` column) with
+        :func:`napari_pfsdm.analysis.tracking.link_movie`: ``"auto"`` links (by overlap of the
+        labels) only the movies whose label ids do not follow objects, and gives the others
+        ``track_id = label``; the column is left out when no movie needed linking. ``log``
+        says what was found and done for each movie. The parts stay unlinked, so a re-run
+        with another ``link`` measures nothing again.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -462,6 +491,7 @@ def run_batch(
         )
     tables = []
     attrs: dict = {}
+    linked = False
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
             part = parts / (_part_name(m, p) + suffix)
@@ -491,11 +521,18 @@ def run_batch(
                 atomic_write(side, lambda h, _t=text: h.write(_t))
                 _write_part(table, part)
                 say(f"measured {m.name}: {len(table)} objects")
+            if link != "none" and len(table):
+                table, used = _link(table, lab, link, m.name, say)
+                linked = linked or bool(used)
             tables.append(table)
 
     for t in tables:
         t.attrs = {}
+    if link == "auto" and not linked:  # every movie was tracked: its labels are the ids
+        tables = [t.drop(columns=[TRACK_COLUMN], errors="ignore") for t in tables]
     result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+    if TRACK_COLUMN in result.columns:  # a movie without objects has none
+        result[TRACK_COLUMN] = result[TRACK_COLUMN].fillna(NO_TRACK).astype(np.int64)
     if not attrs:
         attrs = p.record()
     if len(result) == 0 and not allow_empty:

@@ -1,7 +1,8 @@
 """The feature table's format, in one place: column names and what a table must carry.
 
 A feature table (from :func:`napari_pfsdm.measure`, or read back from CSV) has one row per
-(frame, label), base columns (:data:`BASE_COLUMNS`), then ``shape_rXX_nYY`` and optionally
+(frame, label), base columns (:data:`BASE_COLUMNS`; a linked table also a ``track_id`` after
+``label``, :data:`OPTIONAL_BASE_COLUMNS`), then ``shape_rXX_nYY`` and optionally
 ``intensity_rXX_nYY`` columns (ring ``XX``, Fourier index ``YY``), and its options in
 ``attrs["pfsdm"]``: at least ``n_fourier`` and the rings' quadrature ``weights``. Distances and
 PCA need all of these; :func:`check_feature_table` refuses a table that lacks any of them
@@ -18,6 +19,9 @@ from typing import Any
 __all__ = [
     "BASE_COLUMNS",
     "CHANNELS",
+    "NO_TRACK",
+    "OPTIONAL_BASE_COLUMNS",
+    "TRACK_COLUMN",
     "check_feature_table",
     "feature_columns",
     "has_channel",
@@ -26,6 +30,16 @@ __all__ = [
 #: Columns before the features, in this order.
 BASE_COLUMNS = ["frame", "label", "area", "centroid_y", "centroid_x", "touches_border",
                 "n_components", "n_holes", "folded_fraction", "error", "warnings"]
+#: The identity of an object across frames when labels were linked (or taken from a napari
+#: Tracks layer): whole numbers, :data:`NO_TRACK` for rows no track reaches. Placed right after
+#: ``label``. When present, trajectories follow it instead of ``label``
+#: (:mod:`napari_pfsdm.analysis.tracking`).
+TRACK_COLUMN = "track_id"
+#: ``track_id`` of a row that belongs to no track: -1 keeps the column whole numbers in CSV
+#: (an empty cell would make pandas read 3.0, 4.0, ...).
+NO_TRACK = -1
+#: Base columns a table may carry besides :data:`BASE_COLUMNS` (added after measuring).
+OPTIONAL_BASE_COLUMNS = [TRACK_COLUMN]
 #: Feature channels and their column prefixes.
 CHANNELS = ("shape", "intensity")
 
