@@ -331,3 +331,54 @@ def test_run_summary_names_suspect_objects_on_coins(make_napari_viewer, qtbot):
     labels = viewer.layers["coins labels"]
     r, c = np.argwhere(labels.data == bad["label"])[0]
     assert "no features:" in labels._get_properties((r, c))[0]
+
+
+def test_untracked_labels_are_detected_linked_and_trajectories_follow_tracks(
+        make_napari_viewer, qtbot):
+    """A per-frame segmentation (ids renumbered in every frame, as cellpose or stardist give):
+    the widget says so, links the objects, and each trajectory follows one object."""
+    from napari_pfsdm.data.moving_blobs import make_moving_blobs, relabel
+    from napari_pfsdm.napari._plots import TrajectoryPlotWidget
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    movie = make_moving_blobs(n_objects=6, n_frames=8, size=192, radius=(12.0, 16.0),
+                              entering=0, leaving=0, division=False, seed=3)
+    truth = movie.labels
+    shuffled = relabel(truth, "shuffled", seed=1)
+    viewer = make_napari_viewer()
+    layer = viewer.add_labels(shuffled, name="per frame")
+    widget = AnalysisWidget(viewer)
+    assert widget.identity.currentText().startswith("auto")
+    out = run_and_wait(qtbot, widget)
+    assert "do not follow the objects" in widget.status.text()
+    table = out.table
+    # every track is one true object: the true id under each row's centroid is constant
+    true_id = truth[table["frame"], np.rint(table["centroid_y"]).astype(int),
+                    np.rint(table["centroid_x"]).astype(int)]
+    per_track = pd.Series(true_id).groupby(table["track_id"].to_numpy()).nunique()
+    assert (per_track == 1).all() and len(per_track) == 6
+    assert "track_id" in layer.features.columns
+    plot = TrajectoryPlotWidget(viewer)
+    assert len(plot._axes_points.collections[0].get_segments()) == 6  # one line per track
+    # trusting the ids instead: a warning, and the plot repeats it
+    widget.identity.setCurrentText("label ids")
+    widget._on_identity()
+    assert widget.status.text().startswith("Warning: label ids do not follow")
+    plot.flush()
+    plot.redraw()
+    assert "Warning" in plot.info.text()
+    # a napari Tracks layer (track_id, t, y, x) as the identity source
+    pts = []
+    for t in range(truth.shape[0]):
+        for lab in np.unique(truth[t])[1:]:
+            rr, cc = np.nonzero(truth[t] == lab)
+            pts.append((100 + lab, t, rr.mean(), cc.mean()))
+    viewer.add_tracks(np.array(pts, float), name="tracker")
+    assert widget.identity.findText("Tracks: tracker") >= 0
+    widget.identity.setCurrentText("Tracks: tracker")
+    widget._on_identity()
+    assert "Tracks layer 'tracker': 6 tracks" in widget.status.text()
+    table = widget.last_output.table
+    true_id = truth[table["frame"], np.rint(table["centroid_y"]).astype(int),
+                    np.rint(table["centroid_x"]).astype(int)]
+    np.testing.assert_array_equal(table["track_id"].to_numpy(), 100 + true_id)

@@ -63,6 +63,9 @@ class AnalysisOutput:
         ``PC1``... and ``attrs["explained_variance_ratio"]``.
     params
         The method's options of the run (pictures are made with them).
+    tracking_message
+        What :func:`apply_identity` found and did about the objects' identity through time
+        ("" when there is nothing to say).
     measures
         Classic measures of each outline (``frame``, ``label``, ``circularity``,
         ``aspect_ratio``, ``solidity``): what the PCs are compared with
@@ -79,6 +82,7 @@ class AnalysisOutput:
     pca: dict = field(default_factory=dict)
     params: PFSDMParams = field(default_factory=PFSDMParams)
     measures: pd.DataFrame | None = None
+    tracking_message: str = ""
     labels: object = field(default=None, repr=False)
     intensity: object = field(default=None, repr=False)
 
@@ -227,6 +231,62 @@ def run_analysis(
                           n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
                           params=params, labels=labels, intensity=intensity,
                           measures=pd.DataFrame(measures, columns=["frame", "label", *MEASURES]))
+
+
+# ------------------------------------------------------------------------ identity in time
+#: How objects keep their identity through time in the widget: "auto" links the objects when
+#: the label ids do not follow them (cellpose, stardist: a new numbering in every frame),
+#: "labels" trusts the ids, "link" always links, "tracks" takes a napari Tracks layer.
+IDENTITY = ("auto", "labels", "link", "tracks")
+
+
+def apply_identity(output: AnalysisOutput, mode: str = "auto", tracks=None,
+                   tracks_name: str = "") -> str:
+    """Give ``output.table`` its ``track_id`` column (time-lapses only); return a message.
+
+    Uses :mod:`napari_pfsdm.analysis.tracking`: ``check_tracking`` says whether the label ids
+    follow the objects, ``link`` links them from the table's centroids (the default linker of
+    the command line), ``track_ids_from_tracks`` reads a Tracks layer's data (track_id, t, y, x)
+    with the labels under its points. ``output.tracking_message`` keeps the message.
+    """
+    from ..analysis.tracking import add_track_ids, check_tracking, link, track_ids_from_tracks
+    from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+
+    if mode not in IDENTITY:
+        raise ValueError(f"identity must be one of {IDENTITY}, got {mode!r}.")
+    table = output.table.drop(columns=[TRACK_COLUMN], errors="ignore")
+    table.attrs = dict(output.table.attrs)
+    if not output.time_lapse:
+        output.table, output.tracking_message = table, ""
+        output.__post_init__()
+        return ""
+    check = check_tracking(table)
+    if mode == "tracks":
+        if tracks is None:
+            raise ValueError("Choose a Tracks layer whose points follow the objects.")
+        ids = track_ids_from_tracks(np.asarray(tracks), table, output.labels)
+        table = add_track_ids(table, ids)
+        missed = int(np.sum(ids == NO_TRACK))
+        n = len(np.unique(ids[ids != NO_TRACK]))
+        msg = (f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
+               + (f"; {missed} objects that no track point reaches are left out of the "
+                  "trajectories" if missed else ""))
+    elif mode == "link" or (mode == "auto" and not check.tracked):
+        table = link(table)
+        n = int(table[TRACK_COLUMN].max()) if len(table) else 0
+        msg = f"Linked the objects into {n} tracks by their centroids."
+        if not check.tracked:
+            msg = (f"Label ids do not follow the objects (median jump "
+                   f"{check.median_jump_radii:.1f} object radii between frames): linked them "
+                   f"into {n} tracks by their centroids; trajectories follow the tracks.")
+    else:
+        table = add_track_ids(table, table["label"].to_numpy())
+        msg = "" if check.tracked else (
+            f"Warning: {check.message} Trajectories by label id are not meaningful here: "
+            "choose 'link' under Identity.")
+    output.table, output.tracking_message = table, msg
+    output.__post_init__()
+    return msg
 
 
 # ------------------------------------------------------------------------ layer.features

@@ -65,6 +65,7 @@ class _LinkedPlot(QWidget):
         self.viewer = napari_viewer
         self._highlight_artists: list = []
         self._axes_points = None
+        self._objects = np.zeros(0, np.int64)  # the object (track or label) of each point
         # redraws and highlights wait until the slider or selection has been still for a moment:
         # scrubbing through frames does not redraw the figure at every step
         self._pending: str | None = None
@@ -272,6 +273,16 @@ class _LinkedPlot(QWidget):
         pass
 
 
+def _objects_of(output, scores) -> np.ndarray:
+    """The object of each PCA row: its ``track_id`` when the table has one, else its label."""
+    table = output.table
+    if "track_id" not in table.columns:
+        return scores["label"].to_numpy().astype(np.int64)
+    merged = scores[["frame", "label"]].merge(table[["frame", "label", "track_id"]],
+                                              on=["frame", "label"], how="left")
+    return merged["track_id"].fillna(-1).to_numpy().astype(np.int64)
+
+
 class TrajectoryPlotWidget(_LinkedPlot):
     """PCA of all (frame, label) rows; one line per object through time.
 
@@ -343,6 +354,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self._style(ax)
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         frames, labels = scores["frame"].to_numpy(), scores["label"].to_numpy()
+        objects = _objects_of(output, scores)  # a track (linked) or a label: one line each
         groups = self._group_of()
         by_group = self.color_by.currentText() == "group" and groups
         names = sorted(set(groups.values())) if by_group else []
@@ -350,9 +362,12 @@ class TrajectoryPlotWidget(_LinkedPlot):
 
         tab = matplotlib.colormaps["tab10"]
         segments, seg_colors = [], []
-        for lab in np.unique(labels):  # one line per object through time
-            sel = np.flatnonzero(labels == lab)
+        for obj in np.unique(objects):  # one line per object through time
+            sel = np.flatnonzero(objects == obj)
+            if obj < 0 or len(sel) < 2:  # -1: rows no track reaches
+                continue
             sel = sel[np.argsort(frames[sel])]
+            lab = labels[sel[0]]
             segments.append(np.column_stack([x[sel], y[sel]]))
             seg_colors.append(tab(names.index(groups[lab]) % 10) if by_group and lab in groups
                               else c["grid"])
@@ -378,6 +393,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         ax.set_title(f"{channel} trajectories", fontsize=9)
         self._points = np.column_stack([x, y])
         self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
+        self._objects = objects
         self._axes_points = ax
         from ..analysis.interpretation import explain_components
 
@@ -385,7 +401,10 @@ class TrajectoryPlotWidget(_LinkedPlot):
         if output.measures is not None and channel == "shape":
             words = explain_components(scores, output.measures, ratios, n=2)
         self.explanation = words
-        self.info.setText(("; ".join(words) + ". " if words else "")
+        warning = output.tracking_message if output.tracking_message.startswith("Warning") \
+            else ""
+        self.info.setText((warning + " " if warning else "")
+                          + ("; ".join(words) + ". " if words else "")
                           + "Click a point to go to that object and frame.")
 
     def highlight(self, draw: bool = True) -> None:
@@ -400,7 +419,11 @@ class TrajectoryPlotWidget(_LinkedPlot):
             self._highlight_artists.append(ax.scatter(
                 *self._points[in_frame].T, s=60, facecolors="none", edgecolors=c["fg"], lw=0.8,
                 zorder=3))
-        mine = keys[:, 1] == label
+        here = np.flatnonzero(in_frame & (keys[:, 1] == label))
+        if len(here) and self._objects[here[0]] >= 0:  # the selected object's whole track
+            mine = self._objects == self._objects[here[0]]
+        else:
+            mine = keys[:, 1] == label if not len(here) else np.isin(np.arange(len(keys)), here)
         if mine.any():
             order = np.argsort(keys[mine, 0])
             (line,) = ax.plot(*self._points[mine][order].T, "-", color=c["accent"], lw=2.2,

@@ -69,6 +69,11 @@ TIPS = {
     "export": "Save the feature table, the PCA scores and the distance matrix as CSV files "
               "(plain CSV; the options used in a .csv.json file beside each).",
     "plots": "Open the PCA trajectory plot and the shape comparison view.",
+    "identity": "How an object keeps its identity through time. 'auto': link the objects by "
+                "their centroids when the label ids do not follow them (a segmentation made "
+                "frame by frame, e.g. cellpose or stardist), else trust the ids. 'label ids': "
+                "the same number is the same object. 'link': always link. Or take a napari "
+                "Tracks layer (track_id, t, y, x) from a tracker.",
     "first_axis": "What the first axis of a 3-D Labels layer is: the frames of a movie (time), "
                   "or the slices of a 3-D stack (Z). napari cannot tell them apart.",
 }
@@ -83,6 +88,11 @@ READING = (
     "position or turn. <b>reporter</b>: the intensity on the same disk, 1 = the object's "
     "mean. Yellow lines: the skeleton (medial axis). Each picture has its own colour bar."
 )
+
+#: The fixed choices of the 'Identity' menu (Tracks layers are added after them).
+IDENTITY_CHOICES = {"auto (link when ids jump)": "auto", "label ids": "labels",
+                    "link by centroids": "link"}
+TRACKS_PREFIX = "Tracks: "
 
 #: The choices of the 'First axis' menu and what they mean for the analysis.
 FIRST_AXIS_CHOICES = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
@@ -139,6 +149,8 @@ class AnalysisWidget(QWidget):
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.first_axis = QComboBox(toolTip=TIPS["first_axis"])
         self.first_axis.addItems(list(FIRST_AXIS_CHOICES))
+        self.identity = QComboBox(toolTip=TIPS["identity"])
+        self.identity.addItems(list(IDENTITY_CHOICES))
         self.image_combo = QComboBox(toolTip=TIPS["image"])
         self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(DEFAULTS["n_fourier"]),
                                   toolTip=TIPS["n_fourier"])
@@ -169,6 +181,7 @@ class AnalysisWidget(QWidget):
         form.addRow("First axis", self.first_axis)
         self._first_axis_label = form.labelForField(self.first_axis)
         form.addRow("Intensity image", self.image_combo)
+        form.addRow("Identity", self.identity)
         form.addRow("Fourier harmonics", self.n_fourier)
         form.addRow("Disk map", self.mapping)
         form.addRow("Distance map", self.sdf)
@@ -202,6 +215,7 @@ class AnalysisWidget(QWidget):
         self.plots_button.clicked.connect(self.open_plots)
         self.labels_combo.currentIndexChanged.connect(self._refresh_images)
         self.labels_combo.currentIndexChanged.connect(self._refresh_first_axis)
+        self.identity.activated.connect(self._on_identity)
         self.labels_combo.currentIndexChanged.connect(self._link_selected_layer)
         for event in (napari_viewer.layers.events.inserted, napari_viewer.layers.events.removed,
                       napari_viewer.layers.events.reordered):
@@ -224,8 +238,52 @@ class AnalysisWidget(QWidget):
         self.labels_combo.blockSignals(False)
         self._refresh_images()
         self._refresh_first_axis()
+        self._refresh_tracks()
         self._link_selected_layer()
 
+    def _refresh_tracks(self) -> None:
+        """Offer the viewer's Tracks layers as identity sources."""
+        from napari.layers import Tracks
+
+        current = self.identity.currentText()
+        names = [TRACKS_PREFIX + layer.name for layer in self._layers_of(Tracks)]
+        self.identity.blockSignals(True)
+        self.identity.clear()
+        self.identity.addItems(list(IDENTITY_CHOICES) + names)
+        if self.identity.findText(current) >= 0:
+            self.identity.setCurrentText(current)
+        self.identity.blockSignals(False)
+
+    def identity_mode(self) -> tuple[str, object, str]:
+        """(mode, tracks data or None, tracks layer name) chosen under 'Identity'."""
+        text = self.identity.currentText()
+        if text.startswith(TRACKS_PREFIX):
+            name = text[len(TRACKS_PREFIX):]
+            layer = self.viewer.layers[name] if name in self.viewer.layers else None
+            return "tracks", None if layer is None else layer.data, name
+        return IDENTITY_CHOICES.get(text, "auto"), None, ""
+
+    def _on_identity(self, *args) -> None:
+        """A new identity choice after a run: re-link the last results (no new run)."""
+        labels = self._linked_layer
+        output = store_for(self.viewer).get(labels)
+        if output is None or not output.time_lapse:
+            return
+        try:
+            self._apply_identity(output)
+        except ValueError as err:
+            self._message(str(err), error=True)
+            return
+        _layers.set_features(labels, output)
+        store_for(self.viewer).set(labels, output)
+        self._message(output.tracking_message or "Objects keep their label ids through time.",
+                      error=output.tracking_message.startswith("Warning"))
+
+    def _apply_identity(self, output) -> str:
+        from ._compute import apply_identity
+
+        mode, tracks, name = self.identity_mode()
+        return apply_identity(output, mode, tracks, name)
     def _refresh_first_axis(self, *args) -> None:
         """Show the 'First axis' menu for 3-D labels only; guess from napari's axis label."""
         labels = self.labels_layer
@@ -385,6 +443,13 @@ class AnalysisWidget(QWidget):
         self.pictures.clear()
         self.shown_key = None
         self.last_output = output
+        try:
+            self._apply_identity(output)
+        except ValueError as err:  # e.g. the Tracks layer chosen is gone: trust the ids
+            from ._compute import apply_identity
+
+            apply_identity(output, "labels")
+            output.tracking_message = f"{err} The label ids were used."
         _layers.set_features(labels, output)
         _layers.name_axes(self.viewer, labels)
         first_run = _layers.layer_names(labels.name)["disk"] not in self.viewer.layers
@@ -416,7 +481,9 @@ class AnalysisWidget(QWidget):
         if summary:
             msg += f" {summary[0].upper()}{summary[1:]}."
         self.run_summary = summary
-        self._message(msg)
+        if output.tracking_message:
+            msg = f"{output.tracking_message} {msg}"
+        self._message(msg, error=output.tracking_message.startswith("Warning"))
         self.export_button.setEnabled(True)
         self.reading.setVisible(True)
         self._reset_progress()
