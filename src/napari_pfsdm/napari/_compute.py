@@ -338,8 +338,9 @@ def status_line(output: AnalysisOutput, frame: int, label: int) -> str:
         return f"label {label}: not present{where}"
     row = output.table.iloc[i]
     parts = ([f"frame {int(row['frame'])}"] if output.time_lapse else []) + [f"label {label}"]
-    if "track_id" in row.index and np.isfinite(row["track_id"]) and row["track_id"] >= 0:
-        parts.append(f"track {int(row['track_id'])}")
+    track = row["track_id"] if "track_id" in row.index else -1
+    if np.isfinite(track) and track >= 0 and int(track) != int(label):  # linked: say which
+        parts.append(f"track {int(track)}")
     parts.append(f"area {int(row['area'])} px")
     if str(row.get("error", "")):
         parts.append(f"no features: {row['error']}")
