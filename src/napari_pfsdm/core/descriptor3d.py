@@ -10,7 +10,7 @@ the sphere of equal volume (steadier than the largest radius, which one protrusi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -24,7 +24,7 @@ from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volu
 __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3D"]
 
 #: Defaults of the 3-D-only options (the shared ones come from PFSDMParams).
-DEFAULTS_3D: dict[str, Any] = {"sh_degree": 8, "ball_map": "radial", "degree0_weight": 0.25}
+DEFAULTS_3D: dict[str, Any] = {"sh_degree": 8, "ball_map": "radial", "surface_weight": 4.0}
 
 
 @dataclass(eq=False)
@@ -52,8 +52,10 @@ class PFSDM3DResult:
     surface_embedding : ndarray, shape (sh_degree + 1,)
         √P_l of R(ω) / scale − 1 (the outer surface alone; the surface baseline).
     weights, mode_weights : ndarray
-        Shell quadrature weights (with the ring weighting) and per-degree factors of the
-        distance.
+        Shell quadrature weights (with the ring weighting) and per-degree factors (1 + l)^α of
+        the distance.
+    surface_weight : float
+        Weight of ``surface_embedding`` in the distance.
     diagnostics : dict
         ``volume`` (voxels), ``physical_volume``, ``scale``, ``touches_border``,
         ``n_components``, ``n_holes``, ``folded_fraction`` (ball samples outside the object),
@@ -65,20 +67,21 @@ class PFSDM3DResult:
     surface: SurfaceSDF = field(repr=False)
     mapping: RadialBallMap = field(repr=False)
     grid: SphereGrid = field(repr=False)
-    radii: np.ndarray
+    radii: np.ndarray = field(repr=False)
     radius: np.ndarray = field(repr=False)
     ball: np.ndarray = field(repr=False)
     power: np.ndarray = field(repr=False)
-    embedding: np.ndarray
-    surface_embedding: np.ndarray
-    weights: np.ndarray
-    mode_weights: np.ndarray
+    embedding: np.ndarray = field(repr=False)
+    surface_embedding: np.ndarray = field(repr=False)
+    weights: np.ndarray = field(repr=False)
+    mode_weights: np.ndarray = field(repr=False)
+    surface_weight: float
     diagnostics: dict[str, Any]
-    options: dict[str, Any]
+    options: dict[str, Any] = field(repr=False)
     volume_info: VolumeInfo = field(repr=False)
     intensity_image: np.ndarray | None = field(default=None, repr=False)
     intensity_ball: np.ndarray | None = field(default=None, repr=False)
-    intensity_embedding: np.ndarray | None = None
+    intensity_embedding: np.ndarray | None = field(default=None, repr=False)
 
     ndim = 3
 
@@ -95,12 +98,6 @@ class PFSDM3DResult:
     def center(self) -> np.ndarray:
         """The centroid in voxel coordinates (z, y, x) of the input volume."""
         return self.mapping.center / self.spacing + self.volume_info.offset
-
-
-def _degree_weights(degree: int, exponent: float, weight0: float) -> np.ndarray:
-    w = mode_weights(degree, exponent)
-    w[0] *= weight0
-    return w
 
 
 def _intensity_crop(intensity: np.ndarray, info: VolumeInfo) -> np.ndarray:
@@ -147,10 +144,11 @@ def pfsdm3d(
     mode_exponent: float = 0.25,
     sh_degree: int = DEFAULTS_3D["sh_degree"],
     ball_map: str = DEFAULTS_3D["ball_map"],
-    degree0_weight: float = DEFAULTS_3D["degree0_weight"],
+    surface_weight: float = DEFAULTS_3D["surface_weight"],
     components: str = "largest",
     min_volume: int = DEFAULT_MIN_VOLUME,
     smooth: float = 1.0,
+    offset=(0.0, 0.0, 0.0),
 ) -> PFSDM3DResult:
     """Push-Forward Signed Distance Morphometric of one 3-D object.
 
@@ -170,14 +168,18 @@ def pfsdm3d(
         Highest spherical-harmonic degree L per shell (the embedding has L + 1 columns).
     ball_map : {"radial"}
         The map from the ball to the object (:mod:`.ball`).
-    degree0_weight : float
-        Extra factor on degree 0 (a shell's mean) in the distance: it holds ~98 % of the energy
-        and most of the within-class spread (docs/design.md §6.5).
+    surface_weight : float
+        Weight of the surface term (the SH power of R(ω)/scale − 1, ``surface_embedding``) in
+        the distance, next to the shells' (docs/design.md §6.5: on the benchmark the surface
+        term separates classes better than the interior shells, and the two together best).
     components : {"largest", "raise"}
     min_volume : int
         Smaller objects (voxels) raise ``ValueError``.
     smooth : float
         Gaussian smoothing of the mask before the surface, in finest-voxel widths.
+    offset : 3 floats
+        Voxel index (z, y, x) of ``mask[0, 0, 0]`` when the mask is a crop of a larger volume;
+        :func:`surface_mesh` and ``center`` are then in the larger volume's voxels.
 
     Returns
     -------
@@ -205,8 +207,8 @@ def pfsdm3d(
     sh_degree = int(sh_degree)
     if sh_degree < 1:
         raise ValueError(f"sh_degree must be a whole number >= 1, got {sh_degree}.")
-    if not (np.isfinite(degree0_weight) and degree0_weight >= 0):
-        raise ValueError(f"degree0_weight must be a number >= 0, got {degree0_weight!r}.")
+    if not (np.isfinite(surface_weight) and surface_weight >= 0):
+        raise ValueError(f"surface_weight must be a number >= 0, got {surface_weight!r}.")
     surface = SurfaceSDF(info, smooth=smooth)
     if not surface.volume > 0:
         raise ValueError("The object has no inside after smoothing (it is thinner than a voxel "
@@ -234,14 +236,14 @@ def pfsdm3d(
     options = {
         "ndim": 3, "spacing": info.spacing.tolist(), "n_radii": len(r), "radii": r.tolist(),
         "ring_weighting": ring_weighting, "mode_exponent": float(mode_exponent),
-        "sh_degree": sh_degree, "ball_map": ball_map, "degree0_weight": float(degree0_weight),
+        "sh_degree": sh_degree, "ball_map": ball_map, "surface_weight": float(surface_weight),
         "smooth": smooth,
     }
     result = PFSDM3DResult(
         surface=surface, mapping=pmap, grid=grid, radii=r, radius=radius, ball=ball, power=power,
         embedding=np.sqrt(power), surface_embedding=np.sqrt(surf_power),
         weights=ring_weights(r, ring_weighting),
-        mode_weights=_degree_weights(sh_degree, mode_exponent, degree0_weight),
+        mode_weights=mode_weights(sh_degree, mode_exponent), surface_weight=float(surface_weight),
         diagnostics=diagnostics, options=options, volume_info=info,
     )
     if intensity is not None:
@@ -249,6 +251,8 @@ def pfsdm3d(
         result.intensity_ball = _sample(result.intensity_image, pts, info.spacing)
         result.intensity_embedding = np.sqrt(power_spectrum(sh_analysis(result.intensity_ball,
                                                                         grid)))
+    if any(offset):
+        result.volume_info = replace(info, offset=info.offset + np.asarray(offset, float))
     return result
 
 
