@@ -2,7 +2,7 @@
 units (docs/design.md §6.1–6.2).
 
 :func:`prepare_volume` checks and crops a 3-D boolean mask (the 3-D :func:`prepare_mask`);
-:class:`SurfaceSDF` smooths it lightly (a Gaussian of ``smooth`` finest-voxel widths, the 3-D
+:class:`SurfaceSDF` smooths it lightly (a Gaussian of ``smooth`` coarsest-voxel widths, the 3-D
 counterpart of the 2-D outline smoothing, against the voxel staircase that otherwise changes
 with the object's orientation), takes the 0.5 level surface by marching cubes with the voxel
 ``spacing`` (anisotropic z is the rule in microscopy), and evaluates the signed distance to that
@@ -187,8 +187,10 @@ class SurfaceSDF:
     ----------
     info : VolumeInfo
     smooth : float
-        Gaussian smoothing of the mask before the surface is taken, in widths of the finest
-        voxel (per axis it is ``smooth · min(spacing) / spacing``).
+        Gaussian smoothing of the mask before the surface is taken, in widths of the coarsest
+        voxel: the same physical width along every axis (a blur that does not depend on the
+        object's orientation), ``smooth · max(spacing) / spacing`` voxels per axis, so that
+        the staircase of thick z-slices is smoothed as well as that of the pixels.
 
     Attributes
     ----------
@@ -203,7 +205,7 @@ class SurfaceSDF:
 
     def __init__(self, info: VolumeInfo, smooth: float = 1.0) -> None:
         self.spacing = info.spacing
-        sigma = smooth * self.spacing.min() / self.spacing if smooth > 0 else 0
+        sigma = smooth * self.spacing.max() / self.spacing if smooth > 0 else 0
         self.field = ndi.gaussian_filter(info.mask.astype(np.float32), sigma, mode="constant") \
             if smooth > 0 else info.mask.astype(np.float32)
         verts, faces, normals, _ = marching_cubes(self.field, 0.5, spacing=tuple(self.spacing),
@@ -241,35 +243,43 @@ class SurfaceSDF:
     def unsigned(self, points: np.ndarray) -> np.ndarray:
         """Distance from physical points (K, 3) to the mesh.
 
-        Near the surface (within ``near`` = 4 finest voxels) the nearest vertex comes from the
-        KD-tree; deeper (where a tree search degenerates: every vertex of a sphere is nearly
-        as far from its centre) the search starts from the nearest surface block of a
-        half-resolution distance transform, takes the nearest of the 32 vertices around it,
-        steps along that vertex's normal to the foot of the point and takes the nearest of the
-        16 vertices there.
-        Then every triangle around that vertex gives the exact distance (the star of the
-        nearest vertex holds the closest triangle for all but pathological meshes).
+        Near the surface (within 4 finest voxels) and outside the crop, the nearest vertex
+        comes from the KD-tree. Deeper, where a tree search degenerates (every vertex of a
+        sphere is nearly as far from its centre), the search starts from the surface blocks
+        of a half-resolution distance transform nearest to the 8 blocks around the point (both
+        sides of a medial surface are tried), keeps the nearest of their vertices, and twice
+        steps along its normal to the foot of the point, taking the nearest of the 16
+        vertices there. Every triangle around the vertex found then gives the distance.
+        Against a brute-force search over all triangles: within 0.13 voxel on isotropic voxels
+        and 0.6 units on (2, 1, 1) voxels (a local minimum of the rippled mesh), measured on
+        the synthetic classes of :mod:`napari_pfsdm.data.volumes`.
         """
         pts = np.asarray(points, float).reshape(-1, 3)
         near = 4.0 * float(self.spacing.min())
         d_vert, k = self._tree.query(pts, distance_upper_bound=near)
         far = ~np.isfinite(d_vert)
+        # outside the crop, the surface is all on one side: a plain tree search is quick
+        box = (np.array(self.field.shape) - 1) * self.spacing
+        beyond = far & ((pts < 0) | (pts > box)).any(axis=1)
+        if beyond.any():
+            d_vert[beyond], k[beyond] = self._tree.query(pts[beyond])
+            far &= ~beyond
         if far.any():
-            seeds = self._seeds(pts[far])
-            _, cand = self._tree.query(seeds, k=min(32, len(self.verts)))
-            cand = cand.reshape(len(seeds), -1)
-            dc = np.linalg.norm(self.verts[cand] - pts[far][:, None, :], axis=2)
-            v = cand[np.arange(len(seeds)), dc.argmin(axis=1)]
-            # one step towards the foot: along the normal there, as far as the vertex lies
             q = pts[far]
-            n = self.normals[v]
-            foot = q + np.einsum("ij,ij->i", self.verts[v] - q, n)[:, None] * n
-            _, cand = self._tree.query(foot, k=min(16, len(self.verts)))
-            cand = cand.reshape(len(seeds), -1)
-            dc = np.linalg.norm(self.verts[cand] - q[:, None, :], axis=2)
-            j = dc.argmin(axis=1)
-            rows = np.arange(len(seeds))
-            k[far], d_vert[far] = cand[rows, j], dc[rows, j]
+            seeds = self._seeds(q)  # (K, 8, 3): from the 8 half-resolution blocks around q
+            _, v = self._tree.query(seeds.reshape(-1, 3))
+            v = v.reshape(len(q), -1)
+            dv = np.linalg.norm(self.verts[v] - q[:, None, :], axis=2)
+            best = v[np.arange(len(q)), dv.argmin(axis=1)]
+            for _ in range(2):  # steps towards the foot of q, along the normal there
+                n = self.normals[best]
+                foot = q + np.einsum("ij,ij->i", self.verts[best] - q, n)[:, None] * n
+                _, cand = self._tree.query(foot, k=min(16, len(self.verts)))
+                cand = np.column_stack([best, cand.reshape(len(q), -1)])
+                dc = np.linalg.norm(self.verts[cand] - q[:, None, :], axis=2)
+                best = cand[np.arange(len(q)), dc.argmin(axis=1)]
+            k[far] = best
+            d_vert[far] = np.linalg.norm(self.verts[best] - q, axis=1)
         star = self._star[k]  # (K, D)
         valid = star >= 0
         tri = self.faces[np.where(valid, star, 0)]  # (K, D, 3)
@@ -280,8 +290,9 @@ class SurfaceSDF:
         return np.minimum(d, d_vert)
 
     def _seeds(self, pts: np.ndarray) -> np.ndarray:
-        """For physical points, the centre of the nearest half-resolution block that the
-        surface passes through (a starting point for the exact search)."""
+        """For physical points (K, 3), the centres of the half-resolution blocks nearest to the
+        8 blocks around each point that the surface passes through (K, 8, 3): starting points
+        for the exact search on every side of a medial surface the point is close to."""
         if self._blocks is None:
             f = self.field
             pad = [(0, n % 2) for n in f.shape]
@@ -293,9 +304,10 @@ class SurfaceSDF:
                                                 return_indices=True)
             self._blocks = idx
         idx = self._blocks
-        cell = np.clip(np.floor(pts / (2 * self.spacing)).astype(int), 0,
-                       np.array(idx.shape[1:]) - 1)
-        nearest = idx[(slice(None), cell[:, 0], cell[:, 1], cell[:, 2])].T
+        base = np.floor(pts / (2 * self.spacing) - 0.5).astype(int)  # lower of the 2 per axis
+        corners = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+        cell = np.clip(base[:, None, :] + corners[None], 0, np.array(idx.shape[1:]) - 1)
+        nearest = np.moveaxis(idx[(slice(None), cell[..., 0], cell[..., 1], cell[..., 2])], 0, -1)
         return (nearest * 2 + 0.5) * self.spacing
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
