@@ -82,7 +82,7 @@ def test_sdf_of_a_sphere_against_closed_form():
     pts = np.random.default_rng(1).uniform(2, 62, (3000, 3))
     true = np.linalg.norm(pts - center, axis=1) - radius
     err = sdf(pts - info.offset) - true
-    # the smoothed voxel surface differs from the sphere by < 0.4 voxel (measured 0.33), and
+    # the smoothed voxel surface differs from the sphere by < 0.4 voxel (measured 0.38), and
     # the distance to it by the same: deep points and far points alike
     assert np.abs(err).max() < 0.5
     assert abs(np.median(err)) < 0.1
@@ -117,7 +117,7 @@ def test_a_sphere_has_no_power_above_degree_zero():
     res = P.pfsdm(ball((72, 72, 72), (35.2, 36.1, 35.7), 28.0))
     e = res.embedding
     # φ* of a sphere is r − 1 on every shell: l = 0 carries √P_0 = 1 − r, the rest is
-    # rasterisation, < 0.5 % of the shell's mean (measured 0.3 % on the outermost shell)
+    # rasterisation, < 0.5 % of the shell's mean (measured 0.36 %)
     np.testing.assert_allclose(e[:, 0], 1 - res.radii, atol=0.02)
     assert (e[:, 1:].max(axis=1) < 0.005 * e[:, 0]).all()
     assert res.surface_embedding[1:].max() < 0.005
@@ -142,7 +142,7 @@ def test_90_degree_rotations_and_mirrors(tetra_line, transform):
     copy = P.pfsdm(np.ascontiguousarray(transform(tetra)))
     between = P.distance(r_tetra, r_line)
     # the voxel grid is the same up to the transform: < 5 % of the distance to another class
-    # (measured 3.6 % for the rotations and mirrors that turn the tetrahedron into its dual)
+    # (measured 1.6 % for each: they all turn the tetrahedron into its dual)
     assert P.distance(r_tetra, copy) < 0.05 * between
 
 
@@ -154,7 +154,7 @@ def test_arbitrary_rotations_within_a_bound(tetra_line):
         rot = P.pfsdm(blob_volume("tetrahedron", size=56, radius=13,
                                   rotation=random_rotation(rng)))
         # re-rasterised at another angle: < 12 % of the distance to another class (measured
-        # up to 7 % for objects 26 voxels across)
+        # up to 6.2 % for objects 26 voxels across)
         assert P.distance(r_tetra, rot) < 0.12 * between
 
 
@@ -163,11 +163,12 @@ def test_anisotropic_voxels_describe_the_same_object(tetra_line):
     coarse = blob_volume("tetrahedron", size=(28, 56, 56), radius=13, spacing=(2.0, 1.0, 1.0))
     res = P.pfsdm(coarse, spacing=(2.0, 1.0, 1.0))
     assert res.spacing.tolist() == [2.0, 1.0, 1.0]
-    # the same physical object on voxels twice as deep: < 15 % of the between-class distance
-    # (measured 8 %); read as isotropic voxels it is a squashed object, far more than that
+    # the same physical object on voxels twice as deep: < 20 % of the between-class distance
+    # (measured 12 %: half the resolution along z); read as isotropic voxels it is a squashed
+    # object, more than the distance to the other class (measured 180 %)
     between = P.distance(r_tetra, r_line)
-    assert P.distance(r_tetra, res) < 0.15 * between
-    assert P.distance(r_tetra, P.pfsdm(coarse)) > 0.3 * between
+    assert P.distance(r_tetra, res) < 0.20 * between
+    assert P.distance(r_tetra, P.pfsdm(coarse)) > 1.0 * between
 
 
 def test_scale_invariance(tetra_line):
