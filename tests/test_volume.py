@@ -352,3 +352,28 @@ def test_transformer_on_volumes():
     assert t.get_feature_names_out()[-1] == "surface_l04"
     res = [P.pfsdm(v, n_radii=4, sh_degree=4) for v in vols]
     assert np.linalg.norm(x[0] - x[1]) == pytest.approx(P.distance(*res), rel=1e-9)
+
+
+def test_cli_measures_z_stacks(tmp_path, capsys, labels_tzyx):
+    import tifffile
+
+    from napari_pfsdm.cli import main
+
+    movie = tmp_path / "stack.tif"
+    tifffile.imwrite(movie, labels_tzyx, imagej=True, metadata={"axes": "TZYX"})
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(movie), "-o", str(out), "--scheduler", "sync", "-q"]) == 2
+    assert "--axes zyx" in capsys.readouterr().err  # a 4-D file must say its axes
+    assert main(["measure", str(movie), "--spacing", "2", "1", "1", "-o", str(out),
+                 "--scheduler", "sync", "-q"]) == 2
+    assert "--spacing is for 3-D objects" in capsys.readouterr().err
+    assert main(["measure", str(movie), "--axes", "tzyx", "--mapping", "bijective", "-o",
+                 str(out), "--scheduler", "sync", "-q"]) == 2
+    assert "for 2-D masks" in capsys.readouterr().err
+    assert main(["measure", str(movie), "--axes", "tzyx", "--spacing", "2", "1", "1", "-o",
+                 str(out), "--scheduler", "sync", "-q"]) == 0
+    table = P.read_table(out)
+    assert table.attrs["pfsdm"]["axes"] == "tzyx"
+    assert table.attrs["pfsdm"]["spacing"] == [2.0, 1.0, 1.0]
+    assert len(table) == 4 and "centroid_z" in table.columns
+    assert P.distance_matrix(table)[0, 3] == pytest.approx(0, abs=1e-7)

@@ -232,6 +232,11 @@ def cmd_measure(args: argparse.Namespace) -> int:
     from .core.params import PFSDMParams
 
     params = PFSDMParams.from_options(_measure_options(args))  # fails before any file opens
+    if args.axes is not None and args.axes.lower() not in ("yx", "tyx", "zyx", "tzyx"):
+        raise UserError(f"--axes must be yx, tyx, zyx or tzyx (t time, z y x space); got "
+                        f"{args.axes!r}")
+    if args.axes is not None:
+        args.axes = args.axes.lower()
     if args.spacing is not None and args.axes not in ("zyx", "tzyx"):
         raise UserError("--spacing is for 3-D objects: say which axes the files have, "
                         "--axes zyx (a Z-stack) or --axes tzyx (a time-lapse of Z-stacks)")
@@ -656,7 +661,7 @@ examples:
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     g3 = p.add_argument_group("3-D objects (Z-stacks)")
-    g3.add_argument("--axes", choices=("yx", "tyx", "zyx", "tzyx"), metavar="AXES",
+    g3.add_argument("--axes", metavar="AXES",
                     help="which axes the label files have: yx, tyx (a time-lapse of 2-D "
                          "frames: the default for 3-D files), zyx (one Z-stack of 3-D objects) "
                          "or tzyx (a time-lapse of Z-stacks; 4-D files must say so)")
