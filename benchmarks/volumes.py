@@ -11,9 +11,10 @@ Run from the repository root::
 Twelve classes of synthetic blobs (:mod:`napari_pfsdm.data.volumes`; six of them with
 isotropic inertia, so that volume, inertia and sphericity cannot tell them apart), each copy
 with a random rotation, a mirror image for every other copy, a 0.8-1.2x scale and smooth surface
-noise. Prints, for PF-SDM (shells + surface term, the default distance), its interior shells
-alone, a surface-only spherical-harmonic baseline (power of the outer surface's radial function,
-as in aicsshparam-like descriptors made invariant) and the moment baseline (inertia eigenvalue
+noise. Prints, for PF-SDM (shells + surface term, the default distance; also with the
+harmonic ball map), its interior shells alone, a surface-only spherical-harmonic baseline
+(power of the outer surface's radial function, as in aicsshparam-like descriptors made
+invariant) and the moment baseline (inertia eigenvalue
 ratios and sphericity, standardised): silhouette over the 12 classes and over the six
 moment-hard ones, leave-one-out 1-NN accuracy, time per object; then the invariance check (one
 copy per class turned by 90 degrees about each axis and mirrored along each axis, distance to
@@ -72,9 +73,11 @@ def silhouette(d: np.ndarray, labels: np.ndarray) -> float:
     return float(silhouette_score(d, labels, metric="precomputed"))
 
 
-def matrices(results, masks) -> dict[str, np.ndarray]:
-    """The four distance matrices compared."""
+def matrices(results, masks, harmonic=None) -> dict[str, np.ndarray]:
+    """The distance matrices compared."""
     out = {"PF-SDM (shells + surface)": distance_matrix(results)}
+    if harmonic is not None:
+        out["PF-SDM, harmonic ball map"] = distance_matrix(harmonic)
     shells = Embeddings(shape=np.stack([r.embedding for r in results]),
                         weights=results[0].weights, mode_weights=results[0].mode_weights)
     out["PF-SDM interior shells only"] = distance_matrix(shells)
@@ -171,15 +174,20 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     results = [pfsdm(v) for v in volumes]
     per_object = (time.perf_counter() - t0) / len(volumes)
+    t0 = time.perf_counter()
+    harmonic = [pfsdm(v, ball_map="harmonic") for v in volumes]
+    per_object_h = (time.perf_counter() - t0) / len(volumes)
     folded = max(r.diagnostics["folded_fraction"] for r in results)
+    folded_h = max(r.diagnostics["folded_fraction"] for r in harmonic)
     crossing = max(r.diagnostics["crossing_fraction"] for r in results)
-    mats = matrices(results, volumes)
+    mats = matrices(results, volumes, harmonic)
     hard = np.isin(np.array(names)[labels], MOMENT_HARD)
 
     print(f"\n{len(names)} classes x {n} copies, {size}^3 voxels, noise {args.noise}, seed "
           f"{args.seed} (generated in {t_gen:.0f} s); PF-SDM {per_object:.3f} s per object "
-          f"(one core); folded fraction max {100 * folded:.1f} %, rays crossing twice max "
-          f"{100 * crossing:.1f} %\n")
+          f"(one core; harmonic ball map {per_object_h:.3f} s); folded fraction max "
+          f"{100 * folded:.1f} % (harmonic map {100 * folded_h:.1f} %), rays crossing twice "
+          f"max {100 * crossing:.1f} %\n")
     header = f"{'method':40s} {'silhouette':>10s} {'sil. 6 hard':>11s} {'1-NN':>6s}"
     print(header)
     print("-" * len(header))

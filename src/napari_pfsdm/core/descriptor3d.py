@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage as ndi
 
-from .ball import RadialBallMap, make_ball_map
+from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
 from .morphometric import mode_weights, ring_radii, ring_weights
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
 from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
@@ -35,14 +35,15 @@ class PFSDM3DResult:
     ----------
     surface : SurfaceSDF
         The smoothed surface and its signed distance (physical crop coordinates).
-    mapping : RadialBallMap
+    mapping : RadialBallMap or HarmonicBallMap
         The map from the unit ball to the object.
     grid : SphereGrid
         The directions sampled on every shell.
     radii : ndarray, shape (n_radii,)
         Shell radii in (0, 1).
     radius : ndarray, shape (n_lat, n_lon)
-        R(ω): physical distance from the centroid to the outermost surface crossing.
+        R(ω): physical distance from the centre to the outermost surface crossing (harmonic
+        map: to where the streamline that starts in direction ω meets the surface).
     ball : ndarray, shape (n_radii, n_lat, n_lon)
         The pushed-forward SDF φ*(r, ω), in units of the scale (negative inside).
     power : ndarray, shape (n_radii, sh_degree + 1)
@@ -65,7 +66,7 @@ class PFSDM3DResult:
     """
 
     surface: SurfaceSDF = field(repr=False)
-    mapping: RadialBallMap = field(repr=False)
+    mapping: RadialBallMap | HarmonicBallMap = field(repr=False)
     grid: SphereGrid = field(repr=False)
     radii: np.ndarray = field(repr=False)
     radius: np.ndarray = field(repr=False)
@@ -166,8 +167,11 @@ def pfsdm3d(
         Shells and their weights, as the rings of the 2-D :func:`~.descriptor.pfsdm`.
     sh_degree : int
         Highest spherical-harmonic degree L per shell (the embedding has L + 1 columns).
-    ball_map : {"radial"}
-        The map from the ball to the object (:mod:`.ball`).
+    ball_map : {"radial", "harmonic"}
+        The map from the ball to the object (:mod:`.ball`): ``"radial"`` (default; rays from
+        the centroid to the outermost surface crossing: star-shaped objects) or ``"harmonic"``
+        (streamlines of a point source's potential: never folds, for objects that are not
+        star-shaped, about twice the cost).
     surface_weight : float
         Weight of the surface term (the SH power of R(ω)/scale − 1, ``surface_embedding``) in
         the distance, next to the shells' (docs/design.md §6.5: on the benchmark the surface
@@ -214,7 +218,7 @@ def pfsdm3d(
         raise ValueError("The object has no inside after smoothing (it is thinner than a voxel "
                          "everywhere); it cannot be described in 3-D.")
     scale = float((3 * surface.volume / (4 * np.pi)) ** (1 / 3))
-    pmap = make_ball_map(ball_map, surface)
+    pmap = make_ball_map(ball_map, surface, scale)
     grid = sphere_grid(sh_degree)
     radius, crossings = pmap.rays(grid.directions)
     r = ring_radii(n_radii, radii)
