@@ -9,8 +9,11 @@ anisotropic ``spacing``):
   regular tetrahedron, octahedron, cube, icosahedron; so the inertia eigenvalue ratios are all
   1 and only sphericity differs, by little);
 * six **anisotropic** classes: two opposite bumps (a line), three bumps on a triangle, four on
-  a square, two bumps at a right angle, a prolate ellipsoid, a peanut (two merged balls: not
-  star-shaped from its centre near the waist).
+  a square, two bumps at a right angle, a prolate ellipsoid, a peanut (two merged balls).
+
+:data:`NON_STAR` adds four classes that are not star-shaped from their centroid (which lies
+outside three of them): tube arcs of 270° and 180°, a cup (a thick hemispherical shell) and a
+U-bend, to compare ball maps where the radial one folds.
 
 Examples
 --------
@@ -25,7 +28,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["VOLUME_CLASSES", "MOMENT_HARD", "blob_volume", "make_volume_set",
+__all__ = ["VOLUME_CLASSES", "MOMENT_HARD", "NON_STAR", "blob_volume", "make_volume_set",
            "random_rotation"]
 
 
@@ -71,6 +74,7 @@ _CLASSES: dict[str, tuple[Callable | None, bool]] = {
 }
 VOLUME_CLASSES: tuple[str, ...] = tuple(_CLASSES)
 MOMENT_HARD: tuple[str, ...] = tuple(k for k, (_, hard) in _CLASSES.items() if hard)
+NON_STAR: tuple[str, ...] = ("arc270", "arc180", "cup", "ubend")
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -84,8 +88,27 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
     ])
 
 
+def _tube_arc(q: np.ndarray, angle: float) -> np.ndarray:
+    ring = np.hypot(np.hypot(q[..., 1], q[..., 2]) - 0.65, q[..., 0]) - 0.3
+    outside_arc = np.abs(np.arctan2(q[..., 1], q[..., 2])) > angle / 2
+    return np.where(outside_arc, 1.0, ring)
+
+
 def _implicit(name: str, q: np.ndarray) -> np.ndarray:
     """Inside-ness f(q) < 0 of the implicit classes (normalised coordinates)."""
+    if name == "arc270":
+        return _tube_arc(q, 1.5 * np.pi)
+    if name == "arc180":
+        return _tube_arc(q, np.pi)
+    if name == "cup":
+        r = np.linalg.norm(q, axis=-1)
+        return np.where(q[..., 0] < 0.2, np.maximum(r - 1.0, 0.55 - r), 1.0)
+    if name == "ubend":
+        bend = np.where(q[..., 2] >= 0,
+                        np.hypot(np.hypot(q[..., 1], q[..., 2]) - 0.5, q[..., 0]) - 0.28, 1.0)
+        legs = np.where((q[..., 2] < 0) & (q[..., 2] > -0.8),
+                        np.hypot(q[..., 0], np.abs(q[..., 1]) - 0.5) - 0.28, 1.0)
+        return np.minimum(bend, legs)
     if name == "prolate":
         return np.linalg.norm(q / np.array([1.55, 0.8, 0.8]), axis=-1) - 1.0
     # peanut: the smooth union of two unit-ish balls along the first axis
@@ -129,8 +152,9 @@ def blob_volume(
     rng : numpy Generator, optional
         For the perturbation (and nothing else).
     """
-    if name not in _CLASSES:
-        raise ValueError(f"Unknown class {name!r}; the classes are {', '.join(VOLUME_CLASSES)}.")
+    if name not in _CLASSES and name not in NON_STAR:
+        raise ValueError(f"Unknown class {name!r}; the classes are "
+                         f"{', '.join(VOLUME_CLASSES + NON_STAR)}.")
     shape = (size,) * 3 if np.isscalar(size) else tuple(size)
     spacing = np.asarray(spacing, float)
     centre = (np.array(shape) - 1) / 2 * spacing
@@ -148,7 +172,7 @@ def blob_volume(
         dirs = _normalise(rng.normal(size=(24, 3)))
         amp = rng.uniform(-1, 1, 24) * noise
         pert = (np.exp(-(1.0 - u @ dirs.T) / 0.35**2) * amp).sum(axis=-1)
-    func, _ = _CLASSES[name]
+    func, _ = _CLASSES.get(name, (None, False))
     if func is None:
         return _implicit(name, q) - pert * np.minimum(norm, 1.0) < 0
     return norm < func(u) + pert
