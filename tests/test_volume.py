@@ -281,6 +281,27 @@ def test_bad_3d_input():
         P.pfsdm(m, np.ones((32, 32)))
 
 
+def test_a_one_voxel_sheet_is_refused_in_plain_words():
+    sheet = np.zeros((20, 40, 40), bool)
+    sheet[10, 5:35, 5:35] = True  # 900 voxels, but no inside once smoothed
+    with pytest.raises(ValueError, match="thinner than the smoothing"):
+        P.pfsdm(sheet)
+    sheet[11] = sheet[10]  # two voxels thick: described
+    assert P.pfsdm(sheet).diagnostics["volume"] == 1800
+
+
+def test_intensity_time_lapse_of_volumes(labels_tzyx):
+    # frame 1 twice as bright as frame 0, uniform in each: relative to each object's mean, the
+    # same reporter
+    intensity = np.ones(labels_tzyx.shape) * (1.0 + np.arange(2))[:, None, None, None]
+    table = P.measure(labels_tzyx, intensity, axes="tzyx")
+    assert "intensity_r00_l00" in table.columns and "surface_l00" in table.columns
+    assert not any(c.startswith("intensity_surface") for c in table.columns)
+    assert np.isfinite(table.filter(like="intensity_r").to_numpy()).all()
+    d = P.distance_matrix(table, intensity_weight=1.0)
+    assert d.shape == (4, 4) and d[0, 3] < 1e-6  # same shape, uniform reporter in both frames
+
+
 def test_border_touching_volume_is_described_and_flagged():
     cut = ball((32, 32, 32), (3, 16, 16), 10)  # cut by the z = 0 face
     res = P.pfsdm(cut)

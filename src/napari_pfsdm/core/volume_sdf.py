@@ -208,6 +208,12 @@ class SurfaceSDF:
         sigma = smooth * self.spacing.max() / self.spacing if smooth > 0 else 0
         self.field = ndi.gaussian_filter(info.mask.astype(np.float32), sigma, mode="constant") \
             if smooth > 0 else info.mask.astype(np.float32)
+        if not self.field.max() > 0.5:
+            raise ValueError(
+                "The object is thinner than the smoothing everywhere (a sheet or thread about "
+                "one voxel thick), so it has no inside to describe in 3-D. Describe it in 2-D "
+                "(one plane), or lower smooth."
+            )
         verts, faces, normals, _ = marching_cubes(self.field, 0.5, spacing=tuple(self.spacing),
                                                   allow_degenerate=False)
         self.verts, self.faces, self.normals = verts.astype(float), faces, normals
