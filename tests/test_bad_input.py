@@ -25,9 +25,13 @@ def test_one_pixel_object():
         P.pfsdm(m)
 
 
-def test_three_d_input():
-    with pytest.raises(ValueError, match="2-D mask"):
-        P.pfsdm(np.ones((3, 32, 32), bool))
+def test_three_d_input_is_a_volume_and_four_d_is_refused():
+    # a 3-D array is a Z×Y×X volume (docs/design.md §6); a stack of 2-D frames goes to
+    # measure(labels) with its axes ('tyx' by default)
+    res = P.pfsdm(np.ones((4, 32, 32), bool))
+    assert res.ndim == 3 and res.diagnostics["touches_border"]
+    with pytest.raises(ValueError, match="2-D mask .* or a 3-D volume"):
+        P.pfsdm(np.ones((2, 3, 32, 32), bool))
 
 
 def test_object_touching_the_border_is_described_and_flagged():

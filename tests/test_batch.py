@@ -35,7 +35,8 @@ def make_movie(n_frames: int = 4, shape=(64, 80)) -> tuple[np.ndarray, np.ndarra
     return labels, intensity.astype(np.float32)
 
 
-def fake_measure(labels, intensity=None, *, progress=None, params=None, **options):
+def fake_measure(labels, intensity=None, *, axes=None, spacing=None, progress=None, params=None,
+                 **options):
     """Stand-in for the core: frame, label, area, mean intensity (monkeypatched only)."""
     labels = np.asarray(labels)
     if labels.ndim == 2:

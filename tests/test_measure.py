@@ -80,7 +80,7 @@ def test_border_objects_are_flagged():
 @pytest.mark.parametrize(
     ("labels", "intensity", "message"),
     [
-        (np.zeros((2, 3, 8, 8), int), None, "2-D"),
+        (np.zeros((2, 3, 8, 8), int), None, "axes='tzyx'"),  # 4-D: must say its axes
         (np.zeros((8, 8), float), None, "integer"),
         (np.zeros((2, 8, 8), int), np.zeros((2, 8, 9)), "same frames"),
     ],

@@ -23,6 +23,9 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "PFSDMResult": (".core.descriptor", "PFSDMResult"),
     "pfsdm": (".core.descriptor", "pfsdm"),
     "render_disk": (".core.descriptor", "render_disk"),
+    "PFSDM3DResult": (".core.descriptor3d", "PFSDM3DResult"),
+    "shell_maps": (".core.descriptor3d", "shell_maps"),
+    "surface_mesh": (".core.descriptor3d", "surface_mesh"),
     "Skeleton": (".core.medial_axis", "Skeleton"),
     "skeleton": (".core.medial_axis", "skeleton"),
     "distance": (".core.distances", "distance"),
@@ -47,6 +50,7 @@ __all__ = [
     "ObjectResult",
     "PFSDMTransformer",
     "PFSDMResult",
+    "PFSDM3DResult",
     "Skeleton",
     "check_tracking",
     "distance",
@@ -59,8 +63,10 @@ __all__ = [
     "pfsdm",
     "read_table",
     "render_disk",
+    "shell_maps",
     "skeleton",
     "track_ids_from_tracks",
+    "surface_mesh",
     "weighted_features",
     "write_table",
 ]
@@ -86,6 +92,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.tracking import check_tracking, link, track_ids_from_tracks
     from .analysis.transformer import PFSDMTransformer
     from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk
+    from .core.descriptor3d import PFSDM3DResult, shell_maps, surface_mesh
     from .core.distances import distance
     from .core.medial_axis import Skeleton, skeleton
     from .io_csv import read_table_csv as read_table

@@ -186,8 +186,17 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
                    help="an object in several pieces: keep the 'largest' (default) or report "
                         "an error for it ('raise')")
     g.add_argument("--min-area", dest="min_area", type=int, metavar="PIXELS",
-                   help="objects smaller than this get an error instead of features "
-                        f"(default {D['min_area']})")
+                   help="objects smaller than this (pixels, or voxels in 3-D) get an error "
+                        f"instead of features (default {D['min_area']})")
+    g.add_argument("--sh-degree", dest="sh_degree", type=int, metavar="L",
+                   help="3-D only: highest spherical-harmonic degree per shell "
+                        f"(default {D['sh_degree']})")
+    g.add_argument("--surface-weight", dest="surface_weight", type=float, metavar="W",
+                   help="3-D only: weight of the outer surface's term in distances "
+                        f"(default {D['surface_weight']})")
+    g.add_argument("--ball-map", dest="ball_map", choices=CHOICES["ball_map"],
+                   help="3-D only: how the unit ball is laid onto the object; default "
+                        + D["ball_map"])
 
 
 def _add_compute_options(p: argparse.ArgumentParser) -> None:
@@ -223,6 +232,16 @@ def cmd_measure(args: argparse.Namespace) -> int:
     from .core.params import PFSDMParams
 
     params = PFSDMParams.from_options(_measure_options(args))  # fails before any file opens
+    if args.axes is not None and args.axes.lower() not in ("yx", "tyx", "zyx", "tzyx"):
+        raise UserError(f"--axes must be yx, tyx, zyx or tzyx (t time, z y x space); got "
+                        f"{args.axes!r}")
+    if args.axes is not None:
+        args.axes = args.axes.lower()
+    if args.spacing is not None and args.axes not in ("zyx", "tzyx"):
+        raise UserError("--spacing is for 3-D objects: say which axes the files have, "
+                        "--axes zyx (a Z-stack) or --axes tzyx (a time-lapse of Z-stacks)")
+    if args.axes is not None:
+        params.check_dimension(3 if "z" in args.axes else 2)
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
     out = _check_output(args.output, force=args.force,
@@ -240,6 +259,8 @@ def cmd_measure(args: argparse.Namespace) -> int:
         allow_empty=args.allow_empty,
         params=params,
         link=args.link,
+        axes=args.axes,
+        spacing=args.spacing,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -733,6 +754,14 @@ examples:
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    g3 = p.add_argument_group("3-D objects (Z-stacks)")
+    g3.add_argument("--axes", metavar="AXES",
+                    help="which axes the label files have: yx, tyx (a time-lapse of 2-D "
+                         "frames: the default for 3-D files), zyx (one Z-stack of 3-D objects) "
+                         "or tzyx (a time-lapse of Z-stacks; 4-D files must say so)")
+    g3.add_argument("--spacing", nargs=3, type=float, metavar=("Z", "Y", "X"),
+                    help="voxel size along Z, Y and X, e.g. --spacing 2 0.5 0.5 (µm); only "
+                         "with --axes zyx or tzyx (default 1 1 1)")
     _add_method_options(p)
     _add_compute_options(p)
     p.set_defaults(func=cmd_measure)

@@ -15,11 +15,20 @@ from scipy import ndimage as ndi
 
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
-from ..core.table_schema import BASE_COLUMNS, TRACK_COLUMN, feature_columns
+from ..core.table_schema import (
+    BASE_COLUMNS,
+    TRACK_COLUMN,
+    base_columns,
+    feature_columns,
+    table_feature_columns,
+)
+from ..core.volume_sdf import check_spacing
 from .tables import failed_rows
 
 __all__ = [
+    "AXES",
     "ObjectResult",
+    "resolve_axes",
     "FOLDED_WARNING",
     "count_objects",
     "describe_object",
@@ -65,6 +74,60 @@ def _one_blas_thread():
 
 _BASE_COLUMNS = BASE_COLUMNS
 
+#: The axis orders a label image may have (docs/design.md §5, "axes"): ``t`` time, ``z``, ``y``,
+#: ``x`` space. A 2-D array is ``"yx"`` and a 3-D one ``"tyx"`` unless ``axes`` says otherwise;
+#: a 4-D array must say (``"tzyx"``).
+AXES = ("yx", "tyx", "zyx", "tzyx")
+
+
+def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
+    """The axis order of a label image of ``shape``: ``axes`` checked against it, or the
+    documented default (2-D: ``"yx"``, 3-D: ``"tyx"``, the time-lapse of 2-D frames this
+    package always took); a 4-D array without ``axes`` is refused, never guessed.
+
+    Examples
+    --------
+    >>> resolve_axes((10, 64, 64)), resolve_axes((10, 64, 64), "zyx")
+    ('tyx', 'zyx')
+    """
+    ndim = len(shape)
+    if axes is None:
+        if ndim == 2:
+            return "yx"
+        if ndim == 3:
+            return "tyx"
+        if ndim == 4:
+            raise ValueError(
+                f"The labels have 4 dimensions {tuple(shape)}: say which axes they are, e.g. "
+                "axes='tzyx' for a time-lapse of Z-stacks (in the command line: --axes tzyx)."
+            )
+        raise ValueError(
+            f"Labels must be 2-D (Y, X), 3-D (T, Y, X or Z, Y, X) or 4-D (T, Z, Y, X); got shape "
+            f"{tuple(shape)}. For extra channels, pass one channel."
+        )
+    axes = str(axes).lower()
+    if axes not in AXES:
+        raise ValueError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
+                         f"{axes!r}.")
+    if len(axes) != ndim:
+        raise ValueError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
+                         f"dimensions {tuple(shape)}.")
+    return axes
+
+
+def _spacing(axes: str, spacing) -> np.ndarray | None:
+    """The voxel size of a 3-D axis order (None for 2-D, where only square pixels exist)."""
+    if "z" in axes:
+        return check_spacing(spacing, 3)
+    if spacing is not None:
+        sp = np.asarray(spacing, float).ravel()
+        if sp.size not in (1, 2) or not np.all(sp == sp[0]):
+            raise ValueError(
+                f"spacing {tuple(sp.tolist())} was given for 2-D frames (axes={axes!r}); 2-D "
+                "objects take square pixels only. If the first axis is Z, say axes='zyx'."
+            )
+    return None
+
 
 @dataclass
 class ObjectResult:
@@ -74,12 +137,12 @@ class ObjectResult:
     ----------
     frame, label : int
     bbox : tuple of slice
-        The object's bounding box in the frame (row slice, column slice).
+        The object's bounding box in the frame (row slice, column slice; 3-D: z, row, col).
     area : int
-        Pixels of the label in the frame.
-    centroid : ndarray, shape (2,)
-        Pixel centroid (row, col) in the frame.
-    result : PFSDMResult or None
+        Pixels (3-D: voxels) of the label in the frame.
+    centroid : ndarray, shape (2,) or (3,)
+        Pixel centroid (row, col) in the frame; 3-D: voxel centroid (z, row, col).
+    result : PFSDMResult, PFSDM3DResult or None
         ``None`` when the object could not be described; ``error`` then says why.
     error : str
         Empty when fine.
@@ -90,7 +153,7 @@ class ObjectResult:
 
     frame: int
     label: int
-    bbox: tuple[slice, slice]
+    bbox: tuple[slice, ...]
     area: int
     centroid: np.ndarray
     touches_border: bool
@@ -99,13 +162,9 @@ class ObjectResult:
     intensity_error: str = ""
 
 
-def _validate(labels, intensity) -> tuple[int, bool]:
+def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
     shape = tuple(labels.shape)
-    if len(shape) not in (2, 3):
-        raise ValueError(
-            f"Labels must be 2-D (Y, X) or a 3-D time-lapse (T, Y, X); got shape {shape}. "
-            "For a 3-D volume or extra channels, pass one 2-D plane or a T×Y×X stack."
-        )
+    axes = resolve_axes(shape, axes)
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
         raise ValueError(
@@ -117,30 +176,38 @@ def _validate(labels, intensity) -> tuple[int, bool]:
             f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
             f"{shape}: they must cover the same frames and pixels."
         )
-    return (shape[0] if len(shape) == 3 else 1), len(shape) == 3
+    timelapse = axes.startswith("t")
+    return (shape[0] if timelapse else 1), timelapse, axes
 
 
 def _frame(array, t: int, timelapse: bool) -> np.ndarray:
     return np.asarray(array[t] if timelapse else array)
 
 
-def count_objects(labels) -> int:
-    """Number of (frame, label) objects in a 2-D or T×Y×X label image (reads every frame)."""
-    n_frames, timelapse = _validate(labels, None)
+def count_objects(labels, axes: str | None = None) -> int:
+    """Number of (frame, label) objects in a label image (reads every frame); ``axes`` as
+    :func:`measure`."""
+    n_frames, timelapse, _ = _validate(labels, None, axes)
     return int(sum(np.count_nonzero(np.bincount(_frame(labels, t, timelapse).ravel())[1:])
                    for t in range(n_frames)))
 
 
 def iter_objects(
-    labels, intensity=None, *, frames=None, params: PFSDMParams | None = None, **options: Any
+    labels, intensity=None, *, axes: str | None = None, spacing=None, frames=None,
+    params: PFSDMParams | None = None, **options: Any
 ) -> Iterator[ObjectResult]:
     """PF-SDM of every object of every frame, one at a time.
 
     Parameters
     ----------
-    labels : array_like of int, shape (Y, X) or (T, Y, X)
+    labels : array_like of int, shape (Y, X), (T, Y, X), (Z, Y, X) or (T, Z, Y, X)
         Label image; 0 is background. numpy, dask or zarr arrays: frames are read one at a time.
     intensity : array_like, same shape, optional
+    axes : {"yx", "tyx", "zyx", "tzyx"}, optional
+        Which axes the labels have; default ``"yx"`` for 2-D and ``"tyx"`` for 3-D arrays (a
+        Z-stack must say ``"zyx"``); a 4-D array must say.
+    spacing : 3 floats, optional
+        Voxel size along Z, Y, X of 3-D objects (default 1, 1, 1); 2-D frames take none.
     frames : iterable of int, optional
         Frames to process (default all).
     params : PFSDMParams, optional
@@ -157,10 +224,15 @@ def iter_objects(
         formed input (wrong dimensions, shapes, dtype) raises ``ValueError`` before anything runs.
         While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
-    n_frames, timelapse = _validate(labels, intensity)
+    n_frames, timelapse, axes = _validate(labels, intensity, axes)
+    voxel = _spacing(axes, spacing)
     p = as_params(params, options)  # a bad option fails here, before any work
+    p.check_dimension(3 if "z" in axes else 2)
+    opts = p.options()
+    if voxel is not None:
+        opts["spacing"] = voxel
     with _one_blas_thread():
-        yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, p.options())
+        yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, opts)
 
 
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
@@ -180,16 +252,17 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
 
 
 def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectResult:
-    """The :class:`ObjectResult` of ``label`` in one 2-D frame (``box``: its bounding box)."""
+    """The :class:`ObjectResult` of ``label`` in one frame, 2-D or 3-D (``box``: its
+    bounding box)."""
     big = tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
                 zip(box, frame.shape, strict=True))
     mask = frame[big] == label
     area = int(mask.sum())
-    centroid = np.array(ndi.center_of_mass(mask)) + [big[0].start, big[1].start]
-    touches = bool(box[0].start == 0 or box[1].start == 0
-                   or box[0].stop == frame.shape[0] or box[1].stop == frame.shape[1])
+    start = [s.start for s in big]
+    centroid = np.array(ndi.center_of_mass(mask)) + start
+    touches = any(s.start == 0 or s.stop == n for s, n in zip(box, frame.shape, strict=True))
     res, error, int_error = _describe(mask, None if image is None else image[big],
-                                      (big[0].start, big[1].start), options)
+                                      tuple(start), options)
     return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,
                         touches_border=touches, result=res, error=error,
                         intensity_error=int_error)
@@ -197,17 +270,17 @@ def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectRe
 
 def describe_object(
     labels, intensity, frame: int, label: int, *, params: PFSDMParams | None = None,
-    box: tuple[slice, slice] | None = None,
+    box: tuple[slice, ...] | None = None, axes: str | None = None, spacing=None,
 ) -> ObjectResult:
     """The full :class:`ObjectResult` of one (frame, label), exactly as :func:`iter_objects`
     computes it (same crop, same options): for pictures of one object after :func:`measure`.
 
     Parameters
     ----------
-    labels, intensity
+    labels, intensity, axes, spacing
         As for :func:`iter_objects`; only ``frame`` is read.
     frame, label : int
-        The object (``frame`` is ignored for a 2-D image).
+        The object (``frame`` is ignored without a time axis).
     params : PFSDMParams, optional
         The options of the run the object belongs to.
     box : tuple of slice, optional
@@ -218,8 +291,12 @@ def describe_object(
     KeyError
         When ``label`` is not in that frame.
     """
-    n_frames, timelapse = _validate(labels, intensity)
+    n_frames, timelapse, axes = _validate(labels, intensity, axes)
+    voxel = _spacing(axes, spacing)
     p = as_params(params, {})
+    opts = p.options()
+    if voxel is not None:
+        opts["spacing"] = voxel
     t = int(frame) if timelapse else 0
     if not 0 <= t < n_frames:
         raise KeyError(f"frame {frame} is not in the labels ({n_frames} frames)")
@@ -227,14 +304,13 @@ def describe_object(
     if plane.dtype == bool:
         plane = plane.astype(np.uint8)
     if box is None:
-        rows, cols = np.nonzero(plane == label)
-        if rows.size == 0:
+        where = np.nonzero(plane == label)
+        if where[0].size == 0:
             raise KeyError(f"label {label} is not in frame {frame}")
-        box = (slice(int(rows.min()), int(rows.max()) + 1),
-               slice(int(cols.min()), int(cols.max()) + 1))
+        box = tuple(slice(int(w.min()), int(w.max()) + 1) for w in where)
     image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
     with _one_blas_thread():
-        return _object_in_frame(plane, image, t, int(label), box, p.options())
+        return _object_in_frame(plane, image, t, int(label), box, opts)
 
 
 def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, str]:
@@ -280,29 +356,42 @@ def resolved_options(**options: Any) -> dict[str, Any]:
 
 
 def table_from_objects(
-    objects, *, with_intensity: bool = False, params: PFSDMParams | None = None, **options: Any
+    objects, *, with_intensity: bool = False, params: PFSDMParams | None = None,
+    axes: str | None = None, spacing=None, **options: Any
 ) -> pd.DataFrame:
     """The feature table of :func:`measure` from objects computed by :func:`iter_objects` with
-    the same options (``params`` or keywords; one row per object, in the given order).
+    the same options (``params`` or keywords; one row per object, in the given order) and the
+    same ``axes`` and ``spacing`` (recorded in the options; no ``axes``: 2-D objects, not
+    recorded).
     ``objects`` may be a generator: only the rows are kept, not the results."""
-    opts = as_params(params, options).record()
-    shape_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
-    int_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "intensity") \
-        if with_intensity else []
+    ndim = 3 if axes and "z" in axes else 2
+    opts = as_params(params, options).record(ndim)
+    if axes is not None:
+        opts["axes"] = axes
+    if ndim == 3:
+        opts["spacing"] = check_spacing(spacing, 3).tolist()
+    shape_cols = table_feature_columns(opts, "shape")
+    int_cols = table_feature_columns(opts, "intensity") if with_intensity else []
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
     base, shape_rows, int_rows = [], [], []
     for obj in objects:
         res = obj.result
         diag = res.diagnostics if res is not None else {}
-        base.append((obj.frame, obj.label, obj.area, obj.centroid[0], obj.centroid[1],
-                     obj.touches_border, diag.get("n_components", np.nan),
-                     diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error,
+        extra = (diag.get("crossing_fraction", np.nan),) if ndim == 3 else ()
+        base.append((obj.frame, obj.label, obj.area, *obj.centroid, obj.touches_border,
+                     diag.get("n_components", np.nan), diag.get("n_holes", np.nan),
+                     diag.get("folded_fraction", np.nan), *extra, obj.error,
                      "; ".join(object_warnings(obj, with_intensity=with_intensity))))
-        shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
+        if res is None:
+            shape_rows.append(nan_s)
+        elif ndim == 3:
+            shape_rows.append(np.concatenate([res.embedding.ravel(), res.surface_embedding]))
+        else:
+            shape_rows.append(res.embedding.ravel())
         if int_cols:
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
-    blocks = [pd.DataFrame(base, columns=_BASE_COLUMNS),
+    blocks = [pd.DataFrame(base, columns=base_columns(ndim)),
               pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)), columns=shape_cols)]
     if int_cols:
         blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
@@ -325,7 +414,11 @@ def object_warnings(obj: ObjectResult, *, with_intensity: bool = False) -> list[
     diag = obj.result.diagnostics if obj.result is not None else {}
     folded = diag.get("folded_fraction", 0.0)
     if folded is not None and np.isfinite(folded) and folded > FOLDED_WARNING:
-        out.append(f"{100 * folded:.1f} % of disk samples fold (try mapping='bijective')")
+        if "crossing_fraction" in diag:
+            out.append(f"{100 * folded:.1f} % of ball samples fold (the object is not "
+                       "star-shaped from its centroid; the radial map leaves it there)")
+        else:
+            out.append(f"{100 * folded:.1f} % of disk samples fold (try mapping='bijective')")
     n_holes = int(diag.get("n_holes", 0) or 0)
     if n_holes:
         out.append(f"{n_holes} hole{'s' if n_holes > 1 else ''} filled")
@@ -446,6 +539,8 @@ def measure(
     labels,
     intensity=None,
     *,
+    axes: str | None = None,
+    spacing=None,
     progress: Callable[[int, int | None], None] | None = None,
     params: PFSDMParams | None = None,
     **options: Any,
@@ -454,10 +549,17 @@ def measure(
 
     Parameters
     ----------
-    labels : array_like of int, shape (Y, X) or (T, Y, X)
-        Label image or time-lapse (numpy, dask or zarr; read one frame at a time).
+    labels : array_like of int, shape (Y, X), (T, Y, X), (Z, Y, X) or (T, Z, Y, X)
+        Label image, volume or time-lapse (numpy, dask or zarr; read one frame at a time).
     intensity : array_like, same shape, optional
         Reporter image; adds ``intensity_rXX_nYY`` columns.
+    axes : {"yx", "tyx", "zyx", "tzyx"}, optional
+        Which axes ``labels`` has. Default: ``"yx"`` for 2-D and ``"tyx"`` (a time-lapse of
+        2-D frames) for 3-D arrays, so a Z-stack must say ``axes="zyx"``; a 4-D array must say
+        ``"tzyx"`` (refused otherwise). Recorded in ``attrs["pfsdm"]["axes"]``.
+    spacing : 3 floats, optional
+        Voxel size along Z, Y, X for 3-D objects (e.g. ``(2.0, 0.5, 0.5)``); recorded in
+        ``attrs["pfsdm"]["spacing"]``. 2-D frames take none.
     progress : callable(done, total), optional
         Called after every object; ``total`` is None for lazy (non-numpy) inputs.
     params : PFSDMParams, optional
@@ -475,7 +577,11 @@ def measure(
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
         described, whose features are then NaN while the shape's are kept), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``. ``attrs["pfsdm"]``
-        holds the options used, with the rings' ``radii`` and ``weights``.
+        holds the options used, with the rings' ``radii`` and ``weights``, and ``axes``.
+        3-D objects: ``volume`` (voxels) instead of ``area``, ``centroid_z``, and
+        ``crossing_fraction`` (rays from the centroid crossing the surface more than once), then
+        ``shape_rXX_lYY`` (shell, SH degree), ``surface_lYY`` and ``intensity_rXX_lYY``
+        (``core.table_schema``).
 
     Examples
     --------
@@ -488,13 +594,18 @@ def measure(
     (6, ['frame', 'label', 'area'])
     """
     p = as_params(params, options)  # before counting: a bad option fails at once
+    axes = resolve_axes(tuple(labels.shape), axes)
+    voxel = _spacing(axes, spacing)
+    p.check_dimension(3 if "z" in axes else 2)
     counted = progress is not None and isinstance(labels, np.ndarray)
-    total = count_objects(labels) if counted else None
+    total = count_objects(labels, axes) if counted else None
 
     def reporting():
-        for done, obj in enumerate(iter_objects(labels, intensity, params=p), start=1):
+        for done, obj in enumerate(iter_objects(labels, intensity, axes=axes, spacing=voxel,
+                                                params=p), start=1):
             yield obj  # consumed row by row: no result is kept
             if progress is not None:
                 progress(done, total)
 
-    return table_from_objects(reporting(), with_intensity=intensity is not None, params=p)
+    return table_from_objects(reporting(), with_intensity=intensity is not None, params=p,
+                              axes=axes, spacing=voxel)

@@ -15,8 +15,14 @@ import numpy as np
 
 from ..core import distances as _core
 from ..core.distances import Embeddings
+from ..core.distances3d import stack_3d
 from ..core.morphometric import mode_weights
-from ..core.table_schema import check_feature_table, feature_columns
+from ..core.table_schema import (
+    check_feature_table,
+    feature_columns,
+    table_feature_columns,
+    table_ndim,
+)
 
 __all__ = [
     "distance_matrix",
@@ -34,16 +40,24 @@ def is_table(items: Any) -> bool:
 
 
 def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
-    """Embeddings (n, n_radii, n_fourier + 1) and ring weights from a :func:`measure` table.
+    """Embeddings (n, n_radii, n_fourier + 1) and ring weights from a :func:`measure` table
+    (3-D: (n, n_radii + 1, sh_degree + 1), the surface as the last row, its weight last).
 
     Rows with an ``error`` give NaN embeddings. The table must carry its options
     (``table.attrs["pfsdm"]``, as :func:`napari_pfsdm.measure` and
     :func:`napari_pfsdm.read_table` give it) and every feature column: a table without them is
     refused, never reinterpreted (see :mod:`napari_pfsdm.core.table_schema`).
     """
-    opts, n_radii, n_fourier = check_feature_table(table, [channel])
-    ordered = feature_columns(n_radii, n_fourier, channel)
-    values = table[ordered].to_numpy(float).reshape(len(table), n_radii, n_fourier + 1)
+    opts, n_radii, n_modes = check_feature_table(table, [channel])
+    if table_ndim(opts) == 3:  # shells plus the surface row of weight surface_weight
+        shells = table[feature_columns(n_radii, n_modes, channel, letter="l")].to_numpy(float)
+        shells = shells.reshape(len(table), n_radii, n_modes + 1)
+        surface = table[table_feature_columns(opts, "shape")[-(n_modes + 1):]].to_numpy(float) \
+            if channel == "shape" else None
+        return stack_3d(shells, surface), np.append(np.asarray(opts["weights"], float),
+                                                    float(opts["surface_weight"]))
+    ordered = feature_columns(n_radii, n_modes, channel)
+    values = table[ordered].to_numpy(float).reshape(len(table), n_radii, n_modes + 1)
     return values, np.asarray(opts["weights"], float)
 
 
@@ -57,7 +71,7 @@ def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, 
         the ``warnings`` column says about the intensity.
     """
     channels = list(channels)
-    opts, n_radii, n_fourier = check_feature_table(table, channels)
+    opts, _, _ = check_feature_table(table, channels)
     n = len(table)
     err = (table["error"].fillna("").astype(str).to_numpy() if "error" in table.columns
            else np.full(n, ""))
@@ -65,7 +79,7 @@ def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, 
             else np.full(n, ""))
     bad = err != ""
     for channel in channels:
-        vals = table[feature_columns(n_radii, n_fourier, channel)].to_numpy(float)
+        vals = table[table_feature_columns(opts, channel)].to_numpy(float)
         bad |= ~np.isfinite(vals).all(axis=1)
     frames = table["frame"].to_numpy() if "frame" in table.columns else np.full(n, -1)
     labels = table["label"].to_numpy() if "label" in table.columns else np.full(n, -1)

@@ -177,6 +177,7 @@ def check_tracking(table: pd.DataFrame) -> TrackingCheck:
     >>> check.verdict, round(check.median_jump)
     ('untracked', 100)
     """
+    table = _with_area(table)
     need = ["frame", "label", "area", "centroid_y", "centroid_x"]
     missing = [c for c in need if c not in table.columns]
     if missing:
@@ -394,8 +395,19 @@ def _renumber(tracks: np.ndarray) -> np.ndarray:
     return out
 
 
+def _with_area(table: pd.DataFrame) -> pd.DataFrame:
+    """A table of 3-D objects (``volume``, no ``area``) gets the area of the disk whose radius
+    is that of the sphere of the same volume: the checks and the linking then work on its
+    (y, x) centroids with the object's radius as their scale (z is not used)."""
+    if "area" in table.columns or "volume" not in table.columns:
+        return table
+    radius = np.cbrt(3 * table["volume"].to_numpy(float) / (4 * np.pi))
+    return table.assign(area=np.pi * radius**2)
+
+
 def _median_radius(table: pd.DataFrame) -> float:
     """The radius of a disk of the median object area (pixels; 10 without areas)."""
+    table = _with_area(table)
     area = table["area"].to_numpy(float) if "area" in table.columns else np.zeros(0)
     area = area[np.isfinite(area) & (area > 0)]
     return float(np.sqrt(np.median(area) / np.pi)) if len(area) else 10.0

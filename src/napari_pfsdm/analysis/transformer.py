@@ -18,19 +18,23 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from ..core.contour import DEFAULT_MIN_AREA
 from ..core.descriptor import DEFAULTS, pfsdm
 from ..core.params import PFSDMParams
-from ..core.table_schema import feature_columns
+from ..core.table_schema import table_feature_columns
 
 __all__ = ["PFSDMTransformer"]
 
 
 class PFSDMTransformer(TransformerMixin, BaseEstimator):
-    """Shape features of 2-D masks, one row per mask, in the feature table's column order.
+    """Shape features of 2-D masks or 3-D volumes, one row per mask, in the feature table's
+    column order.
 
     Parameters
     ----------
     n_fourier, n_radii, n_angles, sdf, viscosity, mapping, normalization, radii,
-    ring_weighting, mode_exponent, components, min_area
+    ring_weighting, mode_exponent, components, min_area, sh_degree, surface_weight, ball_map
         As :func:`napari_pfsdm.pfsdm` (same defaults).
+    spacing : 3 floats, optional
+        Voxel size (Z, Y, X) of 3-D masks. 3-D masks give the columns ``shape_rXX_lYY`` and
+        ``surface_lYY`` (``fit`` sees whether the masks are 2-D or 3-D).
     weighted : bool
         False (default): the magnitudes |c_n(r)| as in the table's ``shape_rXX_nYY`` columns.
         True: scaled by √(ring weight) × mode weight, so that Euclidean distances between rows
@@ -64,6 +68,10 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
         mode_exponent: float = DEFAULTS["mode_exponent"],
         components: str = "largest",
         min_area: int = DEFAULT_MIN_AREA,
+        sh_degree: int = DEFAULTS["sh_degree"],
+        surface_weight: float = DEFAULTS["surface_weight"],
+        ball_map: str = DEFAULTS["ball_map"],
+        spacing=None,
         weighted: bool = False,
     ):
         self.n_fourier = n_fourier
@@ -78,22 +86,37 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
         self.mode_exponent = mode_exponent
         self.components = components
         self.min_area = min_area
+        self.sh_degree = sh_degree
+        self.surface_weight = surface_weight
+        self.ball_map = ball_map
+        self.spacing = spacing
         self.weighted = weighted
 
     def _params(self) -> PFSDMParams:
         """The options as the core's validated record (a bad value fails in plain words)."""
         params = self.get_params()
         params.pop("weighted")
+        params.pop("spacing")
         return PFSDMParams.from_options(params)
 
     def _scale(self, record: dict) -> np.ndarray:
-        """√(ring weight) × mode weight per column: Euclidean = PF-SDM (magnitude) distance."""
-        w = np.sqrt(np.asarray(record["weights"]))[:, None]
-        return (w * np.asarray(record["mode_weights"])[None, :]).ravel()
+        """√(ring weight) × mode weight per column: Euclidean = PF-SDM (magnitude) distance
+        (3-D: the surface columns get √surface_weight)."""
+        w = np.sqrt(np.asarray(record["weights"]))
+        if record.get("ndim") == 3:
+            w = np.append(w, np.sqrt(record["surface_weight"]))
+        return (w[:, None] * np.asarray(record["mode_weights"])[None, :]).ravel()
+
+    def _ndim(self, X=None) -> int:
+        if X is not None and len(X):
+            return 3 if np.ndim(X[0]) == 3 else 2
+        return getattr(self, "ndim_", 2)
 
     def fit(self, X: Sequence[np.ndarray], y=None) -> PFSDMTransformer:
-        """Nothing to learn (the descriptor is fixed); checks the parameters and records the
-        output's names. Returns self."""
+        """Nothing to learn (the descriptor is fixed); checks the parameters, notes whether
+        the masks are 2-D or 3-D (``ndim_``) and records the output's names. Returns self."""
+        self.ndim_ = self._ndim(X)
+        self._params().check_dimension(self.ndim_)
         names = self.get_feature_names_out()
         self.n_features_out_ = len(names)
         return self
@@ -117,22 +140,30 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
             position.
         """
         params = self._params()
-        options, record = params.options(), params.record()
+        ndim = self._ndim(X)
+        options, record = params.options(), params.record(ndim)
+        if ndim == 3:
+            options["spacing"] = self.spacing
         rows = []
         for i, mask in enumerate(X):
             try:
-                rows.append(pfsdm(np.asarray(mask), **options).embedding.ravel())
+                res = pfsdm(np.asarray(mask), **options)
             except ValueError as exc:
                 raise ValueError(f"mask {i}: {exc}") from exc
+            if getattr(res, "ndim", 2) != ndim:
+                raise ValueError(f"mask {i} is {getattr(res, 'ndim', 2)}-D but the first is "
+                                 f"{ndim}-D; give masks of one dimension.")
+            rows.append(res.embedding.ravel() if ndim == 2 else
+                        np.concatenate([res.embedding.ravel(), res.surface_embedding]))
         scale = self._scale(record)
         out = np.vstack(rows) if rows else np.zeros((0, len(scale)))
         return out * scale[None, :] if self.weighted else out
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
-        """The table's column names ``shape_rXX_nYY`` (ring-major), as an object array."""
-        record = self._params().record()
-        return np.asarray(feature_columns(record["n_radii"], record["n_fourier"], "shape"),
-                          dtype=object)
+        """The table's column names ``shape_rXX_nYY`` (ring-major; after fitting on 3-D masks
+        ``shape_rXX_lYY`` and ``surface_lYY``), as an object array."""
+        record = self._params().record(self._ndim())
+        return np.asarray(table_feature_columns(record, "shape"), dtype=object)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

@@ -163,41 +163,48 @@ def _axes_message(where: str, shape: tuple[int, ...], axes: list[str], bad: str)
                      for a, n in zip(axes, shape, strict=True))
     what = {"s": "it looks like a colour (RGB) image, not a label image: save the "
                  "segmentation with one whole number per object, 0 = background",
-            "z": "pfsdm measures 2-D objects: give one z-plane (or a projection) per file",
+            "z": "for 3-D objects say so with --axes zyx (a Z-stack) or --axes tzyx (a "
+                 "time-lapse of Z-stacks); for 2-D objects give one z-plane per file",
             "c": "give the segmentation of one channel per file"}.get(
         bad, "give a 2-D image (Y, X) or a time-lapse (T, Y, X) per file")
     return f"{where} has {len(shape)} dimensions ({dims}); {what}"
 
 
-def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str) -> tuple:
-    """Decide which stored axes to keep to obtain (T, Y, X) or (Y, X)."""
+def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
+               keep_z: bool = False) -> tuple:
+    """Decide which stored axes to keep to obtain (T, Y, X) or (Y, X); with ``keep_z`` (the
+    user said the objects are 3-D) also (T, Z, Y, X) or (Z, Y, X)."""
     ndim = len(shape)
+    kept = ("t", "z", "y", "x") if keep_z else ("t", "y", "x")
+    sizes = (2, 3, 4) if keep_z else (2, 3)
     if axes is not None and len(axes) == ndim:
         axes = [a.lower() for a in axes]
         drop: list[int | None] = []
         for a, n in zip(axes, shape, strict=True):
-            if a in ("t", "y", "x"):
+            if a in kept:
                 drop.append(None)
             elif n == 1:
                 drop.append(0)
             else:
                 raise ValueError(_axes_message(where, shape, axes, a))
-        if drop.count(None) in (2, 3):
+        if drop.count(None) in sizes:
             return tuple(drop)
-    # No usable axis names: drop leading singleton axes until 3-D.
+    # No usable axis names: drop leading singleton axes until 3-D (4-D with keep_z).
     drop = [None] * ndim
     i = 0
-    while ndim - i > 3 and shape[i] == 1:
+    while ndim - i > max(sizes) and shape[i] == 1:
         drop[i] = 0
         i += 1
-    if drop.count(None) not in (2, 3):
+    if drop.count(None) not in sizes:
         raise ValueError(
             f"{where} has shape {shape}; expected a 2-D image (Y, X) or a time-lapse (T, Y, X)"
+            + (", a Z-stack (Z, Y, X) or a time-lapse of Z-stacks (T, Z, Y, X)" if keep_z
+               else " (for 3-D objects say --axes zyx or tzyx)")
         )
     return tuple(drop)
 
 
-def _open_zarr(path: Path) -> _ZarrFrames:
+def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
     try:
         import zarr
     except ImportError as exc:
@@ -237,14 +244,14 @@ def _open_zarr(path: Path) -> _ZarrFrames:
         if dims and all(dims):
             axes = list(dims)
     shape = tuple(int(n) for n in arr.shape)
-    drop = _drop_axes(shape, axes, str(path))
+    drop = _drop_axes(shape, axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _ZarrFrames(str(path), component, out_shape, arr.dtype, drop)
-    frames.chunks_t = int(arr.chunks[drop.index(None)]) if len(out_shape) == 3 else 1
+    frames.chunks_t = int(arr.chunks[drop.index(None)]) if len(out_shape) >= 3 else 1
     return frames
 
 
-def _open_tiff(path: Path) -> _TiffFrames:
+def _open_tiff(path: Path, keep_z: bool = False) -> _TiffFrames:
     import tifffile
 
     try:
@@ -261,15 +268,17 @@ def _open_tiff(path: Path) -> _TiffFrames:
     axes = ["t" if a in ("q", "i") else a for a in axes]
     if axes[0] == "s" and "t" not in axes and np.issubdtype(np.dtype(dtype), np.integer):
         axes[0] = "t"
-    drop = _drop_axes(shape, axes, str(path))
+    drop = _drop_axes(shape, axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _TiffFrames(str(path), 0, out_shape, dtype, drop)
     frames.chunks_t = 1
     return frames
 
 
-def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None) -> da.Array:
-    """Open a TIFF or Zarr movie lazily as a dask array of shape (T, Y, X) or (Y, X).
+def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
+               axes: str | None = None) -> da.Array:
+    """Open a TIFF or Zarr movie lazily as a dask array of shape (T, Y, X) or (Y, X); when
+    ``axes`` names a z axis (``"zyx"``, ``"tzyx"``), also (Z, Y, X) or (T, Z, Y, X).
 
     Parameters
     ----------
@@ -288,16 +297,17 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None) 
     p = Path(path)
     if not p.exists():
         raise ValueError(f"{p}: no such file or folder")
+    keep_z = axes is not None and "z" in str(axes).lower()
     if _is_zarr(p):
-        frames: _Frames = _open_zarr(p)
+        frames: _Frames = _open_zarr(p, keep_z)
     elif _is_tiff(p):
-        frames = _open_tiff(p)
+        frames = _open_tiff(p, keep_z)
     else:
         raise ValueError(
             f"{p}: not a TIFF file (.tif/.tiff) or a Zarr store (.zarr folder); "
             "convert the movie to one of these"
         )
-    if frames.ndim == 3:
+    if frames.ndim == 4 or (frames.ndim == 3 and not (keep_z and len(str(axes)) == 3)):
         k = frames_per_chunk or frames.chunks_t
         chunks: tuple = (max(1, min(k, frames.shape[0])), *frames.shape[1:])
     else:
@@ -401,7 +411,8 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
     return out
 
 
-def check_labels(labels: Any, intensity: Any = None, where: str = "labels") -> None:
+def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
+                 axes: str | None = None) -> None:
     """Raise a plain-language ValueError if labels/intensity cannot be measured together."""
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_):
@@ -409,9 +420,14 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels") -> N
             f"{where} is not a label image (its pixels are {dtype}, not integers): give the "
             "segmentation (one integer id per object, 0 = background), not the raw image"
         )
-    if labels.ndim not in (2, 3):
+    if axes is not None:
+        if labels.ndim != len(axes):
+            raise ValueError(f"{where} has shape {tuple(labels.shape)}, {labels.ndim} "
+                             f"dimensions, but the axes given are {axes!r} ({len(axes)})")
+    elif labels.ndim not in (2, 3):
         raise ValueError(
-            f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X)"
+            f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
+            "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
         raise ValueError(

@@ -61,14 +61,15 @@ class _Slice:
 
 
 def _measure_chunk(
-    labels: _Slice, intensity: _Slice | None, start: int, params: PFSDMParams
+    labels: _Slice, intensity: _Slice | None, start: int, params: PFSDMParams,
+    axes: str = "tyx", spacing: Any = None,
 ) -> pd.DataFrame:
     """Worker task: read frames, measure them, shift ``frame`` to the movie's numbering."""
     from ..analysis.features import measure
 
     lab = labels.load()
     img = intensity.load() if intensity is not None else None
-    table = measure(lab, img, params=params)
+    table = measure(lab, img, axes=axes, spacing=spacing, params=params)
     table = table.copy()
     table["frame"] = table["frame"].astype(np.int64) + int(start)
     return table
@@ -170,6 +171,8 @@ def measure_dask(
     progress: Callable[[int, int], None] | None = None,
     pool: Any = None,
     params: PFSDMParams | None = None,
+    axes: str | None = None,
+    spacing: Any = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, frames computed in parallel with dask.
@@ -201,6 +204,8 @@ def measure_dask(
         measuring many movies).
     params : PFSDMParams, optional
         The method's options as one record (it travels to the workers as it is).
+    axes, spacing
+        As :func:`napari_pfsdm.measure` (``"zyx"`` or ``"tzyx"`` for 3-D objects).
     **options
         Or the options as keywords (``n_fourier``, ``mapping``, ``sdf``, ...).
 
@@ -210,12 +215,16 @@ def measure_dask(
         One row per (frame, label), ``frame`` numbered from 0 over the whole movie;
         ``attrs["pfsdm"]`` holds the options.
     """
+    from ..analysis.features import resolve_axes
+
     p = as_params(params, options)
-    check_labels(labels, intensity)
+    check_labels(labels, intensity, axes=axes)
+    axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
-    if labels.ndim == 2:  # one image: frame 0 of a one-frame movie
+    if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
         labels = labels[None]
         intensity = intensity[None] if intensity is not None else None
+        axes = "t" + axes
     n_frames = int(labels.shape[0])
 
     with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
@@ -229,6 +238,8 @@ def measure_dask(
                 _Slice(intensity, s, e) if intensity is not None else None,
                 s,
                 p,
+                axes,
+                spacing,
             )
             for s, e in spans
         ]
@@ -334,7 +345,8 @@ def _have_parquet() -> bool:
     return True
 
 
-def _part_name(movie: Movie, params: PFSDMParams) -> str:
+def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
+               spacing: Any = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs and options."""
     def stamp(p: Path | None) -> Any:
         if p is None:
@@ -343,7 +355,9 @@ def _part_name(movie: Movie, params: PFSDMParams) -> str:
         return [str(p), os.path.getmtime(p)]
 
     key = json.dumps(
-        [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())],
+        [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
+        + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
+           if axes is not None and "z" in axes else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -416,6 +430,8 @@ def run_batch(
     allow_empty: bool = True,
     params: PFSDMParams | None = None,
     link: str = "none",
+    axes: str | None = None,
+    spacing: Any = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -447,6 +463,8 @@ def run_batch(
         ``track_id = label``; the column is left out when no movie needed linking. ``log``
         says what was found and done for each movie. The parts stay unlinked, so a re-run
         with another ``link`` measures nothing again.
+    axes, spacing
+        As :func:`napari_pfsdm.measure`, for every movie (``"zyx"``/``"tzyx"``: 3-D objects).
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -470,9 +488,10 @@ def run_batch(
     # Open and check every movie first: a bad file fails the run before any long work.
     opened = []
     for m in movies:
-        lab = open_movie(m.labels, frames_per_chunk=frames_per_task)
-        img = open_movie(m.intensity, frames_per_chunk=frames_per_task) if m.intensity else None
-        check_labels(lab, img, where=str(m.labels))
+        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes)
+        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes) \
+            if m.intensity else None
+        check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise ValueError(f"{m.labels} and {m.intensity} have different shapes")
         opened.append((m, lab, img))
@@ -494,7 +513,7 @@ def run_batch(
     linked = False
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
-            part = parts / (_part_name(m, p) + suffix)
+            part = parts / (_part_name(m, p, axes, spacing) + suffix)
             side = part.with_suffix(".json")
             if part.exists():
                 say(f"skipped {m.name} (already measured: {part.name})")
@@ -511,7 +530,7 @@ def run_batch(
                     client=cl if kind != "local" else None,
                     scheduler=obj if kind == "local" else None,
                     num_workers=num_workers, frames_per_task=frames_per_task,
-                    progress=_prog, pool=pool, params=p,
+                    progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
                 )
                 attrs = _to_jsonable(table.attrs.get("pfsdm") or attrs)
                 table = table.copy()
@@ -534,7 +553,7 @@ def run_batch(
     if TRACK_COLUMN in result.columns:  # a movie without objects has none
         result[TRACK_COLUMN] = result[TRACK_COLUMN].fillna(NO_TRACK).astype(np.int64)
     if not attrs:
-        attrs = p.record()
+        attrs = p.record(3 if axes and "z" in axes else 2)
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
         raise ValueError(

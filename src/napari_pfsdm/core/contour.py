@@ -132,9 +132,10 @@ def prepare_mask(
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise ValueError(
-            f"Expected a 2-D mask of one object, got an array with {mask.ndim} dimensions "
-            f"{mask.shape}. For a time-lapse or a label image use `measure`, which goes through "
-            "the frames and labels for you."
+            f"Expected a 2-D mask (Y, X) or a 3-D volume (Z, Y, X) of one object, got an array "
+            f"with {mask.ndim} dimensions {mask.shape}. For a time-lapse or a label image use "
+            "`measure` (with axes='tyx', 'zyx' or 'tzyx'), which goes through the frames and "
+            "labels for you."
         )
     mask = mask.astype(bool, copy=False)
     rows = np.flatnonzero(mask.any(axis=1))

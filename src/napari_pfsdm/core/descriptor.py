@@ -18,6 +18,10 @@ from .sdf import ExactSDF, ViscousSDF, make_sdf
 
 __all__ = ["PFSDMResult", "pfsdm", "render_disk", "render_disks", "DEFAULTS"]
 
+#: Options of :func:`pfsdm` for 2-D masks only and for 3-D volumes only (core.params).
+_ONLY_2D = ("n_fourier", "n_angles", "sdf", "viscosity", "mapping", "normalization")
+_ONLY_3D = ("sh_degree", "surface_weight", "ball_map")
+
 #: Default options of :func:`pfsdm` (those of :class:`~napari_pfsdm.core.params.PFSDMParams`,
 #: chosen by ``benchmarks/synthetic.py``, see README), without ``components`` and ``min_area``.
 DEFAULTS: dict[str, Any] = {
@@ -113,9 +117,21 @@ def pfsdm(
     smooth: float = 1.0,
     degree: int = 16,
     grid: int = 48,
-    offset: tuple[float, float] = (0.0, 0.0),
-) -> PFSDMResult:
-    """Push-Forward Signed Distance Morphometric of one 2-D object.
+    offset: tuple[float, ...] = (0.0, 0.0),
+    spacing=None,
+    sh_degree: int = DEFAULTS["sh_degree"],
+    surface_weight: float = DEFAULTS["surface_weight"],
+    ball_map: str = DEFAULTS["ball_map"],
+):
+    """Push-Forward Signed Distance Morphometric of one 2-D object or one 3-D volume.
+
+    A 3-D mask (Z, Y, X) goes to :func:`~napari_pfsdm.core.descriptor3d.pfsdm3d` (docs/design.md
+    §6) and returns a :class:`~napari_pfsdm.core.descriptor3d.PFSDM3DResult`; its options are
+    ``spacing``, ``n_radii``, ``radii``, ``ring_weighting``, ``mode_exponent``, ``sh_degree``,
+    ``surface_weight``, ``ball_map``, ``components``, ``min_area`` (voxels), ``smooth`` and
+    ``offset``. The 2-D-only options (``n_fourier``, ``n_angles``, ``sdf``, ``viscosity``,
+    ``mapping``, ``normalization``) must stay at their defaults for a volume, and the 3-D-only
+    ones for a 2-D mask: a changed value is refused, never ignored.
 
     Parameters
     ----------
@@ -165,10 +181,15 @@ def pfsdm(
     offset : (float, float)
         Image coordinates of ``mask[0, 0]``, when the mask is a crop of a larger image; all
         image-space outputs (contour, skeleton) are then in the larger image's coordinates.
+    spacing : sequence of floats, optional
+        Voxel size along Z, Y, X for a 3-D mask. A 2-D mask takes only an isotropic one (the
+        descriptor is scale-invariant); anisotropic pixels are refused.
+    sh_degree, surface_weight, ball_map
+        3-D only (see :func:`~napari_pfsdm.core.descriptor3d.pfsdm3d`).
 
     Returns
     -------
-    PFSDMResult
+    PFSDMResult, or PFSDM3DResult for a 3-D mask
 
     Raises
     ------
@@ -189,6 +210,27 @@ def pfsdm(
     True
     """
     mask = np.asarray(mask)
+    given = {"n_fourier": n_fourier, "n_angles": n_angles, "sdf": sdf, "viscosity": viscosity,
+             "mapping": mapping, "normalization": normalization, "sh_degree": sh_degree,
+             "surface_weight": surface_weight, "ball_map": ball_map}
+    if mask.ndim == 3:
+        _refuse_other(given, _ONLY_2D, 3)
+        from .descriptor3d import pfsdm3d
+
+        return pfsdm3d(mask, intensity, spacing=spacing, n_radii=n_radii, radii=radii,
+                       ring_weighting=ring_weighting, mode_exponent=mode_exponent,
+                       sh_degree=sh_degree, ball_map=ball_map, surface_weight=surface_weight,
+                       components=components, min_volume=min_area, smooth=smooth,
+                       offset=(0.0, 0.0, 0.0) if not any(offset) else offset)
+    _refuse_other(given, _ONLY_3D, 2)
+    if spacing is not None:
+        sp = np.asarray(spacing, float).ravel()
+        if mask.ndim == 2 and (sp.size not in (1, 2) or not np.all(sp == sp[0])):
+            raise ValueError(
+                f"spacing {tuple(sp.tolist())} was given for a 2-D mask: 2-D objects take "
+                "square pixels only (the descriptor does not depend on their size). For a 3-D "
+                "volume pass the (Z, Y, X) mask itself."
+            )
     info = prepare_mask(mask, components=components, min_area=min_area)
     if intensity is not None:
         intensity = _check_intensity(intensity, mask.shape)
@@ -240,6 +282,16 @@ def pfsdm(
     if any(offset):
         _shift(result, np.asarray(offset, float))
     return result
+
+
+def _refuse_other(given: dict[str, Any], names: tuple[str, ...], ndim: int) -> None:
+    """Refuse options of the other dimension set away from their defaults."""
+    changed = [n for n in names if given[n] != DEFAULTS[n]]
+    if changed:
+        what = ("are for 2-D masks (a 3-D volume has sh_degree, surface_weight and ball_map)"
+                if ndim == 3 else "are for 3-D volumes only")
+        raise ValueError(f"The mask is {ndim}-D but {', '.join(changed)} was set: these options "
+                         f"{what}. Leave {'it' if len(changed) == 1 else 'them'} at the default.")
 
 
 def _shift(result: PFSDMResult, offset: np.ndarray) -> None:

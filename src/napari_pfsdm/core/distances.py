@@ -145,7 +145,14 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
     """Flat feature vectors (n, n_radii × (n_fourier + 1)) scaled by the ring and mode weights,
     so that their Euclidean distances are the PF-SDM (magnitude) distances; use them for PCA
     or any Euclidean method. ``items``: results or :class:`Embeddings` (for a table, see
-    :func:`napari_pfsdm.weighted_features`)."""
+    :func:`napari_pfsdm.weighted_features`). For 3-D results the surface term is one more row
+    (:mod:`.distances3d`): (n, (n_radii + 1) × (sh_degree + 1))."""
+    if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
+        from . import distances3d
+
+        items = list(items)
+        if items and distances3d.is_3d(items):
+            items = distances3d.embeddings_3d(items, with_intensity=channel == "intensity")
     return _magnitude_features(*_channel_arrays(items, channel))
 
 
@@ -193,6 +200,14 @@ def distance_matrix(
     >>> bool(d[0, 2] < 0.02 * d[0, 1])
     True
     """
+    if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
+        from . import distances3d  # 3-D results: their own branch (docs/design.md §6.5)
+
+        items = list(items)
+        if items and distances3d.is_3d(items):
+            distances3d.check_invariance_3d(invariance)
+            items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
+            invariance = "magnitude"
     if hasattr(items, "columns"):
         raise TypeError(
             "core.distances.distance_matrix takes results or Embeddings; for a feature table use "

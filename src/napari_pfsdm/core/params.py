@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from .ball import BALL_MAPS
 from .contour import DEFAULT_MIN_AREA
 from .morphometric import (
     NORMALIZATIONS,
@@ -36,10 +37,16 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "radii": RADII_PLACEMENTS,
     "ring_weighting": RING_WEIGHTINGS,
     "components": ("largest", "raise"),
+    "ball_map": BALL_MAPS,
 }
 
-#: Keys a table's record holds that are derived from the options, not options themselves.
-DERIVED = ("weights", "mode_weights")
+#: Keys a table's record holds that are derived from the options or describe the input (its
+#: dimension, axes and voxel size), not options themselves.
+DERIVED = ("weights", "mode_weights", "ndim", "axes", "spacing")
+
+#: Options that apply to 2-D masks only, and to 3-D masks only (docs/design.md §6.6).
+ONLY_2D = ("n_fourier", "n_angles", "sdf", "viscosity", "mapping", "normalization")
+ONLY_3D = ("sh_degree", "surface_weight", "ball_map")
 
 
 @dataclass(frozen=True)
@@ -72,6 +79,9 @@ class PFSDMParams:
     mode_exponent: float = 0.25
     components: str = "largest"
     min_area: int = DEFAULT_MIN_AREA
+    sh_degree: int = 8
+    surface_weight: float = 4.0
+    ball_map: str = "radial"
 
     def __post_init__(self) -> None:
         for name, allowed in CHOICES.items():
@@ -86,7 +96,8 @@ class PFSDMParams:
                 raise ValueError(
                     f"{name} must be one of {', '.join(allowed)}; got {value!r}."
                 )
-        for name, low in (("n_fourier", 1), ("n_radii", 1), ("n_angles", 8), ("min_area", 1)):
+        for name, low in (("n_fourier", 1), ("n_radii", 1), ("n_angles", 8), ("min_area", 1),
+                          ("sh_degree", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not float(value).is_integer() or value < low:
                 raise ValueError(f"{name} must be a whole number >= {low}; got {value!r}.")
@@ -96,7 +107,10 @@ class PFSDMParams:
         if self.n_fourier >= self.n_angles // 2 + 1:  # as core.morphometric.magnitude_embedding
             raise ValueError(f"n_fourier={self.n_fourier} needs more than {2 * self.n_fourier} "
                              "angles; raise n_angles.")
-        for name in ("viscosity", "mode_exponent"):
+        if self.sh_degree > 40:
+            raise ValueError(f"sh_degree must be at most 40 (a 3-D object rarely carries detail "
+                             f"beyond degree 20); got {self.sh_degree}.")
+        for name in ("viscosity", "mode_exponent", "surface_weight"):
             value = float(getattr(self, name))
             if not np.isfinite(value) or value < 0 or (name == "viscosity" and value == 0):
                 raise ValueError(f"{name} must be a positive number; got {value!r}.")
@@ -127,17 +141,37 @@ class PFSDMParams:
             out["radii"] = np.asarray(out["radii"])
         return out
 
-    def record(self) -> dict[str, Any]:
+    def check_dimension(self, ndim: int) -> None:
+        """Refuse options set away from their defaults that do not apply to ``ndim``-D objects
+        (e.g. ``mapping`` for a volume, ``sh_degree`` for a 2-D mask), rather than ignore them.
+        """
+        default = PFSDMParams()
+        other = ONLY_2D if ndim == 3 else ONLY_3D
+        changed = [n for n in other if getattr(self, n) != getattr(default, n)]
+        if changed:
+            hint = ("these options are for 2-D masks (3-D ones have sh_degree, surface_weight "
+                    "and ball_map)" if ndim == 3 else "these options are for 3-D volumes only")
+            raise ValueError(
+                f"{', '.join(changed)} {'was' if len(changed) == 1 else 'were'} set, but the "
+                f"objects are {ndim}-D: {hint}. Leave {'it' if len(changed) == 1 else 'them'} "
+                "at the default."
+            )
+
+    def record(self, ndim: int = 2) -> dict[str, Any]:
         """What a feature table carries (``attrs["pfsdm"]``, its sidecar's ``options``): the
         options, the rings' ``radii`` as numbers and their ``n_radii``, and the ring and mode
-        ``weights`` that distances need."""
+        ``weights`` that distances need. For 3-D objects (``ndim=3``) also ``ndim``, and the
+        mode weights run over the spherical-harmonic degrees 0 … ``sh_degree``."""
         out = asdict(self)
         r = ring_radii(self.n_radii, np.asarray(self.radii) if isinstance(self.radii, tuple)
                        else self.radii)
         out["radii"] = r.tolist()
         out["n_radii"] = len(r)
         out["weights"] = ring_weights(r, self.ring_weighting).tolist()
-        out["mode_weights"] = mode_weights(self.n_fourier, self.mode_exponent).tolist()
+        n_modes = self.sh_degree if ndim == 3 else self.n_fourier
+        out["mode_weights"] = mode_weights(n_modes, self.mode_exponent).tolist()
+        if ndim == 3:
+            out["ndim"] = 3
         return out
 
 

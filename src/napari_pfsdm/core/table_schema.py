@@ -4,7 +4,12 @@ A feature table (from :func:`napari_pfsdm.measure`, or read back from CSV) has o
 (frame, label), base columns (:data:`BASE_COLUMNS`; a linked table also a ``track_id`` after
 ``label``, :data:`OPTIONAL_BASE_COLUMNS`), then ``shape_rXX_nYY`` and optionally
 ``intensity_rXX_nYY`` columns (ring ``XX``, Fourier index ``YY``), and its options in
-``attrs["pfsdm"]``: at least ``n_fourier`` and the rings' quadrature ``weights``. Distances and
+``attrs["pfsdm"]``: at least ``n_fourier`` and the rings' quadrature ``weights``.
+
+A table of 3-D objects (its options say ``ndim: 3``) has :data:`BASE_COLUMNS_3D`, then
+``shape_rXX_lYY`` (shell ``XX``, spherical-harmonic degree ``YY``: √P_l(r)), ``surface_lYY``
+(the outer surface's radial function) and optionally ``intensity_rXX_lYY``; its options add
+``sh_degree``, ``surface_weight``, ``axes`` and ``spacing``. Distances and
 PCA need all of these; :func:`check_feature_table` refuses a table that lacks any of them
 rather than guess (a table re-saved without its options once gave other distances silently).
 
@@ -18,6 +23,11 @@ from typing import Any
 
 __all__ = [
     "BASE_COLUMNS",
+    "BASE_COLUMNS_3D",
+    "base_columns",
+    "surface_columns",
+    "table_feature_columns",
+    "table_ndim",
     "CHANNELS",
     "NO_TRACK",
     "OPTIONAL_BASE_COLUMNS",
@@ -40,19 +50,57 @@ TRACK_COLUMN = "track_id"
 NO_TRACK = -1
 #: Base columns a table may carry besides :data:`BASE_COLUMNS` (added after measuring).
 OPTIONAL_BASE_COLUMNS = [TRACK_COLUMN]
+#: Columns before the features in a table of 3-D objects: ``volume`` in voxels, the centroid
+#: in voxels (z, y, x), ``crossing_fraction`` the share of rays from the centroid that cross
+#: the surface more than once.
+BASE_COLUMNS_3D = ["frame", "label", "volume", "centroid_z", "centroid_y", "centroid_x",
+                   "touches_border", "n_components", "n_holes", "folded_fraction",
+                   "crossing_fraction", "error", "warnings"]
 #: Feature channels and their column prefixes.
 CHANNELS = ("shape", "intensity")
 
 
-def feature_columns(n_radii: int, n_fourier: int, channel: str = "shape") -> list[str]:
-    """Column names ``{channel}_rXX_nYY`` (ring-major), as in :func:`measure`'s table.
+def feature_columns(n_radii: int, n_fourier: int, channel: str = "shape", *,
+                    letter: str = "n") -> list[str]:
+    """Column names ``{channel}_rXX_nYY`` (ring-major), as in :func:`measure`'s table; with
+    ``letter="l"`` the 3-D shells' ``{channel}_rXX_lYY`` (degree l).
 
     Examples
     --------
     >>> feature_columns(2, 1)
     ['shape_r00_n00', 'shape_r00_n01', 'shape_r01_n00', 'shape_r01_n01']
+    >>> feature_columns(1, 1, letter="l")
+    ['shape_r00_l00', 'shape_r00_l01']
     """
-    return [f"{channel}_r{r:02d}_n{n:02d}" for r in range(n_radii) for n in range(n_fourier + 1)]
+    return [f"{channel}_r{r:02d}_{letter}{n:02d}" for r in range(n_radii)
+            for n in range(n_fourier + 1)]
+
+
+def surface_columns(sh_degree: int) -> list[str]:
+    """The 3-D surface term's columns ``surface_l00`` … ``surface_l{sh_degree}``."""
+    return [f"surface_l{n:02d}" for n in range(sh_degree + 1)]
+
+
+def table_ndim(options: Mapping[str, Any]) -> int:
+    """2 or 3: the objects' dimension a table's options record (2 when they do not say)."""
+    return int(options.get("ndim", 2) or 2)
+
+
+def base_columns(ndim: int = 2) -> list[str]:
+    """:data:`BASE_COLUMNS` or :data:`BASE_COLUMNS_3D`."""
+    return list(BASE_COLUMNS_3D if ndim == 3 else BASE_COLUMNS)
+
+
+def table_feature_columns(options: Mapping[str, Any], channel: str = "shape") -> list[str]:
+    """Every feature column of ``channel`` that a table with these options has: for 2-D
+    ``{channel}_rXX_nYY``; for 3-D ``{channel}_rXX_lYY`` and, for the shape, ``surface_lYY``.
+    """
+    n_radii = len(options["weights"])
+    if table_ndim(options) == 3:
+        degree = int(options["sh_degree"])
+        cols = feature_columns(n_radii, degree, channel, letter="l")
+        return cols + surface_columns(degree) if channel == "shape" else cols
+    return feature_columns(n_radii, int(options["n_fourier"]), channel)
 
 
 def has_channel(columns: Iterable[str], channel: str) -> bool:
@@ -81,7 +129,8 @@ def check_feature_table(
 
     Returns
     -------
-    options, n_radii, n_fourier
+    options, n_radii, n_modes
+        ``n_modes`` is ``n_fourier`` (2-D) or ``sh_degree`` (3-D).
 
     Raises
     ------
@@ -90,7 +139,9 @@ def check_feature_table(
         feature columns are missing; the message names them and says what to do.
     """
     opts = getattr(table, "attrs", {}).get("pfsdm") or {}
-    missing_opts = [k for k in ("weights", "n_fourier") if opts.get(k) is None]
+    needed = ("weights", "sh_degree", "surface_weight") if table_ndim(opts) == 3 else \
+        ("weights", "n_fourier")
+    missing_opts = [k for k in needed if opts.get(k) is None]
     if missing_opts:
         raise ValueError(
             f"{where} does not say how it was measured (no {' or '.join(missing_opts)} in its "
@@ -98,10 +149,11 @@ def check_feature_table(
             "that 'pfsdm measure' writes next to the .csv (read tables with "
             "napari_pfsdm.read_table), or measure again"
         )
-    n_radii, n_fourier = len(opts["weights"]), int(opts["n_fourier"])
+    n_radii = len(opts["weights"])
+    n_modes = int(opts["sh_degree"] if table_ndim(opts) == 3 else opts["n_fourier"])
     columns = set(map(str, table.columns))
     for channel in channels:
-        expected = feature_columns(n_radii, n_fourier, channel)
+        expected = table_feature_columns(opts, channel)
         missing = [c for c in expected if c not in columns]
         if len(missing) == len(expected):
             if channel == "intensity":
@@ -110,7 +162,8 @@ def check_feature_table(
                     "(--intensity IMAGE) or leave the intensity out"
                 )
             raise ValueError(
-                f"{where} has no shape_rXX_nYY feature columns: it is not a PF-SDM feature "
+                f"{where} has no shape_rXX_{'l' if table_ndim(opts) == 3 else 'n'}YY feature "
+                "columns: it is not a PF-SDM feature "
                 "table; make one with: pfsdm measure LABELS -o features.csv"
             )
         if missing:
@@ -119,4 +172,4 @@ def check_feature_table(
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"
             )
-    return opts, n_radii, n_fourier
+    return opts, n_radii, n_modes
