@@ -144,17 +144,17 @@ def test_disk_pixels_centre_and_axes():
 
 
 def test_validation_messages():
-    with pytest.raises(ValueError, match="2-D image"):
-        validate_layers_data(np.zeros((2, 2, 2, 2), int), None)
+    with pytest.raises(ValueError, match="a time-lapse of Z-stacks"):
+        validate_layers_data(np.zeros((2, 2, 2, 2, 2), int), None)
+    assert validate_layers_data(np.zeros((2, 2, 2, 2), int), None) == "tzyx"
     with pytest.raises(ValueError, match="integer"):
         validate_layers_data(np.zeros((4, 4)), None)
     with pytest.raises(ValueError, match="does not match"):
         validate_layers_data(np.zeros((4, 4), int), np.zeros((4, 5)))
     with pytest.raises(ValueError, match="no objects"):
         _run(np.zeros((10, 10), int))
-    with pytest.raises(ValueError, match="3-D objects are not measured yet"):
-        validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="z")
-    validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="time")
+    assert validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="z") == "zyx"
+    assert validate_layers_data(np.zeros((3, 4, 4), int), None, first_axis="time") == "tyx"
 
 
 def test_export_is_atomic_and_roundtrips(two_frames, tmp_path, monkeypatch):

@@ -42,7 +42,7 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
 
     names = _layers.layer_names("gastruloids")
     new = [layer.name for layer in viewer.layers if layer.name not in before]
-    assert sorted(new) == sorted(names.values())
+    assert sorted(new) == sorted(names[k] for k in (*_layers.PICTURES_2D, "legend"))
     # napari's axes are the labels' own: no slider was added, the first one is time
     assert viewer.dims.ndim == 3 and viewer.dims.axis_labels[0] == "t"
     for key in ("sdf", "disk", "intensity_disk", "skeleton", "legend"):
@@ -128,21 +128,38 @@ def test_selection_and_frame_follow_and_are_cached(viewer_widget, qtbot):
     assert viewer.layers[names["disk"]].visible
 
 
-def test_a_z_stack_is_refused_until_3d_objects_are_supported(make_napari_viewer, qtbot):
+def test_a_z_stack_is_measured_as_3d_objects_with_shells_and_surface(make_napari_viewer,
+                                                                     qtbot):
+    from napari_pfsdm.data.volumes import VOLUME_CLASSES, blob_volume
+    from napari_pfsdm.napari._compute import VolumePictures
     from napari_pfsdm.napari._widget import AnalysisWidget
 
+    stack = np.zeros((36, 48, 100), np.uint16)
+    for i, name in enumerate(list(VOLUME_CLASSES)[:2]):
+        stack[:, 4:40, 6 + 50 * i:42 + 50 * i][blob_volume(name, size=36, radius=10)] = i + 1
     viewer = make_napari_viewer()
-    stack = np.zeros((5, 40, 40), np.uint8)
-    stack[1:4, 10:30, 10:30] = 1
-    viewer.add_labels(stack, name="stack")
+    layer = viewer.add_labels(stack, name="stack", scale=(2.0, 1.0, 1.0))
     viewer.dims.axis_labels = ("z", "y", "x")
     widget = AnalysisWidget(viewer)
+    assert widget.first_axis.isVisibleTo(widget)
     assert widget.first_axis_meaning() == "z"  # napari's axis name says so
-    assert widget.run() is None
-    assert "3-D objects are not measured yet" in widget.status.text()
-    assert [layer.name for layer in viewer.layers] == ["stack"]
-    widget.first_axis.setCurrentIndex(0)  # "time": the user says these are frames
-    assert widget.first_axis_meaning() == "time"
+    out = run_and_wait(qtbot, widget)
+    assert out.axes == "zyx" and out.spacing == (2.0, 1.0, 1.0)  # the layer's scale
+    assert out.table.attrs["pfsdm"]["ndim"] == 3 and len(out.table) == 2
+    assert {"volume", "centroid_z", "shape_PC1"} <= set(layer.features.columns)
+    layer.selected_label = 2
+    pics = wait_pictures(qtbot, widget, (0, 2))
+    assert isinstance(pics, VolumePictures) and pics.shells.shape[0] == 4
+    names = _layers.layer_names("stack")
+    assert viewer.layers[names["shells"]].ndim == 2  # beside the stack, no slider added
+    surface = viewer.layers[names["surface"]]
+    verts = surface.data[0]
+    cols = np.rint(verts[:, 2]).astype(int)
+    assert np.all((cols >= 50) & (cols < 100))  # on label 2, in the stack's voxels
+    assert tuple(surface.scale) == (2.0, 1.0, 1.0)
+    assert viewer.dims.ndim == 3 and names["disk"] not in viewer.layers
+    assert widget.first_axis.currentIndex() == 1
+    assert "shells and surface" in widget.status.text()
 
 
 def test_cancel_stops_within_a_second_and_keeps_nothing(make_napari_viewer, qtbot):
@@ -173,7 +190,7 @@ def test_bad_layer_combinations_are_refused_with_a_message(make_napari_viewer, q
     shown = []
     monkeypatch.setattr(_widget, "show_error", shown.append)
     viewer = make_napari_viewer()
-    labels = viewer.add_labels(np.zeros((2, 3, 40, 40), dtype=np.uint8), name="4d")
+    labels = viewer.add_labels(np.zeros((2, 2, 3, 40, 40), dtype=np.uint8), name="5d")
     viewer.add_image(np.zeros((50, 50)), name="other size")
     widget = _widget.AnalysisWidget(viewer)
     # an image of another shape is not offered
@@ -181,7 +198,7 @@ def test_bad_layer_combinations_are_refused_with_a_message(make_napari_viewer, q
         _widget.NONE]
     assert widget.run() is None
     assert "dimensions" in widget.status.text() and shown and "dimensions" in shown[-1]
-    assert [layer.name for layer in viewer.layers] == ["4d", "other size"]
+    assert [layer.name for layer in viewer.layers] == ["5d", "other size"]
     # a mismatched image given explicitly is refused too
     labels.data = np.zeros((40, 40), dtype=np.uint8)
     with pytest.raises(ValueError, match="does not match"):
@@ -193,7 +210,7 @@ def test_bad_layer_combinations_are_refused_with_a_message(make_napari_viewer, q
         assert widget.run(labels=labels) is not None
     qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
     assert "no objects" in shown[-1]
-    assert [layer.name for layer in viewer.layers] == ["4d", "other size"]
+    assert [layer.name for layer in viewer.layers] == ["5d", "other size"]
 
 
 def test_event_loop_is_serviced_during_a_run_of_200_objects(make_napari_viewer, qtbot):

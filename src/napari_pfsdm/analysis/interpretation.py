@@ -83,8 +83,9 @@ def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.D
     out = pd.DataFrame(index=pcs, columns=cols, dtype=float)
     for pc in pcs:
         for m in cols:
-            ok = np.isfinite(both[pc]) & np.isfinite(both[m])
-            a, b = both.loc[ok, pc].to_numpy(), both.loc[ok, m].to_numpy()
+            a, b = both[pc].to_numpy(float), both[m].to_numpy(float)
+            ok = np.isfinite(a) & np.isfinite(b)
+            a, b = a[ok], b[ok]
             if ok.sum() > 2 and a.std() > 0 and b.std() > 0:
                 out.loc[pc, m] = float(np.corrcoef(a, b)[0, 1])
     return out

@@ -72,6 +72,9 @@ class AnalysisOutput:
         (:mod:`napari_pfsdm.analysis.interpretation`).
     labels, intensity
         The arrays that were measured (references, not copies): pictures are made from them.
+    axes, spacing
+        The axes of the labels (``"yx"``, ``"tyx"``, ``"zyx"``, ``"tzyx"``) and, for Z-stacks,
+        the voxel size (z, y, x) taken from the layer's scale.
     """
 
     table: pd.DataFrame
@@ -85,6 +88,13 @@ class AnalysisOutput:
     tracking_message: str = ""
     labels: object = field(default=None, repr=False)
     intensity: object = field(default=None, repr=False)
+    axes: str = "tyx"
+    spacing: tuple | None = None
+
+    @property
+    def ndim(self) -> int:
+        """2 for outlines in frames, 3 for objects in Z-stacks."""
+        return 3 if "z" in self.axes else 2
 
     def __post_init__(self) -> None:
         keys = zip(self.table["frame"].to_numpy().tolist(),
@@ -105,30 +115,35 @@ class AnalysisOutput:
         return np.array(sorted(f for f, lab in self._rows if lab == int(label)), dtype=int)
 
 
-def validate_layers_data(labels, intensity, first_axis: str = "time") -> None:
-    """Refuse label/intensity combinations the analysis cannot use.
+def layer_axes(ndim: int, first_axis: str = "time") -> str:
+    """The axes of a Labels layer of ``ndim`` dimensions: 2 → ``"yx"``; 3 → ``"tyx"`` or
+    ``"zyx"`` (``first_axis``, the user's answer); 4 → ``"tzyx"`` (napari's order)."""
+    if first_axis not in FIRST_AXIS:
+        raise ValueError(f"first_axis must be one of {FIRST_AXIS}, got {first_axis!r}.")
+    if ndim == 2:
+        return "yx"
+    if ndim == 3:
+        return "zyx" if first_axis == "z" else "tyx"
+    if ndim == 4:
+        return "tzyx"
+    raise ValueError(
+        f"The Labels layer has {ndim} dimensions; PF-SDM needs a 2-D image (Y, X), a time-lapse "
+        "(T, Y, X), a Z-stack (Z, Y, X) or a time-lapse of Z-stacks (T, Z, Y, X). Split the "
+        "channels first.")
+
+
+def validate_layers_data(labels, intensity, first_axis: str = "time") -> str:
+    """Refuse label/intensity combinations the analysis cannot use; return the labels' axes.
 
     ``first_axis`` says what the first axis of a 3-D Labels layer is: ``"time"`` (a T × Y × X
-    time-lapse) or ``"z"`` (a Z × Y × X stack, refused: 3-D objects are not measured yet).
+    time-lapse) or ``"z"`` (a Z × Y × X stack of 3-D objects). A 4-D layer is T × Z × Y × X.
 
     Raises
     ------
     ValueError
         With a sentence saying what is wrong and what to do.
     """
-    if first_axis not in FIRST_AXIS:
-        raise ValueError(f"first_axis must be one of {FIRST_AXIS}, got {first_axis!r}.")
-    if labels.ndim not in (2, 3):
-        raise ValueError(
-            f"The Labels layer has {labels.ndim} dimensions {tuple(labels.shape)}; PF-SDM needs a "
-            "2-D image (Y, X) or a time-lapse (T, Y, X). Split channels or z first."
-        )
-    if labels.ndim == 3 and first_axis == "z":
-        raise ValueError(
-            f"'First axis: Z' means the {labels.shape[0]} planes are slices of 3-D objects, and "
-            "3-D objects are not measured yet. Choose 'time' if the planes are frames of a "
-            "movie, or analyse one Z plane (Layer ▸ Duplicate, then slice) as a 2-D image."
-        )
+    axes = layer_axes(labels.ndim, first_axis)
     if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
         raise ValueError("The Labels layer must hold integer labels (one number per object).")
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
@@ -136,11 +151,13 @@ def validate_layers_data(labels, intensity, first_axis: str = "time") -> None:
             f"The Image layer's shape {tuple(intensity.shape)} does not match the Labels layer's "
             f"{tuple(labels.shape)}: choose an image recorded on the same grid, or none."
         )
+    return axes
 
 
-def count_objects(labels) -> int:
+def count_objects(labels, axes: str = "tyx") -> int:
     """Number of (frame, label) objects, one frame at a time (dask and zarr arrays too)."""
-    frames = [labels] if labels.ndim == 2 else (labels[t] for t in range(labels.shape[0]))
+    timed = axes.startswith("t")
+    frames = (labels[t] for t in range(labels.shape[0])) if timed else [labels]
     n = 0
     for frame in frames:
         a = np.asarray(frame)
@@ -184,7 +201,8 @@ def _rows_only(obj):
     if res is None:
         return obj
     light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
-                            intensity_embedding=res.intensity_embedding)
+                            intensity_embedding=res.intensity_embedding,
+                            surface_embedding=getattr(res, "surface_embedding", None))
     return replace(obj, result=light)
 
 
@@ -193,36 +211,43 @@ def run_analysis(
     intensity=None,
     options: PFSDMParams | dict | None = None,
     first_axis: str = "time",
+    spacing=None,
 ) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
     """Measure every (frame, label) object as :func:`napari_pfsdm.measure` does; a generator
     for worker threads.
 
     ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
-    as a dict of keywords). Yields ``(done, total, frame, label)`` after each object; returns an
-    :class:`AnalysisOutput`. Closing the generator (or the worker stopping at a yield) stops the
-    work and keeps nothing.
+    as a dict of keywords). ``first_axis`` (``"time"`` or ``"z"``) says what the first axis of
+    3-D labels is; ``spacing`` is the voxel size (z, y, x) of Z-stacks. Yields ``(done, total,
+    frame, label)`` after each object; returns an :class:`AnalysisOutput`. Closing the generator
+    (or the worker stopping at a yield) stops the work and keeps nothing.
     """
     from ..analysis.features import iter_objects, table_from_objects
 
     params = (options if isinstance(options, PFSDMParams)
               else PFSDMParams.from_options(dict(options or {})))
-    validate_layers_data(labels, intensity, first_axis)
-    time_lapse = labels.ndim == 3
-    total = count_objects(labels)
+    axes = validate_layers_data(labels, intensity, first_axis)
+    time_lapse = axes.startswith("t")
+    volume = "z" in axes
+    spacing = tuple(float(v) for v in spacing) if volume and spacing is not None else None
+    where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
+    total = count_objects(labels, axes)
     if not total:
         raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
                          "segmentation first.")
     boxes: dict = {}
     collected = []
     measures = []
-    for done, obj in enumerate(iter_objects(labels, intensity, params=params), start=1):
+    for done, obj in enumerate(iter_objects(labels, intensity, params=params, **where),
+                               start=1):
         collected.append(_rows_only(obj))  # the table needs rows, not the whole results
         boxes[(int(obj.frame), int(obj.label))] = obj.bbox
-        if obj.result is not None:
+        if obj.result is not None and not volume:
             measures.append({"frame": int(obj.frame), "label": int(obj.label),
                              **outline_measures(obj.result.contour.points)})
         yield done, total, int(obj.frame), int(obj.label)
-    table = table_from_objects(collected, with_intensity=intensity is not None, params=params)
+    table = table_from_objects(collected, with_intensity=intensity is not None, params=params,
+                               **where)
     pca = {"shape": pca_scores(table, "shape")}
     if intensity is not None:
         pca["intensity"] = pca_scores(table, "intensity")
@@ -230,7 +255,9 @@ def run_analysis(
     return AnalysisOutput(table=table, options=opts, time_lapse=time_lapse,
                           n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
                           params=params, labels=labels, intensity=intensity,
-                          measures=pd.DataFrame(measures, columns=["frame", "label", *MEASURES]))
+                          measures=None if volume else pd.DataFrame(
+                              measures, columns=["frame", "label", *MEASURES]),
+                          axes=axes, spacing=spacing)
 
 
 # ------------------------------------------------------------------------ identity in time
@@ -306,7 +333,10 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
     for col in out.columns:
         if out[col].dtype == bool:
             out[col] = out[col].astype(np.int8)
-    base = [c for c in out.columns if c in BASE_COLUMNS or c == "track_id"]
+    from ..core.table_schema import base_columns
+
+    known = set(base_columns(output.ndim)) | {"track_id"}
+    base = [c for c in out.columns if c in known]
     feats = [c for c in out.columns if c not in base]
     failed = table["error"].astype(str).ne("").astype(np.int8).to_numpy() \
         if "error" in table else np.zeros(len(out), np.int8)
@@ -341,7 +371,10 @@ def status_line(output: AnalysisOutput, frame: int, label: int) -> str:
     track = row["track_id"] if "track_id" in row.index else -1
     if np.isfinite(track) and track >= 0 and int(track) != int(label):  # linked: say which
         parts.append(f"track {int(track)}")
-    parts.append(f"area {int(row['area'])} px")
+    if "volume" in row.index:
+        parts.append(f"volume {int(row['volume'])} voxels")
+    else:
+        parts.append(f"area {int(row['area'])} px")
     if str(row.get("error", "")):
         parts.append(f"no features: {row['error']}")
     else:
@@ -436,8 +469,57 @@ def sdf_square(result, bbox, size: int) -> tuple[tuple[float, float], float, np.
     return (float(row0), float(col0)), float(step), values.reshape(size, size).astype(np.float32)
 
 
+@dataclass
+class VolumePictures:
+    """The pictures of one 3-D object (a Z-stack's label).
+
+    Attributes
+    ----------
+    frame, label : int
+    shells : ndarray (k, n_lat, n_lon)
+        The pushed-forward SDF on ``shell_radii`` of the unit ball, as sphere maps (rows: polar
+        angle from the +z pole, columns: longitude), units of the object's size.
+    shell_radii : tuple of float
+    intensity_shells : ndarray or None
+        The reporter on the same shells (1 = the object's mean).
+    surface : tuple (verts, faces, values)
+        The object's surface, vertices in voxels (z, y, x) of the frame, each vertex with its
+        distance from the centroid relative to the sphere of the same volume (1 = on that
+        sphere): the surface term of the 3-D distance.
+    notes : list of str
+    """
+
+    frame: int
+    label: int
+    shells: np.ndarray
+    shell_radii: tuple
+    intensity_shells: np.ndarray | None
+    surface: tuple
+    notes: list = field(default_factory=list)
+
+
+#: The shells of the unit ball shown for a 3-D object.
+SHELL_RADII = (0.25, 0.5, 0.75, 0.95)
+
+
+def volume_pictures(res, frame: int, label: int) -> VolumePictures:
+    """Sphere maps of a few shells and the surface of one 3-D result (:func:`object_pictures`)."""
+    from ..core.descriptor3d import shell_maps, surface_mesh
+
+    shells = shell_maps(res, SHELL_RADII, n_lat=48, n_lon=96)[0].astype(np.float32)
+    ishells = None
+    if getattr(res, "intensity_image", None) is not None:
+        ishells = shell_maps(res, SHELL_RADII, n_lat=48, n_lon=96,
+                             channel="intensity")[0].astype(np.float32)
+    verts, faces, values = surface_mesh(res, channel="radius")
+    return VolumePictures(frame=frame, label=int(label), shells=shells,
+                          shell_radii=SHELL_RADII, intensity_shells=ishells,
+                          surface=(verts.astype(np.float32), faces.astype(np.int32),
+                                   values.astype(np.float32)))
+
+
 def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label: int,
-                    size: int = PICTURE_SIZE) -> ObjectPictures:
+                    size: int = PICTURE_SIZE) -> ObjectPictures | VolumePictures:
     """Compute the pictures of one (frame, label) object of a run.
 
     The object is described again (:func:`napari_pfsdm.analysis.features.describe_object`)
@@ -460,11 +542,16 @@ def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label
     error = str(output.table["error"].iat[i])
     if error:
         raise ValueError(error)
+    where = {"axes": output.axes}
+    if output.ndim == 3 and output.spacing is not None:
+        where["spacing"] = output.spacing
     obj = describe_object(labels, intensity, t, int(label), params=output.params,
-                          box=output.boxes.get((t, int(label))))
+                          box=output.boxes.get((t, int(label))), **where)
     res = obj.result
     if res is None:
         raise ValueError(obj.error or "the object could not be described")
+    if output.ndim == 3:
+        return volume_pictures(res, t, label)
     disks = render_disks(res, size=size)
     disk = disks["sdf"].astype(np.float32)
     idisk = disks["intensity"].astype(np.float32) if "intensity" in disks else None

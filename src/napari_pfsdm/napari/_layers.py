@@ -20,7 +20,13 @@ SUFFIXES = {
     "intensity_disk": "intensity disk",
     "skeleton": "skeleton",
     "legend": "legend",
+    "shells": "PF-SDF shells",
+    "intensity_shells": "intensity shells",
+    "surface": "surface",
 }
+#: The layers of a 2-D object's pictures and of a 3-D object's.
+PICTURES_2D = ("sdf", "disk", "intensity_disk", "skeleton")
+PICTURES_3D = ("shells", "intensity_shells", "surface")
 #: The panel: cell side and gap between cells, as fractions of the labels' height.
 CELL = 0.36
 GAP = 0.1
@@ -47,11 +53,20 @@ def _shape(layer) -> tuple:
     return tuple(layer.data.shape)
 
 
+def axes_of(labels_layer) -> str:
+    """The axes of an analysed Labels layer (``metadata["pfsdm_axes"]``, set by the widget),
+    or napari's reading of its dimensions (3-D: a time-lapse)."""
+    axes = labels_layer.metadata.get("pfsdm_axes")
+    if axes and len(axes) == labels_layer.ndim:
+        return axes
+    return {2: "yx", 3: "tyx", 4: "tzyx"}.get(labels_layer.ndim, "yx")
+
+
 def frame_axis(viewer, labels_layer) -> int | None:
-    """World axis of the frames (None for a 2-D Labels layer)."""
-    if labels_layer.ndim != 3:
+    """World axis of the frames (None without a time axis)."""
+    if not axes_of(labels_layer).startswith("t"):
         return None
-    return viewer.dims.ndim - 3
+    return viewer.dims.ndim - labels_layer.ndim
 
 
 def current_frame(viewer, labels_layer) -> int:
@@ -73,11 +88,12 @@ def go_to(viewer, labels_layer, frame: int, label: int) -> None:
 
 
 def name_axes(viewer, labels_layer) -> None:
-    """Call the axes of a time-lapse 't', 'y', 'x' when napari still shows its default numbers
-    (short names: the slider's label box shows about four characters)."""
-    if labels_layer.ndim == 3 and viewer.dims.ndim == 3:
+    """Name the axes 't', 'z', 'y', 'x' as analysed when napari still shows its default
+    numbers (short names: the slider's label box shows about four characters)."""
+    axes = axes_of(labels_layer)
+    if labels_layer.ndim >= 3 and viewer.dims.ndim == labels_layer.ndim:
         if all(str(a).lstrip("-").isdigit() for a in viewer.dims.axis_labels):
-            viewer.dims.axis_labels = ("t", "y", "x")
+            viewer.dims.axis_labels = tuple(axes)
 
 
 def cells(labels_layer) -> dict[str, tuple[float, float, float]]:
@@ -181,6 +197,9 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     """
     names = layer_names(labels_layer.name)
     geo = cells(labels_layer)
+    for key in PICTURES_3D:
+        if names[key] in viewer.layers and viewer.layers[names[key]].visible:
+            viewer.layers[names[key]].visible = False
     out, bars = {}, {}
 
     def picture(key, image, colormap, limits, unit, scale, where):
@@ -227,6 +246,91 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     out["skeleton"] = _replace_lines(viewer, names["skeleton"], lines, colors)
     out["legend"] = _legend(viewer, labels_layer, pictures, bars=bars)
     return out
+
+
+def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
+    """Show one 3-D object's pictures: its shells as sphere maps beside the stack (one image,
+    the shells from the centre outwards, top to bottom, with a colour bar), the reporter's
+    shells, and its surface coloured by each vertex's distance from the centre (1 = the sphere
+    of the same volume; seen best in napari's 3-D view)."""
+    names = layer_names(labels_layer.name)
+    geo = cells(labels_layer)
+    for key in PICTURES_2D:
+        if names[key] in viewer.layers and viewer.layers[names[key]].visible:
+            viewer.layers[names[key]].visible = False
+    out, bars = {}, {}
+
+    def stacked(shells: np.ndarray) -> np.ndarray:
+        k, n_lat, n_lon = shells.shape
+        gap = max(2, n_lat // 8)
+        img = np.full((k * n_lat + (k - 1) * gap, n_lon), np.nan, np.float32)
+        for i in range(k):
+            img[i * (n_lat + gap):i * (n_lat + gap) + n_lat] = shells[i]
+        return img
+
+    def picture(key, image, colormap, limits, unit, cell):
+        top, left, side = geo[cell]
+        scale = 2.2 * side / image.shape[0]  # two cells high
+        data = with_colorbar(image, limits)
+        out[key] = _replace_image(viewer, names[key], data, colormap=colormap,
+                                  contrast_limits=limits, scale=(scale, scale),
+                                  translate=(top, left))
+        bars[key] = (top, left + data.shape[1] * scale, image.shape[0] * scale,
+                     _ticks(*limits, unit))
+
+    # each shell minus its mean: the angular part, what tells shapes apart (the means only
+    # say how deep each shell lies, and would take the whole colour range)
+    anomaly = pictures.shells - np.nanmean(pictures.shells, axis=(1, 2), keepdims=True)
+    img = stacked(anomaly)
+    picture("shells", img, "RdBu_r", symmetric_limits(img), "", "sdf")
+    if pictures.intensity_shells is not None:
+        img = stacked(pictures.intensity_shells)
+        picture("intensity_shells", img, "magma", _range_limits(img), "× mean", "disk")
+    elif names["intensity_shells"] in viewer.layers:
+        viewer.layers.remove(names["intensity_shells"])
+    verts, faces, values = pictures.surface
+    n = labels_layer.ndim
+    kwargs = {"colormap": "viridis", "contrast_limits": _range_limits(values),
+              "scale": tuple(labels_layer.scale[n - 3:]),
+              "translate": tuple(labels_layer.translate[n - 3:])}
+    if names["surface"] in viewer.layers:
+        layer = viewer.layers[names["surface"]]
+        layer.data = (verts, faces, values)
+        layer.contrast_limits = kwargs["contrast_limits"]
+        layer.visible = True
+    else:
+        layer = viewer.add_surface((verts, faces, values), name=names["surface"], **kwargs)
+    out["surface"] = layer
+    out["legend"] = _volume_legend(viewer, labels_layer, pictures, bars)
+    return out
+
+
+def _volume_legend(viewer, labels_layer, pictures, bars: dict):
+    values = pictures.surface[2]
+    geo = cells(labels_layer)
+    height = _shape(labels_layer)[-2] * labels_layer.scale[-2]
+    where, texts = [], []
+    titles = {"shells": "PF-SDF shells", "intensity_shells": "reporter shells"}
+    for key, (top, right, h, ticks) in bars.items():
+        cell = "sdf" if key == "shells" else "disk"
+        where.append((top - 0.01 * height, geo[cell][1]))
+        texts.append(titles[key])
+        for y, text in zip((top + 0.08 * h, top + 0.52 * h, top + h), ticks, strict=True):
+            where.append((y, right + 0.01 * height))
+            texts.append(text)
+    top, left, side = geo["intensity_disk" if "intensity_shells" in bars else "disk"]
+    radii = ", ".join(f"{r:g}" for r in pictures.shell_radii)
+    note = (f"label {pictures.label}" + (f" · frame {pictures.frame}"
+                                         if axes_of(labels_layer).startswith("t") else "")
+            + f"\nshells r = {radii}, top = inner\neach shell minus its mean\n"
+              "rows: from the +z pole\ncolumns: around z\n"
+              f"surface (3-D view): distance\nfrom the centre, {_range_limits(values)[0]:.2f}"
+              f"–{_range_limits(values)[1]:.2f}\n(1 = sphere of equal volume)")
+    where.append((top + 0.5 * side, left))
+    where.append((top + 0.1 * height, left + 1.35 * side))  # room for the texts when fitted
+    texts.append("")
+    texts.append(note)
+    return _points_text(viewer, layer_names(labels_layer.name)["legend"], where, texts)
 
 
 def line_segments(lines: list, colors: list) -> tuple[np.ndarray, np.ndarray]:
@@ -298,6 +402,11 @@ def _legend(viewer, labels_layer, pictures: ObjectPictures | None, note: str = "
     last_top, last_left, last_side = geo["intensity_disk"]
     where.append((top + 0.1 * height, last_left + 1.35 * last_side))
     texts.append("")
+    return _points_text(viewer, name, where, texts)
+
+
+def _points_text(viewer, name: str, where: list, texts: list):
+    """A Points layer of texts (invisible points) called ``name``, added or replaced."""
     data = np.asarray(where, float)
     features = {"text": texts}
     layer = viewer.layers[name] if name in viewer.layers else None
@@ -322,7 +431,7 @@ def hide_pictures(viewer, labels_layer, note: str) -> None:
     """Hide the picture layers (the selected label is not in this frame, or has no
     features) and say why in the legend."""
     names = layer_names(labels_layer.name)
-    for key in ("sdf", "disk", "intensity_disk", "skeleton"):
+    for key in PICTURES_2D + PICTURES_3D:
         if names[key] in viewer.layers:
             viewer.layers[names[key]].visible = False
     _legend(viewer, labels_layer, None, note=note)
@@ -351,10 +460,10 @@ def set_features(labels_layer, output: AnalysisOutput) -> None:
         if label == 0:
             return []
         frame = 0
-        if labels_layer.ndim == 3 and len(position) >= 3:
+        if axes_of(labels_layer).startswith("t") and len(position) >= labels_layer.ndim:
             pos = np.asarray(position, float)
             data_pos = labels_layer.world_to_data(pos) if world else pos
-            frame = int(np.rint(data_pos[-3]))
+            frame = int(np.rint(data_pos[-labels_layer.ndim]))
         return [status_line(output, frame, label)]
 
     labels_layer._get_properties = _get_properties  # the status bar's properties text

@@ -29,6 +29,7 @@ from . import _layers
 from ._compute import (
     AnalysisOutput,
     PictureCache,
+    VolumePictures,
     object_pictures,
     run_analysis,
     status_line,
@@ -75,7 +76,9 @@ TIPS = {
                 "the same number is the same object. 'link': always link. Or take a napari "
                 "Tracks layer (track_id, t, y, x) from a tracker.",
     "first_axis": "What the first axis of a 3-D Labels layer is: the frames of a movie (time), "
-                  "or the slices of a 3-D stack (Z). napari cannot tell them apart.",
+                  "or the slices of a 3-D stack (Z: each label is a 3-D object, measured on "
+                  "the unit ball with the layer's scale as voxel size). napari cannot tell "
+                  "them apart. A 4-D layer is time × Z × Y × X.",
 }
 
 #: How to read the pictures beside the image (shown under the buttons after a run).
@@ -86,7 +89,12 @@ READING = (
     "a standard disk, the numbers PF-SDM measures: the centre is the object's centre, the rim "
     "is its outline, so two objects of the same shape give the same disk whatever their size, "
     "position or turn. <b>reporter</b>: the intensity on the same disk, 1 = the object's "
-    "mean. Yellow lines: the skeleton (medial axis). Each picture has its own colour bar."
+    "mean. Yellow lines: the skeleton (medial axis). Each picture has its own colour bar. "
+    "<b>3-D objects</b> (First axis: Z): the PF-SDF on four shells of the unit ball, from the "
+    "centre (top) to near the surface (bottom), each as a map of directions (rows from the +z "
+    "pole down, columns around it; each shell minus its mean), and the object's surface coloured "
+    "by its distance from the centre, 1 = the sphere of the same volume (press the 3-D view "
+    "button to turn it)."
 )
 
 #: The fixed choices of the 'Identity' menu (Tracks layers are added after them).
@@ -390,8 +398,10 @@ class AnalysisWidget(QWidget):
         self._t0 = time.perf_counter()
         # errors are shown by _on_error (not re-raised into the event loop)
         first_axis = self.first_axis_meaning() if labels.ndim == 3 else "time"
+        # a Z-stack's voxel size is the layer's scale (z, y, x), as napari draws it
+        spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         worker = _analysis_worker(_data(labels), None if image is None else _data(image), options,
-                                  first_axis, _ignore_errors=True)
+                                  first_axis, spacing, _ignore_errors=True)
         worker.yielded.connect(self._on_progress)
         worker.returned.connect(lambda out: self._on_returned(labels, out, weight))
         worker.errored.connect(self._on_error)
@@ -443,6 +453,7 @@ class AnalysisWidget(QWidget):
         self.pictures.clear()
         self.shown_key = None
         self.last_output = output
+        labels.metadata["pfsdm_axes"] = output.axes  # time or Z: what the user said
         try:
             self._apply_identity(output)
         except ValueError as err:  # e.g. the Tracks layer chosen is gone: trust the ids
@@ -452,7 +463,9 @@ class AnalysisWidget(QWidget):
             output.tracking_message = f"{err} The label ids were used."
         _layers.set_features(labels, output)
         _layers.name_axes(self.viewer, labels)
-        first_run = _layers.layer_names(labels.name)["disk"] not in self.viewer.layers
+        names = _layers.layer_names(labels.name)
+        first_run = names["disk"] not in self.viewer.layers and \
+            names["shells"] not in self.viewer.layers
         store_for(self.viewer).set(labels, output)
         self._link(labels, force=True)
         frame = _layers.current_frame(self.viewer, labels)
@@ -467,8 +480,10 @@ class AnalysisWidget(QWidget):
         # make room for the pictures beside the labels: fit the view once they are there
         self._refit = first_run
         self.request_pictures()
-        msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label or "
-               "move the time slider: its SDF, disk and skeleton show beside the image.")
+        shown = ("its shells and surface show beside the stack" if output.ndim == 3
+                 else "its SDF, disk and skeleton show beside the image")
+        msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label"
+               + (" or move the time slider" if output.time_lapse else "") + f": {shown}.")
         from ..analysis.interpretation import explain_components
 
         scores = output.pca.get("shape")
@@ -538,7 +553,7 @@ class AnalysisWidget(QWidget):
     def _on_step(self, event=None) -> None:
         labels = self._linked_layer
         if self._syncing or labels is None or labels not in self.viewer.layers \
-                or labels.ndim != 3:
+                or not _layers.axes_of(labels).startswith("t"):
             return
         if store_for(self.viewer).get(labels) is None:
             return
@@ -652,7 +667,10 @@ class AnalysisWidget(QWidget):
         # showing inside this one (nested layer insertions crash napari's layer list)
         self._syncing = True
         try:
-            _layers.show_pictures(self.viewer, labels, pics)
+            if isinstance(pics, VolumePictures):
+                _layers.show_volume_pictures(self.viewer, labels, pics)
+            else:
+                _layers.show_pictures(self.viewer, labels, pics)
             self.shown_key = (pics.frame, pics.label)
             self.viewer.layers.selection.active = labels
             if self._refit:
@@ -711,9 +729,9 @@ class AnalysisWidget(QWidget):
 
 
 @thread_worker(start_thread=False)
-def _analysis_worker(labels, intensity, options, first_axis):
+def _analysis_worker(labels, intensity, options, first_axis, spacing):
     """Worker generator: the analysis, stoppable at each object."""
-    output = yield from run_analysis(labels, intensity, options, first_axis)
+    output = yield from run_analysis(labels, intensity, options, first_axis, spacing)
     return output
 
 
