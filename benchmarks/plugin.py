@@ -106,12 +106,30 @@ def main(argv=None) -> int:
         loop.exec()
 
     def until(cond, t0: float, timeout: float = 60.0) -> float:
-        """Seconds from ``t0`` (before the action) until ``cond()`` holds."""
-        while not cond():
-            QEventLoop().processEvents(QEventLoop.ProcessEventsFlag.WaitForMoreEvents, 2)
-            if time.perf_counter() - t0 > timeout:
-                raise TimeoutError("the viewer did not answer in time")
-        return time.perf_counter() - t0
+        """Seconds from ``t0`` (before the action) until ``cond()`` holds, checked every 2 ms
+        by a timer inside Qt's own event loop (a Python loop around ``processEvents`` would
+        hold the interpreter lock and slow the worker threads down several times)."""
+        loop = QEventLoop()
+        timer = QTimer(interval=2)
+        done = []
+
+        def check():
+            if cond():
+                done.append(time.perf_counter())
+                loop.quit()
+            elif time.perf_counter() - t0 > timeout:
+                loop.quit()
+
+        timer.timeout.connect(check)
+        timer.start()
+        if not cond():
+            loop.exec()
+        else:
+            done.append(time.perf_counter())
+        timer.stop()
+        if not done:
+            raise TimeoutError("the viewer did not answer in time")
+        return done[0] - t0
 
     spin(500)
     t0 = time.perf_counter()

@@ -206,3 +206,37 @@ def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample
     path.parent.mkdir(exist_ok=True)
     imwrite(path, img[..., :3])
     assert path.stat().st_size > 10_000
+
+
+def test_screenshot_of_a_3d_object(make_napari_viewer, qtbot, tmp_path):
+    """A Z-stack after a run, one object selected: its shells beside the stack, non-blank.
+    PFSDM_SAVE_SCREENSHOT=1 refreshes docs/screenshot_3d.png."""
+    from imageio.v3 import imwrite  # napari's own dependency
+
+    from napari_pfsdm.data.volumes import VOLUME_CLASSES, blob_volume
+    from napari_pfsdm.napari._widget import AnalysisWidget
+
+    names = list(VOLUME_CLASSES)
+    stack = np.zeros((40, 100, 200), np.uint16)
+    for i, name in enumerate([names[0], names[2], names[4], names[6]]):
+        stack[:, 30:70, 5 + 48 * i:45 + 48 * i][blob_volume(name, size=40, radius=12)] = i + 1
+    viewer = make_napari_viewer(show=True)
+    viewer.window._qt_window.resize(1500, 900)
+    labels_layer = viewer.add_labels(stack, name="objects")
+    viewer.dims.axis_labels = ("z", "y", "x")
+    widget = AnalysisWidget(viewer)
+    viewer.window.add_dock_widget(widget, name="PF-SDM analysis", area="right")
+    run_and_wait(qtbot, widget)
+    labels_layer.selected_label = 3
+    wait_pictures(qtbot, widget, (0, 3))
+    qtbot.wait(500)
+    viewer.reset_view()
+    qtbot.wait(800)
+    img = viewer.screenshot(canvas_only=False, flash=False)
+    shells = viewer.layers["objects PF-SDF shells"]
+    assert shells.visible and np.isfinite(shells.data).sum() > 1000
+    assert _nonblank(img[..., :3])
+    path = (SCREENSHOT.with_name("screenshot_3d.png") if os.environ.get("PFSDM_SAVE_SCREENSHOT")
+            else tmp_path / "screenshot_3d.png")
+    imwrite(path, img[..., :3])
+    assert path.stat().st_size > 10_000

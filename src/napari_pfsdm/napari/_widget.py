@@ -648,18 +648,23 @@ class AnalysisWidget(QWidget):
 
     def _next_prefetch(self) -> tuple | None:
         """While idle, make the pictures of the shown label in the frames around the one shown
-        (browsing time is then instant): up to :data:`PREFETCH_FRAMES` each way."""
+        (up to :data:`PREFETCH_FRAMES` each way), then of the other labels of the frame shown:
+        browsing is then served from the cache."""
         labels = self._linked_layer
         output = store_for(self.viewer).get(labels)
         if output is None or self.shown_key is None or labels not in self.viewer.layers:
             return None
         frame, label = self.shown_key
-        for step in range(1, PREFETCH_FRAMES + 1):
-            for f in (frame + step, frame - step):
-                i = output.row_index(f, label)
-                if i is not None and (f, label) not in self.pictures \
-                        and not str(output.table["error"].iat[i]):
-                    return labels, f, label
+        wanted = [(frame + step * sign, label) for step in range(1, PREFETCH_FRAMES + 1)
+                  for sign in (1, -1)]
+        # then the other objects of this frame, nearest label first (up to the cache's size)
+        others = sorted(output.labels_in(frame), key=lambda lab: abs(int(lab) - label))
+        wanted += [(frame, int(lab)) for lab in others[:self.pictures.maxsize // 2]]
+        for f, lab in wanted:
+            i = output.row_index(f, lab)
+            if i is not None and (f, lab) not in self.pictures \
+                    and not str(output.table["error"].iat[i]):
+                return labels, f, lab
         return None
 
     def _show_pictures(self, labels: Labels, pics) -> None:
