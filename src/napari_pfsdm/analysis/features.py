@@ -13,9 +13,10 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage as ndi
 
+from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
-from ..core.table_schema import BASE_COLUMNS, feature_columns
+from ..core.table_schema import BASE_COLUMNS, feature_columns, outline_columns
 from .tables import failed_rows
 
 __all__ = [
@@ -243,8 +244,10 @@ def table_from_objects(
     shape_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "shape")
     int_cols = feature_columns(opts["n_radii"], opts["n_fourier"], "intensity") \
         if with_intensity else []
+    out_cols = outline_columns(N_OUTLINE_MODES)
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
-    base, shape_rows, int_rows = [], [], []
+    nan_o = np.full(len(out_cols), np.nan)
+    base, shape_rows, int_rows, out_rows = [], [], [], []
     for obj in objects:
         res = obj.result
         diag = res.diagnostics if res is not None else {}
@@ -253,6 +256,8 @@ def table_from_objects(
                      diag.get("n_holes", np.nan), diag.get("folded_fraction", np.nan), obj.error,
                      "; ".join(object_warnings(obj, with_intensity=with_intensity))))
         shape_rows.append(res.embedding.ravel() if res is not None else nan_s)
+        out_rows.append(np.column_stack([res.outline.real, res.outline.imag]).ravel()
+                        if res is not None else nan_o)
         if int_cols:
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
@@ -261,6 +266,7 @@ def table_from_objects(
     if int_cols:
         blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
                                    columns=int_cols))
+    blocks.append(pd.DataFrame(np.array(out_rows).reshape(-1, len(out_cols)), columns=out_cols))
     table = pd.concat(blocks, axis=1)
     table.attrs["pfsdm"] = opts
     return table
@@ -425,8 +431,10 @@ def measure(
         (plain-words reasons to look twice: border contact, folding above
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
         described, whose features are then NaN while the shape's are kept), then
-        ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``. ``attrs["pfsdm"]``
-        holds the options used, with the rings' ``radii`` and ``weights``.
+        ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
+        coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns, see
+        :mod:`napari_pfsdm.core.table_schema`). ``attrs["pfsdm"]`` holds the options used,
+        with the rings' ``radii`` and ``weights``.
 
     Examples
     --------
