@@ -35,6 +35,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "iter_objects": (".analysis.features", "iter_objects"),
     "measure": (".analysis.features", "measure"),
     "read_table": (".io_csv", "read_table_csv"),
+    "rerank": (".analysis.rerank", "rerank"),
     "write_table": (".io_csv", "write_table_csv"),
 }
 
@@ -54,6 +55,7 @@ __all__ = [
     "pfsdm",
     "read_table",
     "render_disk",
+    "rerank",
     "skeleton",
     "weighted_features",
     "write_table",
@@ -76,6 +78,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
+    from .analysis.rerank import rerank
     from .analysis.tables import distance_matrix, embeddings_from_table, weighted_features
     from .analysis.transformer import PFSDMTransformer
     from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk

@@ -117,6 +117,8 @@ def _corr(x: np.ndarray, k: int, s: np.ndarray, derivatives: bool = True) -> tup
 COARSE_MODES = 16
 COARSE_SHIFTS = 48
 NEWTON_STEPS = 2
+#: Coarse peaks of the two reflections closer than this are both refined.
+AMBIGUOUS = 1e-3
 
 
 def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None, *,
@@ -136,15 +138,20 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     -------
     ndarray, shape (n, n) or (n, m)
         d_B in [0, 1]; symmetric with zero diagonal when ``others`` is None. Invariant to
-        translation, rotation, scale, start point and mirror image, to rounding (~1e-8, tested).
+        translation, rotation, scale, start point and mirror image (tested): a copy turned
+        by 90°, mirrored or started elsewhere is at d_B < 1e-7 and its distances to other
+        outlines are the same to 1e-9 (90° turns, mirrors of a raster) or 1e-5 (start points
+        off the search grid, when two start points match nearly equally well).
 
     Notes
     -----
     The start shift is searched on a grid of 48 shifts with the modes ±1 … ±8 (single
     precision, one complex matrix product per shift and reflection), refined by a parabola,
     then by two Newton steps on |C(s)|² with all modes in double precision; C is evaluated
-    there. On MPEG-7 this finds the best shift of an exhaustive 128-shift search on every pair
-    but a handful, where the two peaks of a nearly symmetric outline are equally good.
+    there (for both reflections when their coarse peaks are within 1e-3: mirror-symmetric
+    outlines). Against an exhaustive search over 2,048 shifts on 300 MPEG-7 outlines, the
+    distance is within 1e-6 for 92 % of the pairs and within 1e-3 for 98 %; the rest are
+    pairs with several nearly equal peaks, where the search keeps a slightly lower one.
     """
     a = np.asarray(coefs, complex)
     same = others is None
@@ -164,27 +171,32 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     # mirror False: Σ a_n e^{ins} conj(b_n); mirror True: Σ a_n e^{ins} b_n
     partners = [np.ascontiguousarray(np.conj(b0[:, keep]).T.astype(np.complex64)),
                 np.ascontiguousarray(b0[:, keep].T.astype(np.complex64))]
-    best_s = np.zeros((len(a), len(b)))
-    best_m = np.zeros((len(a), len(b)), bool)
+    # per reflection: the coarse best value and its parabola-refined shift
+    val = np.full((2, len(a), len(b)), -1.0, np.float32)
+    shift = np.zeros((2, len(a), len(b)))
     for i0 in range(0, len(a), chunk):
         i1 = min(i0 + chunk, len(a))
         j0 = i0 if same else 0  # the upper triangle is enough for one set
-        best_val = np.full((i1 - i0, len(b) - j0), -1.0, np.float32)
         for mirror, partner in enumerate(partners):
             vals = np.empty((COARSE_SHIFTS, i1 - i0, len(b) - j0), np.float32)
             for j in range(COARSE_SHIFTS):
                 np.abs((a32[i0:i1] * phase[j]) @ partner[:, j0:], out=vals[j])
-            v = vals.max(axis=0)
-            better = v > best_val
-            best_val = np.where(better, v, best_val)
-            best_s[i0:i1, j0:] = np.where(
-                better, _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS), best_s[i0:i1, j0:])
-            best_m[i0:i1, j0:] |= better & bool(mirror)
+            val[mirror, i0:i1, j0:] = vals.max(axis=0)
+            shift[mirror, i0:i1, j0:] = _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS)
     if same:
         ii, jj = np.triu_indices(len(a), 1)
     else:
         ii, jj = (x.ravel() for x in np.indices((len(a), len(b))))
-    c = _refine(a0, b0, ii, jj, best_s[ii, jj], best_m[ii, jj])
+    v0, v1 = val[0, ii, jj], val[1, ii, jj]
+    first = v1 > v0  # the reflection with the better coarse peak is refined for every pair,
+    c = _refine(a0, b0, ii, jj, shift[first.astype(int), ii, jj], first)
+    # the other one too where single precision cannot tell them apart (symmetric outlines)
+    close = np.flatnonzero(np.abs(v1 - v0) < AMBIGUOUS)
+    if close.size:
+        other = ~first[close]
+        c[close] = np.maximum(c[close], _refine(a0, b0, ii[close], jj[close],
+                                                 shift[other.astype(int), ii[close], jj[close]],
+                                                 other))
     out = np.zeros((len(a), len(b)))
     out[ii, jj] = np.sqrt(np.maximum(1.0 - c**2, 0.0))
     if same:
