@@ -262,6 +262,11 @@ def run_peers(masks, processes: int) -> list[Method]:
         D = peers.gpa_distances(gpa)
     out.append(Method("GPA (Procrustes, EFA outline)", D, ms, sw.wall, sw.cpu))
     print(f"  GPA: {ms:.2f} ms/shape, all pairs {out[-1].s_pairs:.2f} s")
+    try:
+        import cv2  # noqa: F401
+    except ImportError:
+        print("  Hu moments skipped: OpenCV is not installed (pip install -e '.[bench]')")
+        return out
     hu, ms, _ = describe(peers.hu_descriptor, masks, processes)
     with Stopwatch() as sw:
         D = peers.hu_distances(hu)
