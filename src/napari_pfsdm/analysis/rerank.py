@@ -1,4 +1,4 @@
-"""Collection-level re-ranking of a distance matrix (docs/design.md §2.8).
+"""Collection-level re-ranking of a distance matrix (docs/design.md §2.10).
 
 A pairwise distance compares two objects and nothing else. In a large collection the other
 objects carry information too: two views of the same kind of shape that differ a lot are often

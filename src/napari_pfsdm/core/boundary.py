@@ -1,4 +1,4 @@
-"""The push-forward's boundary term: the map's own values on the unit circle (docs/design.md §2.7).
+"""The push-forward's boundary term: the map's values on the unit circle (docs/design.md §2.9).
 
 The harmonic map X sends the unit circle onto the object's outline by normalised arc length,
 X(1, θ) = z(θ L / 2π), and its Fourier coefficients a_n *are* the map (FourierMap: X(r, θ) =

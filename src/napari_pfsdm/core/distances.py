@@ -1,6 +1,6 @@
-"""PF-SDM distances between objects (docs/design.md §2.6–2.7), for two objects or thousands at once.
+"""PF-SDM distances between objects (docs/design.md §2.6, §2.9), for two or thousands at once.
 
-The default distance has two terms (docs/design.md §2.7):
+The default distance has two terms (docs/design.md §2.9):
 
     D(S₁, S₂) = d_SDF(S₁, S₂) + λ · d_B(S₁, S₂),   λ = :data:`BOUNDARY_WEIGHT` = 1.
 
