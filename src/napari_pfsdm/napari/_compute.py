@@ -223,7 +223,7 @@ def _rows_only(obj):
     if res is None:
         return obj
     light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
-                            intensity_embedding=res.intensity_embedding)
+                            intensity_embedding=res.intensity_embedding, outline=res.outline)
     return replace(obj, result=light)
 
 
