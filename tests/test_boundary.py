@@ -58,16 +58,16 @@ def test_start_points_do_not_change_the_boundary_term(masks):
                        for p, s in zip(pts, (7, 101, 33), strict=True)])
     d = boundary_distance_matrix(a)
     d_rolled = boundary_distance_matrix(np.vstack([a, rolled]))
-    # d(x, roll(x)) = 0 and d(x, roll(y)) = d(x, y): exactly for the copies; to 1e-5 between
-    # different outlines, whose correlation over start points can have two nearly equal peaks
-    # (the coarse search may then refine the other one)
+    # d(x, roll(x)) = 0 and d(x, roll(y)) = d(x, y): to 1e-7 for the copies; to 2e-4 between
+    # different outlines (here d ≈ 0.3), whose correlation over start points and mirror can
+    # have two nearly equal peaks (the coarse search may then refine the other one)
     assert np.abs(np.diag(d_rolled[:3, 3:])).max() < 1e-7
-    np.testing.assert_allclose(d_rolled[:3, 3:], d, atol=1e-5)
-    np.testing.assert_allclose(d_rolled[3:, 3:], d, atol=1e-5)
+    np.testing.assert_allclose(d_rolled[:3, 3:], d, atol=2e-4)
+    np.testing.assert_allclose(d_rolled[3:, 3:], d, atol=2e-4)
     # mirrored outline traced counter-clockwise again, from another start: conj(a_n) e^{ins}
     mirrored = np.stack([outline_coefficients(np.roll(p[::-1] * [1, -1], 50, axis=0))
                          for p in pts])
-    np.testing.assert_allclose(boundary_distance_matrix(a, mirrored), d, atol=1e-5)
+    np.testing.assert_allclose(boundary_distance_matrix(a, mirrored), d, atol=2e-4)
     assert np.abs(np.diag(boundary_distance_matrix(a, mirrored))).max() < 1e-7
 
 
