@@ -135,11 +135,15 @@ def rerank(d: np.ndarray, method: str = "diffusion", *, k: int = 10, steps: int 
         The variant (module docstring).
     k : int
         Neighbours per object in the graph: about the number of objects per class you expect
-        to find, at most (MPEG-7: 20 per class, k = 10 best of 5, 10, 15, 20).
+        to find, at most. MPEG-7 (20 per class), diffusion with 2 steps: k = 5, 10, 15, 20 give
+        86.6, 88.7, 88.0, 86.8 % bull's-eye.
     steps : int
-        Random-walk steps of ``"diffusion"`` (2 best of 1, 2, 3 on MPEG-7).
+        Random-walk steps of ``"diffusion"``. MPEG-7, k = 10: 1, 2, 3 steps give 86.7, 88.7,
+        89.0 % bull's-eye and 96.9, 96.1, 95.7 % 1-NN; 2 is the compromise.
     alpha : float
-        Propagation weight of ``"transduction"``, in (0, 1).
+        Propagation weight of ``"transduction"``, in (0, 1). MPEG-7, k = 10: 0.5, 0.9, 0.99
+        give 87.4, 88.7, 87.9 % (1-NN 97.4, 96.8, 95.7 %); ``"mutual"`` is best at k = 20
+        (86.2 %) and weaker at k = 10 (80.9 %).
 
     Returns
     -------
