@@ -5,6 +5,11 @@ Run from the repository root (2 processes by default)::
     .venv/bin/python benchmarks/mpeg7.py                 # every method, every PF-SDM variant
     .venv/bin/python benchmarks/mpeg7.py --subset 0      # skip the (slow) shape context
     .venv/bin/python benchmarks/mpeg7.py --variants default "radii=boundary,invariance=align"
+    .venv/bin/python benchmarks/mpeg7.py --variants default --subset 0 --rerank   # + re-ranking
+
+With ``default`` among the variants, the table also shows the default before the boundary term
+(``invariance=combined, boundary_weight=0``: the SDF term alone) and the boundary term alone
+("outline Procrustes").
 
 The images are read from ``../shared/data/mpeg7`` (relative to the repository root) or the
 folder given as the first argument; they are never copied into the project. Outputs go to
@@ -37,6 +42,7 @@ import argparse
 import copy
 import csv
 import hashlib
+import importlib
 import inspect
 import itertools
 import multiprocessing as mp
@@ -256,6 +262,11 @@ def run_peers(masks, processes: int) -> list[Method]:
         D = peers.gpa_distances(gpa)
     out.append(Method("GPA (Procrustes, EFA outline)", D, ms, sw.wall, sw.cpu))
     print(f"  GPA: {ms:.2f} ms/shape, all pairs {out[-1].s_pairs:.2f} s")
+    try:
+        import cv2  # noqa: F401
+    except ImportError:
+        print("  Hu moments skipped: OpenCV is not installed (pip install -e '.[bench]')")
+        return out
     hu, ms, _ = describe(peers.hu_descriptor, masks, processes)
     with Stopwatch() as sw:
         D = peers.hu_distances(hu)
@@ -435,7 +446,14 @@ def _pfsdm_one(mask):
 
 
 def _pfsdm_one_slim(mask):
-    return _slim(_pfsdm_one(mask))
+    res = _pfsdm_one(mask)
+    res.outline  # noqa: B018  (cached before the contour is dropped: the boundary term needs it)
+    return _slim(res)
+
+
+#: Rows added next to "default": the default before the boundary term (SDF only).
+OLD_DEFAULT = "invariance=combined,boundary_weight=0"
+OUTLINE_ROW = "outline Procrustes (the boundary term alone)"
 
 
 def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
@@ -448,6 +466,8 @@ def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
         return []
     variants, p_params, d_params = discover_variants(api)
     if specs and specs != ["all"]:
+        if "default" in specs and OLD_DEFAULT not in specs and "boundary_weight" in d_params:
+            specs = [*specs, OLD_DEFAULT]
         variants = [parse_variant(e) for spec in specs for e in expand_spec(spec)]
     defaults = {**p_params, **d_params}
     print(f"  pfsdm() options: {list(p_params)}")
@@ -477,7 +497,28 @@ def run_pfsdm(masks, specs: list[str] | None, processes: int) -> list[Method]:
         out.append(Method(variant_name(opts, defaults), D, ms, s, sw.cpu, extra={"opts": opts},
                           notes=f"mean folded fraction {folded:.3f}"))
         print(f"  {out[-1].name}: all pairs {s:.2f} s")
+        core_d = importlib.import_module("napari_pfsdm.core.distances")
+        if not opts and hasattr(core_d, "boundary_term"):
+            with Stopwatch() as sw:
+                DB = core_d.boundary_term(res)
+            out.append(Method(OUTLINE_ROW, DB, ms, sw.wall, sw.cpu,
+                              notes="full Procrustes, free start point and mirror; "
+                                    "core.boundary, ms/shape = the whole PF-SDM"))
+            print(f"  {OUTLINE_ROW}: all pairs {sw.wall:.2f} s")
+        if not opts and RERANK:
+            from napari_pfsdm.analysis.rerank import rerank
+
+            for method in RERANK:
+                with Stopwatch() as sw2:
+                    R = rerank(D, method)
+                out.append(Method(f"PF-SDM defaults + rerank({method!r})", R, ms, s + sw2.wall,
+                                  sw.cpu + sw2.cpu, notes=f"re-ranking {sw2.wall:.2f} s"))
+                print(f"  {out[-1].name}: re-ranking {sw2.wall:.2f} s")
     return out
+
+
+#: Re-ranking variants applied to the default distance (``--rerank``).
+RERANK: list[str] = []
 
 
 # =========================================================================== reporting
@@ -625,6 +666,9 @@ def main(argv=None) -> int:
     ap.add_argument("--classes", type=int, default=0, metavar="N",
                     help="quick check: use only the first N classes for everything (0 = all)")
     ap.add_argument("--no-peers", action="store_true", help="skip EFA, GPA and Hu")
+    ap.add_argument("--rerank", nargs="*", default=None, metavar="METHOD",
+                    help="also re-rank the default distance (napari_pfsdm.rerank); no value: "
+                         "every method")
     ap.add_argument("--no-cache", action="store_true", help="recompute the cached masks / SC")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
@@ -657,6 +701,10 @@ def main(argv=None) -> int:
     if not args.no_peers:
         print("peers:")
         methods += run_peers(masks, args.processes)
+    if args.rerank is not None:
+        from napari_pfsdm.analysis.rerank import RERANK_METHODS
+
+        RERANK[:] = args.rerank or list(RERANK_METHODS)
     if args.variants != ["none"]:
         print("PF-SDM:")
         methods += run_pfsdm(masks, args.variants, args.processes)

@@ -17,9 +17,15 @@ Throughput: ``measure`` (default options) on a 25-frame × 4-object label stack 
 frames, one object of the five-shape set per 256 × 256 quadrant), in objects per second (the
 fastest of up to three runs).
 
-Single-threaded BLAS/FFT (``*_NUM_THREADS=1``) so that the numbers are per core. Writes
-``speed.csv`` to ``--out``. Targets (issue 2): default ``pfsdm`` ≤ 3× EFA per object,
-``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s.
+Distances: all pairs of ``--n-distance`` objects (perturbed five shapes, 128 × 128) with the
+default distance (SDF magnitudes + boundary term) and with the SDF's combined distance (the
+default before the boundary term), in the same run, wall seconds.
+
+Single-threaded BLAS/FFT (``*_NUM_THREADS=1``) so that the numbers are per core (the distances
+too, unless ``--threads``). Writes ``speed.csv`` to ``--out``. Targets (issue 2): default
+``pfsdm`` ≤ 3× EFA per object, ``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s;
+(issue 13) default ``pfsdm`` with the boundary term's outline coefficients ≤ 2× EFA, all
+1,400² default distances < 20 s.
 """
 
 from __future__ import annotations
@@ -98,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="masks (a multiple of 5: the five shapes in turn)")
     parser.add_argument("--reps", type=int, default=3, help="passes per method (best kept)")
     parser.add_argument("--frames", type=int, default=25, help="frames of the measure stack")
+    parser.add_argument("--n-distance", type=int, default=1400,
+                        help="objects whose all pairwise distances are timed")
     args = parser.parse_args(argv)
 
     masks, _, _ = S.make_benchmark_set(max(1, args.n_masks // 5), perturb=True, seed=0, size=256)
@@ -111,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
         for m in ("harmonic", "bijective", "radial") for s in ("exact", "viscous")
     ]:
         methods[f"pfsdm {name}"] = lambda m, opts=opts: P.pfsdm(m, **opts)
+        if name == "default":
+            methods["pfsdm default + outline coefficients (boundary term)"] = \
+                lambda m: P.pfsdm(m).outline
     seconds = time_methods(methods, masks, args.reps)
     efa = seconds[efa_name]
     rows = [{"method": k, "ms_per_object": 1e3 * v} for k, v in seconds.items()]
@@ -128,6 +139,19 @@ def main(argv: list[str] | None = None) -> int:
     throughput = n_obj / elapsed
     assert len(features) == n_obj
 
+    many, _, _ = S.make_benchmark_set(max(1, args.n_distance // 5), perturb=True, seed=1,
+                                      size=128)
+    results = [P.pfsdm(m) for m in many]
+    for r in results:
+        r.outline  # noqa: B018  (part of the descriptor's cost, timed above)
+    dist_s = {}
+    for label, kw in (("default (SDF magnitudes + boundary term)", {}),
+                      ("SDF combined, no boundary term (the default before)",
+                       {"invariance": "combined", "boundary_weight": 0})):
+        start = time.perf_counter()
+        P.distance_matrix(results, **kw)
+        dist_s[label] = time.perf_counter() - start
+
     default_ratio = float(table.loc[table["method"] == "pfsdm default", "x EFA"].iloc[0])
     bij = float(table.loc[table["method"] == "pfsdm bijective/exact", "ms_per_object"].iloc[0])
     print()
@@ -135,7 +159,11 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(f"measure: {n_obj} objects ({args.frames} frames x 4, 512 x 512) in {elapsed:.2f} s "
           f"= {throughput:.0f} objects/s")
+    for label, sec in dist_s.items():
+        print(f"all pairs of {len(results)} objects, {label}: {sec:.2f} s")
     print()
+    outline_ratio = float(table.loc[table["method"].str.contains("outline"), "x EFA"].iloc[0])
+    d_default = next(iter(dist_s.values()))
     checks = [
         (f"default pfsdm <= {TARGET_RATIO:g}x EFA", f"{default_ratio:.2f}x",
          default_ratio <= TARGET_RATIO),
@@ -143,6 +171,10 @@ def main(argv: list[str] | None = None) -> int:
          bij <= TARGET_BIJECTIVE_MS),
         (f"measure >= {TARGET_MEASURE:g} objects/s", f"{throughput:.0f}/s",
          throughput >= TARGET_MEASURE),
+        ("default pfsdm + outline coefficients <= 2x EFA", f"{outline_ratio:.2f}x",
+         outline_ratio <= 2.0),
+        (f"all {len(results)}^2 default distances < 20 s (1,400 objects)", f"{d_default:.1f} s",
+         len(results) < 1400 or d_default < 20.0),
     ]
     for what, value, ok in checks:
         print(f"  {'met ' if ok else 'MISSED'}  {what}: {value}")
@@ -150,7 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     summary = pd.concat([table, pd.DataFrame([{
         "method": "measure (objects/s)", "ms_per_object": 1e3 / throughput,
-        "x EFA": 1e3 / throughput / (1e3 * efa)}])], ignore_index=True)
+        "x EFA": 1e3 / throughput / (1e3 * efa)}])] + [pd.DataFrame([{
+            "method": f"all pairs of {len(results)}, {label} (s)", "ms_per_object": 1e3 * sec,
+            "x EFA": np.nan}]) for label, sec in dist_s.items()], ignore_index=True)
     summary.to_csv(out / "speed.csv", index=False)
     print(f"\nwrote {out / 'speed.csv'}")
     return 0

@@ -60,14 +60,28 @@ def test_render_disk_shows_the_pf_sdf_and_intensity():
 def test_distance_properties():
     shapes = [P.pfsdm(raster(v, 160)) for v in BASE_SHAPES.values()]
     for inv in ("magnitude", "align", "combined"):
-        d = P.distance_matrix(shapes, invariance=inv)
-        np.testing.assert_allclose(d, d.T, atol=1e-12)
-        assert np.all(np.diag(d) == 0) and np.all(d[np.triu_indices(5, 1)] > 0)
-    mag = P.distance_matrix(shapes, invariance="magnitude")
-    ali = P.distance_matrix(shapes, invariance="align")
+        for bw in (None, 0.0):
+            d = P.distance_matrix(shapes, invariance=inv, boundary_weight=bw)
+            np.testing.assert_allclose(d, d.T, atol=1e-12)
+            assert np.all(np.diag(d) == 0) and np.all(d[np.triu_indices(5, 1)] > 0)
+    mag = P.distance_matrix(shapes, invariance="magnitude", boundary_weight=0)
+    ali = P.distance_matrix(shapes, invariance="align", boundary_weight=0)
     assert np.all(ali >= mag - 1e-9)  # magnitudes are a lower bound of the aligned distance
-    assert P.distance(shapes[0], shapes[1], invariance="magnitude") == pytest.approx(mag[0, 1])
-    assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1] + ali[0, 1])
+    bnd = P.distance_matrix(shapes, boundary_weight=1) - mag  # d_B alone
+    assert np.all((bnd >= 0) & (bnd <= 1))
+    assert P.distance(shapes[0], shapes[1], invariance="magnitude", boundary_weight=0) \
+        == pytest.approx(mag[0, 1])
+    # the default: SDF magnitudes + 1 x the boundary term; the old default still available
+    assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1] + bnd[0, 1])
+    assert P.distance(shapes[0], shapes[1], boundary_weight=2.5) \
+        == pytest.approx(mag[0, 1] + 2.5 * bnd[0, 1])
+    assert P.distance(shapes[0], shapes[1], invariance="combined", boundary_weight=0) \
+        == pytest.approx(mag[0, 1] + ali[0, 1])
+    # a pair's distance does not depend on the rest of the collection
+    assert P.distance(shapes[1], shapes[3]) == pytest.approx(P.distance_matrix(shapes)[1, 3],
+                                                             abs=1e-12)
+    with pytest.raises(ValueError, match="boundary_weight"):
+        P.distance_matrix(shapes, boundary_weight=-1)
 
 
 def test_viscous_sdf_stays_bounded_at_sharp_corners():
@@ -107,10 +121,11 @@ def test_magnitude_distance_is_the_weighted_sum_the_readme_states(exponent):
         return np.sqrt(np.sum(w[:, None] * diff**2))
 
     expected = np.array([[by_hand(a, b) for b in results] for a in results])
-    got = P.distance_matrix(results, invariance="magnitude")
+    got = P.distance_matrix(results, invariance="magnitude", boundary_weight=0)
     np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
     labels = np.zeros((160, 480), np.uint8)
     for k, m in enumerate(masks):
         labels[:, 160 * k:160 * (k + 1)][m] = k + 1
     table = P.measure(labels, mode_exponent=exponent)
-    np.testing.assert_allclose(P.distance_matrix(table), expected, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(P.distance_matrix(table, boundary_weight=0), expected,
+                               rtol=1e-6, atol=1e-9)

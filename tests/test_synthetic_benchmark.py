@@ -32,8 +32,9 @@ def test_variant_grid_is_complete_and_starts_with_the_defaults():
 
 def test_quick_run_on_a_tiny_set_writes_table_and_plot(tmp_path, capsys):
     table = SB.run(tmp_path, quick=True, n_per_class=2, size=96)
-    methods = ["PF-SDM (default)", "EFA (raw pyefd)", "EFA", "EFA (mirror-aware)", "GPA"]
-    assert table["set"].tolist() == ["exact"] * 5 + ["perturbed"] * 5
+    methods = ["PF-SDM (default)", *(r[0] for r in SB.REFERENCE_ROWS), "EFA (raw pyefd)", "EFA",
+               "EFA (mirror-aware)", "GPA"]
+    assert table["set"].tolist() == ["exact"] * 7 + ["perturbed"] * 7
     assert table["method"].tolist() == methods * 2
     assert table["silhouette"].between(-1, 1).all()
     assert table["nn_accuracy"].between(0, 1).all()

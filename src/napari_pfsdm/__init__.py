@@ -41,6 +41,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "link": (".analysis.tracking", "link"),
     "track_ids_from_tracks": (".analysis.tracking", "track_ids_from_tracks"),
     "read_table": (".io_csv", "read_table_csv"),
+    "rerank": (".analysis.rerank", "rerank"),
     "write_table": (".io_csv", "write_table_csv"),
 }
 
@@ -64,6 +65,7 @@ __all__ = [
     "read_table",
     "render_disk",
     "shell_maps",
+    "rerank",
     "skeleton",
     "track_ids_from_tracks",
     "surface_mesh",
@@ -88,6 +90,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
+    from .analysis.rerank import rerank
     from .analysis.tables import distance_matrix, embeddings_from_table, weighted_features
     from .analysis.tracking import check_tracking, link, track_ids_from_tracks
     from .analysis.transformer import PFSDMTransformer

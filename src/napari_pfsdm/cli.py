@@ -345,11 +345,23 @@ def cmd_compare(args: argparse.Namespace) -> int:
             f"with --frames (e.g. --frames 0) or raise --max-objects"
         )
     n = len(table)
+    if args.rerank and n < 3:
+        raise UserError(f"--rerank needs at least 3 objects, the table has {n}")
     with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
-        dist = distance_table(
-            table, distance_matrix(table, intensity_weight=args.intensity_weight))
+        matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
+                                 boundary_weight=args.boundary_weight)
+    if args.rerank:
+        from .analysis.rerank import rerank
+
+        with _Step(f"re-ranking them ({args.rerank})", args.quiet):
+            matrix = rerank(matrix, args.rerank, k=min(args.rerank_k, n - 1))
+    dist = distance_table(table, matrix)
     opts = dict(table.attrs.get("pfsdm", {}))
     opts["intensity_weight"] = args.intensity_weight
+    opts["boundary_weight"] = args.boundary_weight
+    opts["rerank"] = args.rerank or "none"
+    if args.rerank:
+        opts["rerank_k"] = min(args.rerank_k, n - 1)
     with _Step(f"writing {out}", args.quiet):
         write_table_csv(dist, out, opts, index=True, table_type="distances",
                         extra={"features": str(args.features),
@@ -687,6 +699,16 @@ A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
 """
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
 def _add_force(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="replace output files even when pfsdm did not write them (by default "
@@ -774,9 +796,15 @@ Pairwise PF-SDM distances between the objects of a feature table: 0 = same shape
 position, size, rotation or mirror image. Writes a square CSV (rows and columns named
 movie/t<frame>/l<label>) and, with --mds, a 2-D map where close points are similar shapes.
 
+The default distance adds the pushed-forward SDF term and the boundary (outline) term;
+--boundary-weight 0 keeps the SDF term alone. --rerank re-ranks the distances by the
+collection's neighbourhoods: it helps retrieval in large collections (tens of objects per
+kind), and can hurt with few objects per kind or when only the single nearest match counts.
+
 examples:
   pfsdm compare features.csv --frames 0 -o distances.csv --mds mds.png
   pfsdm compare features.csv --frames 20-24 --intensity-weight 0.5 -o d.csv --groups groups.csv
+  pfsdm compare features.csv -o reranked.csv --rerank --mds map.png
 """)
     p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv")
@@ -785,6 +813,21 @@ examples:
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
     p.add_argument("--intensity-weight", type=float, default=0.0, metavar="W",
                    help="weight of the reporter pattern in the distance (default 0: shape only)")
+    from .analysis.rerank import RERANK_METHODS
+    from .core.distances import BOUNDARY_WEIGHT
+
+    p.add_argument("--boundary-weight", dest="boundary_weight", type=_non_negative,
+                   default=BOUNDARY_WEIGHT, metavar="W",
+                   help=f"weight of the outline (boundary) term (default {BOUNDARY_WEIGHT:g}; "
+                        "0: the pushed-forward SDF alone)")
+    p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
+                   choices=RERANK_METHODS, metavar="METHOD",
+                   help="re-rank the distances (and the map) by the collection's "
+                        f"neighbourhoods: {', '.join(RERANK_METHODS)} (default when given: "
+                        "diffusion); for large collections, see 'pfsdm compare -h'")
+    p.add_argument("--rerank-k", dest="rerank_k", type=int, default=10, metavar="K",
+                   help="neighbours per object for --rerank (default 10: about the number "
+                        "of objects per kind, at most)")
     p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
     p.add_argument("--max-objects", type=int, default=5000, metavar="N",
                    help="refuse larger matrices (default 5000)")

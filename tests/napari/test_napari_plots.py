@@ -113,6 +113,14 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     _click(comp, target)
     assert labels_layer.selected_label == 6
     assert _frame(viewer, labels_layer) == 4
+    # opt-in re-ranking through the collection: napari_pfsdm.rerank of the same distances
+    from napari_pfsdm import rerank
+
+    comp.rerank.setChecked(True)
+    np.testing.assert_allclose(comp.distances, rerank(distance_matrix(
+        sub, intensity_weight=widget.last_output.options["intensity_weight"]), "diffusion",
+        k=min(10, len(sub) - 1)))
+    comp.rerank.setChecked(False)
     # all frames: every measured object, coloured by frame, distances computed once
     comp.frame_choice.setCurrentText("all frames")
     assert comp.distances.shape == (len(table),) * 2

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage as ndi
 
+from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
 from ..core.table_schema import (
@@ -20,6 +21,7 @@ from ..core.table_schema import (
     TRACK_COLUMN,
     base_columns,
     feature_columns,
+    outline_columns,
     table_feature_columns,
 )
 from ..core.volume_sdf import check_spacing
@@ -372,8 +374,11 @@ def table_from_objects(
         opts["spacing"] = check_spacing(spacing, 3).tolist()
     shape_cols = table_feature_columns(opts, "shape")
     int_cols = table_feature_columns(opts, "intensity") if with_intensity else []
+    # the outline's coefficients (boundary term of the distance): outlines in 2-D only
+    out_cols = outline_columns(N_OUTLINE_MODES) if ndim == 2 else []
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
-    base, shape_rows, int_rows = [], [], []
+    nan_o = np.full(len(out_cols), np.nan)
+    base, shape_rows, int_rows, out_rows = [], [], [], []
     for obj in objects:
         res = obj.result
         diag = res.diagnostics if res is not None else {}
@@ -388,6 +393,9 @@ def table_from_objects(
             shape_rows.append(np.concatenate([res.embedding.ravel(), res.surface_embedding]))
         else:
             shape_rows.append(res.embedding.ravel())
+        if out_cols:
+            out_rows.append(np.column_stack([res.outline.real, res.outline.imag]).ravel()
+                            if res is not None else nan_o)
         if int_cols:
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
@@ -396,6 +404,9 @@ def table_from_objects(
     if int_cols:
         blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
                                    columns=int_cols))
+    if out_cols:
+        blocks.append(pd.DataFrame(np.array(out_rows).reshape(-1, len(out_cols)),
+                                   columns=out_cols))
     table = pd.concat(blocks, axis=1)
     table.attrs["pfsdm"] = opts
     return table
@@ -576,12 +587,14 @@ def measure(
         (plain-words reasons to look twice: border contact, folding above
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
         described, whose features are then NaN while the shape's are kept), then
-        ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``. ``attrs["pfsdm"]``
-        holds the options used, with the rings' ``radii`` and ``weights``, and ``axes``.
+        ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
+        coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns, see
+        :mod:`napari_pfsdm.core.table_schema`). ``attrs["pfsdm"]`` holds the options used,
+        with the rings' ``radii`` and ``weights``, and ``axes``.
         3-D objects: ``volume`` (voxels) instead of ``area``, ``centroid_z``, and
         ``crossing_fraction`` (rays from the centroid crossing the surface more than once), then
         ``shape_rXX_lYY`` (shell, SH degree), ``surface_lYY`` and ``intensity_rXX_lYY``
-        (``core.table_schema``).
+        (``core.table_schema``), without outline columns.
 
     Examples
     --------

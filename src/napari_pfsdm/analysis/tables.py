@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable
 from typing import Any
 
@@ -20,6 +21,8 @@ from ..core.morphometric import mode_weights
 from ..core.table_schema import (
     check_feature_table,
     feature_columns,
+    has_outline,
+    outline_columns,
     table_feature_columns,
     table_ndim,
 )
@@ -30,6 +33,7 @@ __all__ = [
     "embeddings_from_table",
     "failed_rows",
     "is_table",
+    "outlines_from_table",
     "weighted_features",
 ]
 
@@ -113,7 +117,19 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
     shape, weights = embeddings_from_table(table, "shape")
     intensity = embeddings_from_table(table, "intensity")[0] if "intensity" in channels else None
     return Embeddings(shape=shape, weights=weights,
-                      mode_weights=_mode_weights(table, shape.shape[2]), intensity=intensity)
+                      mode_weights=_mode_weights(table, shape.shape[2]), intensity=intensity,
+                      outline=outlines_from_table(table))
+
+
+def outlines_from_table(table) -> np.ndarray | None:
+    """The outline coefficients (n, 2K) of the boundary term from a table's
+    ``outline_n±KK_re/im`` columns; None for a table without them (measured before the
+    boundary term)."""
+    k = has_outline(table.columns)
+    if not k:
+        return None
+    values = table[outline_columns(k)].to_numpy(float).reshape(len(table), 2 * k, 2)
+    return values[..., 0] + 1j * values[..., 1]
 
 
 def _mode_weights(table, n_modes: int) -> np.ndarray:
@@ -138,14 +154,17 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
 
 
 def distance_matrix(
-    items, intensity_weight: float = 0.0, *, invariance: str | None = None, chunk: int = 128
+    items, intensity_weight: float = 0.0, *, invariance: str | None = None,
+    boundary_weight: float | None = None, chunk: int = 128,
 ) -> np.ndarray:
     """All pairwise PF-SDM distances of results or of a feature table's rows.
 
-    A table holds magnitudes only (``invariance="magnitude"``), must carry its options, and is
-    refused when rows have no features (``ValueError`` naming them): see
-    :func:`napari_pfsdm.drop_failed`. Everything else as
-    :func:`napari_pfsdm.core.distances.distance_matrix`.
+    A table holds magnitudes and outline coefficients, so its default distance (SDF
+    magnitudes + boundary term) is the same as on the results it was measured from (to
+    rounding); it must carry its options, and is refused when rows have no features
+    (``ValueError`` naming them): see :func:`napari_pfsdm.drop_failed`. A table measured
+    before the boundary term (no ``outline_*`` columns) gives the SDF term alone, with a
+    warning. Everything else as :func:`napari_pfsdm.core.distances.distance_matrix`.
 
     Examples
     --------
@@ -160,5 +179,17 @@ def distance_matrix(
     """
     if is_table(items):
         channels = ["shape"] + (["intensity"] if intensity_weight else [])
+        volumes = table_ndim(items.attrs.get("pfsdm") or {}) == 3  # no outline in 3-D
         items = embeddings(items, channels)
-    return _core.distance_matrix(items, intensity_weight, invariance=invariance, chunk=chunk)
+        if volumes:
+            from ..core.distances import _no_boundary_in_3d
+
+            boundary_weight = _no_boundary_in_3d(boundary_weight)
+        elif items.outline is None and boundary_weight is None:
+            warnings.warn(
+                "This table has no outline_* columns (it was measured before the boundary "
+                "term): its distances are the SDF term alone, not the default distance. "
+                "Measure again to get the default.", stacklevel=2)
+            boundary_weight = 0.0
+    return _core.distance_matrix(items, intensity_weight, invariance=invariance,
+                                 boundary_weight=boundary_weight, chunk=chunk)

@@ -17,7 +17,7 @@ different objects, and a "trajectory" drawn by label jumps between objects. This
 Rows that no track reaches get ``track_id = -1`` (:data:`NO_TRACK`): the column stays whole
 numbers, which CSV readers, pandas and Excel read without fuss (an empty cell would turn it
 into floats, 3.0). Our own track ids start at 1, in order of first appearance. Which linking
-is the default, and why, is measured by ``benchmarks/linking.py`` (docs/design.md §2.9).
+is the default, and why, is measured by ``benchmarks/linking.py`` (docs/design.md §2.11).
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ JUMP_RADII = 1.0
 #: tracked labels switched in at most 1.6 % of steps (small objects moving 0.6 radii a frame),
 #: labels numbered in scan order in at least 15.6 %, shuffled ones in at least 94 %; a jump
 #: threshold of one radius would have called up to 29 % of those tracked steps jumps
-#: (docs/design.md §2.9).
+#: (docs/design.md §2.11).
 MAX_SWITCHED = 0.05
 #: ... or when fewer than this fraction of a frame's ids are present in the next frame.
 MIN_PERSISTENCE = 0.5

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage as ndi
 
+from .boundary import outline_coefficients
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
@@ -54,6 +55,12 @@ class PFSDMResult:
     intensity_disk: np.ndarray | None = None
     intensity_spectrum: np.ndarray | None = None
     intensity_embedding: np.ndarray | None = None
+
+    @cached_property
+    def outline(self) -> np.ndarray:
+        """Normalised Fourier coefficients of the outline, what the boundary term of the
+        distance compares (:func:`napari_pfsdm.core.boundary.outline_coefficients`)."""
+        return outline_coefficients(self.contour.normalized)
 
     @cached_property
     def skeleton(self):

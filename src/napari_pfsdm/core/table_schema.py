@@ -4,12 +4,16 @@ A feature table (from :func:`napari_pfsdm.measure`, or read back from CSV) has o
 (frame, label), base columns (:data:`BASE_COLUMNS`; a linked table also a ``track_id`` after
 ``label``, :data:`OPTIONAL_BASE_COLUMNS`), then ``shape_rXX_nYY`` and optionally
 ``intensity_rXX_nYY`` columns (ring ``XX``, Fourier index ``YY``), and its options in
-``attrs["pfsdm"]``: at least ``n_fourier`` and the rings' quadrature ``weights``.
+``attrs["pfsdm"]``: at least ``n_fourier`` and the rings' quadrature ``weights``. The
+outline's normalised Fourier coefficients (what the boundary term of the default distance
+compares, :mod:`napari_pfsdm.core.boundary`) follow as ``outline_n±KK_re`` /
+``outline_n±KK_im`` (:func:`outline_columns`: 64 columns, 512 bytes per row in memory, about
+1.2 kB per row in a CSV written with exact numbers).
 
 A table of 3-D objects (its options say ``ndim: 3``) has :data:`BASE_COLUMNS_3D`, then
 ``shape_rXX_lYY`` (shell ``XX``, spherical-harmonic degree ``YY``: √P_l(r)), ``surface_lYY``
 (the outer surface's radial function) and optionally ``intensity_rXX_lYY``; its options add
-``sh_degree``, ``surface_weight``, ``axes`` and ``spacing``. Distances and
+``sh_degree``, ``surface_weight``, ``axes`` and ``spacing``; no outline columns. Distances and
 PCA need all of these; :func:`check_feature_table` refuses a table that lacks any of them
 rather than guess (a table re-saved without its options once gave other distances silently).
 
@@ -35,6 +39,8 @@ __all__ = [
     "check_feature_table",
     "feature_columns",
     "has_channel",
+    "has_outline",
+    "outline_columns",
 ]
 
 #: Columns before the features, in this order.
@@ -101,6 +107,27 @@ def table_feature_columns(options: Mapping[str, Any], channel: str = "shape") ->
         cols = feature_columns(n_radii, degree, channel, letter="l")
         return cols + surface_columns(degree) if channel == "shape" else cols
     return feature_columns(n_radii, int(options["n_fourier"]), channel)
+
+
+def outline_columns(n_modes: int) -> list[str]:
+    """Column names of the outline coefficients a_n, n = −K … −1, 1 … K (the order of
+    :func:`napari_pfsdm.core.boundary.outline_modes`), real then imaginary part of each.
+
+    Examples
+    --------
+    >>> outline_columns(1)
+    ['outline_n-01_re', 'outline_n-01_im', 'outline_n+01_re', 'outline_n+01_im']
+    """
+    modes = [-k for k in range(n_modes, 0, -1)] + list(range(1, n_modes + 1))
+    return [f"outline_n{n:+03d}_{part}" for n in modes for part in ("re", "im")]
+
+
+def has_outline(columns: Iterable[str]) -> int:
+    """K when the columns hold the outline coefficients ``outline_n±KK_re/im`` (all of
+    them, :func:`outline_columns`), else 0."""
+    names = {str(c) for c in columns}
+    k = sum(1 for c in names if c.startswith("outline_n+") and c.endswith("_re"))
+    return k if k and all(c in names for c in outline_columns(k)) else 0
 
 
 def has_channel(columns: Iterable[str], channel: str) -> bool:

@@ -114,7 +114,7 @@ def _default_invariance() -> str:
     import inspect
 
     default = inspect.signature(distance_matrix).parameters["invariance"].default
-    return "combined" if default is None else str(default)
+    return "magnitude" if default is None else str(default)
 
 
 def _variant_label(options: dict, invariance: str) -> str:
@@ -185,12 +185,33 @@ def _pfsdm_results(masks: Sequence[np.ndarray], options: dict) -> tuple[list, fl
     return results, per_object, "; ".join(errors)
 
 
-def _pfsdm_matrix(results: list, invariance: str) -> np.ndarray:
+def _pfsdm_matrix(results: list, invariance: str, **more) -> np.ndarray:
     n = len(results)
     ok = [i for i, r in enumerate(results) if r is not None]
     dist = np.full((n, n), np.nan)
     if ok:
-        dist[np.ix_(ok, ok)] = distance_matrix([results[i] for i in ok], invariance=invariance)
+        dist[np.ix_(ok, ok)] = distance_matrix([results[i] for i in ok], invariance=invariance,
+                                               **more)
+    return dist
+
+
+#: Rows shown next to the default: the default before the boundary term (the SDF term alone)
+#: and the boundary term alone, as (label, invariance, keyword arguments of distance_matrix).
+REFERENCE_ROWS = (
+    ("PF-SDM SDF only (combined; the default before the boundary term)", "combined",
+     {"boundary_weight": 0.0}),
+    ("outline Procrustes (the boundary term alone)", "none", {}),
+)
+
+
+def _boundary_only(results: list) -> np.ndarray:
+    from ..core.distances import boundary_term
+
+    n = len(results)
+    ok = [i for i, r in enumerate(results) if r is not None]
+    dist = np.full((n, n), np.nan)
+    if ok:
+        dist[np.ix_(ok, ok)] = boundary_term([results[i] for i in ok])
     return dist
 
 
@@ -284,6 +305,17 @@ def _score_pfsdm(
                 mode_exponent=opts.get("mode_exponent", np.nan), invariance=inv,
                 is_default=default_row,
             ))
+        if is_default:
+            for label, inv, more in REFERENCE_ROWS:
+                dist = (_boundary_only(results) if inv == "none"
+                        else _pfsdm_matrix(results, inv, **more))
+                matrices[(set_name, label)] = dist
+                rows.append(_row(set_name, label, "PF-SDM", dist, labels, 1e3 * per_obj, err,
+                                 mapping=opts["mapping"], sdf=opts["sdf"],
+                                 normalization=opts["normalization"], rings=str(opts["radii"]),
+                                 ring_weighting=str(opts.get("ring_weighting", "")),
+                                 mode_exponent=opts.get("mode_exponent", np.nan),
+                                 invariance=inv, is_default=False))
     return rows, matrices
 
 

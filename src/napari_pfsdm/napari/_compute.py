@@ -202,7 +202,8 @@ def _rows_only(obj):
         return obj
     light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
                             intensity_embedding=res.intensity_embedding,
-                            surface_embedding=getattr(res, "surface_embedding", None))
+                            surface_embedding=getattr(res, "surface_embedding", None),
+                            outline=getattr(res, "outline", None))
     return replace(obj, result=light)
 
 

@@ -15,6 +15,7 @@ from napari.layers import Labels
 from napari.utils.notifications import show_error
 from qtpy.QtCore import QTimer
 from qtpy.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFileDialog,
     QHBoxLayout,
@@ -34,6 +35,11 @@ from ._store import store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
+RERANK_TIP = ("Re-rank the distances through the whole collection (diffusion on the "
+              "10-nearest-neighbour graph, napari_pfsdm.rerank): helps find similar shapes "
+              "among many objects with several of each kind (MPEG-7: 79.5 → 88.7 % "
+              "bull's-eye); hurts with few objects per kind and for the single nearest "
+              "neighbour. Off by default.")
 #: Plots follow the slider and the selection once they have been still this long (ms).
 DEBOUNCE_MS = 120
 
@@ -450,6 +456,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.frame_choice = QComboBox(toolTip="Compare the objects of the frame shown by the "
                                               "time slider, or of all frames together.")
         self.frame_choice.addItems(["current frame", "all frames"])
+        self.rerank = QCheckBox("re-rank", toolTip=RERANK_TIP)
         self._shown_frame: int | None = None
         self._matrix_keys: list[tuple[int, int]] = []
         self._ax_matrix = None
@@ -457,7 +464,9 @@ class ShapeComparisonWidget(_LinkedPlot):
         super().__init__(napari_viewer)
         self.controls.addWidget(QLabel("Objects of"))
         self.controls.addWidget(self.frame_choice, 1)
+        self.controls.addWidget(self.rerank)
         self.frame_choice.currentIndexChanged.connect(lambda *a: self.redraw())
+        self.rerank.toggled.connect(lambda *a: self.redraw())
 
     def _on_step(self, event=None) -> None:
         if self.frame_choice.currentText() == "current frame" and self._layer is not None:
@@ -495,11 +504,16 @@ class ShapeComparisonWidget(_LinkedPlot):
             sub = split_failed(sub, ("shape", "intensity"))[0]
             if len(sub) < 2:
                 raise ValueError("Fewer than two objects with intensity features here.")
-        key = (id(output), self._shown_frame, float(w))
+        reranked = self.rerank.isChecked() and len(sub) >= 3
+        key = (id(output), self._shown_frame, float(w), reranked)
         if key not in self._cache:  # a frame's distances are computed once per run
             if len(self._cache) > 256:
                 self._cache.clear()
             d = np.asarray(distance_matrix(sub, intensity_weight=w))
+            if reranked:
+                from ..analysis.rerank import rerank
+
+                d = rerank(d, "diffusion", k=min(10, len(d) - 1))
             self._cache[key] = (d, classical_mds(d, 2))
         d, xy = self._cache[key]
         c = self._theme()
@@ -509,7 +523,8 @@ class ShapeComparisonWidget(_LinkedPlot):
             self._style(ax)
         im = ax_m.imshow(d, cmap="viridis", interpolation="nearest")
         cb = self.figure.colorbar(im, ax=ax_m, fraction=0.046, pad=0.02)
-        cb.set_label("PF-SDM distance", color=c["fg"], fontsize=7)
+        cb.set_label("re-ranked distance" if reranked else "PF-SDM distance", color=c["fg"],
+                     fontsize=7)
         cb.ax.tick_params(colors=c["fg"], labelsize=6)
         keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
         frames = np.array([f for f, _ in keys])
