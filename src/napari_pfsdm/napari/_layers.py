@@ -318,18 +318,18 @@ def _volume_legend(viewer, labels_layer, pictures, bars: dict):
         for y, text in zip((top + 0.08 * h, top + 0.52 * h, top + h), ticks, strict=True):
             where.append((y, right + 0.01 * height))
             texts.append(text)
-    top, left, side = geo["intensity_disk" if "intensity_shells" in bars else "disk"]
+    top, left, side = geo["sdf"]
+    top += 2.35 * side  # below the shells (two cells high)
     radii = ", ".join(f"{r:g}" for r in pictures.shell_radii)
     note = (f"label {pictures.label}" + (f" · frame {pictures.frame}"
                                          if axes_of(labels_layer).startswith("t") else "")
-            + f"\nshells r = {radii}, top = inner\neach shell minus its mean\n"
-              "rows: from the +z pole\ncolumns: around z\n"
-              f"surface (3-D view): distance\nfrom the centre, {_range_limits(values)[0]:.2f}"
-              f"–{_range_limits(values)[1]:.2f}\n(1 = sphere of equal volume)")
-    where.append((top + 0.5 * side, left))
-    where.append((top + 0.1 * height, left + 1.35 * side))  # room for the texts when fitted
-    texts.append("")
-    texts.append(note)
+            + f"\nshells r = {radii}\n(top = inner), each minus its mean\n"
+              "rows: from the +z pole\ncolumns: around z\nsurface (3-D view): distance\n"
+              f"from the centre, {_range_limits(values)[0]:.2f}–{_range_limits(values)[1]:.2f}"
+              "\n(1 = sphere of the same volume)")
+    where += [(top + 0.9 * side, left),
+              (top + 0.9 * side, left + 3.0 * side)]  # room for the texts when fitted
+    texts += [note, ""]
     return _points_text(viewer, layer_names(labels_layer.name)["legend"], where, texts)
 
 
