@@ -80,6 +80,11 @@ def test_run_keeps_rows_and_pictures_are_made_on_demand(two_frames):
     assert np.hypot(*(c.outline - (40, 90)).T).mean() == pytest.approx(15, abs=0.7)
     with pytest.raises(KeyError):
         object_pictures(labels, intensity, out, 0, 7)
+    # pictures made ahead give way: asked to stop, the work ends between two steps
+    from napari_pfsdm.napari._compute import PicturesCancelled
+
+    with pytest.raises(PicturesCancelled):
+        object_pictures(labels, intensity, out, 1, 7, stop=lambda: True)
 
 
 def test_picture_cache_is_bounded_and_least_recently_used_goes_first():

@@ -519,12 +519,18 @@ def volume_pictures(res, frame: int, label: int) -> VolumePictures:
                                    values.astype(np.float32)))
 
 
+class PicturesCancelled(Exception):
+    """Raised by :func:`object_pictures` when its ``stop`` callable says so."""
+
+
 def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label: int,
-                    size: int = PICTURE_SIZE) -> ObjectPictures | VolumePictures:
+                    size: int = PICTURE_SIZE, stop=None) -> ObjectPictures | VolumePictures:
     """Compute the pictures of one (frame, label) object of a run.
 
     The object is described again (:func:`napari_pfsdm.analysis.features.describe_object`)
     with the run's options and crop, so the pictures show exactly what its row measured.
+    ``stop`` (a callable, optional) is asked between the steps; when it returns True the work
+    ends with :class:`PicturesCancelled` (pictures made ahead give way to a user's request).
 
     Raises
     ------
@@ -551,17 +557,25 @@ def object_pictures(labels, intensity, output: AnalysisOutput, frame: int, label
     res = obj.result
     if res is None:
         raise ValueError(obj.error or "the object could not be described")
+
+    def check() -> None:
+        if stop is not None and stop():
+            raise PicturesCancelled
+
+    check()
     if output.ndim == 3:
         return volume_pictures(res, t, label)
     disks = render_disks(res, size=size)
     disk = disks["sdf"].astype(np.float32)
     idisk = disks["intensity"].astype(np.float32) if "intensity" in disks else None
+    check()
     corner, step, sdf = sdf_square(res, obj.bbox, size)
     outline = np.asarray(res.contour.points, float)  # frame pixels
     outline = np.vstack([outline, outline[:1]])
     notes: list[str] = []
     sk_img: list = []
     sk_disk: list = []
+    check()
     try:
         sk = res.skeleton
         sk_img = [p.astype(np.float32) for p in sk.paths("image")]

@@ -29,6 +29,7 @@ from . import _layers
 from ._compute import (
     AnalysisOutput,
     PictureCache,
+    PicturesCancelled,
     VolumePictures,
     object_pictures,
     run_analysis,
@@ -597,7 +598,9 @@ class AnalysisWidget(QWidget):
     def _start_picture_worker(self, job: tuple | None = None) -> None:
         labels, frame, label = job or self._wanted
         output = store_for(self.viewer).get(labels)
-        worker = _pictures_worker(output.labels, output.intensity, output, frame, label,
+        # a job made ahead stops between its steps as soon as the user asks for pictures
+        stop = (lambda: self._wanted is not None) if job is not None else None
+        worker = _pictures_worker(output.labels, output.intensity, output, frame, label, stop,
                                   _ignore_errors=True)
         worker.returned.connect(lambda pics: self._on_pictures(labels, pics))
         worker.errored.connect(lambda err: self._on_pictures_error(labels, frame, label, err))
@@ -614,6 +617,8 @@ class AnalysisWidget(QWidget):
                 self._show_pictures(labels, pics)
 
     def _on_pictures_error(self, labels, frame, label, err) -> None:
+        if isinstance(err, PicturesCancelled):
+            return
         if self._wanted is not None and self._wanted[1:] == (frame, label):
             self._wanted = None
             if labels in self.viewer.layers:
@@ -741,6 +746,6 @@ def _analysis_worker(labels, intensity, options, first_axis, spacing):
 
 
 @thread_worker(start_thread=False)
-def _pictures_worker(labels, intensity, output, frame, label):
+def _pictures_worker(labels, intensity, output, frame, label, stop):
     """Worker: the pictures of one object."""
-    return object_pictures(labels, intensity, output, frame, label)
+    return object_pictures(labels, intensity, output, frame, label, stop=stop)
