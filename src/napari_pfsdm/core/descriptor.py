@@ -11,6 +11,7 @@ from scipy import ndimage as ndi
 
 from .boundary import outline_coefficients
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
+from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
 from .params import PFSDMParams
@@ -82,27 +83,8 @@ def _check_intensity(intensity: np.ndarray, mask_shape: tuple[int, ...]) -> np.n
 
 def _intensity_crop(intensity: np.ndarray, info: MaskInfo) -> np.ndarray:
     """The intensity over the prepared mask's box (edge values repeated past the image),
-    divided by the object's mean intensity."""
-    r0, c0 = info.offset.astype(int)
-    h, w = info.mask.shape
-    rr0, cc0 = max(r0, 0), max(c0, 0)
-    rr1, cc1 = min(r0 + h, intensity.shape[0]), min(c0 + w, intensity.shape[1])
-    crop = np.pad(intensity[rr0:rr1, cc0:cc1],
-                  ((rr0 - r0, r0 + h - rr1), (cc0 - c0, c0 + w - cc1)), mode="edge")
-    values = crop[info.mask]
-    n_nan = int(np.isnan(values).sum())
-    if n_nan:
-        raise ValueError(
-            f"The intensity image has {n_nan} NaN pixel(s) inside the object. Replace them "
-            "(for example with numpy.nan_to_num or an interpolation) before measuring."
-        )
-    mean = float(values.mean())
-    if not mean > 0:
-        raise ValueError(
-            f"The object's mean intensity is {mean:.3g}; the intensity descriptor is "
-            "normalised by it and needs a positive signal (subtract less background)."
-        )
-    return np.nan_to_num(crop / mean)
+    divided by the object's mean intensity (:func:`~napari_pfsdm.core.intensity.intensity_crop`)."""
+    return intensity_crop(intensity, info.offset, info.mask)
 
 
 def pfsdm(

@@ -17,6 +17,7 @@ import numpy as np
 from scipy import ndimage as ndi
 
 from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
+from .intensity import intensity_crop
 from .morphometric import mode_weights, ring_radii, ring_weights
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
 from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
@@ -102,31 +103,9 @@ class PFSDM3DResult:
 
 
 def _intensity_crop(intensity: np.ndarray, info: VolumeInfo) -> np.ndarray:
-    """The intensity over the prepared mask's box (edges repeated), divided by the object's
-    mean intensity."""
-    intensity = np.asarray(intensity)
-    lo = info.offset.astype(int)
-    hi = lo + np.array(info.mask.shape)
-    a = np.maximum(lo, 0)
-    b = np.minimum(hi, intensity.shape)
-    crop = np.asarray(intensity[tuple(slice(i, j) for i, j in zip(a, b, strict=True))], float)
-    crop = np.pad(crop, [(int(i - j), int(k - m)) for i, j, k, m in zip(a, lo, hi, b,
-                                                                         strict=True)],
-                  mode="edge")
-    values = crop[info.mask]
-    n_nan = int(np.isnan(values).sum())
-    if n_nan:
-        raise ValueError(
-            f"The intensity volume has {n_nan} NaN voxel(s) inside the object. Replace them "
-            "(for example with numpy.nan_to_num) before measuring."
-        )
-    mean = float(values.mean())
-    if not mean > 0:
-        raise ValueError(
-            f"The object's mean intensity is {mean:.3g}; the intensity descriptor is "
-            "normalised by it and needs a positive signal (subtract less background)."
-        )
-    return np.nan_to_num(crop / mean)
+    """The intensity over the prepared mask's box (edge values repeated past the image),
+    divided by the object's mean intensity (:func:`~napari_pfsdm.core.intensity.intensity_crop`)."""
+    return intensity_crop(intensity, info.offset, info.mask)
 
 
 def _sample(image: np.ndarray, points: np.ndarray, spacing: np.ndarray) -> np.ndarray:

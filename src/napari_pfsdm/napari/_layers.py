@@ -189,6 +189,18 @@ def _ticks(lo: float, hi: float, unit: str) -> list[str]:
     return [f"{fmt(hi)} {unit}".strip(), mid, fmt(lo)]
 
 
+def _place_picture(viewer, name: str, image: np.ndarray, colormap: str, limits, unit: str,
+                   scale: float, where) -> tuple:
+    """Show ``image`` with its colour bar at world ``where`` (top, left), ``scale`` world units
+    per pixel; returns the layer and its bar's (top, right, height, tick texts)."""
+    top, left = where
+    data = with_colorbar(image, limits)
+    layer = _replace_image(viewer, name, data, colormap=colormap, contrast_limits=limits,
+                           scale=(scale, scale), translate=(top, left))
+    return layer, (top, left + data.shape[1] * scale, image.shape[0] * scale,
+                   _ticks(*limits, unit))
+
+
 def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     """Show one object's pictures in the result layers (added on first use); returns them.
 
@@ -203,13 +215,8 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     out, bars = {}, {}
 
     def picture(key, image, colormap, limits, unit, scale, where):
-        top, left = where
-        data = with_colorbar(image, limits)
-        out[key] = _replace_image(viewer, names[key], data, colormap=colormap,
-                                  contrast_limits=limits, scale=(scale, scale),
-                                  translate=(top, left))
-        bars[key] = (top, left + data.shape[1] * scale, image.shape[0] * scale,
-                     _ticks(*limits, unit))
+        out[key], bars[key] = _place_picture(viewer, names[key], image, colormap, limits,
+                                             unit, scale, where)
 
     # the SDF, the disk and the reporter: S × S pictures filling their cells
     top, left, side = geo["sdf"]
@@ -271,12 +278,8 @@ def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
     def picture(key, image, colormap, limits, unit, cell):
         top, left, side = geo[cell]
         scale = 2.2 * side / image.shape[0]  # two cells high
-        data = with_colorbar(image, limits)
-        out[key] = _replace_image(viewer, names[key], data, colormap=colormap,
-                                  contrast_limits=limits, scale=(scale, scale),
-                                  translate=(top, left))
-        bars[key] = (top, left + data.shape[1] * scale, image.shape[0] * scale,
-                     _ticks(*limits, unit))
+        out[key], bars[key] = _place_picture(viewer, names[key], image, colormap, limits,
+                                             unit, scale, (top, left))
 
     # each shell minus its mean: the angular part, what tells shapes apart (the means only
     # say how deep each shell lies, and would take the whole colour range)
