@@ -1,7 +1,7 @@
 """Where the widgets of one viewer find the last analysis of a Labels layer.
 
 The feature table also goes into ``labels_layer.features`` (for napari's own table and other
-plugins); the full :class:`AnalysisOutput` (SDF patches, PCA, options) is kept in the viewer's
+plugins); the full :class:`AnalysisOutput` (table, PCA, boxes, options) is kept in the viewer's
 :class:`ResultStore`, keyed weakly by the layer, and ``results_changed`` tells that viewer's
 plot widgets to redraw. Each viewer has its own store (:func:`store_for`), kept only as long as
 the viewer lives: two viewers never see each other's results or signals.
