@@ -80,25 +80,26 @@ class ExactSDF:
     def _closest(self, pts: np.ndarray):
         """Closest points, distances, arc positions and the outward pseudo-normals there."""
         _, k = self._tree.query(pts)
-        best_d = np.full(len(pts), np.inf)
-        best_c = np.empty_like(pts)
-        best_s = np.empty(len(pts))
-        best_n = np.empty_like(pts)
-        for a, b, base in ((self._prev[k], k, self._prev[k]), (k, self._next[k], k)):
-            pa, pb = self.polygon[a], self.polygon[b]
-            e = pb - pa
-            t = np.clip(np.einsum("ij,ij->i", pts - pa, e) / np.einsum("ij,ij->i", e, e), 0, 1)
-            c = pa + t[:, None] * e
-            d = np.linalg.norm(pts - c, axis=1)
-            better = d < best_d
-            best_d[better], best_c[better] = d[better], c[better]
-            best_s[better] = (base + t)[better]
-            # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
-            # bisector of its two edges' normals; its side gives the sign exactly
-            n = np.where(((t > 0) & (t < 1))[:, None], self._edge_normal[a],
-                         np.where((t <= 0)[:, None], self._vertex_normal[a],
-                                  self._vertex_normal[b]))
-            best_n[better] = n[better]
+        # the two edges at the nearest vertex, both at once: (2, K) candidates per point
+        a = np.stack([self._prev[k], k])
+        b = np.stack([k, self._next[k]])
+        pa, pb = self.polygon[a], self.polygon[b]
+        e = pb - pa
+        rel = pts[None] - pa
+        t = np.clip(np.einsum("cij,cij->ci", rel, e) / np.einsum("cij,cij->ci", e, e), 0, 1)
+        c = pa + t[..., None] * e
+        d = np.linalg.norm(pts[None] - c, axis=2)
+        # the second edge wins only when strictly nearer (as a sequential scan would keep it)
+        pick = (d[1] < d[0]).astype(np.intp)
+        rows = np.arange(len(pts))
+        best_c, best_d = c[pick, rows], d[pick, rows]
+        best_t, best_a, best_b = t[pick, rows], a[pick, rows], b[pick, rows]
+        best_s = np.where(pick == 1, k, self._prev[k]) + best_t
+        # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
+        # bisector of its two edges' normals; its side gives the sign exactly
+        best_n = np.where(((best_t > 0) & (best_t < 1))[:, None], self._edge_normal[best_a],
+                          np.where((best_t <= 0)[:, None], self._vertex_normal[best_a],
+                                   self._vertex_normal[best_b]))
         return best_c, best_d, np.mod(best_s, len(self.polygon)), best_n
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
