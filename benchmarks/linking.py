@@ -28,10 +28,14 @@ import time
 
 import numpy as np
 import pandas as pd
-from skimage.measure import regionprops_table
 
 from napari_pfsdm.analysis import tracking as tk
-from napari_pfsdm.data.moving_blobs import RELABELLINGS, make_moving_blobs, relabel
+from napari_pfsdm.data.moving_blobs import (
+    RELABELLINGS,
+    centroid_table,
+    make_moving_blobs,
+    relabel,
+)
 
 SCENARIOS = {
     "drifting, touching, 1 division": dict(),
@@ -41,17 +45,6 @@ SCENARIOS = {
     "crowded (70 objects, radius 20-32 px)": dict(n_objects=70, radius=(20.0, 32.0)),
     "small and fast (radius 6-12, speed 6)": dict(radius=(6.0, 12.0), speed=6.0, drift=2.0),
 }
-
-
-def centroid_table(labels: np.ndarray) -> pd.DataFrame:
-    """frame, label, area, centroid_y, centroid_x of every object (what linking needs)."""
-    parts = []
-    for t in range(labels.shape[0]):
-        p = pd.DataFrame(regionprops_table(labels[t], properties=("label", "area", "centroid")))
-        p.insert(0, "frame", t)
-        parts.append(p)
-    return pd.concat(parts, ignore_index=True).rename(
-        columns={"centroid-0": "centroid_y", "centroid-1": "centroid_x"})
 
 
 def _links(frame: np.ndarray, ident: np.ndarray) -> set[tuple[int, int]]:

@@ -8,23 +8,13 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from skimage.measure import regionprops_table
 
 from napari_pfsdm.analysis import tracking as tk
 from napari_pfsdm.analysis.reduction import object_ids, pca_scores
 from napari_pfsdm.core.table_schema import NO_TRACK, TRACK_COLUMN
+from napari_pfsdm.data.moving_blobs import centroid_table as centroids
 from napari_pfsdm.data.moving_blobs import make_moving_blobs, relabel
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
-
-
-def centroids(labels: np.ndarray) -> pd.DataFrame:
-    parts = []
-    for t in range(labels.shape[0]):
-        p = pd.DataFrame(regionprops_table(labels[t], properties=("label", "area", "centroid")))
-        p.insert(0, "frame", t)
-        parts.append(p)
-    return pd.concat(parts, ignore_index=True).rename(
-        columns={"centroid-0": "centroid_y", "centroid-1": "centroid_x"})
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["MovingBlobs", "RELABELLINGS", "make_moving_blobs", "relabel"]
+__all__ = ["MovingBlobs", "RELABELLINGS", "centroid_table", "make_moving_blobs", "relabel"]
 
 #: What :func:`relabel` can do to tracked labels.
 RELABELLINGS = ("tracked", "shuffled", "new_ids", "scan_order")
@@ -240,3 +240,17 @@ def relabel(labels: np.ndarray, how: str, seed: int = 0) -> np.ndarray:
             lut[np.asarray(order, np.int64)] = np.arange(1, len(order) + 1)
         out[t] = lut[labels[t]]
     return out
+
+
+def centroid_table(labels: np.ndarray) -> pd.DataFrame:
+    """``frame``, ``label``, ``area``, ``centroid_y``, ``centroid_x`` of every object of a
+    (T, Y, X) label movie: what checking and linking read, without measuring shapes."""
+    from skimage.measure import regionprops_table
+
+    parts = []
+    for t in range(labels.shape[0]):
+        p = pd.DataFrame(regionprops_table(labels[t], properties=("label", "area", "centroid")))
+        p.insert(0, "frame", t)
+        parts.append(p)
+    return pd.concat(parts, ignore_index=True).rename(
+        columns={"centroid-0": "centroid_y", "centroid-1": "centroid_x"})

@@ -97,6 +97,10 @@ class AnalysisOutput:
         return 3 if "z" in self.axes else 2
 
     def __post_init__(self) -> None:
+        self.reindex()
+
+    def reindex(self) -> None:
+        """Rebuild the (frame, label) → row lookup after :attr:`table` was replaced."""
         keys = zip(self.table["frame"].to_numpy().tolist(),
                    self.table["label"].to_numpy().tolist(), strict=True)
         self._rows = {(int(f), int(lab)): i for i, (f, lab) in enumerate(keys)}
@@ -286,7 +290,7 @@ def apply_identity(output: AnalysisOutput, mode: str = "auto", tracks=None,
     table.attrs = dict(output.table.attrs)
     if not output.time_lapse:
         output.table, output.tracking_message = table, ""
-        output.__post_init__()
+        output.reindex()
         return ""
     check = check_tracking(table)
     if mode == "tracks":
@@ -313,7 +317,7 @@ def apply_identity(output: AnalysisOutput, mode: str = "auto", tracks=None,
             f"Warning: {check.message} Trajectories by label id are not meaningful here: "
             "choose 'link' under Identity.")
     output.table, output.tracking_message = table, msg
-    output.__post_init__()
+    output.reindex()
     return msg
 
 

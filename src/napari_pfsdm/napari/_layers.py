@@ -115,6 +115,13 @@ def _world_2d(labels_layer, rc: np.ndarray) -> np.ndarray:
         labels_layer.translate[-2:])
 
 
+def _hide(viewer, names: dict, keys) -> None:
+    """Hide the result layers ``keys`` that are there and shown (hiding redraws the canvas)."""
+    for key in keys:
+        if names[key] in viewer.layers and viewer.layers[names[key]].visible:
+            viewer.layers[names[key]].visible = False
+
+
 def _replace_image(viewer, name: str, data, **kwargs):
     """Replace the data of the Image layer ``name`` (or add it) with 2-D ``data``."""
     layer = viewer.layers[name] if name in viewer.layers else None
@@ -209,9 +216,7 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     """
     names = layer_names(labels_layer.name)
     geo = cells(labels_layer)
-    for key in PICTURES_3D:
-        if names[key] in viewer.layers and viewer.layers[names[key]].visible:
-            viewer.layers[names[key]].visible = False
+    _hide(viewer, names, PICTURES_3D)
     out, bars = {}, {}
 
     def picture(key, image, colormap, limits, unit, scale, where):
@@ -262,9 +267,7 @@ def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
     of the same volume; seen best in napari's 3-D view)."""
     names = layer_names(labels_layer.name)
     geo = cells(labels_layer)
-    for key in PICTURES_2D:
-        if names[key] in viewer.layers and viewer.layers[names[key]].visible:
-            viewer.layers[names[key]].visible = False
+    _hide(viewer, names, PICTURES_2D)
     out, bars = {}, {}
 
     def stacked(shells: np.ndarray) -> np.ndarray:
@@ -433,10 +436,7 @@ def _points_text(viewer, name: str, where: list, texts: list):
 def hide_pictures(viewer, labels_layer, note: str) -> None:
     """Hide the picture layers (the selected label is not in this frame, or has no
     features) and say why in the legend."""
-    names = layer_names(labels_layer.name)
-    for key in PICTURES_2D + PICTURES_3D:
-        if names[key] in viewer.layers:
-            viewer.layers[names[key]].visible = False
+    _hide(viewer, layer_names(labels_layer.name), PICTURES_2D + PICTURES_3D)
     _legend(viewer, labels_layer, None, note=note)
 
 
