@@ -30,6 +30,7 @@ import numpy as np
 __all__ = [
     "N_OUTLINE_MODES",
     "boundary_distance_matrix",
+    "normalised_modes",
     "outline_coefficients",
     "outline_modes",
 ]
@@ -74,8 +75,13 @@ def outline_coefficients(points: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> 
     if points.ndim != 2 or points.shape[1] != 2 or m <= 2 * n_modes:
         raise ValueError(f"an outline of M > {2 * n_modes} points (M, 2) is needed for "
                          f"{n_modes} modes; got shape {points.shape}")
-    spec = np.fft.fft(points[:, 0] + 1j * points[:, 1]) / m
-    coefs = spec[outline_modes(n_modes) % m]
+    return normalised_modes(np.fft.fft(points[:, 0] + 1j * points[:, 1]) / m, n_modes)
+
+
+def normalised_modes(spectrum: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> np.ndarray:
+    """:func:`outline_coefficients` from the outline's whole spectrum (M,), ``fft / M`` in
+    ``fftfreq`` order: e.g. the harmonic map's own coefficients (``FourierMap.coefficients``)."""
+    coefs = spectrum[outline_modes(n_modes) % len(spectrum)]
     norm = np.linalg.norm(coefs)
     if not norm > 0:
         raise ValueError("the outline has no extent (all its points coincide)")

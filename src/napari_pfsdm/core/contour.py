@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage as ndi
-from skimage.measure import find_contours
+
+from .marching_squares import outer_boundary, trace_boundary
 
 __all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
            "resample_closed", "signed_area"]
@@ -45,6 +46,9 @@ class MaskInfo:
     touches_border : bool
         Whether the object touches the edge of the input image (its outline there is the
         image edge, not the object's true edge).
+    outline : ndarray, shape (K, 2), optional
+        The marching-squares loop of ``mask`` (crop coordinates, :func:`~napari_pfsdm.core.
+        marching_squares.outer_boundary`) when :func:`prepare_mask` already traced it.
     """
 
     mask: np.ndarray
@@ -53,6 +57,7 @@ class MaskInfo:
     n_components: int
     n_holes: int
     touches_border: bool
+    outline: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -145,6 +150,10 @@ def prepare_mask(
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     touches = bool(r0 == 0 or c0 == 0 or r1 == mask.shape[0] or c1 == mask.shape[1])
     crop = np.pad(mask[r0:r1, c0:c1], pad)
+    trace = trace_boundary(crop)
+    if trace.single_loop and not trace.n_saddles:
+        # one piece without holes, with 4- and 8-connectivity alike: nothing to label or fill
+        return _mask_info(crop, r0 - pad, c0 - pad, 1, 0, touches, min_area, trace.points)
     lab, n_comp = ndi.label(crop, structure=np.ones((3, 3), bool))
     if n_comp > 1:
         sizes = np.bincount(lab.ravel())[1:]
@@ -166,20 +175,24 @@ def prepare_mask(
     background, n_background = ndi.label(~crop)
     filled = background != background[0, 0]
     n_holes = int(n_background) - 1
-    area = int(filled.sum())
+    unchanged = n_comp == 1 and n_holes == 0  # the traced loop is still the mask's
+    return _mask_info(filled, r0 - pad, c0 - pad, int(n_comp), n_holes, touches, min_area,
+                      trace.points if unchanged else None)
+
+
+def _mask_info(filled: np.ndarray, row: int, col: int, n_components: int, n_holes: int,
+               touches: bool, min_area: int, outline: np.ndarray | None) -> MaskInfo:
+    """The :class:`MaskInfo` of a cleaned crop whose ``[0, 0]`` is image pixel (row, col),
+    after the size check."""
+    area = int(np.count_nonzero(filled))
     if area < min_area:
         raise ValueError(
             f"The object is too small to describe its shape: {area} pixels, the minimum is "
             f"{min_area}. Remove tiny objects from the segmentation (or lower min_area)."
         )
-    return MaskInfo(
-        mask=filled,
-        offset=np.array([r0 - pad, c0 - pad], float),
-        area=area,
-        n_components=int(n_comp),
-        n_holes=n_holes,
-        touches_border=touches,
-    )
+    return MaskInfo(mask=filled, offset=np.array([row, col], float), area=area,
+                    n_components=n_components, n_holes=n_holes, touches_border=touches,
+                    outline=outline)
 
 
 def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
@@ -197,11 +210,21 @@ def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
     ndarray, shape (n, 2)
         The first output point is ``points[0]``.
     """
-    closed = np.vstack([points, points[:1]])
-    seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    t = np.linspace(0.0, s[-1], n, endpoint=False)
-    return np.column_stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])])
+    return _resample(points, n)[0]
+
+
+def _resample(points: np.ndarray, n: int) -> tuple[np.ndarray, float]:
+    """:func:`resample_closed` and the polyline's length."""
+    closed = np.concatenate([points, points[:1]])
+    step = np.diff(closed, axis=0)
+    s = np.empty(len(closed))
+    s[0] = 0.0
+    np.cumsum(np.sqrt(step[:, 0] ** 2 + step[:, 1] ** 2), out=s[1:])
+    t = np.arange(n) * (s[-1] / n)
+    out = np.empty((n, 2))
+    out[:, 0] = np.interp(t, s, closed[:, 0])
+    out[:, 1] = np.interp(t, s, closed[:, 1])
+    return out, float(s[-1])
 
 
 def _smooth_closed(points: np.ndarray, sigma: float) -> np.ndarray:
@@ -232,7 +255,7 @@ def polygon_area_centroid(points: np.ndarray) -> tuple[float, np.ndarray]:
     """Signed shoelace area (as :func:`signed_area`) and area centroid of a closed polygon
     (k, 2), in the points' own axis order."""
     x, y = points[:, 0], points[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    xn, yn = np.concatenate([x[1:], x[:1]]), np.concatenate([y[1:], y[:1]])
     cross = x * yn - xn * y
     area = 0.5 * cross.sum()
     cx = ((x + xn) * cross).sum() / (6.0 * area)
@@ -265,20 +288,19 @@ def extract_contour(info: MaskInfo, n_points: int = 256, smooth: float = 1.0) ->
     >>> bool(np.allclose(c.center, [32, 30], atol=0.1)), round(c.scale)
     (True, 20)
     """
-    contours = find_contours(info.mask.astype(np.float32), 0.5)
-    raw = max(contours, key=len)[:-1]  # closed curves repeat the first point
-    area, _ = polygon_area_centroid(raw)
+    # the longest loop of skimage's find_contours(mask, 0.5), traced once
+    raw = info.outline if info.outline is not None else outer_boundary(info.mask)
+    area, raw_center = polygon_area_centroid(raw)
     if area < 0:
         raw = raw[::-1]
     # Start at the vertex farthest from the centroid: a canonical point, so that a raster rotated
     # by 90° or mirrored is resampled at exactly the same boundary points.
-    _, raw_center = polygon_area_centroid(raw)
-    raw = np.roll(raw, -int(np.argmax(((raw - raw_center) ** 2).sum(axis=1))), axis=0)
-    perimeter = np.linalg.norm(np.diff(np.vstack([raw, raw[:1]]), axis=0), axis=1).sum()
-    pts = resample_closed(raw, n_points)
+    far = int(np.argmax((raw[:, 0] - raw_center[0]) ** 2 + (raw[:, 1] - raw_center[1]) ** 2))
+    raw = np.concatenate([raw[far:], raw[:far]])
+    pts, perimeter = _resample(raw, n_points)
     if smooth > 0:
         pts = resample_closed(_smooth_closed(pts, smooth * n_points / perimeter), n_points)
-    pts = pts + info.offset
+    pts += info.offset
     area, center = polygon_area_centroid(pts)
-    scale = float(np.linalg.norm(pts - center, axis=1).max())
+    scale = float(np.sqrt(((pts - center) ** 2).sum(axis=1).max()))
     return Contour(points=pts, center=center, scale=scale, area=abs(area))

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage as ndi
 
-from .boundary import outline_coefficients
+from .boundary import normalised_modes, outline_coefficients
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
 from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
@@ -60,7 +60,10 @@ class PFSDMResult:
     @cached_property
     def outline(self) -> np.ndarray:
         """Normalised Fourier coefficients of the outline, what the boundary term of the
-        distance compares (:func:`napari_pfsdm.core.boundary.outline_coefficients`)."""
+        distance compares (:func:`napari_pfsdm.core.boundary.outline_coefficients`): the
+        harmonic map's own coefficients when that is the map."""
+        if self.options["mapping"] == "harmonic":
+            return normalised_modes(self.mapping.coefficients)
         return outline_coefficients(self.contour.normalized)
 
     @cached_property
@@ -234,11 +237,14 @@ def pfsdm(
 
     r = ring_radii(n_radii, radii)
     theta = 2 * np.pi * np.arange(n_angles) / n_angles
-    samples = pmap.polar(r, n_angles)
+    if isinstance(pmap, FourierMap):
+        samples, jacobian = pmap.polar_and_jacobian(r, n_angles)
+    else:
+        samples, jacobian = pmap.polar(r, n_angles), None
     disk = phi(samples.reshape(-1, 2)).reshape(len(r), n_angles)
     folded = disk > 0
-    if isinstance(pmap, FourierMap):
-        folded |= pmap.jacobian_sign(r, n_angles) <= 0
+    if jacobian is not None:
+        folded |= jacobian <= 0
     spec = spectrum(disk)
     emb = magnitude_embedding(spec, n_fourier, normalization)
 
@@ -291,7 +297,7 @@ def _shift(result: PFSDMResult, offset: np.ndarray) -> None:
     info = result.mask_info
     result.mask_info = MaskInfo(mask=info.mask, offset=info.offset + offset, area=info.area,
                                 n_components=info.n_components, n_holes=info.n_holes,
-                                touches_border=info.touches_border)
+                                touches_border=info.touches_border, outline=info.outline)
 
 
 def _polar_to_cartesian(polar: np.ndarray, size: int, turn: float = 0.0) -> np.ndarray:

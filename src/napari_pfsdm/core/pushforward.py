@@ -61,26 +61,39 @@ class FourierMap:
         m = len(self.coefficients)
         self._n = np.rint(np.fft.fftfreq(m, 1.0 / m)).astype(int)
 
+    def _damping(self, radii: np.ndarray) -> np.ndarray:
+        """r^|n| on the rings: (n_r, M)."""
+        return np.asarray(radii, float)[:, None] ** np.abs(self._n)[None, :]
+
     def polar(self, radii: np.ndarray, n_angles: int) -> np.ndarray:
         """Shape points at the polar grid (radii × θ_j = 2πj/n_angles): (n_r, n_angles, 2)."""
+        return self._polar(self._damping(radii), n_angles)
+
+    def _polar(self, damp: np.ndarray, n_angles: int) -> np.ndarray:
         m = len(self.coefficients)
-        damp = np.asarray(radii, float)[:, None] ** np.abs(self._n)[None, :]
         if m % n_angles == 0:
-            z = np.fft.ifft(self.coefficients[None, :] * damp, axis=1) * m
-            return _as_real(z[:, :: m // n_angles])
+            return _as_real(_on_angles(self.coefficients[None, :] * damp, n_angles))
         theta = 2 * np.pi * np.arange(n_angles) / n_angles
         basis = np.exp(1j * np.outer(self._n, theta))
         return _as_real((self.coefficients[None, :] * damp) @ basis)
 
     def jacobian_sign(self, radii: np.ndarray, n_angles: int) -> np.ndarray:
-        """det ∂X/∂(r, θ) at the polar grid: positive where the map preserves orientation."""
-        m = len(self.coefficients)
-        n = np.abs(self._n)
-        r = np.asarray(radii, float)[:, None]
-        x_r = np.fft.ifft(self.coefficients * n * r ** np.maximum(n - 1, 0), axis=1) * m
-        x_t = np.fft.ifft(self.coefficients * 1j * self._n * r**n, axis=1) * m
-        det = np.imag(np.conj(x_r) * x_t)[:, :: m // n_angles]
-        return det
+        """det ∂X/∂(r, θ) at the polar grid: positive where the map preserves orientation.
+        Needs ``n_angles`` to divide the number of coefficients."""
+        return self._jacobian(np.asarray(radii, float), self._damping(radii), n_angles)
+
+    def _jacobian(self, r: np.ndarray, damp: np.ndarray, n_angles: int) -> np.ndarray:
+        # ∂X/∂r = Σ |n| a_n r^(|n|-1) e^{inθ} (r > 0 on every ring); ∂X/∂θ = Σ i n a_n r^|n| e^{inθ}
+        x_r = _on_angles(self.coefficients * np.abs(self._n) * damp / r[:, None], n_angles)
+        x_t = _on_angles(self.coefficients * 1j * self._n * damp, n_angles)
+        return np.imag(np.conj(x_r) * x_t)
+
+    def polar_and_jacobian(self, radii: np.ndarray,
+                           n_angles: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`polar` and :meth:`jacobian_sign` at once (the damping r^|n| is shared)."""
+        damp = self._damping(radii)
+        return self._polar(damp, n_angles), self._jacobian(np.asarray(radii, float), damp,
+                                                          n_angles)
 
     def __call__(self, uv: np.ndarray, chunk: int = 2048) -> np.ndarray:
         """Shape points of arbitrary disk points ``uv`` (K, 2)."""
@@ -102,6 +115,15 @@ class FourierMap:
         closed = np.append(nodes, nodes[:1])
         t = np.mod(theta, 2 * np.pi)
         return np.column_stack([np.interp(t, grid, closed.real), np.interp(t, grid, closed.imag)])
+
+
+def _on_angles(coefficients: np.ndarray, n_angles: int) -> np.ndarray:
+    """Σ_n c_n e^{inθ_j} at θ_j = 2πj/n_angles, for coefficients (..., M) in ``fftfreq`` order
+    with M a multiple of n_angles: the modes are folded onto n_angles first (e^{inθ_j} depends
+    on n mod n_angles only), so the inverse FFT is n_angles long, not M."""
+    m = coefficients.shape[-1]
+    folded = coefficients.reshape(*coefficients.shape[:-1], m // n_angles, n_angles).sum(axis=-2)
+    return np.fft.ifft(folded, axis=-1) * n_angles
 
 
 def harmonic_map(nodes: np.ndarray) -> FourierMap:

@@ -3,8 +3,10 @@
 Step 2 of the method (docs/design.md §2.2). Both functions work in the contour's normalised
 coordinates and follow the convention φ < 0 inside, φ = 0 on the boundary, φ > 0 outside.
 
-* :class:`ExactSDF` — the Euclidean distance to the sub-pixel polygon, signed. Cheap (a KD-tree
-  query and two segment projections per point) and exact for the polygon; its gradient jumps
+* :class:`ExactSDF` — the Euclidean distance to the sub-pixel polygon, signed. Cheap (a
+  nearest-vertex search and two segment projections per point); the nearest point is sought on
+  the two edges at the nearest vertex, which is the polygon's distance to within 0.03 pixel
+  (measured against all edges on the perturbed five shapes at 256 px). Its gradient jumps
   across the medial axis (the skeleton).
 * :class:`ViscousSDF` — the paper's regularised distance: the solution of the viscous Eikonal
   equation |∇φ|² − ν Δ|φ| = 1 with φ = 0 on the boundary. The Hopf–Cole substitution
@@ -51,18 +53,32 @@ class ExactSDF:
     array([-1.,  1.])
     """
 
+    #: Polygons with at most this many vertices find each point's nearest vertex by brute force
+    #: in single precision (2–3× faster than the KD-tree for a 256-point contour; a vertex
+    #: that ties to 1e-7 may be taken for the nearest, which moves the distance by far less
+    #: than the polygon's own approximation of the outline); longer ones use a KD-tree.
+    BRUTE_FORCE_VERTICES = 512
+
     def __init__(self, polygon: np.ndarray) -> None:
-        self.polygon = np.ascontiguousarray(polygon, dtype=float)
-        self._tree = cKDTree(self.polygon)
-        self._next = np.roll(np.arange(len(self.polygon)), -1)
-        self._prev = np.roll(np.arange(len(self.polygon)), 1)
-        edge = self.polygon[self._next] - self.polygon
+        p = self.polygon = np.ascontiguousarray(polygon, dtype=float)
+        m = len(p)
+        self._next = np.concatenate([np.arange(1, m), [0]])
+        self._prev = np.concatenate([[m - 1], np.arange(m - 1)])
+        edge = self._edge = p[self._next] - p
+        self._edge_sq = edge[:, 0] ** 2 + edge[:, 1] ** 2
         normal = np.column_stack([edge[:, 1], -edge[:, 0]])  # outward for counter-clockwise
-        self._edge_normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+        self._edge_normal = normal / np.sqrt(self._edge_sq)[:, None]
         vertex = self._edge_normal + self._edge_normal[self._prev]
-        self._vertex_normal = vertex / np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True),
-                                                  1e-12)
-        self._orientation = np.sign(signed_area(self.polygon)) or 1.0
+        self._vertex_normal = vertex / np.maximum(
+            np.sqrt(vertex[:, 0] ** 2 + vertex[:, 1] ** 2), 1e-12)[:, None]
+        self._orientation = np.sign(signed_area(p)) or 1.0
+        if m <= self.BRUTE_FORCE_VERTICES:
+            p32 = p.astype(np.float32)
+            self._sq32 = (p32 ** 2).sum(axis=1)
+            self._twice32 = 2.0 * p32.T
+            self._tree = None
+        else:
+            self._tree = cKDTree(p)
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest boundary point of each query point.
@@ -77,34 +93,48 @@ class ExactSDF:
         """
         return self._closest(np.asarray(points, dtype=float).reshape(-1, 2))[:3]
 
+    def _nearest_vertex(self, pts: np.ndarray) -> np.ndarray:
+        """Index of each point's nearest polygon vertex."""
+        if self._tree is not None:
+            return self._tree.query(pts)[1]
+        k = np.empty(len(pts), np.intp)
+        chunk = 2048  # 2 MB of squared distances at a time
+        p32 = pts.astype(np.float32)
+        for i in range(0, len(pts), chunk):
+            # |p − q|² − |p|²: the same order of vertices for each point
+            k[i:i + chunk] = np.argmin(self._sq32 - p32[i:i + chunk] @ self._twice32, axis=1)
+        return k
+
     def _closest(self, pts: np.ndarray):
         """Closest points, distances, arc positions and the outward pseudo-normals there."""
-        _, k = self._tree.query(pts)
-        # the two edges at the nearest vertex, both at once: (2, K) candidates per point
-        a = np.stack([self._prev[k], k])
-        b = np.stack([k, self._next[k]])
-        pa, pb = self.polygon[a], self.polygon[b]
-        e = pb - pa
-        rel = pts[None] - pa
-        t = np.clip(np.einsum("cij,cij->ci", rel, e) / np.einsum("cij,cij->ci", e, e), 0, 1)
-        c = pa + t[..., None] * e
-        d = np.linalg.norm(pts[None] - c, axis=2)
+        k = self._nearest_vertex(pts)
+        # the two edges at the nearest vertex: (prev → k) and (k → next)
+        found = []
+        for a in (self._prev[k], k):
+            pa, e = self.polygon[a], self._edge[a]
+            rel = pts - pa
+            t = np.clip((rel[:, 0] * e[:, 0] + rel[:, 1] * e[:, 1]) / self._edge_sq[a], 0, 1)
+            c = pa + t[:, None] * e
+            gap = pts - c
+            found.append((a, t, c, np.sqrt(gap[:, 0] ** 2 + gap[:, 1] ** 2)))
+        (a0, t0, c0, d0), (a1, t1, c1, d1) = found
         # the second edge wins only when strictly nearer (as a sequential scan would keep it)
-        pick = (d[1] < d[0]).astype(np.intp)
-        rows = np.arange(len(pts))
-        best_c, best_d = c[pick, rows], d[pick, rows]
-        best_t, best_a, best_b = t[pick, rows], a[pick, rows], b[pick, rows]
-        best_s = np.where(pick == 1, k, self._prev[k]) + best_t
+        pick = d1 < d0
+        best_c = np.where(pick[:, None], c1, c0)
+        best_d = np.where(pick, d1, d0)
+        best_t = np.where(pick, t1, t0)
+        best_a = np.where(pick, a1, a0)
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
         best_n = np.where(((best_t > 0) & (best_t < 1))[:, None], self._edge_normal[best_a],
                           np.where((best_t <= 0)[:, None], self._vertex_normal[best_a],
-                                   self._vertex_normal[best_b]))
-        return best_c, best_d, np.mod(best_s, len(self.polygon)), best_n
+                                   self._vertex_normal[self._next[best_a]]))
+        return best_c, best_d, np.mod(best_a + best_t, len(self.polygon)), best_n
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         c, d, _, normal = self._closest(pts)
-        side = np.einsum("ij,ij->i", pts - c, normal) * self._orientation
+        gap = pts - c
+        side = (gap[:, 0] * normal[:, 0] + gap[:, 1] * normal[:, 1]) * self._orientation
         return c, d, np.where(side < 0, -1.0, 1.0)
 
     def inside(self, points: np.ndarray) -> np.ndarray:
