@@ -62,7 +62,7 @@ class PFSDMResult:
         """Normalised Fourier coefficients of the outline, what the boundary term of the
         distance compares (:func:`napari_pfsdm.core.boundary.outline_coefficients`): the
         harmonic map's own coefficients when that is the map."""
-        if self.options["mapping"] == "harmonic":
+        if self.options["mapping"] == "harmonic" and isinstance(self.mapping, FourierMap):
             return normalised_modes(self.mapping.coefficients)
         return outline_coefficients(self.contour.normalized)
 

@@ -98,7 +98,9 @@ class ExactSDF:
         if self._tree is not None:
             return self._tree.query(pts)[1]
         k = np.empty(len(pts), np.intp)
-        chunk = 2048  # 2 MB of squared distances at a time
+        # blocks of at most 2^17 point-vertex pairs: OpenBLAS runs such small products on one
+        # thread (threads would burn twice the CPU time for nothing, measured)
+        chunk = max(1, 2**17 // len(self.polygon))
         p32 = pts.astype(np.float32)
         for i in range(0, len(pts), chunk):
             # |p − q|² − |p|²: the same order of vertices for each point
