@@ -139,13 +139,13 @@ def pfsdm(
         Polar sampling of the disk: rings in (0, 1) and equispaced angles (power of 2 best).
     sdf : {"exact", "viscous"}
         ``"exact"``: signed Euclidean distance to the sub-pixel outline (fast; default).
-        ``"viscous"``: the paper's regularised distance, smooth across the skeleton, ~5× slower.
+        ``"viscous"``: the paper's regularised distance, smooth across the skeleton, ~25× slower.
     viscosity : float
         ν of the viscous SDF, in units of the object's size (largest centroid distance = 1).
     mapping : {"harmonic", "bijective", "radial"}
         Push-forward map from the disk to the shape. ``"harmonic"`` (arc-length boundary
         correspondence, Poisson extension): fastest, may fold for long bent arms (see
-        ``diagnostics["folded_fraction"]``). ``"bijective"``: never folds, ~10× slower; use it
+        ``diagnostics["folded_fraction"]``). ``"bijective"``: never folds, ~7× slower; use it
         for snake-like or strongly branched objects. ``"radial"``: the paper's polar-angle map;
         only for star-shaped objects.
     normalization : {"none", "ring"}
