@@ -100,3 +100,13 @@ def test_exact_sdf_of_a_wiggly_polygon_against_all_edges(n_vertices, rng):
     # minimum over all edges, but within 1e-3 of the outline's size (0.1 px at 100 px)
     np.testing.assert_allclose(np.abs(phi), _distance_to_all_edges(polygon, pts), atol=1e-3)
     np.testing.assert_array_equal(phi < 0, points_in_poly(pts, polygon))
+
+
+def test_exact_sdf_does_not_depend_on_where_the_polygon_lies(rng):
+    """Single precision in the nearest-vertex search must not cost accuracy far from 0."""
+    polygon = circle(256, radius=30.0)
+    pts = rng.uniform(-45, 45, (2000, 2))
+    near = ExactSDF(polygon)(pts)
+    far = ExactSDF(polygon + 1e4)(pts + 1e4)
+    np.testing.assert_allclose(far, near, atol=1e-6)
+    np.testing.assert_allclose(np.abs(near), _distance_to_all_edges(polygon, pts), atol=1e-2)

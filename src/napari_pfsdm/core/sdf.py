@@ -73,7 +73,9 @@ class ExactSDF:
             np.sqrt(vertex[:, 0] ** 2 + vertex[:, 1] ** 2), 1e-12)[:, None]
         self._orientation = np.sign(signed_area(p)) or 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
-            p32 = p.astype(np.float32)
+            # relative to the polygon's mean, so that single precision holds in any units
+            self._origin = p.mean(axis=0)
+            p32 = (p - self._origin).astype(np.float32)
             self._sq32 = (p32 ** 2).sum(axis=1)
             self._twice32 = 2.0 * p32.T
             self._tree = None
@@ -101,7 +103,7 @@ class ExactSDF:
         # blocks of at most 2^17 point-vertex pairs: OpenBLAS runs such small products on one
         # thread (threads would burn twice the CPU time for nothing, measured)
         chunk = max(1, 2**17 // len(self.polygon))
-        p32 = pts.astype(np.float32)
+        p32 = (pts - self._origin).astype(np.float32)
         for i in range(0, len(pts), chunk):
             # |p − q|² − |p|²: the same order of vertices for each point
             k[i:i + chunk] = np.argmin(self._sq32 - p32[i:i + chunk] @ self._twice32, axis=1)
