@@ -160,7 +160,7 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
                    help=f"samples around each ring (default {D['n_angles']})")
     g.add_argument("--sdf", choices=CHOICES["sdf"],
                    help="distance to the outline: 'exact' (fast) or 'viscous' "
-                        "(the paper's smoothed version, ~5x slower); default " + D["sdf"])
+                        "(the paper's smoothed version, ~25x slower); default " + D["sdf"])
     g.add_argument("--viscosity", type=float, metavar="NU",
                    help="smoothing of the viscous distance, in object sizes "
                         f"(default {D['viscosity']})")

@@ -12,13 +12,12 @@ same axes after ``(p - center) / scale``. Counter-clockwise means a positive sho
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage as ndi
 
 from .marching_squares import outer_boundary, trace_boundary
+from .pieces import fill_holes, largest_piece
 
 __all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
            "resample_closed", "signed_area"]
@@ -154,29 +153,10 @@ def prepare_mask(
     if trace.single_loop and not trace.n_saddles:
         # one piece without holes, with 4- and 8-connectivity alike: nothing to label or fill
         return _mask_info(crop, r0 - pad, c0 - pad, 1, 0, touches, min_area, trace.points)
-    lab, n_comp = ndi.label(crop, structure=np.ones((3, 3), bool))
-    if n_comp > 1:
-        sizes = np.bincount(lab.ravel())[1:]
-        if components == "raise":
-            raise ValueError(
-                f"The object has {n_comp} separate pieces (sizes {sorted(sizes.tolist())[::-1]} "
-                "pixels). Give each piece its own label, or use components='largest'."
-            )
-        if components != "largest":
-            raise ValueError(f"components must be 'largest' or 'raise', got {components!r}.")
-        warnings.warn(
-            f"The object has {n_comp} separate pieces; only the largest ({sizes.max()} of "
-            f"{sizes.sum()} pixels) is described.",
-            stacklevel=3,
-        )
-        crop = lab == (np.argmax(sizes) + 1)
-    # holes: background pieces (4-connected, the dual of the object's 8-connectivity) other
-    # than the one around the padded crop
-    background, n_background = ndi.label(~crop)
-    filled = background != background[0, 0]
-    n_holes = int(n_background) - 1
+    crop, n_comp = largest_piece(crop, components, "pixels")
+    filled, n_holes = fill_holes(crop)
     unchanged = n_comp == 1 and n_holes == 0  # the traced loop is still the mask's
-    return _mask_info(filled, r0 - pad, c0 - pad, int(n_comp), n_holes, touches, min_area,
+    return _mask_info(filled, r0 - pad, c0 - pad, n_comp, n_holes, touches, min_area,
                       trace.points if unchanged else None)
 
 

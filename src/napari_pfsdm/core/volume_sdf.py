@@ -15,13 +15,14 @@ crop's first voxel (``VolumeInfo.offset`` places the crop in the input volume, i
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage as ndi
 from scipy.spatial import cKDTree
 from skimage.measure import marching_cubes
+
+from .pieces import fill_holes, largest_piece
 
 __all__ = ["VolumeInfo", "SurfaceSDF", "check_spacing", "prepare_volume"]
 
@@ -130,21 +131,8 @@ def prepare_volume(
     box = box[0]
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, mask.shape, strict=True))
     crop = np.pad(mask[box], pad)
-    lab, n_comp = ndi.label(crop, structure=np.ones((3, 3, 3), bool))
-    if n_comp > 1:
-        sizes = np.bincount(lab.ravel())[1:]
-        if components == "raise":
-            raise ValueError(
-                f"The object has {n_comp} separate pieces (sizes {sorted(sizes.tolist())[::-1]} "
-                "voxels). Give each piece its own label, or use components='largest'."
-            )
-        if components != "largest":
-            raise ValueError(f"components must be 'largest' or 'raise', got {components!r}.")
-        warnings.warn(f"The object has {n_comp} separate pieces; only the largest "
-                      f"({sizes.max()} of {sizes.sum()} voxels) is described.", stacklevel=3)
-        crop = lab == (np.argmax(sizes) + 1)
-    background, n_background = ndi.label(~crop)  # 6-connected: the dual of 26
-    filled = background != background[0, 0, 0]
+    crop, n_comp = largest_piece(crop, components, "voxels")
+    filled, n_holes = fill_holes(crop)
     volume = int(filled.sum())
     if volume < min_volume:
         raise ValueError(
@@ -152,8 +140,8 @@ def prepare_volume(
             f"is {min_volume}. Remove tiny objects from the segmentation (or lower min_area)."
         )
     return VolumeInfo(mask=filled, offset=np.array([s.start - pad for s in box], float),
-                      spacing=spacing, volume=volume, n_components=int(n_comp),
-                      n_holes=int(n_background) - 1, touches_border=bool(touches))
+                      spacing=spacing, volume=volume, n_components=n_comp,
+                      n_holes=n_holes, touches_border=bool(touches))
 
 
 def _point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
