@@ -13,7 +13,8 @@ if [ ! -x .venv/bin/python ] && ! "$PYTHON" -m venv .venv; then
   # Debian's own python3 needs python3-venv for ensurepip
   if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     rm -rf .venv
-    apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
+    apt-get -o DPkg::Lock::Timeout=600 update -qq \
+      && apt-get -o DPkg::Lock::Timeout=600 install -y -qq python3-venv >/dev/null
     "$PYTHON" -m venv .venv
   else
     echo "error: '$PYTHON -m venv' failed; install python3-venv" >&2

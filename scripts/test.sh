@@ -19,11 +19,13 @@ APT_PACKAGES=(xvfb xauth libgl1 libegl1 libgl1-mesa-dri libglib2.0-0 libfontconf
   libdbus-1-3 libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0
   libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 libxcb-shape0 libxcb-xkb1)
 
+# wait for another apt-get or unattended upgrade instead of failing at once on its lock
+APT_WAIT=(-o DPkg::Lock::Timeout=600)
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
   say "system packages (apt-get)"
   export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq "${APT_PACKAGES[@]}" >/dev/null
+  apt-get "${APT_WAIT[@]}" update -qq
+  apt-get "${APT_WAIT[@]}" install -y -qq "${APT_PACKAGES[@]}" >/dev/null
 else
   say "skipping apt-get (not root or no apt-get); needs: ${APT_PACKAGES[*]}"
 fi
@@ -34,7 +36,7 @@ if [ ! -x .venv/bin/python ]; then
     # Debian's own python3 needs python3-venv for ensurepip
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
       rm -rf .venv
-      apt-get install -y -qq python3-venv >/dev/null
+      apt-get "${APT_WAIT[@]}" install -y -qq python3-venv >/dev/null
       "$PYTHON" -m venv .venv
     else
       echo "error: '$PYTHON -m venv' failed; install python3-venv" >&2
@@ -43,8 +45,8 @@ if [ ! -x .venv/bin/python ]; then
   fi
 fi
 
-say "pip install -e .[napari,batch,testing,tracking]"
-.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[napari,batch,testing,tracking]"
+say "pip install -e .[testing-gui,batch,tracking] (napari, pyarrow, clusters-plotter, regionprops)"
+.venv/bin/python -m pip install -q --disable-pip-version-check -e ".[testing-gui,batch,tracking]"
 
 say "ruff check"
 .venv/bin/ruff check .
