@@ -16,15 +16,14 @@ def sample_layers():
 
 @pytest.fixture
 def viewer_widget(make_napari_viewer, sample_layers):
-    """A viewer with the gastruloid sample and the analysis widget docked."""
-    from napari_pfsdm.napari._widget import AnalysisWidget
+    """A viewer with the gastruloid sample and the analysis widget docked from the plugin
+    menu (napari hands the widget a public-only proxy of the viewer, as for a user)."""
+    from napari_helpers import dock
 
     viewer = make_napari_viewer()
     for data, kwargs, kind in sample_layers:
         getattr(viewer, f"add_{kind}")(data, **kwargs)
-    widget = AnalysisWidget(viewer)
-    viewer.window.add_dock_widget(widget, name="PF-SDM analysis")
-    return viewer, widget
+    return viewer, dock(viewer)
 
 
 @pytest.fixture(autouse=True)

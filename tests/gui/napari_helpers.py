@@ -5,6 +5,24 @@ from __future__ import annotations
 import numpy as np
 
 RUN_TIMEOUT_MS = 180_000
+#: The plugin's widgets by their menu names (napari.yaml).
+ANALYSIS = "PF-SDM analysis"
+TRAJECTORIES = "PF-SDM trajectories (PCA)"
+COMPARISON = "PF-SDM shape comparison"
+
+
+def dock(viewer, name: str = ANALYSIS):
+    """Dock one of the plugin's widgets as Plugins ▸ napari-pfsdm does: napari makes it and
+    hands it a public-only proxy of the viewer (not the viewer itself)."""
+    _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", name)
+    return widget
+
+
+def wait_computed(qtbot, plot, timeout: int = 60_000) -> None:
+    """Flush a plot's pending redraw and wait for its distances (computed in a worker)."""
+    plot.flush()
+    qtbot.waitUntil(lambda: not getattr(plot, "computing", False), timeout=timeout)
+    plot.flush()
 
 
 def run_and_wait(qtbot, widget, **kwargs):

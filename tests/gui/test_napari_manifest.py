@@ -6,7 +6,6 @@ import json
 import site
 import subprocess
 import sys
-import time
 import zipfile
 from pathlib import Path
 
@@ -40,14 +39,12 @@ def test_installed_plugin_is_discovered():
     assert len(mf.contributions.widgets) == 3
 
 
-def test_sample_data_is_deterministic_small_and_fast():
+def test_sample_data_is_deterministic_and_small():
     from napari_pfsdm.napari._sample_data import benchmark_shapes, gastruloid_timelapse
 
-    t0 = time.perf_counter()
     first = gastruloid_timelapse()
     again = gastruloid_timelapse()
     shapes = benchmark_shapes()
-    assert time.perf_counter() - t0 < 6  # three loads; each well under two seconds
     (image, _, kind_i), (labels, meta, kind_l) = first
     assert (kind_i, kind_l) == ("image", "labels")
     assert labels.ndim == 3 and labels.shape == image.shape

@@ -8,11 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 from matplotlib.backend_bases import MouseEvent
-from napari_helpers import run_and_wait, wait_pictures
+from napari_helpers import (
+    COMPARISON,
+    TRAJECTORIES,
+    dock,
+    run_and_wait,
+    wait_computed,
+    wait_pictures,
+)
 
 from napari_pfsdm.napari import _layers
 from napari_pfsdm.napari._plots import (
-    ShapeComparisonWidget,
     TrajectoryPlotWidget,
     read_groups_csv,
 )
@@ -37,8 +43,7 @@ def test_trajectory_click_moves_viewer_and_selection_highlights(viewer_widget, q
     viewer, widget = viewer_widget
     labels_layer = viewer.layers["gastruloids"]
     run_and_wait(qtbot, widget)
-    plot = TrajectoryPlotWidget(viewer)
-    viewer.window.add_dock_widget(plot, name="trajectories")
+    plot = dock(viewer, TRAJECTORIES)
     assert plot.layer_combo.currentText() == "gastruloids"
     keys = plot._keys
     assert len(keys) == len(labels_layer.features)
@@ -68,7 +73,7 @@ def test_trajectory_click_moves_viewer_and_selection_highlights(viewer_widget, q
 def test_trajectory_views_components_and_groups(viewer_widget, qtbot, tmp_path):
     viewer, widget = viewer_widget
     run_and_wait(qtbot, widget)
-    plot = TrajectoryPlotWidget(viewer)
+    plot = dock(viewer, TRAJECTORIES)
     out = widget.last_output
     shape_xy = plot._points.copy()
     np.testing.assert_allclose(shape_xy[:, 0], out.pca["shape"]["PC1"])
@@ -93,11 +98,10 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     labels_layer = viewer.layers["gastruloids"]
     run_and_wait(qtbot, widget)
-    comp = ShapeComparisonWidget(viewer)
-    viewer.window.add_dock_widget(comp, name="comparison")
+    comp = dock(viewer, COMPARISON)
     axis = _layers.frame_axis(viewer, labels_layer)
     viewer.dims.set_point(axis, 4)
-    comp.flush()
+    wait_computed(qtbot, comp)  # the distances are computed in a worker
     n = len(np.unique(labels_layer.data[4])) - 1
     assert comp.distances.shape == (n, n)
     assert all(f == 4 for f, _ in comp._keys)
@@ -117,16 +121,18 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     from napari_pfsdm import rerank
 
     comp.rerank.setChecked(True)
+    wait_computed(qtbot, comp)
     np.testing.assert_allclose(comp.distances, rerank(distance_matrix(
         sub, intensity_weight=widget.last_output.options["intensity_weight"]), "diffusion",
         k=min(10, len(sub) - 1)))
     comp.rerank.setChecked(False)
     # all frames: every measured object, coloured by frame, distances computed once
     comp.frame_choice.setCurrentText("all frames")
+    wait_computed(qtbot, comp)
     assert comp.distances.shape == (len(table),) * 2
     cached = len(comp._cache)
     comp.redraw()
-    assert len(comp._cache) == cached
+    assert len(comp._cache) == cached and not comp.computing  # from the cache, no worker
     # removing the layers with the plots open: no error, the plots say there is nothing
     for name in [layer.name for layer in viewer.layers]:
         viewer.layers.remove(name)
@@ -137,13 +143,11 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
 
 def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_layers, qtbot):
     from napari_pfsdm.napari._sample_data import benchmark_shapes
-    from napari_pfsdm.napari._widget import AnalysisWidget
 
     viewer = make_napari_viewer()
     for data, kwargs, kind in sample_layers + benchmark_shapes():
         getattr(viewer, f"add_{kind}")(data, **kwargs)
-    widget = AnalysisWidget(viewer)
-    viewer.window.add_dock_widget(widget, name="PF-SDM analysis")
+    widget = dock(viewer)
     run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
     widget.labels_combo.setCurrentText("five shapes")
     run_and_wait(qtbot, widget)
@@ -161,15 +165,13 @@ def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample
     """The whole window after a run; PFSDM_SAVE_SCREENSHOT=1 refreshes docs/screenshot.png."""
     from qtpy.QtCore import QPoint
 
-    from napari_pfsdm.napari._widget import AnalysisWidget
 
     viewer = make_napari_viewer(show=True)
     for data, kwargs, kind in sample_layers:
         getattr(viewer, f"add_{kind}")(data, **kwargs)
     window = viewer.window._qt_window
     window.resize(1600, 900)
-    widget = AnalysisWidget(viewer)
-    viewer.window.add_dock_widget(widget, name="PF-SDM analysis", area="right")
+    widget = dock(viewer)
     run_and_wait(qtbot, widget)
     widget.open_plots()
     labels_layer = viewer.layers["gastruloids"]
@@ -222,7 +224,6 @@ def test_screenshot_of_a_3d_object(make_napari_viewer, qtbot, tmp_path):
     from imageio.v3 import imwrite  # napari's own dependency
 
     from napari_pfsdm.data.volumes import VOLUME_CLASSES, blob_volume
-    from napari_pfsdm.napari._widget import AnalysisWidget
 
     names = list(VOLUME_CLASSES)
     stack = np.zeros((40, 100, 200), np.uint16)
@@ -232,8 +233,7 @@ def test_screenshot_of_a_3d_object(make_napari_viewer, qtbot, tmp_path):
     viewer.window._qt_window.resize(1500, 900)
     labels_layer = viewer.add_labels(stack, name="objects")
     viewer.dims.axis_labels = ("z", "y", "x")
-    widget = AnalysisWidget(viewer)
-    viewer.window.add_dock_widget(widget, name="PF-SDM analysis", area="right")
+    widget = dock(viewer)
     run_and_wait(qtbot, widget)
     labels_layer.selected_label = 3
     wait_pictures(qtbot, widget, (0, 3))

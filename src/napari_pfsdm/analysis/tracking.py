@@ -119,6 +119,15 @@ class TrackingCheck:
     message: str
 
 
+def _position_columns(table: pd.DataFrame) -> list[str]:
+    """The centroid columns to compare: (z, y, x) for objects of Z-stacks, else (y, x). In
+    a time-lapse of Z-stacks, two nuclei above one another share (y, x): without z, true ids
+    look like jumps between them."""
+    if "centroid_z" in table.columns:
+        return ["centroid_z", "centroid_y", "centroid_x"]
+    return ["centroid_y", "centroid_x"]
+
+
 def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
     """For each label present in consecutive frames t, t + 1: its jump (px), its jump (radii),
     and whether its centroid at t + 1 lies nearer another object's centroid at t than its own
@@ -126,13 +135,14 @@ def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int
     every frame but the last)."""
     from scipy.spatial import cKDTree
 
-    t = table[["frame", "label", "area", "centroid_y", "centroid_x"]].reset_index(drop=True)
+    where = _position_columns(table)
+    t = table[["frame", "label", "area", *where]].reset_index(drop=True)
     t = t.assign(next=t["frame"] + 1, row=np.arange(len(t)))
     pairs = t.merge(t, left_on=["next", "label"], right_on=["frame", "label"],
                     suffixes=("", "_b"))
-    yx = t[["centroid_y", "centroid_x"]].to_numpy(float)
-    after = pairs[["centroid_y_b", "centroid_x_b"]].to_numpy(float)
-    jump = np.hypot(*(after - yx[pairs["row"].to_numpy()]).T)
+    yx = t[where].to_numpy(float)
+    after = pairs[[f"{c}_b" for c in where]].to_numpy(float)
+    jump = np.linalg.norm(after - yx[pairs["row"].to_numpy()], axis=1)
     radius = np.sqrt(0.5 * (pairs["area"] + pairs["area_b"]).to_numpy(float) / np.pi)
     switched = np.zeros(len(pairs), bool)
     frame_rows = t.groupby("frame").indices
@@ -398,7 +408,7 @@ def _renumber(tracks: np.ndarray) -> np.ndarray:
 def _with_area(table: pd.DataFrame) -> pd.DataFrame:
     """A table of 3-D objects (``volume``, no ``area``) gets the area of the disk whose radius
     is that of the sphere of the same volume: the checks and the linking then work on its
-    (y, x) centroids with the object's radius as their scale (z is not used)."""
+    (z, y, x) centroids with the object's radius as their scale."""
     if "area" in table.columns or "volume" not in table.columns:
         return table
     radius = np.cbrt(3 * table["volume"].to_numpy(float) / (4 * np.pi))
@@ -456,7 +466,7 @@ def link_centroids(
     dist = (float(max_distance) if max_distance is not None
             else LINK_RADII * _median_radius(table))
     frame = table["frame"].to_numpy(np.int64)
-    yx = table[["centroid_y", "centroid_x"]].to_numpy(float)
+    yx = table[_position_columns(table)].to_numpy(float)  # (z,) y, x
     ok = np.isfinite(yx).all(axis=1)
     out = np.full(len(table), NO_TRACK, np.int64)
     pos = np.flatnonzero(ok)
@@ -472,7 +482,7 @@ def link_centroids(
         """One-to-one pairs of rows a -> b with the least summed distance, each ≤ dist."""
         if not len(a) or not len(b):
             return []
-        d = np.hypot(*(yx[a, None, :] - yx[None, b, :]).transpose(2, 0, 1))
+        d = np.linalg.norm(yx[a, None, :] - yx[None, b, :], axis=-1)
         r, c = linear_sum_assignment(np.where(d <= dist, d, 1e12))
         return [(int(a[i]), int(b[j])) for i, j in zip(r, c, strict=True) if d[i, j] <= dist]
 
@@ -516,12 +526,13 @@ def _laptrack(frame: np.ndarray, yx: np.ndarray, dist: float, max_gap: int) -> n
             "pip install laptrack (or pip install 'napari-pfsdm[tracking]'); or choose "
             "'overlap' (from the labels) or 'centroid' linking, which need nothing more"
         ) from None
-    df = pd.DataFrame({"frame": frame, "y": yx[:, 0], "x": yx[:, 1],
+    axes = ["z", "y", "x"][-yx.shape[1]:]  # (z,) y, x
+    df = pd.DataFrame({"frame": frame, **{a: yx[:, i] for i, a in enumerate(axes)},
                        "row": np.arange(len(frame))})
     lt = LapTrack(cutoff=dist**2, gap_closing_cutoff=dist**2 if max_gap > 0 else False,
                   gap_closing_max_frame_count=max(1, max_gap + 1), splitting_cutoff=False,
                   merging_cutoff=False)
-    track_df, _, _ = lt.predict_dataframe(df, ["y", "x"], only_coordinate_cols=False)
+    track_df, _, _ = lt.predict_dataframe(df, axes, only_coordinate_cols=False)
     tr = np.full(len(frame), NO_TRACK, np.int64)
     tr[track_df["row"].to_numpy(np.int64)] = track_df["track_id"].to_numpy(np.int64) + 1
     return _renumber_rows(tr, frame)

@@ -100,10 +100,27 @@ class AnalysisOutput:
         self.reindex()
 
     def reindex(self) -> None:
-        """Rebuild the (frame, label) → row lookup after :attr:`table` was replaced."""
+        """Rebuild the (frame, label) → row lookup after :attr:`table` was replaced (and forget
+        what was derived from the old table: :meth:`measured`, the plots' caches)."""
+        self.derived: dict = {}
         keys = zip(self.table["frame"].to_numpy().tolist(),
                    self.table["label"].to_numpy().tolist(), strict=True)
         self._rows = {(int(f), int(lab)): i for i, (f, lab) in enumerate(keys)}
+
+    def measured(self) -> np.ndarray:
+        """Boolean mask of the table's rows that have features (``error`` empty), computed once
+        per table: comparing a text column row by row (pyarrow strings under pandas 3) costs
+        far more than the plots can spend on the GUI thread."""
+        if "measured" not in self.derived:
+            errors = self.table["error"].to_numpy(dtype=object) if "error" in self.table \
+                else np.full(len(self.table), "", dtype=object)
+            self.derived["measured"] = np.array([not str(e) for e in errors], dtype=bool)
+        return self.derived["measured"]
+
+    def rows_of(self, frames, labels) -> np.ndarray:
+        """Row positions of ``(frame, label)`` pairs in :attr:`table` (-1 when absent)."""
+        return np.array([self._rows.get((int(f) if self.time_lapse else 0, int(lab)), -1)
+                         for f, lab in zip(frames, labels, strict=True)], dtype=np.int64)
 
     def row_index(self, frame: int, label: int) -> int | None:
         """Position of the (frame, label) row in :attr:`table` (None when absent)."""
@@ -147,6 +164,14 @@ def validate_layers_data(labels, intensity, first_axis: str = "time") -> str:
     ValueError
         With a sentence saying what is wrong and what to do.
     """
+    shape = tuple(int(n) for n in labels.shape)
+    if len(shape) == 3 and shape[-1] in (3, 4) and shape[-2] > 8:
+        raise ValueError(
+            f"The Labels layer looks like a colour picture ({shape[0]} × {shape[1]} pixels with "
+            f"{shape[-1]} colour channels), not a segmentation: its last axis has only "
+            f"{shape[-1]} values. Open the mask as a single-channel label image (one whole "
+            "number per object, 0 = background), or convert it first (e.g. keep one channel "
+            "and label its objects).")
     axes = layer_axes(labels.ndim, first_axis)
     if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
         raise ValueError("The Labels layer must hold integer labels (one number per object).")

@@ -45,8 +45,7 @@ def distance_table(
 
     table = output.table
     if len(table) > MAX_DISTANCE_ROWS:
-        raise ValueError(f"{len(table)} objects are too many for an all-pairs distance matrix in "
-                         f"the viewer (limit {MAX_DISTANCE_ROWS}); use the command line instead.")
+        raise ValueError(too_many_for_distances(len(table)))
     w = intensity_weight
     if w is None:
         w = output.options.get("intensity_weight", 0.0)
@@ -57,24 +56,58 @@ def distance_table(
     return layout(table, d), left_out
 
 
-def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
-    """Write ``<prefix>_features.csv``, ``<prefix>_pca_<channel>.csv`` and
-    ``<prefix>_distances.csv``, each with its ``.csv.json`` sidecar."""
+def too_many_for_distances(n: int) -> str:
+    """The sentence said (status line, sidecar) when the distance matrix is left out."""
+    return (f"The distance matrix was left out: {n:,} objects are more than the "
+            f"{MAX_DISTANCE_ROWS:,} whose all-pairs distances the viewer exports (a matrix of "
+            f"{n:,} × {n:,}); compare them with the command line (pfsdm compare).")
+
+
+def export_names(output: AnalysisOutput, prefix: str) -> list[str]:
+    """The file names an export writes: features, one PCA per channel, distances (only when
+    the collection is small enough for the all-pairs matrix)."""
+    names = [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in output.pca)]
+    if len(output.table) <= MAX_DISTANCE_ROWS:
+        names.append(f"{prefix}_distances.csv")
+    return names
+
+
+def prepare_export(output: AnalysisOutput) -> dict:
+    """The slow part of an export (the distance matrix), for a worker thread; ``{"distances":
+    (table, left out)}`` or ``{"note": sentence}`` when the matrix is left out."""
+    if len(output.table) > MAX_DISTANCE_ROWS:
+        return {"note": too_many_for_distances(len(output.table))}
+    return {"distances": distance_table(output)}
+
+
+def write_export(output: AnalysisOutput, folder, prefix: str, prepared: dict) -> list[Path]:
+    """Write what :func:`prepare_export` made ready: ``<prefix>_features.csv``,
+    ``<prefix>_pca_<channel>.csv`` and, for collections small enough, ``<prefix>_distances.csv``,
+    each with its ``.csv.json`` sidecar. The feature table and the PCA scores are always
+    written; when the distances are left out, the features' sidecar says so
+    (``"distances": sentence``)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    names = [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in output.pca),
-             f"{prefix}_distances.csv"]
+    names = export_names(output, prefix)
     for name in names:  # before writing anything: all or nothing
         check_overwrite(folder / name, what="file")
-    dist, left_out = distance_table(output)  # may refuse (too many objects): nothing written
-    left = {"left_out": left_out.to_dict("records")}
     opts = dict(output.options)
-    written = [write_csv(output.table, folder / names[0], opts, table_type="features")]
+    note = prepared.get("note")
+    written = [write_csv(output.table, folder / names[0], opts, table_type="features",
+                         extra={"distances": note} if note else None)]
     for channel, scores in output.pca.items():
         ratios = scores.attrs.get("explained_variance_ratio", [])
         h = dict(opts, pca_features=channel, explained_variance_ratio=list(ratios))
         written.append(write_csv(scores, folder / f"{prefix}_pca_{channel}.csv", h,
                                  table_type="pca"))
-    written.append(write_table_csv(dist, folder / names[-1], opts, index=True,
-                                   table_type="distances", extra=left))
+    if "distances" in prepared:
+        dist, left_out = prepared["distances"]
+        written.append(write_table_csv(dist, folder / names[-1], opts, index=True,
+                                       table_type="distances",
+                                       extra={"left_out": left_out.to_dict("records")}))
     return written
+
+
+def export_results(output: AnalysisOutput, folder, prefix: str) -> list[Path]:
+    """Export one analysis (:func:`prepare_export`, then :func:`write_export`)."""
+    return write_export(output, folder, prefix, prepare_export(output))

