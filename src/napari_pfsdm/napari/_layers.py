@@ -31,17 +31,23 @@ SUFFIXES = {
 #: The layers of a 2-D object's pictures and of a 3-D object's.
 PICTURES_2D = ("sdf", "disk", "intensity_disk", "skeleton")
 PICTURES_3D = ("shells", "intensity_shells", "surface")
-#: The panel: cell side and gap between cells, as fractions of the labels' height.
-CELL = 0.36
-GAP = 0.1
+#: The panel beside the labels, as fractions of the labels' height: a 2 × 2 grid (SDF, disk /
+#: reporter, notes) of square cells of side CELL, each picture with its colour bar (12 % of
+#: its side) and room for the bar's values (TICK_ROOM) before the next column.
+CELL = 0.5
+TICK_ROOM = 0.2
+ROW_GAP = 0.32
+#: Height of the legend's text (world units, fraction of the labels' height): the texts grow
+#: and shrink with the pictures when zooming, so they never run into each other.
+TEXT = 0.06
 SKELETON_COLOR = "#ffd000"
 OUTLINE_COLOR = "#202020"
 
-#: Title above and key below each picture: short, they are drawn at the canvas' zoom.
+#: Title above and key below each picture: short, they are drawn at the pictures' scale.
 LEGENDS = {
     "sdf": ("SDF (px)", "blue = inside"),
     "disk": ("PF-SDF disk", "rim = outline"),
-    "intensity_disk": ("reporter", "1 = mean"),
+    "intensity_disk": ("reporter (× mean)", "1 = the mean"),
 }
 
 
@@ -101,16 +107,19 @@ def name_axes(viewer, labels_layer) -> None:
 
 
 def cells(labels_layer) -> dict[str, tuple[float, float, float]]:
-    """World ``(top, left, side)`` of the panel's square cells beside the labels."""
+    """World ``(top, left, side)`` of the panel's square cells beside the labels: the SDF and
+    the disk side by side, the reporter and the notes below them."""
     ny, nx = _shape(labels_layer)[-2:]
     sy, sx = labels_layer.scale[-2:]
     ty, tx = labels_layer.translate[-2:]
     height = ny * sy
-    side, gap = CELL * height, GAP * height
-    left, top = tx + nx * sx + gap, ty + 0.1 * height
-    return {"sdf": (top, left, side), "disk": (top, left + side + gap, side),
-            "intensity_disk": (top, left + 2 * (side + gap), side),
-            "notes": (top + side + 0.2 * height, left, side)}
+    side = CELL * height
+    left, top = tx + nx * sx + 0.1 * height, ty + 0.06 * height
+    dx = 1.12 * side + TICK_ROOM * height  # picture + colour bar + its values
+    dy = side + ROW_GAP * height  # picture + its key below + the next title
+    return {"sdf": (top, left, side), "disk": (top, left + dx, side),
+            "intensity_disk": (top + dy, left, side),
+            "notes": (top + dy, left + dx, side)}
 
 
 def _world_2d(labels_layer, rc: np.ndarray) -> np.ndarray:
@@ -243,11 +252,12 @@ def nice_number(value: float, signed: bool = False) -> str:
     return sign + text
 
 
-def _ticks(lo: float, hi: float, unit: str) -> list[str]:
-    """The colour bar's three values (top, middle, bottom), the unit after the top one."""
+def _ticks(lo: float, hi: float, unit: str = "") -> list[str]:
+    """The colour bar's three values (top, middle, bottom); the unit is in the picture's
+    title, so the values stay short beside the bar."""
     signed = lo < 0 < hi
     mid = "0" if signed else nice_number((lo + hi) / 2)
-    return [f"{nice_number(hi, signed)} {unit}".strip(), mid, nice_number(lo, signed)]
+    return [nice_number(hi, signed), mid, nice_number(lo, signed)]
 
 
 def _place_picture(viewer, name: str, image: np.ndarray, colormap: str, limits, unit: str,
@@ -391,7 +401,8 @@ def _volume_legend(viewer, labels_layer, pictures, bars: dict):
     where += [(top + 0.9 * side, left),
               (top + 0.9 * side, left + 3.0 * side)]  # room for the texts when fitted
     texts += [note, ""]
-    return _points_text(viewer, layer_names(labels_layer.name)["legend"], where, texts)
+    return _points_text(viewer, layer_names(labels_layer.name)["legend"], where, texts,
+                        _text_size(labels_layer))
 
 
 def line_segments(lines: list, colors: list) -> tuple[np.ndarray, np.ndarray]:
@@ -441,40 +452,47 @@ def _legend(viewer, labels_layer, pictures: ObjectPictures | None, note: str = "
     for key in keys:
         top, left, side = geo[key]
         title, key_text = LEGENDS[key]
-        where += [(top - 0.01 * height, left), (top + side + 0.08 * height, left)]
+        # napari draws a text below its point: titles start one line above the picture
+        where += [(top - 1.35 * TEXT * height, left), (top + side + 0.025 * height, left)]
         texts += [title, key_text]
-    for top, right, height, ticks in (bars or {}).values():
-        for y, text in zip((top + 0.16 * height, top + 0.56 * height, top + height), ticks,
-                           strict=True):
-            where.append((y, right + 0.01 * height))
+    for bar_top, right, bar_height, ticks in (bars or {}).values():
+        for y, text in zip((bar_top, bar_top + 0.5 * (bar_height - TEXT * height),
+                            bar_top + bar_height - TEXT * height), ticks, strict=True):
+            where.append((y, right + 0.015 * height))
             texts.append(text)
     top, left, side = geo["notes"]
     head = note or (f"frame {pictures.frame} · label {pictures.label}"
                     if pictures is not None else "")
     if pictures is not None:
-        head += " · yellow = skeleton"
+        head += "\nyellow = skeleton"
         if pictures.notes:
             head += "\n" + "\n".join(pictures.notes)
-    where.append((top, left))
+    where.append((top + 0.05 * height, left))
     texts.append(head)
     # an empty text at the panel's far corner: "fit to view" then leaves room for the texts
-    last_top, last_left, last_side = geo["intensity_disk"]
-    where.append((top + 0.1 * height, last_left + 1.35 * last_side))
+    where.append((top + side + 0.1 * height, left + 1.12 * side + TICK_ROOM * height))
     texts.append("")
-    return _points_text(viewer, name, where, texts)
+    return _points_text(viewer, name, where, texts, _text_size(labels_layer))
 
 
-def _points_text(viewer, name: str, where: list, texts: list):
-    """A Points layer of texts (invisible points) called ``name``, added or replaced."""
+def _text_size(labels_layer) -> float:
+    """The legend's font size for napari's zoom-scaled text: :data:`TEXT` of the labels'
+    height in world units (a font of size s points is about 1.33 s world units high)."""
+    return TEXT * _shape(labels_layer)[-2] * float(labels_layer.scale[-2]) / 1.33
+
+
+def _points_text(viewer, name: str, where: list, texts: list, size: float = 8.0):
+    """A Points layer of texts (invisible points) called ``name``, added or replaced; the
+    texts scale with the zoom (``size`` in world units), as the pictures do."""
     data = np.asarray(where, float)
     features = {"text": texts}
     layer = _existing(viewer, name, Points, ndim=None)
     if layer is None:
         with keep_selection(viewer):
             layer = viewer.add_points(
-            data, features=features, name=name, size=1, face_color="transparent",
-            border_width=0, text={"string": "{text}", "size": 8, "color": "white",
-                                  "anchor": "lower_left"})
+                data, features=features, name=name, size=1e-3, face_color="transparent",
+                border_color="transparent", border_width=0, text={"string": "{text}", "size": size, "scaling": True,
+                                      "color": "white", "anchor": "lower_left"})
     elif list(layer.features["text"]) != texts or not np.array_equal(layer.data, data):
         with layer.events.blocker_all():
             layer.data = data

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from napari.layers import Labels
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_error
-from qtpy.QtCore import QTimer
+from qtpy.QtCore import QSize, QTimer
 from qtpy.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -78,17 +78,19 @@ class _LinkedPlot(QWidget):
         self._timer = QTimer(self, singleShot=True, interval=DEBOUNCE_MS)
         self._timer.timeout.connect(self._flush)
         self.layer_combo = QComboBox(toolTip="The analysed Labels layer whose results are shown.")
-        self.figure = Figure(figsize=(4, 3.2), constrained_layout=True)
+        self.figure = Figure(figsize=(3.6, 2.8), constrained_layout=True)
         self.canvas = FigureCanvasQTAgg(self.figure)
-        self.canvas.setMinimumHeight(240)
+        self.canvas.setMinimumSize(260, 220)
         self.info = QLabel("Run the PF-SDM analysis to fill this plot.", wordWrap=True)
         self.controls = QHBoxLayout()
+        self.controls2 = QHBoxLayout()
         top = QHBoxLayout()
         top.addWidget(QLabel("Layer"))
         top.addWidget(self.layer_combo, 1)
         layout = QVBoxLayout(self)
         layout.addLayout(top)
         layout.addLayout(self.controls)
+        layout.addLayout(self.controls2)
         layout.addWidget(self.canvas, 1)
         layout.addWidget(self.info)
         self._layer: Labels | None = None
@@ -107,6 +109,10 @@ class _LinkedPlot(QWidget):
         napari_viewer.events.theme.connect(self._on_theme)
         self.destroyed.connect(self._disconnect)
         self._refresh_layers()
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        """Narrow enough to leave the canvas most of a laptop screen's width."""
+        return QSize(400, 380)
 
     def _on_theme(self, event=None) -> None:
         self.redraw()
@@ -359,9 +365,13 @@ class TrajectoryPlotWidget(_LinkedPlot):
         #: Sentences on what PC1 and PC2 follow (classic measures), after each draw.
         self.explanation: list[str] = []
         super().__init__(napari_viewer)
-        for w in (self.view, QLabel("PC"), self.pc_x, QLabel("vs"), self.pc_y, self.color_by,
-                  self.groups_button):
+        for w in (self.view, QLabel("PC"), self.pc_x, QLabel("vs"), self.pc_y):
             self.controls.addWidget(w)
+        self.controls.addStretch(1)
+        # colouring on a second row: one row of every control would set the dock's width
+        self.controls2.addWidget(QLabel("Colour by"))
+        self.controls2.addWidget(self.color_by, 1)
+        self.controls2.addWidget(self.groups_button)
         for box in (self.view, self.color_by):
             box.currentIndexChanged.connect(lambda *a: self.redraw())
         for box in (self.pc_x, self.pc_y):
@@ -688,7 +698,8 @@ class ShapeComparisonWidget(_LinkedPlot):
             notes = [ax_p.annotate(str(lb), (px, py), fontsize=7, color=c["fg"],
                                    xytext=(3, 3), textcoords="offset points")
                      for (_f, lb), (px, py) in zip(keys, xy, strict=True)]
-        ax_p.set_title("MDS map (close = similar shapes)", fontsize=9)
+        ax_p.set_title("MDS map", fontsize=9)
+        ax_p.set_xlabel("close = similar shapes", fontsize=7)
         ax_p.set_xticks([])
         ax_p.set_yticks([])
         self._artists = {"image": im, "colorbar": cb, "points": sc, "notes": notes,

@@ -10,7 +10,7 @@ import numpy as np
 from napari.layers import Image, Labels
 from napari.qt.threading import GeneratorWorker, thread_worker
 from napari.utils.notifications import show_error, show_info
-from qtpy.QtCore import Qt, QTimer, Signal
+from qtpy.QtCore import QSize, Qt, QTimer, Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
@@ -293,6 +293,10 @@ class AnalysisWidget(QWidget):
             event.connect(self._refresh_layers)
         napari_viewer.dims.events.current_step.connect(self._on_step)
         self._refresh_layers()
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        """A narrow panel: the canvas keeps most of a laptop screen's width."""
+        return QSize(380, 420)
 
     # ------------------------------------------------------------------ layers
     def _layers_of(self, kind) -> list:
@@ -816,7 +820,7 @@ class AnalysisWidget(QWidget):
             self.viewer.layers.selection.active = labels
             if self._refit:
                 self._refit = False
-                self.viewer.reset_view()
+                self._fit_view()
         finally:
             self._syncing = False
         self._prefetch_timer.start()
@@ -901,11 +905,13 @@ class AnalysisWidget(QWidget):
         window = self.viewer.window
         labels = self._linked_layer
         self.plots = []
-        for cls, name in ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
-                          (ShapeComparisonWidget, "PF-SDM shape comparison")):
+        for i, (cls, name) in enumerate(((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
+                                         (ShapeComparisonWidget, "PF-SDM shape comparison"))):
             widget = None
-            try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice
-                _dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name)
+            try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice;
+                # the two plots share one place (tabs): the window then fits a laptop screen
+                _dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name,
+                                                              tabify=i > 0)
             except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
                 docks = getattr(window, "dock_widgets", {})
                 if name in docks:
@@ -917,6 +923,24 @@ class AnalysisWidget(QWidget):
                 self.plots.append(widget)
                 if labels is not None:  # the layer this widget analysed last, not the first
                     widget.show_layer(labels)
+        # the canvas is narrower with the plots docked: fit the view again, unless the user
+        # has moved it since the plugin last fitted it
+        QTimer.singleShot(150, self._refit_if_untouched)
+
+    def _camera(self) -> tuple:
+        """Where the view is (centre, zoom); napari 0.9 moved the camera to ``scene``."""
+        scene = getattr(self.viewer, "scene", None)
+        camera = scene.camera if scene is not None else self.viewer.camera
+        return tuple(camera.center), float(camera.zoom)
+
+    def _fit_view(self) -> None:
+        self.viewer.reset_view()
+        self._fitted = self._camera()
+
+    @while_alive
+    def _refit_if_untouched(self) -> None:
+        if getattr(self, "_fitted", None) == self._camera():
+            self._fit_view()
 
 
 @thread_worker(start_thread=False)
