@@ -491,8 +491,9 @@ def _points_text(viewer, name: str, where: list, texts: list, size: float = 8.0)
         with keep_selection(viewer):
             layer = viewer.add_points(
                 data, features=features, name=name, size=1e-3, face_color="transparent",
-                border_color="transparent", border_width=0, text={"string": "{text}", "size": size, "scaling": True,
-                                      "color": "white", "anchor": "lower_left"})
+                border_color="transparent", border_width=0,
+                text={"string": "{text}", "size": size, "scaling": True, "color": "white",
+                      "anchor": "lower_left"})
     elif list(layer.features["text"]) != texts or not np.array_equal(layer.data, data):
         with layer.events.blocker_all():
             layer.data = data
