@@ -531,6 +531,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         self._cache: dict = {}
         self._worker = None
         self._worker_key = None
+        self._cancelled_key = None
         super().__init__(napari_viewer)
         self.controls.addWidget(QLabel("Objects of"))
         self.controls.addWidget(self.frame_choice, 1)
@@ -546,8 +547,10 @@ class ShapeComparisonWidget(_LinkedPlot):
         return self._worker is not None
 
     def cancel(self) -> None:
-        """Stop the distances being computed (nothing is kept)."""
+        """Stop the distances being computed (nothing is kept, and they are not asked for
+        again until the frame or an option changes)."""
         if self._worker is not None:
+            self._cancelled_key = self._worker_key
             self._worker.quit()
             self.info.setText("Cancelled: no distances computed. Move the slider or change an "
                               "option to compute them again.")
@@ -615,12 +618,14 @@ class ShapeComparisonWidget(_LinkedPlot):
                 self._cache.clear()
             self._cache[key] = result
 
-        def finished(worker=worker):
+        def finished(worker=worker, key=key):
             if self._worker is worker:
                 self._worker, self._worker_key = None, None
                 try:
                     self.cancel_button.setVisible(False)
-                    self.redraw()
+                    if key != self._cancelled_key:  # show them: in place when possible
+                        self._pending = "redraw"
+                        self._flush()
                 except RuntimeError:  # the widget is gone (the viewer was closed)
                     pass
 
@@ -643,6 +648,10 @@ class ShapeComparisonWidget(_LinkedPlot):
         key, sub, shown, title, w, reranked = self._selection()
         self._shown_frame = shown
         cached = self._cache.get(key)
+        if cached is None and key == self._cancelled_key:
+            raise ValueError("Cancelled: no distances computed. Move the slider or change an "
+                             "option to compute them again.")
+        self._cancelled_key = None
         if cached is None:
             self._start(key, sub, w, reranked)
             ax = self.figure.add_subplot(111)
@@ -727,9 +736,14 @@ class ShapeComparisonWidget(_LinkedPlot):
             key, sub, shown, title, _w, reranked = self._selection()
         except ValueError:
             return False
+        if len(sub) != art["n"] or reranked != art["reranked"] or key == self._cancelled_key:
+            return False
         cached = self._cache.get(key)
-        if cached is None or isinstance(cached, Exception) or len(sub) != art["n"] \
-                or reranked != art["reranked"]:
+        if cached is None:  # computed in a worker; the frame shown stays until they are ready
+            self._start(key, sub, _w, reranked)
+            self.info.setText(f"Computing the distances of {title}…")
+            return True
+        if isinstance(cached, Exception):
             return False
         d, xy = cached
         keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]

@@ -1,0 +1,375 @@
+"""The plugin as a biologist meets it: docked from the Plugins menu (napari hands the widgets a
+public-only proxy of the viewer), next to the tools they already use, on awkward input."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from napari_helpers import (
+    COMPARISON,
+    TRAJECTORIES,
+    dock,
+    run_and_wait,
+    wait_computed,
+    wait_pictures,
+)
+
+from napari_pfsdm.napari import _layers
+
+pytestmark = pytest.mark.gui
+
+
+def _result_layers(viewer, source: str) -> dict:
+    names = set(_layers.layer_names(source).values())
+    return {layer.name: layer for layer in viewer.layers if layer.name in names}
+
+
+def test_the_docked_widget_gets_naparis_proxy_and_still_updates_layers_in_place(
+        viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    # docked from the menu, the widget holds napari's public-only stand-in, not the viewer
+    assert widget.viewer is not viewer and widget.viewer.layers is not viewer.layers
+    labels = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
+    before = _result_layers(viewer, "gastruloids")
+    assert len(before) == 5
+    events = []
+    viewer.layers.events.inserted.connect(lambda e: events.append(("inserted", e.value.name)))
+    viewer.layers.events.removed.connect(lambda e: events.append(("removed", e.value.name)))
+    viewer.layers.selection.events.active.connect(
+        lambda e: events.append(("active", getattr(e.value, "name", None))))
+    frame = _layers.current_frame(viewer, labels)
+    for label in (2, 4, 3):
+        labels.selected_label = label
+        wait_pictures(qtbot, widget, (frame, label))
+    viewer.dims.set_point(0, frame + 1)
+    wait_pictures(qtbot, widget, (frame + 1, 3))
+    after = _result_layers(viewer, "gastruloids")
+    # the same five layer objects, their data swapped: nothing removed, added or selected
+    assert all(after[name] is before[name] for name in before)
+    assert events == []
+    assert viewer.layers.selection.active is labels
+
+
+def test_result_layers_never_become_the_active_layer(make_napari_viewer, sample_layers, qtbot):
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    reporter = viewer.layers["gastruloids reporter"]
+    viewer.layers.selection.active = reporter  # the user looks at the reporter
+    widget = dock(viewer)
+    actives = []
+    viewer.layers.selection.events.active.connect(lambda e: actives.append(e.value))
+    run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
+    wait_pictures(qtbot, widget)
+    names = set(_layers.layer_names("gastruloids").values())
+    # the first pictures add five layers: none of them was ever made the active layer
+    assert not [a for a in actives if a is not None and a.name in names]
+    assert all(layer.name not in names for layer in viewer.layers.selection)
+
+
+def test_plots_redraw_only_when_their_data_change(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    labels = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
+    traj, comp = dock(viewer, TRAJECTORIES), dock(viewer, COMPARISON)
+    wait_computed(qtbot, comp)
+    counts = {"traj": 0, "comp": 0}
+
+    def counting(plot, key):
+        redraw = plot.redraw
+
+        def wrapped():
+            counts[key] += 1
+            redraw()
+        return wrapped
+
+    traj.redraw, comp.redraw = counting(traj, "traj"), counting(comp, "comp")
+    # unrelated layer events (a new image, the plugin's own pictures): no redraw
+    viewer.add_image(np.zeros((8, 8)), name="unrelated")
+    viewer.layers.remove("unrelated")
+    frame = _layers.current_frame(viewer, labels)
+    labels.selected_label = 2
+    wait_pictures(qtbot, widget, (frame, 2))
+    traj.flush()
+    comp.flush()
+    assert counts == {"traj": 0, "comp": 0}
+    assert traj.highlighted_keys() == [(frame, 2)]
+    # a new frame: the trajectories only move their highlight; the comparison shows the new
+    # frame's distances in its axes (same number of objects: drawn in place)
+    n = len(widget.last_output.labels_in(frame))
+    assert len(widget.last_output.labels_in(frame + 1)) == n
+    viewer.dims.set_point(0, frame + 1)
+    wait_computed(qtbot, comp)
+    traj.flush()
+    assert counts["traj"] == 0 and counts["comp"] == 0
+    assert all(f == frame + 1 for f, _ in comp._keys)
+    assert traj.highlighted_keys() == [(frame + 1, 2)]
+    from napari_pfsdm import distance_matrix
+
+    table = widget.last_output.table
+    np.testing.assert_allclose(comp.distances, distance_matrix(
+        table[table["frame"] == frame + 1],
+        intensity_weight=widget.last_output.options["intensity_weight"]))
+
+
+def test_comparison_is_computed_in_a_worker_and_can_be_cancelled(viewer_widget, qtbot,
+                                                                 monkeypatch):
+    import threading
+
+    from napari_pfsdm.napari import _plots
+
+    viewer, widget = viewer_widget
+    run_and_wait(qtbot, widget)
+    release = threading.Event()
+    real = _plots._comparison_worker
+
+    @_plots.thread_worker(start_thread=False)
+    def held(sub, w, reranked):
+        while not release.is_set():  # a computation that waits: only Cancel ends it
+            release.wait(0.005)
+            yield "waiting"
+        return None
+
+    monkeypatch.setattr(_plots, "_comparison_worker", held)
+    comp = dock(viewer, COMPARISON)
+    comp.flush()
+    assert comp.computing and comp.cancel_button.isVisibleTo(comp)
+    texts = [t.get_text() for ax in comp.figure.axes for t in ax.texts]
+    assert any("computing" in t for t in texts)
+    comp.cancel()
+    qtbot.waitUntil(lambda: not comp.computing, timeout=30_000)
+    assert not comp.cancel_button.isVisibleTo(comp)
+    assert not comp._cache  # nothing kept from a cancelled computation
+    comp.redraw()  # the same frame and options: not asked for again
+    assert not comp.computing and "Cancelled" in comp.info.text()
+    monkeypatch.setattr(_plots, "_comparison_worker", real)
+    comp.frame_choice.setCurrentText("all frames")  # something else: computed
+    wait_computed(qtbot, comp)
+    assert comp.distances.shape[0] == len(comp._keys) > 1
+
+
+def test_export_runs_in_a_worker_and_always_writes_features_and_pca(viewer_widget, qtbot,
+                                                                    tmp_path, monkeypatch):
+    from napari_pfsdm.napari import _export
+
+    viewer, widget = viewer_widget
+    out = run_and_wait(qtbot, widget)
+    worker = widget.export_async(tmp_path / "small")
+    assert worker is not None and widget.exporting
+    qtbot.waitUntil(lambda: not widget.exporting, timeout=60_000)
+    assert sorted(p.name for p in widget.last_export) == sorted([
+        "gastruloids_features.csv", "gastruloids_pca_shape.csv",
+        "gastruloids_pca_intensity.csv", "gastruloids_distances.csv"])
+    # a collection too large for the all-pairs matrix: features and PCA still written, the
+    # distances left out with a sentence in the sidecar and in the status line
+    monkeypatch.setattr(_export, "MAX_DISTANCE_ROWS", len(out.table) - 1)
+    widget.export_async(tmp_path / "large")
+    qtbot.waitUntil(lambda: not widget.exporting, timeout=60_000)
+    written = sorted(p.name for p in (tmp_path / "large").glob("*.csv"))
+    assert written == sorted(["gastruloids_features.csv", "gastruloids_pca_shape.csv",
+                              "gastruloids_pca_intensity.csv"])
+    side = json.loads((tmp_path / "large" / "gastruloids_features.csv.json").read_text())
+    assert f"{len(out.table)} objects are more than the" in side["distances"]
+    assert "distance matrix was left out" in widget.status.text()
+    assert len(pd.read_csv(tmp_path / "large" / "gastruloids_features.csv")) == len(out.table)
+
+
+def test_cancelled_export_writes_nothing(viewer_widget, qtbot, tmp_path, monkeypatch):
+    import threading
+
+    from napari_pfsdm.napari import _export
+
+    viewer, widget = viewer_widget
+    run_and_wait(qtbot, widget)
+    release = threading.Event()
+    real = _export.prepare_export
+
+    def slow(output):
+        release.wait(30)  # the distances take long; Cancel is pressed meanwhile
+        return real(output)
+
+    monkeypatch.setattr(_export, "prepare_export", slow)
+    widget.export_async(tmp_path)
+    assert widget.cancel_button.isEnabled()
+    widget.cancel()
+    release.set()
+    qtbot.waitUntil(lambda: not widget.exporting, timeout=60_000)
+    assert list(tmp_path.iterdir()) == []
+    assert "nothing was written" in widget.status.text()
+    assert widget.export_button.isEnabled()
+
+
+def _squeezed(widget) -> list:
+    """Visible controls shown lower than their natural height."""
+    from qtpy.QtWidgets import QAbstractButton, QAbstractSpinBox, QComboBox
+
+    out = []
+    for kind in (QComboBox, QAbstractSpinBox, QAbstractButton):
+        for control in widget.findChildren(kind):
+            if control.isVisible() and control.height() < control.sizeHint().height():
+                out.append((control.objectName() or type(control).__name__, control.height()))
+    return out
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (1600, 1000)])
+def test_panel_is_readable_on_a_laptop_screen_with_the_plots_open(make_napari_viewer,
+                                                                  sample_layers, qtbot, size):
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    window = viewer.window._qt_window
+    window.resize(*size)
+    widget = dock(viewer)
+    run_and_wait(qtbot, widget)
+    widget.open_plots()
+    wait_pictures(qtbot, widget)
+    qtbot.wait(300)
+    # the window still fits the screen: the docks do not force it taller
+    assert window.minimumSizeHint().height() <= size[1]
+    assert window.height() <= size[1]
+    widget.method_options.expand(animate=False)
+    qtbot.wait(100)
+    for part in (widget, *widget.plots):
+        assert _squeezed(part) == [], type(part).__name__
+    # the pictures and their texts: scaled with the zoom, values as people write them
+    legend = viewer.layers["gastruloids legend"]
+    assert legend.text.scaling
+    texts = list(legend.features["text"])
+    assert not [t for t in texts if "e+" in t or "e-0" in t]
+    assert any(t.startswith("\u2212") for t in texts)  # a true minus sign
+
+
+def test_clusters_plotter_selects_exactly_the_rows_of_each_frame(viewer_widget, qtbot):
+    """napari-clusters-plotter colours label values; on a time-lapse the plugin's objects
+    layer (one id per frame and label) lets a selection in its plot mark exactly the selected
+    rows' objects in every frame."""
+    pytest.importorskip("napari_clusters_plotter")
+    viewer, widget = viewer_widget
+    out = run_and_wait(qtbot, widget)
+    objects = widget.add_objects_layer()
+    assert objects is not None and objects.name == "gastruloids objects"
+    labels = viewer.layers["gastruloids"]
+    # one id per row, the row's own object in its own frame
+    table = out.table
+    for i in (0, len(table) // 2, len(table) - 1):
+        f, lab = int(table["frame"].iat[i]), int(table["label"].iat[i])
+        assert np.array_equal(objects.data[f] == i + 1, labels.data[f] == lab)
+    assert (objects.features["index"].to_numpy() == np.arange(1, len(table) + 1)).all()
+    _dock, plotter = viewer.window.add_plugin_dock_widget("napari-clusters-plotter",
+                                                          "Plot & select features")
+    viewer.layers.selection.active = objects
+    qtbot.wait(200)
+    plotter.x_axis, plotter.y_axis = "shape_PC1", "area"
+    pc1 = objects.features["shape_PC1"].to_numpy()
+    # a cluster that splits every frame: the right half of shape_PC1 within each frame
+    frames = objects.features["frame"].to_numpy()
+    chosen = np.zeros(len(pc1), int)
+    for f in np.unique(frames):
+        rows = np.flatnonzero(frames == f)
+        chosen[rows] = pc1[rows] > np.median(pc1[rows])
+    plotter.plotting_widget.show_color_overlay = True  # as drawing a selection does
+    selector = next(iter(plotter.plotting_widget.selectors.values()))
+    selector.selection_applied_signal.emit(chosen)
+    qtbot.wait(300)
+    colormap = objects.colormap
+    for f in (0, int(table["frame"].max())):
+        rows = np.flatnonzero(table["frame"].to_numpy() == f)
+        colours = {int(r): tuple(np.round(colormap.map(np.array([r + 1]))[0], 3)) for r in rows}
+        picked = {colours[r] for r in rows if chosen[r]}
+        others = {colours[r] for r in rows if not chosen[r]}
+        assert picked and others and not (picked & others), f
+
+
+def test_restores_its_features_after_another_plugin_replaced_them(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    labels = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    n_cols = labels.features.shape[1]
+    try:  # the real thing: napari-skimage-regionprops on the same layer
+        from napari_skimage_regionprops import regionprops_table
+
+        frame = np.asarray(viewer.layers["gastruloids reporter"].data)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            regionprops_table(frame, labels.data, napari_viewer=viewer)
+    except ImportError:
+        labels.features = pd.DataFrame({"label": [1, 2], "area": [3, 4]})
+    assert labels.features.shape[1] < n_cols
+    assert widget.restore_button.isVisibleTo(widget)
+    assert "Restore features" in widget.status.text()
+    widget.restore_features()
+    assert labels.features.shape[1] == n_cols
+    assert not widget.restore_button.isVisibleTo(widget)
+
+
+def test_an_rgb_mask_opened_as_labels_is_refused_in_plain_words(make_napari_viewer, qtbot,
+                                                                monkeypatch):
+    from napari_pfsdm.napari import _widget
+
+    shown = []
+    monkeypatch.setattr(_widget, "show_error", shown.append)
+    viewer = make_napari_viewer()
+    rgb = np.zeros((303, 384, 3), np.uint8)
+    rgb[100:200, 100:200] = (255, 0, 0)
+    viewer.add_labels(rgb, name="mask.png")
+    widget = dock(viewer)
+    assert widget.run() is None
+    assert "colour picture" in widget.status.text() and "3 colour channels" in shown[-1]
+    assert [layer.name for layer in viewer.layers] == ["mask.png"]
+
+
+def test_the_reporter_never_defaults_to_the_labels_own_pixels(make_napari_viewer,
+                                                               sample_layers):
+    viewer = make_napari_viewer()
+    (image, image_kw, _), (labels, labels_kw, _) = sample_layers
+    viewer.add_labels(labels, **labels_kw)
+    viewer.add_image(labels.copy(), name="mask as image")  # a .tif opened twice
+    widget = dock(viewer)
+    assert widget.image_combo.currentText() == "(none)"
+    viewer.add_image(image, **image_kw)
+    widget.labels_combo.setCurrentIndex(0)
+    widget.image_combo.clear()
+    widget._refresh_images()
+    assert widget.image_combo.currentText() == image_kw["name"]
+
+
+def test_closing_the_viewer_while_pictures_are_made_is_quiet(make_napari_viewer, sample_layers,
+                                                             qtbot, capfd):
+    from superqt.utils._qthreading import WorkerBase
+
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = dock(viewer)
+    comp = dock(viewer, COMPARISON)
+    run_and_wait(qtbot, widget)
+    labels = viewer.layers["gastruloids"]
+    for label in (2, 3, 4, 5):
+        labels.selected_label = label
+    comp.frame_choice.setCurrentText("all frames")
+    assert widget._picture_worker is not None or comp.computing
+    viewer.close()
+    WorkerBase.await_workers(msecs=30_000)
+    qtbot.wait(200)
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "has been deleted" not in err
+
+
+def test_a_run_uses_no_private_napari_attribute(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run_and_wait(qtbot, widget)
+        wait_pictures(qtbot, widget)
+        widget.open_plots()
+        for plot in widget.plots:
+            plot.flush()
+    private = [str(w.message) for w in caught if "Private attribute" in str(w.message)]
+    assert private == []
