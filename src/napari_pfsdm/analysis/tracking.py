@@ -158,8 +158,9 @@ def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int
 def check_tracking(table: pd.DataFrame) -> TrackingCheck:
     """Do the table's label ids follow objects from frame to frame?
 
-    Looks at the ``frame``, ``label``, ``area``, ``centroid_y`` and ``centroid_x`` columns
-    (per ``movie`` when there is one); rows without an area or centroid are skipped. Labels are
+    Looks at the ``frame``, ``label``, ``area``, ``centroid_y`` and ``centroid_x`` columns,
+    and ``centroid_z`` for the objects of Z-stacks (per ``movie`` when there is one); rows
+    without an area or centroid are skipped. Labels are
     called untracked when more than :data:`MAX_SWITCHED` of the label steps land nearer
     another object than their own (an id handed to another object), or when fewer than
     :data:`MIN_PERSISTENCE` of a frame's ids are still there in the next frame (a new id for

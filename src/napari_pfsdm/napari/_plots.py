@@ -427,11 +427,11 @@ class TrajectoryPlotWidget(_LinkedPlot):
 
         tab = matplotlib.colormaps["tab10"]
         segments, seg_colors = [], []
-        for obj in np.unique(objects):  # one line per object through time
-            sel = np.flatnonzero(objects == obj)
-            if obj < 0 or len(sel) < 2:  # -1: rows no track reaches
+        order = np.lexsort((frames, objects))  # by object, then frame: one sort, not n scans
+        starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
+        for sel in np.split(order, starts[1:]):  # one line per object through time
+            if objects[sel[0]] < 0 or len(sel) < 2:  # -1: rows no track reaches
                 continue
-            sel = sel[np.argsort(frames[sel])]
             lab = labels[sel[0]]
             segments.append(np.column_stack([x[sel], y[sel]]))
             seg_colors.append(tab(names.index(groups[lab]) % 10) if by_group and lab in groups
