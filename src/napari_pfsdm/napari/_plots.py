@@ -429,7 +429,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         segments, seg_colors = [], []
         order = np.lexsort((frames, objects))  # by object, then frame: one sort, not n scans
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
-        for sel in np.split(order, starts[1:]):  # one line per object through time
+        for sel in np.split(order, starts[1:]) if len(order) else []:  # a line per object
             if objects[sel[0]] < 0 or len(sel) < 2:  # -1: rows no track reaches
                 continue
             lab = labels[sel[0]]
