@@ -384,7 +384,7 @@ def _volume_legend(viewer, labels_layer, pictures, bars: dict):
     titles = {"shells": "PF-SDF shells", "intensity_shells": "reporter shells"}
     for key, (top, right, h, ticks) in bars.items():
         cell = "sdf" if key == "shells" else "disk"
-        where.append((top - 0.01 * height, geo[cell][1]))
+        where.append((top - 1.35 * TEXT * height, geo[cell][1]))  # a line above the shells
         texts.append(titles[key])
         for y, text in zip((top + 0.08 * h, top + 0.52 * h, top + h), ticks, strict=True):
             where.append((y, right + 0.01 * height))

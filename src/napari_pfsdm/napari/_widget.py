@@ -213,7 +213,7 @@ class AnalysisWidget(QWidget):
         self.reading = QLabel(READING, wordWrap=True)
         self.export_button = QPushButton("Export CSV…", enabled=False, toolTip=TIPS["export"])
         self.plots_button = QPushButton("Open plots", toolTip=TIPS["plots"])
-        self.objects_button = QPushButton("Layer for plotters", enabled=False,
+        self.objects_button = QPushButton("Layer for plotters", enabled=False, visible=False,
                                           toolTip=TIPS["objects"])
         self.restore_button = QPushButton("Restore features", visible=False,
                                           toolTip=TIPS["restore"])
@@ -577,6 +577,7 @@ class AnalysisWidget(QWidget):
         self._message(msg, error=output.tracking_message.startswith("Warning"))
         self.export_button.setEnabled(True)
         self.objects_button.setEnabled(output.time_lapse)
+        self.objects_button.setVisible(output.time_lapse)  # needed for time-lapses only
         self.reading_box.setVisible(True)
         self._reset_progress()
         self.progress.setRange(0, len(output.table))
@@ -905,13 +906,16 @@ class AnalysisWidget(QWidget):
         window = self.viewer.window
         labels = self._linked_layer
         self.plots = []
+        first = None
         for i, (cls, name) in enumerate(((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
                                          (ShapeComparisonWidget, "PF-SDM shape comparison"))):
             widget = None
             try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice;
                 # the two plots share one place (tabs): the window then fits a laptop screen
-                _dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name,
-                                                              tabify=i > 0)
+                dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name,
+                                                             tabify=i > 0)
+                if i == 0:
+                    first = dock
             except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
                 docks = getattr(window, "dock_widgets", {})
                 if name in docks:
@@ -923,6 +927,8 @@ class AnalysisWidget(QWidget):
                 self.plots.append(widget)
                 if labels is not None:  # the layer this widget analysed last, not the first
                     widget.show_layer(labels)
+        if first is not None:  # the trajectories' tab in front
+            QTimer.singleShot(0, first.raise_)
         # the canvas is narrower with the plots docked: fit the view again, unless the user
         # has moved it since the plugin last fitted it
         QTimer.singleShot(150, self._refit_if_untouched)
