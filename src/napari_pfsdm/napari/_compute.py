@@ -346,6 +346,21 @@ def apply_identity(output: AnalysisOutput, mode: str = "auto", tracks=None,
     return msg
 
 
+def finish_output(output: AnalysisOutput, mode: str = "auto", tracks=None,
+                  tracks_name: str = "") -> AnalysisOutput:
+    """What a run's results need before they are shown, done where the run was (a worker):
+    the identities through time (:func:`apply_identity`; when the chosen Tracks layer cannot
+    be used, the label ids, with a sentence saying why) and the table for ``layer.features``
+    (:func:`layer_features`, kept in ``output.derived``)."""
+    try:
+        apply_identity(output, mode, tracks, tracks_name)
+    except ValueError as err:  # e.g. the Tracks layer chosen is gone: trust the ids
+        apply_identity(output, "labels")
+        output.tracking_message = f"{err} The label ids were used."
+    output.derived["layer_features"] = layer_features(output)
+    return output
+
+
 # ------------------------------------------------------------------------ layer.features
 def layer_features(output: AnalysisOutput) -> pd.DataFrame:
     """The table for ``labels_layer.features``: numbers only, plus the PC scores.

@@ -524,7 +524,8 @@ def set_features(labels_layer, output: AnalysisOutput) -> None:
     show every column of the last frame's row of the label under the cursor; the layer's
     properties text is replaced by :func:`~._compute.status_line` for the frame shown.
     """
-    labels_layer.features = layer_features(output)
+    features = output.derived.get("layer_features")  # made in the run's worker
+    labels_layer.features = features if features is not None else layer_features(output)
     labels_layer.metadata["pfsdm_errors"] = {
         f"{int(f)}:{int(lab)}": str(e) for f, lab, e in
         zip(output.table["frame"], output.table["label"], output.table["error"], strict=True)

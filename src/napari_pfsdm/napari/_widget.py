@@ -36,6 +36,7 @@ from ._compute import (
     PictureCache,
     PicturesCancelled,
     VolumePictures,
+    finish_output,
     object_pictures,
     run_analysis,
     status_line,
@@ -471,8 +472,9 @@ class AnalysisWidget(QWidget):
         first_axis = self.first_axis_meaning() if labels.ndim == 3 else "time"
         # a Z-stack's voxel size is the layer's scale (z, y, x), as napari draws it
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
+        identity = self.identity_mode()  # linked in the worker too, not on the GUI thread
         worker = _analysis_worker(_data(labels), None if image is None else _data(image), options,
-                                  first_axis, spacing, _ignore_errors=True)
+                                  first_axis, spacing, identity, _ignore_errors=True)
         worker.yielded.connect(self._on_progress)
         worker.returned.connect(lambda out: self._on_returned(labels, out, weight))
         worker.errored.connect(self._on_error)
@@ -530,13 +532,7 @@ class AnalysisWidget(QWidget):
         self.shown_key = None
         self.last_output = output
         labels.metadata["pfsdm_axes"] = output.axes  # time or Z: what the user said
-        try:
-            self._apply_identity(output)
-        except ValueError as err:  # e.g. the Tracks layer chosen is gone: trust the ids
-            from ._compute import apply_identity
-
-            apply_identity(output, "labels")
-            output.tracking_message = f"{err} The label ids were used."
+        # the identities and the features table were made in the worker (finish_output)
         self._set_features(labels, output)
         _layers.name_axes(self.viewer, labels)
         names = _layers.layer_names(labels.name)
@@ -950,10 +946,11 @@ class AnalysisWidget(QWidget):
 
 
 @thread_worker(start_thread=False)
-def _analysis_worker(labels, intensity, options, first_axis, spacing):
-    """Worker generator: the analysis, stoppable at each object."""
+def _analysis_worker(labels, intensity, options, first_axis, spacing, identity):
+    """Worker generator: the analysis, stoppable at each object, then what the GUI thread
+    would otherwise compute when it shows the results (identities, the features table)."""
     output = yield from run_analysis(labels, intensity, options, first_axis, spacing)
-    return output
+    return finish_output(output, *identity)
 
 
 @thread_worker(start_thread=False)
