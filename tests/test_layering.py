@@ -18,17 +18,19 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "napari_pfsdm"
 
 #: What each layer may import from the package (besides itself).
 ALLOWED = {
-    "core": set(),
-    "data": {"core"},
-    "analysis": {"core", "data"},
-    "io_csv": {"core"},
-    "batch": {"core", "analysis", "data", "io_csv"},
-    "experiments": {"core", "analysis", "data", "io_csv"},
-    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments"},
-    "napari": {"core", "analysis", "data", "io_csv"},
+    "core": {"errors"},
+    "data": {"core", "errors"},
+    "analysis": {"core", "data", "errors"},
+    "io_csv": {"core", "errors"},
+    "batch": {"core", "analysis", "data", "io_csv", "errors"},
+    "experiments": {"core", "analysis", "data", "io_csv", "errors"},
+    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments", "errors"},
+    "napari": {"core", "analysis", "data", "io_csv", "errors"},
     "__main__": {"cli"},
-    "__init__": {"core", "analysis", "io_csv"},
+    "__init__": {"core", "analysis", "io_csv", "errors"},
     "_version": set(),
+    # the one exception class for input a user can fix: imports nothing, used by every layer
+    "errors": set(),
 }
 
 

@@ -109,6 +109,45 @@ def test_overlap_linking_bridges_a_missed_frame():
                                                  TRACK_COLUMN].nunique() == 2
 
 
+def _blinking(n_frames: int, present: list[int]) -> tuple[np.ndarray, pd.DataFrame]:
+    """One 10 x 10 square standing still, present only in the frames ``present`` (the other
+    frames hold no object at all), as a label movie and as its table."""
+    labels = np.zeros((n_frames, 40, 40), np.uint16)
+    labels[present, 5:15, 5:15] = 1
+    table = pd.DataFrame({"frame": present, "label": 1, "area": 100.0,
+                          "centroid_y": 9.5, "centroid_x": 9.5})
+    return labels, table
+
+
+LINKERS = ["overlap", "centroid", "laptrack"]
+
+
+def _linked(method: str, labels: np.ndarray, table: pd.DataFrame, max_gap: int) -> list[int]:
+    if method == "laptrack":
+        pytest.importorskip("laptrack")
+    out = tk.link(table, labels if method == "overlap" else None, method=method,
+                  max_gap=max_gap)
+    return out[TRACK_COLUMN].tolist()
+
+
+@pytest.mark.parametrize("method", LINKERS)
+def test_every_linker_closes_a_gap_over_an_empty_frame(method):
+    # the object is in frames 0 and 2; frame 1 holds no object at all (issue 21: centroid
+    # linking, the default, gave [1, 2] here while overlap linking gave [1, 1])
+    labels, table = _blinking(3, [0, 2])
+    assert _linked(method, labels, table, max_gap=1) == [1, 1]
+    assert _linked(method, labels, table, max_gap=0) == [1, 2]  # no gap closing asked
+
+
+@pytest.mark.parametrize("method", LINKERS)
+def test_every_linker_closes_gaps_of_exactly_max_gap_frames(method):
+    # frames 0, 3 (two empty frames between) and 7 (three empty frames before it)
+    labels, table = _blinking(8, [0, 3, 7])
+    assert _linked(method, labels, table, max_gap=2) == [1, 1, 2]
+    assert _linked(method, labels, table, max_gap=3) == [1, 1, 1]
+    assert _linked(method, labels, table, max_gap=1) == [1, 2, 3]
+
+
 def test_link_labels_refuses_non_movies():
     with pytest.raises(ValueError, match=r"\(T, Y, X\)"):
         tk.link_labels(np.zeros((10, 10), int))

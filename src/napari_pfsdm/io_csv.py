@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from .core.table_schema import NO_TRACK, TRACK_COLUMN
+from .errors import InputError
 
 __all__ = [
     "HEADER_PREFIX",
@@ -150,13 +151,13 @@ def _write_temp(path: Path, write: Callable[[IO], None], *, binary: bool = False
     """Fill a temporary file next to ``path`` (umask permissions, synced); return its name."""
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise ValueError(
+        raise InputError(
             f"cannot write {path}: the folder {folder} does not exist; create it first"
         )
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
-        raise ValueError(
+        raise InputError(
             f"cannot write {path}: the folder {folder} is not writable ({exc.strerror})"
         ) from exc
     try:
@@ -278,11 +279,11 @@ def read_sidecar(path: str | os.PathLike) -> dict[str, Any] | None:
     try:
         data = json.loads(side.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(
+        raise InputError(
             f"{side} is damaged ({exc}); delete it and write the table again"
         ) from None
     if not isinstance(data, dict) or "options" not in data:
-        raise ValueError(f"{side} is not a napari-pfsdm sidecar (no 'options' in it)")
+        raise InputError(f"{side} is not a napari-pfsdm sidecar (no 'options' in it)")
     return data
 
 
@@ -328,10 +329,10 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     """
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"cannot read {path}: no such file")
+        raise InputError(f"cannot read {path}: no such file")
     what = _looks_binary(path)
     if what is not None:
-        raise ValueError(f"{path} is {what}, not a CSV table")
+        raise InputError(f"{path} is {what}, not a CSV table")
     legacy_options = _legacy_options(path)  # the first line is read once
     side = read_sidecar(path)
     side_options = dict(side.get("options") or {}) if side is not None else legacy_options
@@ -341,9 +342,9 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,
                          index_col=index_col, dtype=text_cols)
     except pd.errors.EmptyDataError:
-        raise ValueError(f"{path} is empty: it holds no table") from None
+        raise InputError(f"{path} is empty: it holds no table") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path} is not a readable CSV table ({exc})") from None
+        raise InputError(f"{path} is not a readable CSV table ({exc})") from None
     first = df.columns[0] if len(df.columns) else None
     if (index_col is None and isinstance(first, str) and first.startswith("Unnamed: 0")
             and df[first].dtype.kind in "iu"
@@ -392,7 +393,7 @@ def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str =
     path = Path(path)
     if force or not path.exists() or path.is_dir() or written_by_pfsdm(path):
         return
-    raise ValueError(
+    raise InputError(
         f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
         "nothing was changed. Choose another name, or add --force to replace it"
     )

@@ -25,6 +25,7 @@ from ..core.table_schema import (
     table_feature_columns,
 )
 from ..core.volume_sdf import check_spacing
+from ..errors import InputError
 from .tables import failed_rows
 
 __all__ = [
@@ -99,20 +100,20 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
         if ndim == 3:
             return "tyx"
         if ndim == 4:
-            raise ValueError(
+            raise InputError(
                 f"The labels have 4 dimensions {tuple(shape)}: say which axes they are, e.g. "
                 "axes='tzyx' for a time-lapse of Z-stacks (in the command line: --axes tzyx)."
             )
-        raise ValueError(
+        raise InputError(
             f"Labels must be 2-D (Y, X), 3-D (T, Y, X or Z, Y, X) or 4-D (T, Z, Y, X); got shape "
             f"{tuple(shape)}. For extra channels, pass one channel."
         )
     axes = str(axes).lower()
     if axes not in AXES:
-        raise ValueError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
+        raise InputError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
                          f"{axes!r}.")
     if len(axes) != ndim:
-        raise ValueError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
+        raise InputError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
                          f"dimensions {tuple(shape)}.")
     return axes
 
@@ -124,7 +125,7 @@ def _spacing(axes: str, spacing) -> np.ndarray | None:
     if spacing is not None:
         sp = np.asarray(spacing, float).ravel()
         if sp.size not in (1, 2) or not np.all(sp == sp[0]):
-            raise ValueError(
+            raise InputError(
                 f"spacing {tuple(sp.tolist())} was given for 2-D frames (axes={axes!r}); 2-D "
                 "objects take square pixels only. If the first axis is Z, say axes='zyx'."
             )
@@ -169,12 +170,12 @@ def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, st
     axes = resolve_axes(shape, axes)
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
-        raise ValueError(
+        raise InputError(
             f"Labels must be an integer label image (each object one whole number), got dtype "
             f"{dtype}. Convert a segmentation with skimage.measure.label first."
         )
     if intensity is not None and tuple(intensity.shape) != shape:
-        raise ValueError(
+        raise InputError(
             f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
             f"{shape}: they must cover the same frames and pixels."
         )
@@ -243,7 +244,7 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
         if frame.dtype == bool:
             frame = frame.astype(np.uint8)
         if frame.size and frame.min() < 0:
-            raise ValueError(
+            raise InputError(
                 f"Frame {t} has negative labels; labels must be 0 (background) or positive."
             )
         image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)

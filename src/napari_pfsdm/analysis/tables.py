@@ -26,6 +26,7 @@ from ..core.table_schema import (
     table_feature_columns,
     table_ndim,
 )
+from ..errors import InputError
 
 __all__ = [
     "distance_matrix",
@@ -109,7 +110,7 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
     bad = failed_rows(table, channels)
     if bad:
         shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
-        raise ValueError(
+        raise InputError(
             f"{len(bad)} of {len(table)} rows have no {' or '.join(channels)} features "
             f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
             "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"

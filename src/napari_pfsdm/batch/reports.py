@@ -27,6 +27,7 @@ from ..analysis.reduction import (
     row_ids,
 )
 from ..core.table_schema import check_feature_table
+from ..errors import InputError
 from ..io_csv import read_table_csv, save_figure
 
 __all__ = [
@@ -77,7 +78,7 @@ def plot_trajectories(
     for ax, ch in zip(axes, channels, strict=True):
         cx, cy = (f"{ch}_PC{components[0]}", f"{ch}_PC{components[1]}")
         if cx not in scores or cy not in scores:
-            raise ValueError(f"no {cx}/{cy} in the PCA table; choose other components")
+            raise InputError(f"no {cx}/{cy} in the PCA table; choose other components")
         sc = None
         for oid in pd.unique(ids):
             obj = scores[ids == oid].sort_values("frame")
@@ -176,19 +177,19 @@ def load_features(path: str | os.PathLike) -> pd.DataFrame:
     try:
         table = read_table_csv(path)
     except ValueError as exc:
-        raise ValueError(
+        raise InputError(
             f"{exc}; give the table written by 'pfsdm measure' (e.g. pfsdm measure "
             "LABELS.tif -o features.csv, then use features.csv here)"
         ) from None
     need = {"frame", "label"}
     if not need <= set(table.columns):
-        raise ValueError(
+        raise InputError(
             f"{path} is not a PF-SDM feature table (it needs frame, label and shape_rXX_nYY "
             "columns); make one with: pfsdm measure LABELS -o features.csv"
         )
     check_feature_table(table, ["shape"], where=str(path))
     if len(table) == 0:
-        raise ValueError(
+        raise InputError(
             f"{path} holds no objects (0 rows): its labels had only background; measure "
             "labels that contain objects"
         )

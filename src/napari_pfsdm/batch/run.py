@@ -29,8 +29,9 @@ import pandas as pd
 
 from ..core.params import PFSDMParams, as_params
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+from ..errors import InputError
 from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
-from .io import Movie, check_labels, open_movie
+from .io import Movie, check_labels, file_identity, open_movie
 
 __all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
 
@@ -127,14 +128,14 @@ def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, A
             return "local", {"synchronous": "sync", "single-threaded": "sync"}.get(s, s)
         if "://" in s or re.fullmatch(r"[\w.\-]+:\d+", s):
             return "address", s
-        raise ValueError(
+        raise InputError(
             f"unknown scheduler {scheduler!r}: use threads, processes, sync, or the address "
             "of a dask scheduler such as tcp://10.0.0.5:8786"
         )
     # a distributed.Client passed as scheduler
     if hasattr(scheduler, "submit") and hasattr(scheduler, "gather"):
         return "distributed", scheduler
-    raise ValueError(f"unknown scheduler {scheduler!r}")
+    raise InputError(f"unknown scheduler {scheduler!r}")
 
 
 @contextlib.contextmanager
@@ -143,7 +144,7 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
         try:
             from distributed import Client
         except ImportError as exc:
-            raise ValueError(
+            raise InputError(
                 "running on a dask cluster needs the distributed package: "
                 "pip install 'napari-pfsdm[batch]'"
             ) from exc
@@ -151,7 +152,7 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
         try:
             client = Client(obj, timeout="20s")
         except OSError as exc:
-            raise ValueError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
+            raise InputError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
         try:
             yield client
         finally:
@@ -352,7 +353,7 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         if p is None:
             return None
         p = Path(p).resolve()
-        return [str(p), os.path.getmtime(p)]
+        return [str(p), list(file_identity(p))]  # a replaced file is measured again
 
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
@@ -446,7 +447,8 @@ def run_batch(
         As in :func:`measure_dask`.
     parts_dir : str or PathLike, optional
         Folder of per-movie parts (default ``<output>.parts``). A movie whose part is there
-        (same files, same modification times, same options) is not measured again.
+        (the same files, unchanged: size, modification time and inode; the same options) is
+        not measured again.
     progress : callable, optional
         ``progress(movie_name, frames_done, n_frames)``.
     log : callable, optional
@@ -476,9 +478,9 @@ def run_batch(
     output = Path(output)
     out_dir = output.parent if str(output.parent) else Path(".")
     if not out_dir.is_dir():
-        raise ValueError(f"cannot write {output}: the folder {out_dir} does not exist")
+        raise InputError(f"cannot write {output}: the folder {out_dir} does not exist")
     if not os.access(out_dir, os.W_OK):
-        raise ValueError(f"cannot write {output}: the folder {out_dir} is not writable")
+        raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
@@ -493,7 +495,7 @@ def run_batch(
             if m.intensity else None
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
-            raise ValueError(f"{m.labels} and {m.intensity} have different shapes")
+            raise InputError(f"{m.labels} and {m.intensity} have different shapes")
         opened.append((m, lab, img))
 
     kind, obj = resolve_scheduler(scheduler, client)
@@ -556,7 +558,7 @@ def run_batch(
         attrs = p.record(3 if axes and "z" in axes else 2)
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
-        raise ValueError(
+        raise InputError(
             f"no objects: {names} hold{'s' if len(movies) == 1 else ''} only background (0) "
             "in every frame, so nothing was written. Check that these are the segmentation "
             "(labels), or pass --allow-empty to write an empty table"

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from .boundary import boundary_distance_matrix
 
 __all__ = [
@@ -123,7 +124,7 @@ def _parabolic_peak(corr: np.ndarray) -> np.ndarray:
 def _from_results(items, channel: str):
     attr = "embedding" if channel == "shape" else "intensity_embedding"
     if any(getattr(r, attr) is None for r in items):
-        raise ValueError("intensity_weight > 0 needs results computed with an intensity.")
+        raise InputError("intensity_weight > 0 needs results computed with an intensity.")
     emb = np.stack([getattr(r, attr) for r in items])
     return emb, items[0].weights, items[0].mode_weights
 
@@ -158,7 +159,7 @@ class Embeddings:
     def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         emb = self.shape if name == "shape" else self.intensity
         if emb is None:
-            raise ValueError("intensity_weight > 0 needs intensity embeddings.")
+            raise InputError("intensity_weight > 0 needs intensity embeddings.")
         return emb, self.weights, self.mode_weights
 
 
@@ -251,11 +252,11 @@ def distance_matrix(
         invariance = "magnitude"
     boundary_weight = _check_boundary_weight(boundary_weight)
     if invariance not in INVARIANCES:
-        raise ValueError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
+        raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
     if arrays:
         if invariance != "magnitude":
-            raise ValueError(
+            raise InputError(
                 f"invariance={invariance!r} needs the complex spectra of pfsdm results; a table "
                 "holds magnitudes only. Use invariance='magnitude' for tables."
             )
@@ -312,7 +313,7 @@ def distance(a, b, intensity_weight: float = 0.0, *, invariance: str | None = No
 def _no_boundary_in_3d(weight: float | None) -> float:
     """3-D objects have no outline: their surface term (``surface_weight``) plays that part."""
     if weight:
-        raise ValueError("boundary_weight is for 2-D outlines; 3-D objects have their surface "
+        raise InputError("boundary_weight is for 2-D outlines; 3-D objects have their surface "
                          "term instead (the surface_weight option of pfsdm / measure).")
     return 0.0
 
@@ -322,7 +323,7 @@ def _check_boundary_weight(weight: float | None) -> float:
         return BOUNDARY_WEIGHT
     value = float(weight)
     if not np.isfinite(value) or value < 0:
-        raise ValueError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
+        raise InputError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
                          f"got {weight!r}.")
     return value
 
@@ -332,7 +333,7 @@ def outlines_of(items) -> np.ndarray:
     term; ``ValueError`` when embeddings carry none."""
     if isinstance(items, Embeddings):
         if items.outline is None:
-            raise ValueError(
+            raise InputError(
                 "The default distance has a boundary term, which needs the objects' outline "
                 "coefficients, and these embeddings carry none (a table measured before the "
                 "boundary term has no outline_* columns). Measure again, or pass "

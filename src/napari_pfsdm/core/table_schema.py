@@ -25,6 +25,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from ..errors import InputError
+
 __all__ = [
     "BASE_COLUMNS",
     "BASE_COLUMNS_3D",
@@ -170,7 +172,7 @@ def check_feature_table(
         ("weights", "n_fourier")
     missing_opts = [k for k in needed if opts.get(k) is None]
     if missing_opts:
-        raise ValueError(
+        raise InputError(
             f"{where} does not say how it was measured (no {' or '.join(missing_opts)} in its "
             "options), so its distances cannot be computed correctly. Keep the .csv.json file "
             "that 'pfsdm measure' writes next to the .csv (read tables with "
@@ -184,17 +186,17 @@ def check_feature_table(
         missing = [c for c in expected if c not in columns]
         if len(missing) == len(expected):
             if channel == "intensity":
-                raise ValueError(
+                raise InputError(
                     f"{where} has no intensity features; measure with an intensity image "
                     "(--intensity IMAGE) or leave the intensity out"
                 )
-            raise ValueError(
+            raise InputError(
                 f"{where} has no shape_rXX_{'l' if table_ndim(opts) == 3 else 'n'}YY feature "
                 "columns: it is not a PF-SDM feature "
                 "table; make one with: pfsdm measure LABELS -o features.csv"
             )
         if missing:
-            raise ValueError(
+            raise InputError(
                 f"{where} misses {len(missing)} of its {len(expected)} {channel} feature "
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"
