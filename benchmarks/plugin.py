@@ -88,9 +88,9 @@ def main(argv=None) -> int:
     same = np.array_equal(table[num].to_numpy(float), out.table[num].to_numpy(float),
                           equal_nan=True)
 
+    import napari
     from qtpy.QtCore import QEventLoop, QTimer
 
-    import napari
     from napari_pfsdm.napari import _layers
     from napari_pfsdm.napari._widget import AnalysisWidget
 
