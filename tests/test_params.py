@@ -10,7 +10,7 @@ import pytest
 import napari_pfsdm as P
 from napari_pfsdm.analysis.tracking import LINK_METHODS
 from napari_pfsdm.cli import build_parser, main
-from napari_pfsdm.core.morphometric import ring_radii, ring_weights
+from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, PFSDMParams
 
 
@@ -25,11 +25,39 @@ def test_defaults_are_the_core_defaults_and_the_record_has_the_weights():
     p = PFSDMParams()
     assert {k: getattr(p, k) for k in P.DEFAULTS} == P.DEFAULTS
     rec = PFSDMParams(n_radii=8, ring_weighting="none").record()
-    r = ring_radii(8, "uniform")
+    r = np.array([0.0625, 0.1875, 0.3125, 0.4375, 0.5625, 0.6875, 0.8125, 0.9375])  # (i + ½)/8
     assert rec["radii"] == r.tolist() and rec["n_radii"] == 8
-    assert rec["weights"] == ring_weights(r, "none").tolist()
+    assert rec["weights"] == [0.125] * 8  # each ring's cell is 1/8 wide, no weighting
     assert PFSDMParams.from_options(rec) == PFSDMParams(n_radii=8, radii=tuple(r),
                                                          ring_weighting="none")
+
+
+def test_ring_placements_and_weightings_are_their_closed_forms():
+    # "uniform": (i + ½)/4; "boundary": 1 − ((i + ½)/4)², sorted
+    np.testing.assert_array_equal(ring_radii(4, "uniform"), [0.125, 0.375, 0.625, 0.875])
+    rb = ring_radii(4, "boundary")
+    np.testing.assert_allclose(rb, [0.234375, 0.609375, 0.859375, 0.984375], rtol=1e-15)
+    # cells between midpoints, 0 and 1 at the ends: widths computed by hand
+    cells = [0.421875, 0.3125, 0.1875, 0.078125]
+    np.testing.assert_allclose(ring_weights(rb, "none"), cells, rtol=1e-14)
+    np.testing.assert_allclose(ring_weights(rb, "depth"),
+                               np.array(cells) / (1 - rb) ** 2, rtol=1e-14)
+    np.testing.assert_allclose(ring_weights(rb, "boundary"),
+                               np.array(cells) / (1 - rb + 0.05), rtol=1e-14)
+    # one ring at ½: the whole interval; depth 1/(½)² = 4, boundary 1/0.55
+    assert ring_weights(np.array([0.5]), "none").tolist() == [1.0]
+    assert ring_weights(np.array([0.5]), "depth").tolist() == [4.0]
+    assert ring_weights(np.array([0.5]), "boundary")[0] == pytest.approx(1 / 0.55, rel=1e-15)
+    np.testing.assert_allclose(mode_weights(3, 0.5), [1.0, 2**0.5, 3**0.5, 2.0], rtol=1e-15)
+    assert mode_weights(2, 0.0).tolist() == [1.0, 1.0, 1.0]
+    # the quadrature integrates: Σ w_i r_i ≈ ∫₀¹ r dr = ½ exactly for the midpoint rule
+    assert float(ring_weights(ring_radii(16), "none") @ ring_radii(16)) == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="ring_weighting must be one of"):
+        ring_weights(rb, "deep")
+    with pytest.raises(ValueError, match="strictly between 0 and 1"):
+        ring_radii(3, [0.0, 0.5])
+    with pytest.raises(ValueError, match="mode_exponent must be a number >= 0"):
+        mode_weights(3, -0.1)
 
 
 @pytest.mark.parametrize("options, message", [

@@ -310,14 +310,23 @@ def _looks_binary(path: Path) -> str | None:
     return None
 
 
+#: Columns read back as text, as written: names and messages, never numbers or NaN.
+TEXT_COLUMNS = ("movie", "group", "error", "warnings")
+
+#: What pandas reads as missing by default (its documented ``na_values``), for the other columns.
+_NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND",
+             "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"]
+
+
 def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
-    Floats are parsed so that they round-trip exactly; the ``error``, ``warnings`` and
-    ``movie`` columns come back as strings with ``""`` for empty cells, ``track_id`` as whole
-    numbers (an empty cell: -1, no track); the sidecar's options
-    are in ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for
-    a CSV from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
+    Floats are parsed so that they round-trip exactly; the text columns (``movie``,
+    ``group``, ``error``, ``warnings``: :data:`TEXT_COLUMNS`) come back as the strings written
+    (``"001"`` stays ``"001"``, ``"NA"`` stays ``"NA"``) with ``""`` for empty cells,
+    ``track_id`` as whole numbers (an empty cell: -1, no track); the sidecar's options are in
+    ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for a CSV
+    from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
     when re-saving) is dropped.
 
     Parameters
@@ -337,14 +346,21 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     side = read_sidecar(path)
     side_options = dict(side.get("options") or {}) if side is not None else legacy_options
     legacy = legacy_options is not None
-    text_cols = {"error": str, "movie": str, "warnings": str}
     try:
+        header = pd.read_csv(path, skiprows=1 if legacy else 0, nrows=0, index_col=index_col)
+        names = [c for c in [header.index.name, *header.columns] if c is not None]
+        text = [c for c in TEXT_COLUMNS if c in names]
+        # text columns keep every value as written ("001", "NA", "None" are movie names);
+        # the other columns read pandas' usual missing-value words as NaN
         df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,
-                         index_col=index_col, dtype=text_cols)
+                         index_col=index_col, dtype=dict.fromkeys(text, str),
+                         keep_default_na=False,
+                         na_values={c: _NA_WORDS for c in names if c not in text})
     except pd.errors.EmptyDataError:
         raise InputError(f"{path} is empty: it holds no table") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise InputError(f"{path} is not a readable CSV table ({exc})") from None
+    text_cols = text
     first = df.columns[0] if len(df.columns) else None
     if (index_col is None and isinstance(first, str) and first.startswith("Unnamed: 0")
             and df[first].dtype.kind in "iu"

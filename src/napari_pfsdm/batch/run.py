@@ -30,7 +30,7 @@ import pandas as pd
 from ..core.params import PFSDMParams, as_params
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
-from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
+from ..io_csv import _to_jsonable, atomic_write, read_table_csv, write_table_csv
 from .io import Movie, check_labels, file_identity, open_movie
 
 __all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
@@ -382,13 +382,11 @@ def _write_part(table: pd.DataFrame, path: Path) -> None:
 
 
 def _read_part(path: Path) -> pd.DataFrame:
+    """A movie's part as written by :func:`_write_part`: the one CSV reader of the package
+    (:func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text columns as written)."""
     if path.suffix == ".parquet":
         return pd.read_parquet(path)
-    df = pd.read_csv(path, **_FLOAT_KW, dtype={"error": str, "movie": str})
-    for col in ("error", "movie"):
-        if col in df.columns:
-            df[col] = df[col].fillna("")
-    return df
+    return read_table_csv(path)
 
 
 def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
