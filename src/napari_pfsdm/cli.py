@@ -340,6 +340,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .analysis.reduction import attach_groups, distance_table, mds_coordinates, read_groups
     from .analysis.tables import distance_matrix
     from .batch.reports import load_features, plot_mds
+    from .core.table_options import table_options
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
@@ -368,7 +369,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         with _Step(f"re-ranking them ({args.rerank})", args.quiet):
             matrix = rerank(matrix, args.rerank, k=min(args.rerank_k, n - 1))
     dist = distance_table(table, matrix)
-    opts = dict(table.attrs.get("pfsdm", {}))
+    opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
     opts["rerank"] = args.rerank or "none"
@@ -392,7 +393,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
 
     from .analysis.reduction import attach_groups, pca_scores, read_groups
     from .batch.reports import load_features, plot_trajectories
-    from .core.table_schema import has_channel
+    from .core.table_options import table_options
+    from .core.table_schema import has_channel, pc_columns
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
@@ -416,8 +418,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
             s, ev = pca_scores(table, ch, n_components=args.components)
             explained[ch] = ev
             scores = s if scores is None else pd.concat(
-                [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
-    opts = dict(table.attrs.get("pfsdm", {}))
+                [scores, s[pc_columns(s.columns, ch)]], axis=1)
+    opts = table_options(table)
     write_table_csv(scores, out, opts, table_type="pca", extra={
         "features": str(args.features),
         "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
@@ -427,10 +429,9 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     )
     _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
     if args.plot:
-        for ch, ev in explained.items():
-            scores.attrs[f"{ch}_explained"] = ev
         with _Step(f"drawing {args.plot}", args.quiet):
-            plot_trajectories(scores, args.plot, components=tuple(args.show))
+            plot_trajectories(scores, args.plot, components=tuple(args.show),
+                              explained=explained)
         _say(f"wrote {args.plot}", args.quiet)
     return 0
 

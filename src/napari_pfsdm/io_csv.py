@@ -31,6 +31,7 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
+from .core.table_options import plain, set_options, table_options
 from .core.table_schema import NO_TRACK, TRACK_COLUMN
 from .errors import InputError
 
@@ -226,7 +227,7 @@ def write_table_csv(
     ['frame', 'label', 'area']
     """
     if options is None:
-        options = df.attrs.get("pfsdm") or {}
+        options = table_options(df)
     side = {
         "written_by": _version(),
         "table": table_type,
@@ -236,8 +237,7 @@ def write_table_csv(
         **_to_jsonable(dict(extra or {})),
     }
     text = json.dumps(side, indent=1) + "\n"
-    out = df.copy()
-    out.attrs = {}  # pandas must not try to serialise attrs itself
+    out = plain(df)  # pandas must not try to serialise attrs itself
 
     path = Path(path)
     # the table first into a temporary file: if that fails, neither file has changed
@@ -375,7 +375,7 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         if np.array_equal(tracks, np.round(tracks)):
             df[TRACK_COLUMN] = tracks.astype(np.int64)
     if side_options is not None:
-        df.attrs["pfsdm"] = side_options
+        set_options(df, side_options)
     return df
 
 

@@ -35,6 +35,7 @@ from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import concat_tables
 from ..errors import InputError
 
 __all__ = [
@@ -474,9 +475,7 @@ def measure_movies(
         tab["frame"] = np.asarray(sel)[tab["frame"].to_numpy()]
         tab.insert(0, "object", i)
         tables.append(tab)
-    out = pd.concat(tables, ignore_index=True)
-    out.attrs = dict(tables[0].attrs) if tables else {}
-    return out
+    return concat_tables(tables, ignore_index=True)
 
 
 def size_contrast_features(

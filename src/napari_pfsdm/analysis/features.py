@@ -16,6 +16,7 @@ from scipy import ndimage as ndi
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import carry_options, set_options
 from ..core.table_schema import (
     BASE_COLUMNS,
     TRACK_COLUMN,
@@ -188,11 +189,33 @@ def _frame(array, t: int, timelapse: bool) -> np.ndarray:
 
 
 def count_objects(labels, axes: str | None = None) -> int:
-    """Number of (frame, label) objects in a label image (reads every frame); ``axes`` as
-    :func:`measure`."""
+    """Number of (frame, label) objects in a label image, one frame at a time (numpy, dask
+    and zarr arrays); ``axes`` as :func:`measure`. The one count of the package: the plugin's
+    progress total too.
+
+    Raises
+    ------
+    InputError
+        Labels that are not whole numbers, or that hold negative values.
+
+    Examples
+    --------
+    >>> labels = np.zeros((2, 8, 8), np.uint8)
+    >>> labels[0, :2, :2], labels[0, 5:, 5:], labels[1, 3:5, 3:5] = 1, 4, 4
+    >>> count_objects(labels)
+    3
+    """
     n_frames, timelapse, _ = _validate(labels, None, axes)
-    return int(sum(np.count_nonzero(np.bincount(_frame(labels, t, timelapse).ravel())[1:])
-                   for t in range(n_frames)))
+    n = 0
+    for t in range(n_frames):
+        a = _frame(labels, t, timelapse).ravel()
+        if a.dtype == bool:
+            a = a.astype(np.uint8)
+        if a.size and a.min() < 0:
+            raise InputError("The labels have negative values; labels must be 0 (background) "
+                             "or positive whole numbers.")
+        n += int(np.count_nonzero(np.bincount(a)[1:])) if a.size else 0
+    return n
 
 
 def iter_objects(
@@ -409,7 +432,7 @@ def table_from_objects(
         blocks.append(pd.DataFrame(np.array(out_rows).reshape(-1, len(out_cols)),
                                    columns=out_cols))
     table = pd.concat(blocks, axis=1)
-    table.attrs["pfsdm"] = opts
+    set_options(table, opts)
     return table
 
 
@@ -510,8 +533,7 @@ def split_failed(
     pos = [b[0] for b in bad]
     keep = np.ones(len(table), bool)
     keep[pos] = False
-    measured = table[keep].reset_index(drop=True)
-    measured.attrs = dict(table.attrs)
+    measured = carry_options(table, table[keep].reset_index(drop=True))
     left = pd.DataFrame({"frame": [b[1] for b in bad], "label": [b[2] for b in bad],
                          "reason": [b[3] for b in bad]})
     if TRACK_COLUMN in table.columns:

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+from ..core.table_options import carry_options, plain
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN, pc_column
 from ..errors import InputError
 from .tables import embeddings_from_table, weighted_features
 
@@ -142,10 +143,9 @@ def pca_scores(
     z = (u * s * signs)[:, :k]
     var = s**2
     keys = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "group") if c in table.columns]
-    scores = table.loc[ok, keys].reset_index(drop=True)
-    scores.attrs = {}
+    scores = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
     for i in range(k):
-        scores[f"{channel}_PC{i + 1}"] = z[:, i]
+        scores[pc_column(channel, i + 1)] = z[:, i]
     return scores, var[:k] / max(float(var.sum()), 1e-300)
 
 
@@ -247,13 +247,10 @@ def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
             f"the groups file has a {missing[0]!r} column but the feature table has none"
         )
     left = table.drop(columns=["group"], errors="ignore").copy()
-    attrs = left.attrs
-    left.attrs = {}
     for k in keys:
         left["_key_" + k] = left[k].astype(str)
     right = groups.rename(columns={k: "_key_" + k for k in keys})
     out = left.merge(right, on=["_key_" + k for k in keys], how="left")
     out = out.drop(columns=["_key_" + k for k in keys])
     out["group"] = out["group"].fillna("")
-    out.attrs = attrs
-    return out
+    return carry_options(table, out)

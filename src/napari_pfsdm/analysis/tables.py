@@ -18,6 +18,7 @@ from ..core import distances as _core
 from ..core.distances import Embeddings
 from ..core.distances3d import stack_3d
 from ..core.morphometric import mode_weights
+from ..core.table_options import table_options
 from ..core.table_schema import (
     check_feature_table,
     feature_columns,
@@ -135,7 +136,7 @@ def outlines_from_table(table) -> np.ndarray | None:
 
 def _mode_weights(table, n_modes: int) -> np.ndarray:
     """The table's mode weights; tables from before them: (1 + n)^exponent (0 when absent)."""
-    opts = table.attrs["pfsdm"]
+    opts = table_options(table)
     mw = opts.get("mode_weights")
     if mw is None:
         mw = mode_weights(n_modes - 1, float(opts.get("mode_exponent", 0.0)))
@@ -180,7 +181,7 @@ def distance_matrix(
     """
     if is_table(items):
         channels = ["shape"] + (["intensity"] if intensity_weight else [])
-        volumes = table_ndim(items.attrs.get("pfsdm") or {}) == 3  # no outline in 3-D
+        volumes = table_ndim(table_options(items)) == 3  # no outline in 3-D
         items = embeddings(items, channels)
         if volumes:
             from ..core.distances import _no_boundary_in_3d

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
+from ..core.table_options import carry_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 
@@ -539,7 +540,6 @@ def add_track_ids(table: pd.DataFrame, track_ids: Any) -> pd.DataFrame:
     ``track_id`` columns (as :func:`link_labels` returns), matched on (``movie``,) frame and
     label; rows it does not name get :data:`NO_TRACK`.
     """
-    attrs = dict(table.attrs)
     out = table.drop(columns=[TRACK_COLUMN], errors="ignore").copy()
     if isinstance(track_ids, pd.DataFrame):
         keys = [k for k in ("movie", "frame", "label") if k in track_ids.columns]
@@ -554,8 +554,7 @@ def add_track_ids(table: pd.DataFrame, track_ids: Any) -> pd.DataFrame:
             raise InputError(f"{len(values)} track ids for a table of {len(out)} rows")
     pos = list(out.columns).index("label") + 1 if "label" in out.columns else 0
     out.insert(pos, TRACK_COLUMN, values)
-    out.attrs = attrs
-    return out
+    return carry_options(table, out)
 
 
 def link(

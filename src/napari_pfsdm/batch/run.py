@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 from ..io_csv import _to_jsonable, atomic_write, read_table_csv, write_table_csv
@@ -251,11 +252,7 @@ def measure_dask(
             tables = _run_distributed(args, sizes, handle, progress)
 
     if tables:
-        attrs = tables[0].attrs.copy()
-        for t in tables:  # pandas compares attrs on concat, which fails on numpy arrays
-            t.attrs = {}
-        table = pd.concat(tables, ignore_index=True)
-        table.attrs = attrs
+        table = concat_tables(tables, ignore_index=True)
     else:  # pragma: no cover - no frames at all
         table = pd.DataFrame()
     return table
@@ -367,8 +364,7 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
 
 
 def _write_part(table: pd.DataFrame, path: Path) -> None:
-    out = table.copy()
-    out.attrs = {}
+    out = plain(table)
     if path.suffix == ".parquet":
         tmp = path.with_name(f".{path.name}.tmp")
         try:
@@ -397,9 +393,8 @@ def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
     source = getattr(lab, "_pfsdm_source", lab)  # read frames straight from the file
     if len(lab.shape) == 2:  # one frame
         source = np.asarray(source[:])[None]
-    attrs = table.attrs
     out, check, used = link_movie(table, source, how)
-    out.attrs = attrs
+    out = carry_options(table, out)
     if used:
         n = out.loc[out[TRACK_COLUMN] >= 0, TRACK_COLUMN].nunique()
         why = check.message.split(". Link")[0] if not check.tracked else check.message
@@ -532,7 +527,7 @@ def run_batch(
                     num_workers=num_workers, frames_per_task=frames_per_task,
                     progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
                 )
-                attrs = _to_jsonable(table.attrs.get("pfsdm") or attrs)
+                attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
                 # side-car options first: the part itself appearing marks the movie as done
@@ -545,8 +540,7 @@ def run_batch(
                 linked = linked or bool(used)
             tables.append(table)
 
-    for t in tables:
-        t.attrs = {}
+    tables = [plain(t) for t in tables]
     if link == "auto" and not linked:  # every movie was tracked: its labels are the ids
         tables = [t.drop(columns=[TRACK_COLUMN], errors="ignore") for t in tables]
     result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
@@ -561,6 +555,6 @@ def run_batch(
             "in every frame, so nothing was written. Check that these are the segmentation "
             "(labels), or pass --allow-empty to write an empty table"
         )
-    result.attrs["pfsdm"] = attrs
+    set_options(result, attrs)
     write_table_csv(result, output, attrs, table_type="features")
     return result

@@ -30,12 +30,12 @@ the time, and a feature table holds what it needs (magnitudes and outline coeffi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..errors import InputError
+from . import distances3d
 from .boundary import boundary_distance_matrix
+from .embeddings import Embeddings
 
 __all__ = [
     "BOUNDARY_WEIGHT",
@@ -129,40 +129,6 @@ def _from_results(items, channel: str):
     return emb, items[0].weights, items[0].mode_weights
 
 
-@dataclass(frozen=True)
-class Embeddings:
-    """Magnitude embeddings of n objects with the weights that make their distances PF-SDM
-    distances: what a feature table holds, as arrays (``napari_pfsdm.analysis.tables`` turns a
-    table into this; the core never reads a table).
-
-    Attributes
-    ----------
-    shape : ndarray, shape (n, n_radii, n_fourier + 1)
-        |c_n(r)| of the SDF.
-    weights : ndarray, shape (n_radii,)
-        Ring quadrature weights.
-    mode_weights : ndarray, shape (n_fourier + 1,)
-        (1 + n)^α.
-    intensity : ndarray, same shape as ``shape``, optional
-        |c_n(r)| of the intensity.
-    outline : ndarray of complex, shape (n, 2K), optional
-        The outline coefficients of the boundary term
-        (:func:`napari_pfsdm.core.boundary.outline_coefficients`).
-    """
-
-    shape: np.ndarray
-    weights: np.ndarray
-    mode_weights: np.ndarray
-    intensity: np.ndarray | None = None
-    outline: np.ndarray | None = None
-
-    def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        emb = self.shape if name == "shape" else self.intensity
-        if emb is None:
-            raise InputError("intensity_weight > 0 needs intensity embeddings.")
-        return emb, self.weights, self.mode_weights
-
-
 def _channel_arrays(items, channel: str):
     if isinstance(items, Embeddings):
         return items.channel(channel)
@@ -176,8 +142,6 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
     :func:`napari_pfsdm.weighted_features`). For 3-D results the surface term is one more row
     (:mod:`.distances3d`): (n, (n_radii + 1) × (sh_degree + 1))."""
     if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
-        from . import distances3d
-
         items = list(items)
         if items and distances3d.is_3d(items):
             items = distances3d.embeddings_3d(items, with_intensity=channel == "intensity")
@@ -234,7 +198,6 @@ def distance_matrix(
     True
     """
     if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
-        from . import distances3d  # 3-D results: their own branch (docs/design.md §6.5)
 
         items = list(items)
         if items and distances3d.is_3d(items):

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .distances import Embeddings
+from .embeddings import Embeddings
 
 __all__ = ["embeddings_3d", "is_3d", "check_invariance_3d", "stack_3d"]
 

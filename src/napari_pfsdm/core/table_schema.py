@@ -28,6 +28,8 @@ from typing import Any
 from ..errors import InputError
 
 __all__ = [
+    "pc_column",
+    "pc_columns",
     "BASE_COLUMNS",
     "BASE_COLUMNS_3D",
     "base_columns",
@@ -130,6 +132,31 @@ def has_outline(columns: Iterable[str]) -> int:
     names = {str(c) for c in columns}
     k = sum(1 for c in names if c.startswith("outline_n+") and c.endswith("_re"))
     return k if k and all(c in names for c in outline_columns(k)) else 0
+
+
+def pc_column(channel: str, k: int) -> str:
+    """The one name of a PCA score column: ``{channel}_PC{k}`` (k from 1), as every PCA table
+    the package writes names it (``pfsdm trajectories``, the batch reports).
+
+    Examples
+    --------
+    >>> pc_column("shape", 1)
+    'shape_PC1'
+    """
+    return f"{channel}_PC{int(k)}"
+
+
+def pc_columns(columns: Iterable[str], channel: str) -> list[str]:
+    """The PCA score columns of ``channel`` among ``columns``, in the order PC1, PC2, ….
+
+    Examples
+    --------
+    >>> pc_columns(["frame", "shape_PC2", "shape_PC1", "intensity_PC1"], "shape")
+    ['shape_PC1', 'shape_PC2']
+    """
+    prefix = pc_column(channel, 0)[:-1]
+    found = [c for c in columns if str(c).startswith(prefix) and str(c)[len(prefix):].isdigit()]
+    return sorted(found, key=lambda c: int(str(c)[len(prefix):]))
 
 
 def has_channel(columns: Iterable[str], channel: str) -> bool:
