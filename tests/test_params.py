@@ -159,3 +159,16 @@ def test_the_command_line_offers_exactly_the_params_options():
                    "components": "raise", "min_area": 11, "sh_degree": 4,
                    "surface_weight": 2.0, "ball_map": "harmonic"}
     assert _measure_options(build_parser().parse_args(argv[:4])) == {}  # defaults: the core's
+
+
+def test_pfsdm3d_takes_its_method_options_from_params():
+    import inspect
+
+    from napari_pfsdm.core.descriptor3d import DEFAULTS_3D, pfsdm3d
+
+    sig = inspect.signature(pfsdm3d).parameters
+    every = _method_option_names_and_defaults()
+    shared = {"n_radii", "radii", "ring_weighting", "mode_exponent", "sh_degree", "ball_map",
+              "surface_weight", "components"}
+    assert {k: sig[k].default for k in shared} == {k: every[k] for k in shared}
+    assert DEFAULTS_3D == {k: every[k] for k in ("sh_degree", "ball_map", "surface_weight")}

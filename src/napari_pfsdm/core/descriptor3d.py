@@ -20,13 +20,18 @@ from ..errors import InputError
 from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
 from .intensity import intensity_crop
 from .morphometric import mode_weights, ring_radii, ring_weights
+from .params import PFSDMParams
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
 from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
 
 __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3D"]
 
-#: Defaults of the 3-D-only options (the shared ones come from PFSDMParams).
-DEFAULTS_3D: dict[str, Any] = {"sh_degree": 8, "ball_map": "radial", "surface_weight": 4.0}
+#: The method's defaults, declared once (core.params.PFSDMParams).
+_P = PFSDMParams()
+
+#: Defaults of the 3-D-only options (PFSDMParams', like all of pfsdm3d's method options).
+DEFAULTS_3D: dict[str, Any] = {k: getattr(_P, k) for k in ("sh_degree", "ball_map",
+                                                          "surface_weight")}
 
 
 @dataclass(eq=False)
@@ -119,14 +124,14 @@ def pfsdm3d(
     intensity: np.ndarray | None = None,
     *,
     spacing=None,
-    n_radii: int = 16,
-    radii: str | np.ndarray = "uniform",
-    ring_weighting: str = "depth",
-    mode_exponent: float = 0.25,
-    sh_degree: int = DEFAULTS_3D["sh_degree"],
-    ball_map: str = DEFAULTS_3D["ball_map"],
-    surface_weight: float = DEFAULTS_3D["surface_weight"],
-    components: str = "largest",
+    n_radii: int = _P.n_radii,
+    radii: str | np.ndarray = _P.radii,
+    ring_weighting: str = _P.ring_weighting,
+    mode_exponent: float = _P.mode_exponent,
+    sh_degree: int = _P.sh_degree,
+    ball_map: str = _P.ball_map,
+    surface_weight: float = _P.surface_weight,
+    components: str = _P.components,
     min_volume: int = DEFAULT_MIN_VOLUME,
     smooth: float = 1.0,
     offset=(0.0, 0.0, 0.0),
