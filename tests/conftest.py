@@ -27,5 +27,14 @@ def _gui_stack_missing() -> str:
     return ""
 
 
-#: Without the GUI stack, tests/gui is not collected at all (not errors at collection).
-collect_ignore_glob = ["gui/*"] if _gui_stack_missing() else []
+_GUI_MISSING = _gui_stack_missing()
+
+#: Without the GUI stack, tests/gui is not entered at all (no errors at collection, not even its
+#: conftest); the run's header says so.
+collect_ignore = ["gui"] if _GUI_MISSING else []
+
+
+def pytest_report_header(config):
+    if _GUI_MISSING:
+        return [f"tests/gui not collected: {_GUI_MISSING} (the non-GUI run, docs/testing.md)"]
+    return []

@@ -13,6 +13,7 @@ import pytest
 import tifffile
 
 import napari_pfsdm
+import napari_pfsdm.errors
 from napari_pfsdm.analysis import features as features_module
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch.io import check_labels
@@ -322,3 +323,63 @@ def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
     again = run_batch(movies, tmp_path / "f.csv", scheduler="sync", log=log.append)
     assert log[0].startswith("skipped a")
     pd.testing.assert_frame_equal(again, first)
+
+
+# ------------------------------------------------------------------------------------------
+# a movie replaced on disk (issue 21): new pixels, never the old ones from a cache
+# ------------------------------------------------------------------------------------------
+
+def _replace_atomically(path: Path, data: np.ndarray) -> None:
+    """Write ``data`` beside ``path`` and move it over ``path``, as an atomic save does."""
+    tmp = path.with_name(".new-" + path.name)
+    tifffile.imwrite(tmp, data, photometric="minisblack")
+    os.replace(tmp, path)
+
+
+def test_a_tiff_replaced_on_disk_is_read_anew(tmp_path):
+    path = tmp_path / "movie.tif"
+    old = np.full((2, 64, 64), 3, np.uint16)
+    tifffile.imwrite(path, old)
+    assert int(open_movie(path)[1].compute().max()) == 3  # read once: now open in the cache
+    new = np.zeros((2, 80, 80), np.uint16)
+    new[1, 10:20, 10:30] = 9
+    _replace_atomically(path, new)
+    again = open_movie(path)
+    assert again.shape == (2, 80, 80)
+    np.testing.assert_array_equal(again.compute(), new)  # not the old 3s
+
+
+def test_a_tiff_of_the_same_shape_replaced_on_disk_gives_its_own_pixels(tmp_path):
+    # same shape and dtype, so only the file's identity tells the two apart
+    path = tmp_path / "movie.tif"
+    tifffile.imwrite(path, np.full((3, 32, 32), 1, np.uint8), photometric="minisblack")
+    assert int(open_movie(path).sum().compute()) == 3 * 32 * 32
+    _replace_atomically(path, np.full((3, 32, 32), 2, np.uint8))
+    assert int(open_movie(path).sum().compute()) == 2 * 3 * 32 * 32
+
+
+def test_a_movie_changed_after_opening_is_refused_in_plain_words(tmp_path):
+    path = tmp_path / "movie.tif"
+    tifffile.imwrite(path, np.zeros((2, 16, 16), np.uint8))
+    arr = open_movie(path)  # shape read: (2, 16, 16)
+    _replace_atomically(path, np.zeros((5, 40, 40), np.uint8))
+    with pytest.raises(napari_pfsdm.errors.InputError, match="changed on disk"):
+        arr.compute()
+
+
+def test_run_batch_measures_a_replaced_movie_again(tmp_path, monkeypatch):
+    monkeypatch.setattr(features_module, "measure", fake_measure)
+    path = tmp_path / "m.tif"
+    small = np.zeros((1, 40, 40), np.uint16)
+    small[0, 5:10, 5:10] = 1  # area 25
+    tifffile.imwrite(path, small)
+    out = tmp_path / "features.csv"
+    first = run_batch(pair_movies([path]), out, scheduler="sync")
+    assert first["area"].tolist() == [25.0]
+    big = np.zeros((1, 40, 40), np.uint16)
+    big[0, 5:15, 5:15] = 1  # area 100
+    _replace_atomically(path, big)
+    log = []
+    second = run_batch(pair_movies([path]), out, scheduler="sync", log=log.append)
+    assert second["area"].tolist() == [100.0]
+    assert log[0].startswith("measured m")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,7 @@ import tifffile
 from skimage import data, filters, measure
 
 from napari_pfsdm.cli import main
+from napari_pfsdm.errors import InputError
 
 
 def imwrite(path, array):
@@ -294,20 +296,72 @@ def test_input_mistakes_get_plain_messages(tmp_path, capsys):
     assert not (tmp_path / "f.csv").exists()
 
 
-def test_unexpected_errors_are_one_line_without_traceback(tmp_path, capsys, monkeypatch):
+def _command_raising(monkeypatch, exc: BaseException):
+    """Make ``pfsdm compare`` raise ``exc`` (as a bug or an input error deep inside would)."""
     import napari_pfsdm.cli as cli
 
     def boom(args):
-        raise RuntimeError("something inside broke")
+        raise exc
 
     parser = cli.build_parser()
     parser._subparsers._group_actions[0].choices["compare"].set_defaults(func=boom)
     monkeypatch.setattr(cli, "build_parser", lambda: parser)
+
+
+@pytest.mark.parametrize("exc", [
+    RuntimeError("something inside broke"),
+    # a plain ValueError is not the user's: numpy, scikit-learn and our own slips raise them
+    ValueError("operands could not be broadcast together with shapes (3,) (4,)"),
+    KeyError("shape_PC1"),
+    ModuleNotFoundError("No module named 'napari_pfsdm.gone'", name="napari_pfsdm.gone"),
+])
+def test_a_bug_says_it_is_a_bug_and_where_to_report_it(tmp_path, capsys, monkeypatch, exc):
+    from napari_pfsdm.cli import BUG_REPORT
+
+    _command_raising(monkeypatch, exc)
     assert main(["compare", "x.csv", "-o", str(tmp_path / "d.csv")]) == 1
-    msg = last_error(capsys)
-    assert "unexpected RuntimeError: something inside broke" in msg and "--debug" in msg
-    with pytest.raises(RuntimeError):
-        main(["--debug", "compare", "x.csv", "-o", str(tmp_path / "d.csv")])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "pfsdm: error:" not in err
+    assert "a bug of napari-pfsdm, not of your input" in err
+    assert type(exc).__name__ in err and BUG_REPORT in err and "--debug" in err
+    # with --debug: the traceback first, then the same words; the same exit status
+    assert main(["--debug", "compare", "x.csv", "-o", str(tmp_path / "d.csv")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("Traceback (most recent call last):")
+    assert "in boom" in err and BUG_REPORT in err
+
+
+@pytest.mark.parametrize("exc, shown", [
+    (InputError("the table has no intensity features"), "the table has no intensity features"),
+    (FileNotFoundError(2, "No such file or directory", "x.csv"),
+     "[Errno 2] No such file or directory: 'x.csv'"),
+    (ImportError("linking with 'laptrack' needs the laptrack package", name="laptrack"),
+     "linking with 'laptrack' needs the laptrack package"),
+])
+def test_an_input_error_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch, exc, shown):
+    _command_raising(monkeypatch, exc)
+    assert main(["compare", "x.csv", "-o", str(tmp_path / "d.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"pfsdm: error: {shown}"]
+    assert main(["--debug", "compare", "x.csv", "-o", str(tmp_path / "d.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("Traceback") and err.rstrip().endswith(f"pfsdm: error: {shown}")
+
+
+def test_the_bug_report_words_are_the_readmes():
+    from napari_pfsdm.cli import BUG_REPORT
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert " ".join(BUG_REPORT.split()) in " ".join(readme.split())
+
+
+def test_input_errors_raised_inside_the_package_exit_2(tmp_path, capsys):
+    # a real one from deep inside (the CSV reader), not a stand-in: "error:", exit 2, no bug
+    bad = tmp_path / "bad.csv"
+    bad.write_text("frame,label\n0,1\n")
+    assert main(["compare", str(bad), "-o", str(tmp_path / "d.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pfsdm: error: ") and "bug" not in err
 
 
 @pytest.mark.parametrize("umask, mode", [(0o022, 0o644), (0o027, 0o640), (0o002, 0o664)])

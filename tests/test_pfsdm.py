@@ -114,7 +114,11 @@ def test_magnitude_distance_is_the_weighted_sum_the_readme_states(exponent):
     masks = [raster(BASE_SHAPES[k], 160) for k in ("circle", "folded", "branched")]
     results = [P.pfsdm(m, mode_exponent=exponent) for m in masks]
     n = np.arange(results[0].embedding.shape[1])
-    w = results[0].weights
+    # the default rings and weights written out, not read from the results: 16 rings at
+    # r_i = (i + ½)/16, each of width 1/16, "depth" weighting 1/(1 − r)²
+    r = (np.arange(16) + 0.5) / 16
+    w = (1 / 16) / (1 - r) ** 2
+    assert results[0].embedding.shape == (16, 11)
 
     def by_hand(a, b):
         diff = (a.embedding - b.embedding) * (1.0 + n)[None, :] ** exponent

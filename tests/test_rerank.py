@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import napari_pfsdm as P
-from napari_pfsdm.analysis.rerank import RERANK_METHODS
+from napari_pfsdm.analysis.rerank import RERANK_METHODS, rerank
 
 
 def _clusters(sizes, seed=0, spread=0.3):
@@ -68,3 +68,40 @@ def test_rerank_refuses_bad_input():
         P.rerank(d, k=0)
     with pytest.raises(ValueError, match="at least 3"):
         P.rerank(d[:2, :2])
+
+
+def _line_example():
+    """Four objects at 0, 1, 3, 7 on a line, k = 2. By hand: the 2nd-nearest distances
+    σ = (3, 2, 3, 6); each object's 2 nearest neighbours (0: 1, 2; 1: 0, 2; 2: 1, 0; 3: 2, 1),
+    joined both ways, keep every pair but (0, 3); w_ij = exp(−d_ij² / (σ_i σ_j))."""
+    x = np.array([0.0, 1.0, 3.0, 7.0])
+    d = np.abs(x[:, None] - x[None, :])
+    sigma = np.array([3.0, 2.0, 3.0, 6.0])
+    w = np.exp(-(d**2) / np.outer(sigma, sigma))
+    w[0, 3] = w[3, 0] = 0.0
+    # the tie-breaker: 1 % of d over the median off-diagonal distance, (3 + 4) / 2 = 3.5
+    return d, w, 0.01 * d / 3.5
+
+
+def _cosine(f):
+    g = f @ f.T / np.outer(np.linalg.norm(f, axis=1), np.linalg.norm(f, axis=1))
+    return 1 - np.clip(g, 0, 1)
+
+
+def test_diffusion_reranking_by_hand():
+    d, w, tie = _line_example()
+    p = w / w.sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(rerank(d, "diffusion", k=2, steps=2), _cosine(p @ p) + tie,
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(rerank(d, "diffusion", k=2, steps=1), _cosine(p) + tie,
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_transduction_reranking_by_hand():
+    d, w, tie = _line_example()
+    w0 = w.copy()
+    np.fill_diagonal(w0, 0.0)
+    s = 1 / np.sqrt(w0.sum(axis=1))
+    f = np.linalg.inv(np.eye(4) - 0.9 * s[:, None] * w0 * s[None, :])
+    want = 1 - np.clip(f / np.sqrt(np.outer(np.diag(f), np.diag(f))), 0, 1) + tie
+    np.testing.assert_allclose(rerank(d, "transduction", k=2), want, rtol=1e-10, atol=1e-12)

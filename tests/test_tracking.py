@@ -34,14 +34,30 @@ def true_links(frame: np.ndarray, ident: np.ndarray) -> set[tuple[int, int]]:
     return set(zip(order[:-1][same].tolist(), order[1:][same].tolist(), strict=True))
 
 
-def test_the_movie_has_what_linking_must_cope_with(movie):
+@pytest.mark.parametrize("method", ["overlap", "centroid"])
+def test_linking_follows_entering_leaving_and_dividing_objects(movie, method):
+    # the expected tracks come from the movie's true identities, not from the linker: every
+    # object one track (overlap linking loses the last sliver of one leaving object: 2), an
+    # entering object a track no earlier frame has, and of two daughters one continues the
+    # mother's track while the other starts a new one
+    labels = relabel(movie.labels, "shuffled", seed=11)
+    table = centroids(labels)
+    truth = table.merge(movie.truth(labels), on=["frame", "label"], how="left")
+    linked = tk.link(table, labels if method == "overlap" else None, method=method)
+    t = truth.assign(track=linked[TRACK_COLUMN].to_numpy())
+    per_object = t.groupby("true_id")["track"].nunique()
+    assert len(per_object) == 14 and per_object.max() <= (2 if method == "overlap" else 1)
+    assert (per_object == 1).sum() >= 13
+    assert movie.parents == {13: 8, 14: 8}  # the division the movie was made with
+    mother = set(t.loc[t.true_id == 8, "track"])
+    daughters = [set(t.loc[t.true_id == d, "track"]) for d in (13, 14)]
+    assert sorted(len(mother & d) for d in daughters) == [0, 1]
     present = [set(np.unique(f)) - {0} for f in movie.labels]
-    assert movie.parents and len(movie.parents) == 2  # a division: two daughters
-    assert any(present[t + 1] - present[t] - set(movie.parents) for t in range(19))  # enter
-    assert any(present[t] - present[t + 1] for t in range(19))  # leave (or divide)
-    touching = sum(int(np.any((f[:, 1:] != f[:, :-1]) & (f[:, 1:] > 0) & (f[:, :-1] > 0)))
-                   for f in movie.labels)
-    assert touching > 0
+    entering = [i for s in range(19) for i in present[s + 1] - present[s] - {13, 14}]
+    assert entering  # objects enter the field
+    for obj in entering:
+        first = t.loc[t.true_id == obj, "frame"].min()
+        assert not set(t.loc[t.true_id == obj, "track"]) & set(t.loc[t.frame < first, "track"])
 
 
 @pytest.mark.parametrize("how, tracked", [("tracked", True), ("shuffled", False),
@@ -107,6 +123,45 @@ def test_overlap_linking_bridges_a_missed_frame():
     assert out.loc[out["label"] > 1, TRACK_COLUMN].nunique() == 1
     assert tk.link_labels(labels, max_gap=0).loc[lambda d: d["label"] == 1,
                                                  TRACK_COLUMN].nunique() == 2
+
+
+def _blinking(n_frames: int, present: list[int]) -> tuple[np.ndarray, pd.DataFrame]:
+    """One 10 x 10 square standing still, present only in the frames ``present`` (the other
+    frames hold no object at all), as a label movie and as its table."""
+    labels = np.zeros((n_frames, 40, 40), np.uint16)
+    labels[present, 5:15, 5:15] = 1
+    table = pd.DataFrame({"frame": present, "label": 1, "area": 100.0,
+                          "centroid_y": 9.5, "centroid_x": 9.5})
+    return labels, table
+
+
+LINKERS = ["overlap", "centroid", "laptrack"]
+
+
+def _linked(method: str, labels: np.ndarray, table: pd.DataFrame, max_gap: int) -> list[int]:
+    if method == "laptrack":
+        pytest.importorskip("laptrack")
+    out = tk.link(table, labels if method == "overlap" else None, method=method,
+                  max_gap=max_gap)
+    return out[TRACK_COLUMN].tolist()
+
+
+@pytest.mark.parametrize("method", LINKERS)
+def test_every_linker_closes_a_gap_over_an_empty_frame(method):
+    # the object is in frames 0 and 2; frame 1 holds no object at all (issue 21: centroid
+    # linking, the default, gave [1, 2] here while overlap linking gave [1, 1])
+    labels, table = _blinking(3, [0, 2])
+    assert _linked(method, labels, table, max_gap=1) == [1, 1]
+    assert _linked(method, labels, table, max_gap=0) == [1, 2]  # no gap closing asked
+
+
+@pytest.mark.parametrize("method", LINKERS)
+def test_every_linker_closes_gaps_of_exactly_max_gap_frames(method):
+    # frames 0, 3 (two empty frames between) and 7 (three empty frames before it)
+    labels, table = _blinking(8, [0, 3, 7])
+    assert _linked(method, labels, table, max_gap=2) == [1, 1, 2]
+    assert _linked(method, labels, table, max_gap=3) == [1, 1, 1]
+    assert _linked(method, labels, table, max_gap=1) == [1, 2, 3]
 
 
 def test_link_labels_refuses_non_movies():

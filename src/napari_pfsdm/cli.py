@@ -4,7 +4,10 @@ Run ``pfsdm --help`` or ``pfsdm COMMAND --help``. Every command runs without a d
 Errors a user can fix (a missing file, labels and intensity of different sizes, a raw image
 given as labels, an output folder that cannot be written, an output name that would replace a
 file pfsdm did not write) print one line starting with ``pfsdm: error:`` and exit with status
-2, without a traceback (``--debug`` shows it); no partial output file is left behind. Tables are
+2, without a traceback (``--debug`` shows it); no partial output file is left behind. Those are
+the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong, plus the
+file system's ``OSError`` and a missing optional package; any other exception is a bug of
+napari-pfsdm: pfsdm says so, where to report it, and exits with status 1. Tables are
 plain CSV with their options in a ``.csv.json`` sidecar. Messages and progress go to stderr
 (``-q`` silences them); results and summaries to stdout.
 """
@@ -15,17 +18,26 @@ import argparse
 import os
 import sys
 import time
+import traceback
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
+
 __all__ = ["build_parser", "main"]
 
 EXIT_USAGE = 2
+EXIT_BUG = 1
 
 
-class UserError(ValueError):
-    """An error the user can fix; printed as one line."""
+#: An error the user can fix; printed as one line (the one class: errors.InputError).
+UserError = InputError
+
+#: Where a bug is reported: the README's wording ("Reporting a problem"); a test holds them equal.
+BUG_REPORT = ("please report it on the issue tracker of the napari-pfsdm repository (its "
+              "Issues page), with the command and the output of the same command run with "
+              "--debug")
 
 
 # --------------------------------------------------------------------------------------------
@@ -328,6 +340,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .analysis.reduction import attach_groups, distance_table, mds_coordinates, read_groups
     from .analysis.tables import distance_matrix
     from .batch.reports import load_features, plot_mds
+    from .core.table_options import table_options
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
@@ -356,7 +369,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         with _Step(f"re-ranking them ({args.rerank})", args.quiet):
             matrix = rerank(matrix, args.rerank, k=min(args.rerank_k, n - 1))
     dist = distance_table(table, matrix)
-    opts = dict(table.attrs.get("pfsdm", {}))
+    opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
     opts["rerank"] = args.rerank or "none"
@@ -380,7 +393,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
 
     from .analysis.reduction import attach_groups, pca_scores, read_groups
     from .batch.reports import load_features, plot_trajectories
-    from .core.table_schema import has_channel
+    from .core.table_options import table_options
+    from .core.table_schema import has_channel, pc_columns
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
@@ -404,8 +418,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
             s, ev = pca_scores(table, ch, n_components=args.components)
             explained[ch] = ev
             scores = s if scores is None else pd.concat(
-                [scores, s[[c for c in s.columns if c.startswith(ch + "_PC")]]], axis=1)
-    opts = dict(table.attrs.get("pfsdm", {}))
+                [scores, s[pc_columns(s.columns, ch)]], axis=1)
+    opts = table_options(table)
     write_table_csv(scores, out, opts, table_type="pca", extra={
         "features": str(args.features),
         "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
@@ -415,10 +429,9 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     )
     _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
     if args.plot:
-        for ch, ev in explained.items():
-            scores.attrs[f"{ch}_explained"] = ev
         with _Step(f"drawing {args.plot}", args.quiet):
-            plot_trajectories(scores, args.plot, components=tuple(args.show))
+            plot_trajectories(scores, args.plot, components=tuple(args.show),
+                              explained=explained)
         _say(f"wrote {args.plot}", args.quiet)
     return 0
 
@@ -925,8 +938,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``pfsdm`` with ``argv`` (default: the command line); return the exit status.
 
     0 on success; 2 for an error the user can fix (one plain ``pfsdm: error:`` line on stderr);
-    1 for an unexpected failure (one line too: ``--debug`` shows the traceback); 130 when
-    interrupted.
+    1 for a bug (it says so and where to report it; ``--debug`` prints the traceback first, in
+    both cases); 130 when interrupted.
     """
     import logging
 
@@ -936,24 +949,41 @@ def main(argv: Sequence[str] | None = None) -> int:
         logging.getLogger("tifffile").setLevel(logging.CRITICAL)
     try:
         return int(args.func(args) or 0)
-    except (ValueError, OSError, ImportError) as exc:
-        if args.debug:
-            raise
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
-            msg = f"{exc.filename}: {msg}"
-        print(f"pfsdm: error: {msg}", file=sys.stderr)
-        return EXIT_USAGE
     except KeyboardInterrupt:
         print("pfsdm: interrupted (finished movies are kept; run again to resume)",
               file=sys.stderr)
         return 130
-    except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback with --debug
+    except Exception as exc:  # noqa: BLE001 - sorted below into the user's and ours
         if args.debug:
-            raise
-        print(f"pfsdm: error: unexpected {type(exc).__name__}: {exc}. Run the same command "
-              "with --debug for the details and report it", file=sys.stderr)
-        return 1
+            traceback.print_exc(file=sys.stderr)
+        if _is_input_error(exc):
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
+                msg = f"{exc.filename}: {msg}"
+            print(f"pfsdm: error: {msg}", file=sys.stderr)
+            return EXIT_USAGE
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        print(f"pfsdm: internal error (a bug of napari-pfsdm, not of your input): "
+              f"{type(exc).__name__}{': ' + text if text else ''}", file=sys.stderr)
+        print(f"pfsdm: {BUG_REPORT}"
+              + ("" if args.debug else " (--debug prints the traceback)"), file=sys.stderr)
+        return EXIT_BUG
+
+
+def _is_input_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is the user's to fix (exit 2) rather than a bug (exit 1).
+
+    An :class:`InputError` (raised where the input is wrong), an ``OSError`` (a file that cannot
+    be read or written: missing, no permission, disk full) and an ``ImportError`` of an optional
+    package that is not installed. An ``ImportError`` of napari-pfsdm's own modules, and every
+    other exception (a plain ``ValueError`` from numpy included), is a bug.
+    """
+    if isinstance(exc, InputError | OSError):
+        return True
+    if isinstance(exc, ImportError):
+        name = getattr(exc, "name", None) or ""
+        return not name.startswith("napari_pfsdm")
+    return False
 
 
 if __name__ == "__main__":  # pragma: no cover

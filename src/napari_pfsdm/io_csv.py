@@ -31,7 +31,9 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
+from .core.table_options import plain, set_options, table_options
 from .core.table_schema import NO_TRACK, TRACK_COLUMN
+from .errors import InputError
 
 __all__ = [
     "HEADER_PREFIX",
@@ -150,13 +152,13 @@ def _write_temp(path: Path, write: Callable[[IO], None], *, binary: bool = False
     """Fill a temporary file next to ``path`` (umask permissions, synced); return its name."""
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise ValueError(
+        raise InputError(
             f"cannot write {path}: the folder {folder} does not exist; create it first"
         )
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     except OSError as exc:
-        raise ValueError(
+        raise InputError(
             f"cannot write {path}: the folder {folder} is not writable ({exc.strerror})"
         ) from exc
     try:
@@ -225,7 +227,7 @@ def write_table_csv(
     ['frame', 'label', 'area']
     """
     if options is None:
-        options = df.attrs.get("pfsdm") or {}
+        options = table_options(df)
     side = {
         "written_by": _version(),
         "table": table_type,
@@ -235,8 +237,7 @@ def write_table_csv(
         **_to_jsonable(dict(extra or {})),
     }
     text = json.dumps(side, indent=1) + "\n"
-    out = df.copy()
-    out.attrs = {}  # pandas must not try to serialise attrs itself
+    out = plain(df)  # pandas must not try to serialise attrs itself
 
     path = Path(path)
     # the table first into a temporary file: if that fails, neither file has changed
@@ -278,11 +279,11 @@ def read_sidecar(path: str | os.PathLike) -> dict[str, Any] | None:
     try:
         data = json.loads(side.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(
+        raise InputError(
             f"{side} is damaged ({exc}); delete it and write the table again"
         ) from None
     if not isinstance(data, dict) or "options" not in data:
-        raise ValueError(f"{side} is not a napari-pfsdm sidecar (no 'options' in it)")
+        raise InputError(f"{side} is not a napari-pfsdm sidecar (no 'options' in it)")
     return data
 
 
@@ -309,14 +310,23 @@ def _looks_binary(path: Path) -> str | None:
     return None
 
 
+#: Columns read back as text, as written: names and messages, never numbers or NaN.
+TEXT_COLUMNS = ("movie", "group", "error", "warnings")
+
+#: What pandas reads as missing by default (its documented ``na_values``), for the other columns.
+_NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND",
+             "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"]
+
+
 def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
-    Floats are parsed so that they round-trip exactly; the ``error``, ``warnings`` and
-    ``movie`` columns come back as strings with ``""`` for empty cells, ``track_id`` as whole
-    numbers (an empty cell: -1, no track); the sidecar's options
-    are in ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for
-    a CSV from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
+    Floats are parsed so that they round-trip exactly; the text columns (``movie``,
+    ``group``, ``error``, ``warnings``: :data:`TEXT_COLUMNS`) come back as the strings written
+    (``"001"`` stays ``"001"``, ``"NA"`` stays ``"NA"``) with ``""`` for empty cells,
+    ``track_id`` as whole numbers (an empty cell: -1, no track); the sidecar's options are in
+    ``df.attrs["pfsdm"]`` (older tables: from their ``# pfsdm:`` comment line; absent for a CSV
+    from elsewhere). An unnamed first column holding 0, 1, 2, ... (the index pandas adds
     when re-saving) is dropped.
 
     Parameters
@@ -328,22 +338,29 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     """
     path = Path(path)
     if not path.exists():
-        raise ValueError(f"cannot read {path}: no such file")
+        raise InputError(f"cannot read {path}: no such file")
     what = _looks_binary(path)
     if what is not None:
-        raise ValueError(f"{path} is {what}, not a CSV table")
+        raise InputError(f"{path} is {what}, not a CSV table")
     legacy_options = _legacy_options(path)  # the first line is read once
     side = read_sidecar(path)
     side_options = dict(side.get("options") or {}) if side is not None else legacy_options
     legacy = legacy_options is not None
-    text_cols = {"error": str, "movie": str, "warnings": str}
     try:
+        header = pd.read_csv(path, skiprows=1 if legacy else 0, nrows=0, index_col=index_col)
+        names = [c for c in [header.index.name, *header.columns] if c is not None]
+        text = [c for c in TEXT_COLUMNS if c in names]
+        # text columns keep every value as written ("001", "NA", "None" are movie names);
+        # the other columns read pandas' usual missing-value words as NaN
         df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,
-                         index_col=index_col, dtype=text_cols)
+                         index_col=index_col, dtype=dict.fromkeys(text, str),
+                         keep_default_na=False,
+                         na_values={c: _NA_WORDS for c in names if c not in text})
     except pd.errors.EmptyDataError:
-        raise ValueError(f"{path} is empty: it holds no table") from None
+        raise InputError(f"{path} is empty: it holds no table") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path} is not a readable CSV table ({exc})") from None
+        raise InputError(f"{path} is not a readable CSV table ({exc})") from None
+    text_cols = text
     first = df.columns[0] if len(df.columns) else None
     if (index_col is None and isinstance(first, str) and first.startswith("Unnamed: 0")
             and df[first].dtype.kind in "iu"
@@ -358,7 +375,7 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         if np.array_equal(tracks, np.round(tracks)):
             df[TRACK_COLUMN] = tracks.astype(np.int64)
     if side_options is not None:
-        df.attrs["pfsdm"] = side_options
+        set_options(df, side_options)
     return df
 
 
@@ -392,7 +409,7 @@ def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str =
     path = Path(path)
     if force or not path.exists() or path.is_dir() or written_by_pfsdm(path):
         return
-    raise ValueError(
+    raise InputError(
         f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
         "nothing was changed. Choose another name, or add --force to replace it"
     )

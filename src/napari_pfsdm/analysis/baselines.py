@@ -29,6 +29,7 @@ import numpy as np
 from skimage.measure import find_contours
 
 from ..core.contour import signed_area
+from ..errors import InputError
 
 __all__ = [
     "mask_contour",
@@ -65,9 +66,9 @@ def mask_contour(mask: np.ndarray) -> np.ndarray:
     """
     mask = np.asarray(mask)
     if mask.ndim != 2:
-        raise ValueError(f"Expected a 2-D mask, got an array of shape {mask.shape}.")
+        raise InputError(f"Expected a 2-D mask, got an array of shape {mask.shape}.")
     if not mask.any():
-        raise ValueError("The mask is empty: there is no outline to describe.")
+        raise InputError("The mask is empty: there is no outline to describe.")
     padded = np.pad(mask.astype(np.float32), 1)
     contour = max(find_contours(padded, 0.5), key=len)[:-1] - 1.0
     if signed_area(contour) < 0:
@@ -177,13 +178,13 @@ def efa_distance_matrix(
     """
     if descriptors is None:
         if masks is None:
-            raise ValueError("Give the masks or their precomputed EFA descriptors.")
+            raise InputError("Give the masks or their precomputed EFA descriptors.")
         descriptors = efa_descriptors(masks, order=order, contours=contours)
     others = [descriptors]
     if mirror_aware:
         if mirrored is None:
             if masks is None:
-                raise ValueError("mirror_aware needs the masks or the mirrored descriptors.")
+                raise InputError("mirror_aware needs the masks or the mirrored descriptors.")
             mirrored = efa_descriptors(masks, order=order, mirror=True, contours=contours)
         others.append(mirrored)
     if resolve_start:
@@ -266,7 +267,7 @@ def procrustes_distance_matrix(
     """
     outlines = np.asarray(outlines, float)
     if outlines.ndim != 3 or outlines.shape[2] != 2:
-        raise ValueError(f"Expected outlines of shape (n, n_points, 2), got {outlines.shape}.")
+        raise InputError(f"Expected outlines of shape (n, n_points, 2), got {outlines.shape}.")
     z = outlines[..., 1] + 1j * outlines[..., 0]
     z = z - z.mean(axis=1, keepdims=True)
     z = z / np.linalg.norm(z, axis=1, keepdims=True)
@@ -324,6 +325,6 @@ def gpa_distance_matrix(
     """
     if outlines is None:
         if masks is None:
-            raise ValueError("Give the masks or their precomputed EFA outlines.")
+            raise InputError("Give the masks or their precomputed EFA outlines.")
         outlines = efa_outlines(masks, order=order, n_points=n_points, contours=contours)
     return procrustes_distance_matrix(outlines, reflection=reflection)

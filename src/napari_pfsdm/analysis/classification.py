@@ -35,6 +35,8 @@ from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import concat_tables
+from ..errors import InputError
 
 __all__ = [
     "ALPHAS",
@@ -80,7 +82,7 @@ def parse_frames(
     """
     if frames is None:
         if n_frames is None:
-            raise ValueError("frames=None means all frames, which needs n_frames.")
+            raise InputError("frames=None means all frames, which needs n_frames.")
         out = list(range(n_frames))
     elif isinstance(frames, str):
         out = []
@@ -92,17 +94,17 @@ def parse_frames(
                 try:
                     a, b = int(lo), int(hi)
                 except ValueError:
-                    raise ValueError(
+                    raise InputError(
                         f"could not read the frame range {part!r}; write e.g. '0-9' or '0,3,5'."
                     ) from None
                 if b < a:
-                    raise ValueError(f"frame range {part!r} is empty: write it low-high.")
+                    raise InputError(f"frame range {part!r} is empty: write it low-high.")
                 out.extend(range(a, b + 1))
             else:
                 try:
                     out.append(int(part))
                 except ValueError:
-                    raise ValueError(
+                    raise InputError(
                         f"could not read the frame {part!r}; write e.g. '0-9' or '0,3,5'."
                     ) from None
     elif isinstance(frames, int | np.integer):
@@ -111,9 +113,9 @@ def parse_frames(
         out = [int(f) for f in frames]
     out = sorted(set(out))
     if not out:
-        raise ValueError("no frames selected; give e.g. frames='0-9'.")
+        raise InputError("no frames selected; give e.g. frames='0-9'.")
     if out[0] < 0 or (n_frames is not None and out[-1] >= n_frames):
-        raise ValueError(
+        raise InputError(
             f"frames {out[0]}..{out[-1]} are outside the movie's 0..{(n_frames or 0) - 1}."
         )
     return out
@@ -171,10 +173,10 @@ def feature_matrix(
     """
     for col in ("frame", object_col):
         if col not in table.columns:
-            raise ValueError(f"the table has no {col!r} column; it is needed to build vectors.")
+            raise InputError(f"the table has no {col!r} column; it is needed to build vectors.")
     cols = [c for c in table.columns if c.startswith(f"{channel}_")]
     if not cols:
-        raise ValueError(
+        raise InputError(
             f"the table has no '{channel}_*' columns; for intensity features, measure with an "
             "intensity image."
         )
@@ -183,13 +185,13 @@ def feature_matrix(
     sub = table[table["frame"].isin(frames)]
     missing = sorted(set(frames) - set(sub["frame"].unique()))
     if missing:
-        raise ValueError(
+        raise InputError(
             f"frame{'s' if len(missing) > 1 else ''} {format_frames(missing)} "
             f"{'are' if len(missing) > 1 else 'is'} not in the table: it has frames "
             f"{format_frames(all_frames)}; choose frames among these"
         )
     if sub.duplicated([object_col, "frame"]).any():
-        raise ValueError(
+        raise InputError(
             f"some ({object_col}, frame) pairs have several rows; keep one object per "
             f"{object_col!r} and frame (e.g. select one label)."
         )
@@ -197,7 +199,7 @@ def feature_matrix(
     wide = wide.reindex(columns=pd.MultiIndex.from_product([cols, frames]))
     bad = wide.isna().any(axis=1)
     if bad.any():
-        raise ValueError(
+        raise InputError(
             f"objects {list(wide.index[bad])[:10]} miss a frame or have NaN features "
             "(see the table's 'error' column); drop them or choose other frames."
         )
@@ -234,9 +236,9 @@ def make_splits(
     y = np.asarray(y)
     classes, counts = np.unique(y, return_counts=True)
     if len(classes) != 2:
-        raise ValueError(f"need exactly two classes to classify, got {len(classes)}.")
+        raise InputError(f"need exactly two classes to classify, got {len(classes)}.")
     if counts.min() < 2:
-        raise ValueError(
+        raise InputError(
             f"the smaller class has {counts.min()} object(s); stratified splits need at least 2."
         )
     out = []
@@ -371,13 +373,13 @@ def evaluate(
         ``accuracy``, ``balanced_accuracy``, ``alpha`` (NaN for single channels).
     """
     if inner not in ("cv", "holdout"):
-        raise ValueError(f"inner must be 'cv' or 'holdout', got {inner!r}.")
+        raise InputError(f"inner must be 'cv' or 'holdout', got {inner!r}.")
     y = np.asarray(y).astype(int)
     rows = []
     for k, (train, test) in enumerate(splits):
         train, test = np.asarray(train), np.asarray(test)
         if np.intersect1d(train, test).size:
-            raise ValueError(f"split {k}: an object is in both the training and the test set.")
+            raise InputError(f"split {k}: an object is in both the training and the test set.")
         if inner == "cv":
             a_nested = _inner_alpha(fit_predict, y, train, inner_folds, seed + k, alphas)
             ps, pi = fit_predict(train, test)
@@ -456,11 +458,11 @@ def measure_movies(
     from .features import measure
 
     if labels.ndim != 4:
-        raise ValueError(
+        raise InputError(
             f"labels must be (n_objects, T, Y, X) one-object movies, got shape {labels.shape}."
         )
     if intensity is not None and intensity.shape != labels.shape:
-        raise ValueError(
+        raise InputError(
             f"intensity has shape {intensity.shape} but labels {labels.shape}; they must match."
         )
     sel = parse_frames(frames, labels.shape[1])
@@ -473,9 +475,7 @@ def measure_movies(
         tab["frame"] = np.asarray(sel)[tab["frame"].to_numpy()]
         tab.insert(0, "object", i)
         tables.append(tab)
-    out = pd.concat(tables, ignore_index=True)
-    out.attrs = dict(tables[0].attrs) if tables else {}
-    return out
+    return concat_tables(tables, ignore_index=True)
 
 
 def size_contrast_features(
@@ -509,13 +509,13 @@ def size_contrast_features(
     contrast : ndarray, (n_objects, n_frames)
     """
     if labels.ndim != 4 or intensity.shape != labels.shape:
-        raise ValueError(
+        raise InputError(
             "labels and intensity must both be (n_objects, T, Y, X) one-object movies of the "
             f"same shape; got {labels.shape} and {intensity.shape}."
         )
     sel = parse_frames(frames, labels.shape[1])
     if len(sel) < 2:
-        raise ValueError("growth needs at least two frames; choose e.g. frames='0-9'.")
+        raise InputError("growth needs at least two frames; choose e.g. frames='0-9'.")
     n = labels.shape[0]
     area = np.zeros((n, len(sel)))
     contrast = np.zeros((n, len(sel)))
@@ -523,10 +523,10 @@ def size_contrast_features(
         for j, t in enumerate(sel):
             inside = labels[i, t] > 0
             if not inside.any():
-                raise ValueError(f"object {i} is empty at frame {t}; drop it first.")
+                raise InputError(f"object {i} is empty at frame {t}; drop it first.")
             values = np.asarray(intensity[i, t][inside], dtype=np.float64)
             if np.isnan(values).any():
-                raise ValueError(
+                raise InputError(
                     f"object {i} has NaN intensity at frame {t}; replace the NaNs first."
                 )
             top = float(np.percentile(values, 99))

@@ -16,6 +16,7 @@ from scipy import ndimage as ndi
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import carry_options, set_options
 from ..core.table_schema import (
     BASE_COLUMNS,
     TRACK_COLUMN,
@@ -25,6 +26,7 @@ from ..core.table_schema import (
     table_feature_columns,
 )
 from ..core.volume_sdf import check_spacing
+from ..errors import InputError
 from .tables import failed_rows
 
 __all__ = [
@@ -99,20 +101,20 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
         if ndim == 3:
             return "tyx"
         if ndim == 4:
-            raise ValueError(
+            raise InputError(
                 f"The labels have 4 dimensions {tuple(shape)}: say which axes they are, e.g. "
                 "axes='tzyx' for a time-lapse of Z-stacks (in the command line: --axes tzyx)."
             )
-        raise ValueError(
+        raise InputError(
             f"Labels must be 2-D (Y, X), 3-D (T, Y, X or Z, Y, X) or 4-D (T, Z, Y, X); got shape "
             f"{tuple(shape)}. For extra channels, pass one channel."
         )
     axes = str(axes).lower()
     if axes not in AXES:
-        raise ValueError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
+        raise InputError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
                          f"{axes!r}.")
     if len(axes) != ndim:
-        raise ValueError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
+        raise InputError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
                          f"dimensions {tuple(shape)}.")
     return axes
 
@@ -124,7 +126,7 @@ def _spacing(axes: str, spacing) -> np.ndarray | None:
     if spacing is not None:
         sp = np.asarray(spacing, float).ravel()
         if sp.size not in (1, 2) or not np.all(sp == sp[0]):
-            raise ValueError(
+            raise InputError(
                 f"spacing {tuple(sp.tolist())} was given for 2-D frames (axes={axes!r}); 2-D "
                 "objects take square pixels only. If the first axis is Z, say axes='zyx'."
             )
@@ -169,12 +171,12 @@ def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, st
     axes = resolve_axes(shape, axes)
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
-        raise ValueError(
+        raise InputError(
             f"Labels must be an integer label image (each object one whole number), got dtype "
             f"{dtype}. Convert a segmentation with skimage.measure.label first."
         )
     if intensity is not None and tuple(intensity.shape) != shape:
-        raise ValueError(
+        raise InputError(
             f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
             f"{shape}: they must cover the same frames and pixels."
         )
@@ -187,11 +189,33 @@ def _frame(array, t: int, timelapse: bool) -> np.ndarray:
 
 
 def count_objects(labels, axes: str | None = None) -> int:
-    """Number of (frame, label) objects in a label image (reads every frame); ``axes`` as
-    :func:`measure`."""
+    """Number of (frame, label) objects in a label image, one frame at a time (numpy, dask
+    and zarr arrays); ``axes`` as :func:`measure`. The one count of the package: the plugin's
+    progress total too.
+
+    Raises
+    ------
+    InputError
+        Labels that are not whole numbers, or that hold negative values.
+
+    Examples
+    --------
+    >>> labels = np.zeros((2, 8, 8), np.uint8)
+    >>> labels[0, :2, :2], labels[0, 5:, 5:], labels[1, 3:5, 3:5] = 1, 4, 4
+    >>> count_objects(labels)
+    3
+    """
     n_frames, timelapse, _ = _validate(labels, None, axes)
-    return int(sum(np.count_nonzero(np.bincount(_frame(labels, t, timelapse).ravel())[1:])
-                   for t in range(n_frames)))
+    n = 0
+    for t in range(n_frames):
+        a = _frame(labels, t, timelapse).ravel()
+        if a.dtype == bool:
+            a = a.astype(np.uint8)
+        if a.size and a.min() < 0:
+            raise InputError("The labels have negative values; labels must be 0 (background) "
+                             "or positive whole numbers.")
+        n += int(np.count_nonzero(np.bincount(a)[1:])) if a.size else 0
+    return n
 
 
 def iter_objects(
@@ -243,7 +267,7 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
         if frame.dtype == bool:
             frame = frame.astype(np.uint8)
         if frame.size and frame.min() < 0:
-            raise ValueError(
+            raise InputError(
                 f"Frame {t} has negative labels; labels must be 0 (background) or positive."
             )
         image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
@@ -408,7 +432,7 @@ def table_from_objects(
         blocks.append(pd.DataFrame(np.array(out_rows).reshape(-1, len(out_cols)),
                                    columns=out_cols))
     table = pd.concat(blocks, axis=1)
-    table.attrs["pfsdm"] = opts
+    set_options(table, opts)
     return table
 
 
@@ -509,8 +533,7 @@ def split_failed(
     pos = [b[0] for b in bad]
     keep = np.ones(len(table), bool)
     keep[pos] = False
-    measured = table[keep].reset_index(drop=True)
-    measured.attrs = dict(table.attrs)
+    measured = carry_options(table, table[keep].reset_index(drop=True))
     left = pd.DataFrame({"frame": [b[1] for b in bad], "label": [b[2] for b in bad],
                          "reason": [b[3] for b in bad]})
     if TRACK_COLUMN in table.columns:

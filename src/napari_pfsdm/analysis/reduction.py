@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+from ..core.table_options import carry_options, plain
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN, pc_column
+from ..errors import InputError
 from .tables import embeddings_from_table, weighted_features
 
 __all__ = [
@@ -129,7 +131,7 @@ def pca_scores(
     ok &= np.isfinite(x).all(axis=1)
     x = x[ok]
     if len(x) < 2:
-        raise ValueError("PCA needs at least two measured objects (rows without error)")
+        raise InputError("PCA needs at least two measured objects (rows without error)")
     x = x - x.mean(axis=0)
     if standardize:
         sd = x.std(axis=0)
@@ -141,10 +143,9 @@ def pca_scores(
     z = (u * s * signs)[:, :k]
     var = s**2
     keys = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "group") if c in table.columns]
-    scores = table.loc[ok, keys].reset_index(drop=True)
-    scores.attrs = {}
+    scores = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
     for i in range(k):
-        scores[f"{channel}_PC{i + 1}"] = z[:, i]
+        scores[pc_column(channel, i + 1)] = z[:, i]
     return scores, var[:k] / max(float(var.sum()), 1e-300)
 
 
@@ -213,12 +214,12 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
     """
     p = Path(path)
     if not p.is_file():
-        raise ValueError(f"{p}: no such groups file")
+        raise InputError(f"{p}: no such groups file")
     groups = pd.read_csv(p, dtype=str, comment="#")
     groups.columns = [str(c).strip().lower() for c in groups.columns]
     keys = [k for k in KEY_COLUMNS if k in groups.columns]
     if "group" not in groups.columns or not keys:
-        raise ValueError(
+        raise InputError(
             f"{p} must have a 'group' column and a 'label', 'track_id' and/or 'movie' column "
             f"(it has {list(groups.columns)}), e.g. label,group then 3,multi-axes"
         )
@@ -229,11 +230,11 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
         try:
             groups[key] = groups[key].str.strip().astype(int).astype(str)
         except ValueError:
-            raise ValueError(
+            raise InputError(
                 f"The {key!r} column of the group file {p.name} must hold whole numbers."
             ) from None
     if groups.duplicated(keys).any():
-        raise ValueError(f"{p} gives several groups to the same {'/'.join(keys)}")
+        raise InputError(f"{p} gives several groups to the same {'/'.join(keys)}")
     return groups.reset_index(drop=True)
 
 
@@ -242,17 +243,14 @@ def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
     keys = [k for k in KEY_COLUMNS if k in groups.columns]
     missing = [k for k in keys if k not in table.columns]
     if missing:
-        raise ValueError(
+        raise InputError(
             f"the groups file has a {missing[0]!r} column but the feature table has none"
         )
     left = table.drop(columns=["group"], errors="ignore").copy()
-    attrs = left.attrs
-    left.attrs = {}
     for k in keys:
         left["_key_" + k] = left[k].astype(str)
     right = groups.rename(columns={k: "_key_" + k for k in keys})
     out = left.merge(right, on=["_key_" + k for k in keys], how="left")
     out = out.drop(columns=["_key_" + k for k in keys])
     out["group"] = out["group"].fillna("")
-    out.attrs = attrs
-    return out
+    return carry_options(table, out)

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["RERANK_METHODS", "rerank"]
 
 RERANK_METHODS = ("diffusion", "mutual", "transduction")
@@ -47,18 +49,18 @@ TIE_BREAK = 0.01
 def _check(d: np.ndarray, k: int) -> np.ndarray:
     d = np.asarray(d, float)
     if d.ndim != 2 or d.shape[0] != d.shape[1]:
-        raise ValueError(f"rerank needs a square distance matrix, got shape {d.shape}.")
+        raise InputError(f"rerank needs a square distance matrix, got shape {d.shape}.")
     if not np.isfinite(d).all():
-        raise ValueError("The distance matrix has NaN or infinite entries (objects without "
+        raise InputError("The distance matrix has NaN or infinite entries (objects without "
                          "features?); leave those objects out first, e.g. "
                          "napari_pfsdm.drop_failed(table).")
     if (d < 0).any():
-        raise ValueError("Distances must be >= 0.")
+        raise InputError("Distances must be >= 0.")
     n = len(d)
     if isinstance(k, bool) or int(k) != k or k < 1:
-        raise ValueError(f"k must be a whole number >= 1, got {k!r}.")
+        raise InputError(f"k must be a whole number >= 1, got {k!r}.")
     if n < 3:
-        raise ValueError(f"Re-ranking needs at least 3 objects, got {n}.")
+        raise InputError(f"Re-ranking needs at least 3 objects, got {n}.")
     return 0.5 * (d + d.T)
 
 
@@ -176,12 +178,12 @@ def rerank(d: np.ndarray, method: str = "diffusion", *, k: int = 10, steps: int 
     True
     """
     if method not in RERANK_METHODS:
-        raise ValueError(f"method must be one of {', '.join(RERANK_METHODS)}; got {method!r}.")
+        raise InputError(f"method must be one of {', '.join(RERANK_METHODS)}; got {method!r}.")
     d = _check(d, k)
     if isinstance(steps, bool) or int(steps) != steps or steps < 1:
-        raise ValueError(f"steps must be a whole number >= 1, got {steps!r}.")
+        raise InputError(f"steps must be a whole number >= 1, got {steps!r}.")
     if not 0 < alpha < 1:
-        raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}.")
+        raise InputError(f"alpha must lie in (0, 1), got {alpha!r}.")
     if method == "diffusion":
         out = _diffusion(d, int(k), int(steps))
     elif method == "mutual":

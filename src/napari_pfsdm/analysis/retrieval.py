@@ -15,6 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["Bullseye", "bullseye", "loo_1nn", "loo_1nn_fraction", "nearest"]
 
 
@@ -42,13 +44,13 @@ def _check(D: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray]:
     D = np.asarray(D, dtype=float)
     labels = np.asarray(labels)
     if D.ndim != 2 or D.shape[0] != D.shape[1]:
-        raise ValueError(
+        raise InputError(
             f"The distance matrix must be square (n, n); got shape {D.shape}. "
             "Pass the full pairwise matrix, not a condensed vector."
         )
     if labels.ndim != 1 or labels.shape[0] != D.shape[0]:
         n_labels = labels.shape[0] if labels.ndim else 0
-        raise ValueError(
+        raise InputError(
             f"Give one label per row of the distance matrix: got {n_labels} labels for "
             f"{D.shape[0]} rows."
         )
@@ -127,7 +129,7 @@ def bullseye(D: np.ndarray, labels, k: int = 40) -> Bullseye:
     """
     D, labels = _check(D, labels)
     if k < 1:
-        raise ValueError(f"k must be at least 1 (the number of nearest items kept); got {k}.")
+        raise InputError(f"k must be at least 1 (the number of nearest items kept); got {k}.")
     n = D.shape[0]
     order = _ranking(D, include_self=True)[:, : min(k, n)]
     same = labels[order] == labels[:, None]
@@ -170,7 +172,7 @@ def loo_1nn_fraction(D: np.ndarray, labels) -> float:
     """
     D, labels = _check(D, labels)
     if D.shape[0] < 2:
-        raise ValueError("Leave-one-out 1-NN needs at least two items.")
+        raise InputError("Leave-one-out 1-NN needs at least two items.")
     work = D.copy()
     np.fill_diagonal(work, np.inf)
     nn = np.argmin(work, axis=1)

@@ -18,6 +18,7 @@ from ..core import distances as _core
 from ..core.distances import Embeddings
 from ..core.distances3d import stack_3d
 from ..core.morphometric import mode_weights
+from ..core.table_options import table_options
 from ..core.table_schema import (
     check_feature_table,
     feature_columns,
@@ -26,6 +27,7 @@ from ..core.table_schema import (
     table_feature_columns,
     table_ndim,
 )
+from ..errors import InputError
 
 __all__ = [
     "distance_matrix",
@@ -109,7 +111,7 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
     bad = failed_rows(table, channels)
     if bad:
         shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
-        raise ValueError(
+        raise InputError(
             f"{len(bad)} of {len(table)} rows have no {' or '.join(channels)} features "
             f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
             "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
@@ -134,7 +136,7 @@ def outlines_from_table(table) -> np.ndarray | None:
 
 def _mode_weights(table, n_modes: int) -> np.ndarray:
     """The table's mode weights; tables from before them: (1 + n)^exponent (0 when absent)."""
-    opts = table.attrs["pfsdm"]
+    opts = table_options(table)
     mw = opts.get("mode_weights")
     if mw is None:
         mw = mode_weights(n_modes - 1, float(opts.get("mode_exponent", 0.0)))
@@ -179,7 +181,7 @@ def distance_matrix(
     """
     if is_table(items):
         channels = ["shape"] + (["intensity"] if intensity_weight else [])
-        volumes = table_ndim(items.attrs.get("pfsdm") or {}) == 3  # no outline in 3-D
+        volumes = table_ndim(table_options(items)) == 3  # no outline in 3-D
         items = embeddings(items, channels)
         if volumes:
             from ..core.distances import _no_boundary_in_3d

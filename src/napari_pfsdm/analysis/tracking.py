@@ -30,7 +30,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
+from ..core.table_options import carry_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+from ..errors import InputError
 
 __all__ = [
     "DEFAULT_LINK",
@@ -192,7 +194,7 @@ def check_tracking(table: pd.DataFrame) -> TrackingCheck:
     need = ["frame", "label", "area", "centroid_y", "centroid_x"]
     missing = [c for c in need if c not in table.columns]
     if missing:
-        raise ValueError(
+        raise InputError(
             f"the table has no {', '.join(missing)} column(s): it is not a feature table from "
             "'pfsdm measure' (napari_pfsdm.measure), so its tracking cannot be checked")
     ok = np.isfinite(table[need[2:]].to_numpy(float)).all(axis=1)
@@ -340,7 +342,7 @@ def link_labels(
     shape = tuple(getattr(labels, "shape", ()))
     dtype = np.dtype(getattr(labels, "dtype", float))
     if len(shape) != 3 or not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
-        raise ValueError(
+        raise InputError(
             f"linking by overlap needs a label movie (T, Y, X) of whole numbers; got shape "
             f"{shape} and dtype {dtype}")
     n_frames = shape[0]
@@ -463,7 +465,7 @@ def link_centroids(
         centroid.
     """
     if method not in ("centroid", "laptrack"):
-        raise ValueError(f"method must be 'centroid' or 'laptrack', got {method!r}")
+        raise InputError(f"method must be 'centroid' or 'laptrack', got {method!r}")
     dist = (float(max_distance) if max_distance is not None
             else LINK_RADII * _median_radius(table))
     frame = table["frame"].to_numpy(np.int64)
@@ -490,8 +492,12 @@ def link_centroids(
     next_id = 1
     ended: dict[int, int] = {}  # row without a successor -> its frame
     by_frame = {int(f): order[frame[order] == f] for f in np.unique(frame[order])}
-    for f, cur in by_frame.items():
-        prev = by_frame.get(f - 1, np.zeros(0, np.int64))
+    none = np.zeros(0, np.int64)
+    # every frame from the first to the last, those without objects too: a track ends in the
+    # frame after its last object, so that gap closing can continue it over an empty frame
+    for f in range(min(by_frame), max(by_frame) + 1):
+        cur = by_frame.get(f, none)
+        prev = by_frame.get(f - 1, none)
         for i, j in nearest(prev, cur):
             tr[j] = tr[i]
         continued = set(tr[cur][tr[cur] != NO_TRACK].tolist())
@@ -546,7 +552,6 @@ def add_track_ids(table: pd.DataFrame, track_ids: Any) -> pd.DataFrame:
     ``track_id`` columns (as :func:`link_labels` returns), matched on (``movie``,) frame and
     label; rows it does not name get :data:`NO_TRACK`.
     """
-    attrs = dict(table.attrs)
     out = table.drop(columns=[TRACK_COLUMN], errors="ignore").copy()
     if isinstance(track_ids, pd.DataFrame):
         keys = [k for k in ("movie", "frame", "label") if k in track_ids.columns]
@@ -558,11 +563,10 @@ def add_track_ids(table: pd.DataFrame, track_ids: Any) -> pd.DataFrame:
     else:
         values = np.asarray(track_ids, np.int64)
         if values.shape != (len(out),):
-            raise ValueError(f"{len(values)} track ids for a table of {len(out)} rows")
+            raise InputError(f"{len(values)} track ids for a table of {len(out)} rows")
     pos = list(out.columns).index("label") + 1 if "label" in out.columns else 0
     out.insert(pos, TRACK_COLUMN, values)
-    out.attrs = attrs
-    return out
+    return carry_options(table, out)
 
 
 def link(
@@ -599,16 +603,16 @@ def link(
         An unknown method, or ``"overlap"`` without labels (the message says what to do).
     """
     if method not in LINK_METHODS:
-        raise ValueError(f"the linking method must be one of {', '.join(LINK_METHODS)}; "
+        raise InputError(f"the linking method must be one of {', '.join(LINK_METHODS)}; "
                          f"got {method!r}")
     if method == "overlap":
         if labels is None:
-            raise ValueError(
+            raise InputError(
                 "linking by overlap needs the label images, not only the table; give the "
                 "labels, or link from the table's centroids with method 'centroid' or "
                 "'laptrack'")
         if "movie" in table.columns and table["movie"].nunique() > 1:
-            raise ValueError("linking by overlap takes one movie's labels at a time; link "
+            raise InputError("linking by overlap takes one movie's labels at a time; link "
                              "each movie's rows with its own labels")
         return add_track_ids(table, link_labels(labels, min_iou=min_iou, max_gap=max_gap))
     if "movie" in table.columns:
@@ -649,7 +653,7 @@ def link_movie(
         The linking method used, ``""`` when none was.
     """
     if how not in ("auto", "none", *LINK_METHODS):
-        raise ValueError(f"--link must be auto, none or one of {', '.join(LINK_METHODS)}; "
+        raise InputError(f"--link must be auto, none or one of {', '.join(LINK_METHODS)}; "
                          f"got {how!r}")
     check = check_tracking(table)
     if how == "none":
@@ -703,7 +707,7 @@ def track_ids_from_tracks(
     data = np.asarray(tracks, float)
     if data.ndim != 2 or data.shape[1] != 4:
         shape = data.shape
-        raise ValueError(
+        raise InputError(
             f"Tracks data must have 4 columns (track_id, t, y, x), as a 2-D napari Tracks "
             f"layer holds them; got shape {shape}. A 3-D Tracks layer (track_id, t, z, y, x) "
             "cannot name objects of 2-D frames")

@@ -19,6 +19,7 @@ from ..core.contour import DEFAULT_MIN_AREA
 from ..core.descriptor import DEFAULTS, pfsdm
 from ..core.params import PFSDMParams
 from ..core.table_schema import table_feature_columns
+from ..errors import InputError
 
 __all__ = ["PFSDMTransformer"]
 
@@ -149,9 +150,9 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
             try:
                 res = pfsdm(np.asarray(mask), **options)
             except ValueError as exc:
-                raise ValueError(f"mask {i}: {exc}") from exc
+                raise InputError(f"mask {i}: {exc}") from exc
             if getattr(res, "ndim", 2) != ndim:
-                raise ValueError(f"mask {i} is {getattr(res, 'ndim', 2)}-D but the first is "
+                raise InputError(f"mask {i} is {getattr(res, 'ndim', 2)}-D but the first is "
                                  f"{ndim}-D; give masks of one dimension.")
             rows.append(res.embedding.ravel() if ndim == 2 else
                         np.concatenate([res.embedding.ravel(), res.surface_embedding]))

@@ -25,6 +25,8 @@ from typing import Any
 import dask.array as da
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = [
     "Movie",
     "find_movies",
@@ -71,6 +73,8 @@ class _Frames:
         self.ndim = len(shape)
         self._drop = drop
         self._handle: Any = None
+        #: what identifies the content that ``shape`` and ``dtype`` describe (file_identity)
+        self.identity = file_identity(path, getattr(self, "component", ""))
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
@@ -96,7 +100,7 @@ class _Frames:
             raise
         except Exception as exc:  # noqa: BLE001 - any reader error: name the file
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-            raise ValueError(
+            raise InputError(
                 f"cannot read {self.path}: the file seems damaged or truncated "
                 f"({type(exc).__name__}{': ' + first if first else ''}); copy or export it "
                 "again"
@@ -104,10 +108,21 @@ class _Frames:
 
     def _cache_key(self) -> tuple:
         return (type(self).__name__, self.path, getattr(self, "component", None),
-                getattr(self, "series", None))
+                getattr(self, "series", None), self.identity)
 
     def _cached_open(self) -> Any:
-        """Open once per process: tasks unpickled in a worker re-use the open array."""
+        """Open once per process: tasks unpickled in a worker re-use the open array.
+
+        The cache is keyed by the file's identity as well as its path, so a movie replaced on
+        disk (a new file under the old name, as an atomic save makes) is opened anew; one
+        changed after :func:`open_movie` looked at it (its shape may differ) is refused.
+        """
+        now = file_identity(self.path, getattr(self, "component", ""))
+        if now != self.identity:
+            raise InputError(
+                f"{self.path} changed on disk after it was opened (replaced or rewritten "
+                "while pfsdm was reading it); wait until it is written completely and run "
+                "again")
         key = self._cache_key()
         handle = _OPEN.get(key)
         if handle is None:
@@ -118,14 +133,57 @@ class _Frames:
         return handle
 
 
-#: Arrays opened in this process, by (kind, path, component/series).
+#: Arrays opened in this process, by (kind, path, component/series, file_identity).
 _OPEN: dict[tuple, Any] = {}
+
+#: Zarr metadata files whose change means new array content or shape (v2 and v3).
+_ZARR_META = (".zarray", ".zgroup", ".zattrs", "zarr.json")
+
+
+def file_identity(path: str | os.PathLike, component: str = "") -> tuple:
+    """What identifies the content of a movie file: ``(size, mtime_ns, inode)``.
+
+    A file replaced by another under the same name (``os.replace``, an atomic save) has a new
+    inode, and a file rewritten in place a new modification time or size. For a Zarr store (a
+    folder), the same of the folder and of the metadata files (``.zarray``, ``zarr.json``, …)
+    at its top level and in the array ``component`` read (a group's array, OME-Zarr's level).
+    The device number is left out: a cluster's machines mount a shared disk under different
+    device numbers, and they must agree.
+
+    Parameters
+    ----------
+    path : str or PathLike
+    component : str
+        The array inside a Zarr group (``""``: the store itself).
+
+    Returns
+    -------
+    tuple
+        Equal for the same unchanged file; ``()`` when the path does not exist.
+    """
+    p = Path(path)
+    try:
+        st = p.stat()
+    except OSError:
+        return ()
+    ident: tuple = (st.st_size, st.st_mtime_ns, st.st_ino)
+    if p.is_dir():
+        metas = [p / m for m in _ZARR_META]
+        if component:
+            metas += [p / component / m for m in _ZARR_META]
+        for m in metas:
+            try:
+                ms = m.stat()
+            except OSError:
+                continue
+            ident += (m.name, ms.st_size, ms.st_mtime_ns, ms.st_ino)
+    return ident
 
 
 class _ZarrFrames(_Frames):
     def __init__(self, path: str, component: str, shape, dtype, drop):
+        self.component = component  # before __init__: part of the file's identity
         super().__init__(path, shape, dtype, drop)
-        self.component = component
 
     def _open(self) -> Any:
         import zarr
@@ -186,7 +244,7 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
             elif n == 1:
                 drop.append(0)
             else:
-                raise ValueError(_axes_message(where, shape, axes, a))
+                raise InputError(_axes_message(where, shape, axes, a))
         if drop.count(None) in sizes:
             return tuple(drop)
     # No usable axis names: drop leading singleton axes until 3-D (4-D with keep_z).
@@ -196,7 +254,7 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
         drop[i] = 0
         i += 1
     if drop.count(None) not in sizes:
-        raise ValueError(
+        raise InputError(
             f"{where} has shape {shape}; expected a 2-D image (Y, X) or a time-lapse (T, Y, X)"
             + (", a Z-stack (Z, Y, X) or a time-lapse of Z-stacks (T, Z, Y, X)" if keep_z
                else " (for 3-D objects say --axes zyx or tzyx)")
@@ -208,14 +266,14 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
     try:
         import zarr
     except ImportError as exc:
-        raise ValueError(
+        raise InputError(
             f"reading {path} needs the zarr package: pip install zarr"
         ) from exc
 
     try:
         node = zarr.open(str(path), mode="r")
     except Exception as exc:  # zarr raises many kinds of errors on bad stores
-        raise ValueError(f"cannot open {path} as Zarr: {exc}") from exc
+        raise InputError(f"cannot open {path} as Zarr: {exc}") from exc
     component = ""
     axes = None
     if isinstance(node, zarr.Group):
@@ -230,7 +288,7 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
         else:
             arrays = sorted(name for name, _ in node.arrays())
             if len(arrays) != 1:
-                raise ValueError(
+                raise InputError(
                     f"{path} is a Zarr group with arrays {arrays or 'none'} and no OME-Zarr "
                     "multiscales metadata; point to one array, e.g. "
                     f"{path / (arrays[0] if arrays else 'ARRAY')}"
@@ -261,7 +319,7 @@ def _open_tiff(path: Path, keep_z: bool = False) -> _TiffFrames:
             dtype = series.dtype
             axes = list(series.axes.lower())
     except Exception as exc:
-        raise ValueError(f"cannot read {path} as TIFF: {exc}") from exc
+        raise InputError(f"cannot read {path} as TIFF: {exc}") from exc
     # tifffile names a plain stack of pages "q" / "i"; treat it as time. A (3 or 4, Y, X)
     # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"):
     # for a label movie these planes are frames too.
@@ -296,14 +354,14 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     """
     p = Path(path)
     if not p.exists():
-        raise ValueError(f"{p}: no such file or folder")
+        raise InputError(f"{p}: no such file or folder")
     keep_z = axes is not None and "z" in str(axes).lower()
     if _is_zarr(p):
         frames: _Frames = _open_zarr(p, keep_z)
     elif _is_tiff(p):
         frames = _open_tiff(p, keep_z)
     else:
-        raise ValueError(
+        raise InputError(
             f"{p}: not a TIFF file (.tif/.tiff) or a Zarr store (.zarr folder); "
             "convert the movie to one of these"
         )
@@ -314,7 +372,7 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
         chunks = frames.shape
     from dask.base import tokenize
 
-    name = "pfsdm-read-" + tokenize(str(p.resolve()), os.path.getmtime(p), frames.shape)
+    name = "pfsdm-read-" + tokenize(str(p.resolve()), frames.identity, frames.shape)
     meta = np.empty((0,) * frames.ndim, dtype=frames.dtype)
     arr = da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
     # lets the batch read a task's frames in one call (see napari_pfsdm.batch.run._Slice)
@@ -339,15 +397,15 @@ def find_movies(spec: str | os.PathLike | list) -> list[Path]:
         hits = [Path(h) for h in sorted(glob.glob(text))]
         movies = [h for h in hits if _is_zarr(h) or _is_tiff(h)]
         if not movies:
-            raise ValueError(f"no TIFF or Zarr movie matches {text}")
+            raise InputError(f"no TIFF or Zarr movie matches {text}")
         return movies
     if not p.exists():
-        raise ValueError(f"{p}: no such file or folder")
+        raise InputError(f"{p}: no such file or folder")
     if _is_zarr(p) or p.is_file():
         return [p]
     movies = sorted(c for c in p.iterdir() if _is_zarr(c) or _is_tiff(c))
     if not movies:
-        raise ValueError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
+        raise InputError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
     return movies
 
 
@@ -390,7 +448,7 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
     for q in intensity:
         k = _pair_key(q)
         if k in by_key:
-            raise ValueError(f"two intensity movies have the same name: {by_key[k]} and {q}")
+            raise InputError(f"two intensity movies have the same name: {by_key[k]} and {q}")
         by_key[k] = q
     out = []
     missing = []
@@ -401,7 +459,7 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
         out.append(Movie(n, p, q))
     if missing or by_key:
         extra = ", ".join(sorted(q.name for q in by_key.values()))
-        raise ValueError(
+        raise InputError(
             "cannot pair labels with intensity movies by name: "
             + (f"no intensity for {', '.join(missing)}" if missing else "")
             + ("; " if missing and extra else "")
@@ -416,21 +474,21 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
     """Raise a plain-language ValueError if labels/intensity cannot be measured together."""
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_):
-        raise ValueError(
+        raise InputError(
             f"{where} is not a label image (its pixels are {dtype}, not integers): give the "
             "segmentation (one integer id per object, 0 = background), not the raw image"
         )
     if axes is not None:
         if labels.ndim != len(axes):
-            raise ValueError(f"{where} has shape {tuple(labels.shape)}, {labels.ndim} "
+            raise InputError(f"{where} has shape {tuple(labels.shape)}, {labels.ndim} "
                              f"dimensions, but the axes given are {axes!r} ({len(axes)})")
     elif labels.ndim not in (2, 3):
-        raise ValueError(
+        raise InputError(
             f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
             "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
-        raise ValueError(
+        raise InputError(
             f"labels and intensity have different shapes {tuple(labels.shape)} and "
             f"{tuple(intensity.shape)}; they must be the same movie, frame for frame"
         )

@@ -26,7 +26,8 @@ from ..analysis.reduction import (
     read_groups,
     row_ids,
 )
-from ..core.table_schema import check_feature_table
+from ..core.table_schema import check_feature_table, pc_column
+from ..errors import InputError
 from ..io_csv import read_table_csv, save_figure
 
 __all__ = [
@@ -55,14 +56,18 @@ def plot_trajectories(
     path: str | os.PathLike,
     *,
     components: tuple[int, int] = (1, 2),
-    explained: np.ndarray | None = None,
+    explained: np.ndarray | dict[str, np.ndarray] | None = None,
     title: str = "PF-SDM trajectories",
 ) -> Path:
     """One line per object through time in the PCA plane; points coloured by time or group.
 
     Several channels (e.g. ``shape_PC*`` and ``intensity_PC*`` columns) give side-by-side
-    panels. Returns the PNG path.
+    panels. ``explained``: each channel's explained-variance ratios (a dict by channel, or one
+    array for ``shape``), shown in the axis labels. Returns the PNG path.
     """
+    if explained is not None and not isinstance(explained, dict):
+        explained = {"shape": explained}
+    explained = explained or {}
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
@@ -75,9 +80,9 @@ def plot_trajectories(
     names = sorted(set(scores["group"].astype(str))) if by_group else None
     tab10 = colormaps["tab10"]
     for ax, ch in zip(axes, channels, strict=True):
-        cx, cy = (f"{ch}_PC{components[0]}", f"{ch}_PC{components[1]}")
+        cx, cy = pc_column(ch, components[0]), pc_column(ch, components[1])
         if cx not in scores or cy not in scores:
-            raise ValueError(f"no {cx}/{cy} in the PCA table; choose other components")
+            raise InputError(f"no {cx}/{cy} in the PCA table; choose other components")
         sc = None
         for oid in pd.unique(ids):
             obj = scores[ids == oid].sort_values("frame")
@@ -91,10 +96,9 @@ def plot_trajectories(
             else:
                 sc = ax.scatter(obj[cx], obj[cy], c=obj["frame"], cmap="viridis", s=14,
                                 vmin=scores["frame"].min(), vmax=scores["frame"].max(), zorder=2)
-        if explained is not None and ch == "shape" and len(explained) >= max(components):
-            ev = explained
-        else:
-            ev = scores.attrs.get(f"{ch}_explained")
+        ev = explained.get(ch)
+        if ev is not None and len(ev) < max(components):
+            ev = None
         xl, yl = f"PC{components[0]}", f"PC{components[1]}"
         if ev is not None:
             xl += f" ({100 * ev[components[0] - 1]:.2g} % of variance)"
@@ -176,19 +180,19 @@ def load_features(path: str | os.PathLike) -> pd.DataFrame:
     try:
         table = read_table_csv(path)
     except ValueError as exc:
-        raise ValueError(
+        raise InputError(
             f"{exc}; give the table written by 'pfsdm measure' (e.g. pfsdm measure "
             "LABELS.tif -o features.csv, then use features.csv here)"
         ) from None
     need = {"frame", "label"}
     if not need <= set(table.columns):
-        raise ValueError(
+        raise InputError(
             f"{path} is not a PF-SDM feature table (it needs frame, label and shape_rXX_nYY "
             "columns); make one with: pfsdm measure LABELS -o features.csv"
         )
     check_feature_table(table, ["shape"], where=str(path))
     if len(table) == 0:
-        raise ValueError(
+        raise InputError(
             f"{path} holds no objects (0 rows): its labels had only background; measure "
             "labels that contain objects"
         )

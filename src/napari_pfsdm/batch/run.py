@@ -28,9 +28,11 @@ import numpy as np
 import pandas as pd
 
 from ..core.params import PFSDMParams, as_params
+from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
-from ..io_csv import _FLOAT_KW, _to_jsonable, atomic_write, write_table_csv
-from .io import Movie, check_labels, open_movie
+from ..errors import InputError
+from ..io_csv import _to_jsonable, atomic_write, read_table_csv, write_table_csv
+from .io import Movie, check_labels, file_identity, open_movie
 
 __all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
 
@@ -127,14 +129,14 @@ def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, A
             return "local", {"synchronous": "sync", "single-threaded": "sync"}.get(s, s)
         if "://" in s or re.fullmatch(r"[\w.\-]+:\d+", s):
             return "address", s
-        raise ValueError(
+        raise InputError(
             f"unknown scheduler {scheduler!r}: use threads, processes, sync, or the address "
             "of a dask scheduler such as tcp://10.0.0.5:8786"
         )
     # a distributed.Client passed as scheduler
     if hasattr(scheduler, "submit") and hasattr(scheduler, "gather"):
         return "distributed", scheduler
-    raise ValueError(f"unknown scheduler {scheduler!r}")
+    raise InputError(f"unknown scheduler {scheduler!r}")
 
 
 @contextlib.contextmanager
@@ -143,7 +145,7 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
         try:
             from distributed import Client
         except ImportError as exc:
-            raise ValueError(
+            raise InputError(
                 "running on a dask cluster needs the distributed package: "
                 "pip install 'napari-pfsdm[batch]'"
             ) from exc
@@ -151,7 +153,7 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
         try:
             client = Client(obj, timeout="20s")
         except OSError as exc:
-            raise ValueError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
+            raise InputError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
         try:
             yield client
         finally:
@@ -250,11 +252,7 @@ def measure_dask(
             tables = _run_distributed(args, sizes, handle, progress)
 
     if tables:
-        attrs = tables[0].attrs.copy()
-        for t in tables:  # pandas compares attrs on concat, which fails on numpy arrays
-            t.attrs = {}
-        table = pd.concat(tables, ignore_index=True)
-        table.attrs = attrs
+        table = concat_tables(tables, ignore_index=True)
     else:  # pragma: no cover - no frames at all
         table = pd.DataFrame()
     return table
@@ -352,7 +350,7 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         if p is None:
             return None
         p = Path(p).resolve()
-        return [str(p), os.path.getmtime(p)]
+        return [str(p), list(file_identity(p))]  # a replaced file is measured again
 
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
@@ -366,8 +364,7 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
 
 
 def _write_part(table: pd.DataFrame, path: Path) -> None:
-    out = table.copy()
-    out.attrs = {}
+    out = plain(table)
     if path.suffix == ".parquet":
         tmp = path.with_name(f".{path.name}.tmp")
         try:
@@ -381,13 +378,11 @@ def _write_part(table: pd.DataFrame, path: Path) -> None:
 
 
 def _read_part(path: Path) -> pd.DataFrame:
+    """A movie's part as written by :func:`_write_part`: the one CSV reader of the package
+    (:func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text columns as written)."""
     if path.suffix == ".parquet":
         return pd.read_parquet(path)
-    df = pd.read_csv(path, **_FLOAT_KW, dtype={"error": str, "movie": str})
-    for col in ("error", "movie"):
-        if col in df.columns:
-            df[col] = df[col].fillna("")
-    return df
+    return read_table_csv(path)
 
 
 def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
@@ -398,9 +393,8 @@ def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
     source = getattr(lab, "_pfsdm_source", lab)  # read frames straight from the file
     if len(lab.shape) == 2:  # one frame
         source = np.asarray(source[:])[None]
-    attrs = table.attrs
     out, check, used = link_movie(table, source, how)
-    out.attrs = attrs
+    out = carry_options(table, out)
     if used:
         n = out.loc[out[TRACK_COLUMN] >= 0, TRACK_COLUMN].nunique()
         why = check.message.split(". Link")[0] if not check.tracked else check.message
@@ -446,7 +440,8 @@ def run_batch(
         As in :func:`measure_dask`.
     parts_dir : str or PathLike, optional
         Folder of per-movie parts (default ``<output>.parts``). A movie whose part is there
-        (same files, same modification times, same options) is not measured again.
+        (the same files, unchanged: size, modification time and inode; the same options) is
+        not measured again.
     progress : callable, optional
         ``progress(movie_name, frames_done, n_frames)``.
     log : callable, optional
@@ -476,9 +471,9 @@ def run_batch(
     output = Path(output)
     out_dir = output.parent if str(output.parent) else Path(".")
     if not out_dir.is_dir():
-        raise ValueError(f"cannot write {output}: the folder {out_dir} does not exist")
+        raise InputError(f"cannot write {output}: the folder {out_dir} does not exist")
     if not os.access(out_dir, os.W_OK):
-        raise ValueError(f"cannot write {output}: the folder {out_dir} is not writable")
+        raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
@@ -493,7 +488,7 @@ def run_batch(
             if m.intensity else None
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
-            raise ValueError(f"{m.labels} and {m.intensity} have different shapes")
+            raise InputError(f"{m.labels} and {m.intensity} have different shapes")
         opened.append((m, lab, img))
 
     kind, obj = resolve_scheduler(scheduler, client)
@@ -532,7 +527,7 @@ def run_batch(
                     num_workers=num_workers, frames_per_task=frames_per_task,
                     progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
                 )
-                attrs = _to_jsonable(table.attrs.get("pfsdm") or attrs)
+                attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
                 # side-car options first: the part itself appearing marks the movie as done
@@ -545,8 +540,7 @@ def run_batch(
                 linked = linked or bool(used)
             tables.append(table)
 
-    for t in tables:
-        t.attrs = {}
+    tables = [plain(t) for t in tables]
     if link == "auto" and not linked:  # every movie was tracked: its labels are the ids
         tables = [t.drop(columns=[TRACK_COLUMN], errors="ignore") for t in tables]
     result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
@@ -556,11 +550,11 @@ def run_batch(
         attrs = p.record(3 if axes and "z" in axes else 2)
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
-        raise ValueError(
+        raise InputError(
             f"no objects: {names} hold{'s' if len(movies) == 1 else ''} only background (0) "
             "in every frame, so nothing was written. Check that these are the segmentation "
             "(labels), or pass --allow-empty to write an empty table"
         )
-    result.attrs["pfsdm"] = attrs
+    set_options(result, attrs)
     write_table_csv(result, output, attrs, table_type="features")
     return result

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from .volume_sdf import SurfaceSDF
 
 __all__ = ["BALL_MAPS", "HarmonicBallMap", "RadialBallMap", "make_ball_map"]
@@ -113,7 +114,7 @@ def make_ball_map(kind: str, surface: SurfaceSDF, scale: float = 1.0
         return RadialBallMap(surface)
     if kind == "harmonic":
         return HarmonicBallMap(surface, scale)
-    raise ValueError(f"ball_map must be one of {', '.join(BALL_MAPS)}; got {kind!r}.")
+    raise InputError(f"ball_map must be one of {', '.join(BALL_MAPS)}; got {kind!r}.")
 
 
 class HarmonicBallMap:

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = [
     "N_OUTLINE_MODES",
     "boundary_distance_matrix",
@@ -73,7 +75,7 @@ def outline_coefficients(points: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> 
     points = np.asarray(points, float)
     m = len(points)
     if points.ndim != 2 or points.shape[1] != 2 or m <= 2 * n_modes:
-        raise ValueError(f"an outline of M > {2 * n_modes} points (M, 2) is needed for "
+        raise InputError(f"an outline of M > {2 * n_modes} points (M, 2) is needed for "
                          f"{n_modes} modes; got shape {points.shape}")
     return normalised_modes(np.fft.fft(points[:, 0] + 1j * points[:, 1]) / m, n_modes)
 
@@ -84,13 +86,13 @@ def normalised_modes(spectrum: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> np
     coefs = spectrum[outline_modes(n_modes) % len(spectrum)]
     norm = np.linalg.norm(coefs)
     if not norm > 0:
-        raise ValueError("the outline has no extent (all its points coincide)")
+        raise InputError("the outline has no extent (all its points coincide)")
     return coefs / norm
 
 
 def _modes_of(coefs: np.ndarray) -> np.ndarray:
     if coefs.shape[1] % 2:
-        raise ValueError(f"outline coefficients come in ±n pairs (an even count), got "
+        raise InputError(f"outline coefficients come in ±n pairs (an even count), got "
                          f"{coefs.shape[1]}")
     return outline_modes(coefs.shape[1] // 2)
 
@@ -163,7 +165,7 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     same = others is None
     b = a if same else np.asarray(others, complex)
     if a.ndim != 2 or b.ndim != 2 or b.shape[1] != a.shape[1]:
-        raise ValueError(f"outline coefficients must be (n, 2K) arrays with the same K, got "
+        raise InputError(f"outline coefficients must be (n, 2K) arrays with the same K, got "
                          f"{a.shape} and {b.shape}")
     k = len(_modes_of(a)) // 2
     kc = min(k, COARSE_MODES)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from .marching_squares import outer_boundary, trace_boundary
 from .pieces import fill_holes, largest_piece
 
@@ -135,7 +136,7 @@ def prepare_mask(
     """
     mask = np.asarray(mask)
     if mask.ndim != 2:
-        raise ValueError(
+        raise InputError(
             f"Expected a 2-D mask (Y, X) or a 3-D volume (Z, Y, X) of one object, got an array "
             f"with {mask.ndim} dimensions {mask.shape}. For a time-lapse or a label image use "
             "`measure` (with axes='tyx', 'zyx' or 'tzyx'), which goes through the frames and "
@@ -144,7 +145,7 @@ def prepare_mask(
     mask = mask.astype(bool, copy=False)
     rows = np.flatnonzero(mask.any(axis=1))
     if rows.size == 0:
-        raise ValueError("The mask is empty: no pixel belongs to the object.")
+        raise InputError("The mask is empty: no pixel belongs to the object.")
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     touches = bool(r0 == 0 or c0 == 0 or r1 == mask.shape[0] or c1 == mask.shape[1])
@@ -166,7 +167,7 @@ def _mask_info(filled: np.ndarray, row: int, col: int, n_components: int, n_hole
     after the size check."""
     area = int(np.count_nonzero(filled))
     if area < min_area:
-        raise ValueError(
+        raise InputError(
             f"The object is too small to describe its shape: {area} pixels, the minimum is "
             f"{min_area}. Remove tiny objects from the segmentation (or lower min_area)."
         )

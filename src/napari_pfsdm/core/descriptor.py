@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage as ndi
 
+from ..errors import InputError
 from .boundary import normalised_modes, outline_coefficients
 from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
 from .intensity import intensity_crop
@@ -75,12 +76,12 @@ class PFSDMResult:
 def _check_intensity(intensity: np.ndarray, mask_shape: tuple[int, ...]) -> np.ndarray:
     intensity = np.asarray(intensity)
     if intensity.shape != mask_shape:
-        raise ValueError(
+        raise InputError(
             f"The intensity image has shape {intensity.shape} but the mask has shape "
             f"{mask_shape}: they must cover the same pixels."
         )
     if not np.issubdtype(intensity.dtype, np.number) or np.iscomplexobj(intensity):
-        raise ValueError(f"The intensity image must be real numbers, got dtype {intensity.dtype}.")
+        raise InputError(f"The intensity image must be real numbers, got dtype {intensity.dtype}.")
     return intensity.astype(np.float64, copy=False)
 
 
@@ -218,7 +219,7 @@ def pfsdm(
     if spacing is not None:
         sp = np.asarray(spacing, float).ravel()
         if mask.ndim == 2 and (sp.size not in (1, 2) or not np.all(sp == sp[0])):
-            raise ValueError(
+            raise InputError(
                 f"spacing {tuple(sp.tolist())} was given for a 2-D mask: 2-D objects take "
                 "square pixels only (the descriptor does not depend on their size). For a 3-D "
                 "volume pass the (Z, Y, X) mask itself."
@@ -227,7 +228,7 @@ def pfsdm(
     if intensity is not None:
         intensity = _check_intensity(intensity, mask.shape)
     if n_angles < 8 or n_angles % 2:
-        raise ValueError(f"n_angles must be an even number of at least 8, got {n_angles}.")
+        raise InputError(f"n_angles must be an even number of at least 8, got {n_angles}.")
     n_points = n_angles * int(np.ceil(256 / n_angles))
     contour = extract_contour(info, n_points=n_points, smooth=smooth)
     nodes = contour.normalized
@@ -285,7 +286,7 @@ def _refuse_other(given: dict[str, Any], names: tuple[str, ...], ndim: int) -> N
     if changed:
         what = ("are for 2-D masks (a 3-D volume has sh_degree, surface_weight and ball_map)"
                 if ndim == 3 else "are for 3-D volumes only")
-        raise ValueError(f"The mask is {ndim}-D but {', '.join(changed)} was set: these options "
+        raise InputError(f"The mask is {ndim}-D but {', '.join(changed)} was set: these options "
                          f"{what}. Leave {'it' if len(changed) == 1 else 'them'} at the default.")
 
 
@@ -349,9 +350,9 @@ def render_disks(result: PFSDMResult, size: int = 128,
     """
     for channel in channels:
         if channel not in ("sdf", "intensity"):
-            raise ValueError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
+            raise InputError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
     if channels == ("intensity",) and result.intensity_image is None:
-        raise ValueError("This result has no intensity: pass an intensity image to pfsdm.")
+        raise InputError("This result has no intensity: pass an intensity image to pfsdm.")
     # about two samples per output pixel along each ring: the SDF evaluation is the cost
     n_r, n_t = max(size // 2, 4), max(64, 2 * size)
     pts = result.mapping.polar((np.arange(n_r) + 0.5) / n_r, n_t)

@@ -16,16 +16,22 @@ from typing import Any
 import numpy as np
 from scipy import ndimage as ndi
 
+from ..errors import InputError
 from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
 from .intensity import intensity_crop
 from .morphometric import mode_weights, ring_radii, ring_weights
+from .params import PFSDMParams
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
 from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
 
 __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3D"]
 
-#: Defaults of the 3-D-only options (the shared ones come from PFSDMParams).
-DEFAULTS_3D: dict[str, Any] = {"sh_degree": 8, "ball_map": "radial", "surface_weight": 4.0}
+#: The method's defaults, declared once (core.params.PFSDMParams).
+_P = PFSDMParams()
+
+#: Defaults of the 3-D-only options (PFSDMParams', like all of pfsdm3d's method options).
+DEFAULTS_3D: dict[str, Any] = {k: getattr(_P, k) for k in ("sh_degree", "ball_map",
+                                                          "surface_weight")}
 
 
 @dataclass(eq=False)
@@ -118,14 +124,14 @@ def pfsdm3d(
     intensity: np.ndarray | None = None,
     *,
     spacing=None,
-    n_radii: int = 16,
-    radii: str | np.ndarray = "uniform",
-    ring_weighting: str = "depth",
-    mode_exponent: float = 0.25,
-    sh_degree: int = DEFAULTS_3D["sh_degree"],
-    ball_map: str = DEFAULTS_3D["ball_map"],
-    surface_weight: float = DEFAULTS_3D["surface_weight"],
-    components: str = "largest",
+    n_radii: int = _P.n_radii,
+    radii: str | np.ndarray = _P.radii,
+    ring_weighting: str = _P.ring_weighting,
+    mode_exponent: float = _P.mode_exponent,
+    sh_degree: int = _P.sh_degree,
+    ball_map: str = _P.ball_map,
+    surface_weight: float = _P.surface_weight,
+    components: str = _P.components,
     min_volume: int = DEFAULT_MIN_VOLUME,
     smooth: float = 1.0,
     offset=(0.0, 0.0, 0.0),
@@ -183,18 +189,18 @@ def pfsdm3d(
     if intensity is not None:
         intensity = np.asarray(intensity)
         if intensity.shape != mask.shape:
-            raise ValueError(f"The intensity volume has shape {intensity.shape} but the mask "
+            raise InputError(f"The intensity volume has shape {intensity.shape} but the mask "
                              f"has shape {mask.shape}: they must cover the same voxels.")
         if not np.issubdtype(intensity.dtype, np.number) or np.iscomplexobj(intensity):
-            raise ValueError(f"The intensity must be real numbers, got dtype {intensity.dtype}.")
+            raise InputError(f"The intensity must be real numbers, got dtype {intensity.dtype}.")
     sh_degree = int(sh_degree)
     if sh_degree < 1:
-        raise ValueError(f"sh_degree must be a whole number >= 1, got {sh_degree}.")
+        raise InputError(f"sh_degree must be a whole number >= 1, got {sh_degree}.")
     if not (np.isfinite(surface_weight) and surface_weight >= 0):
-        raise ValueError(f"surface_weight must be a number >= 0, got {surface_weight!r}.")
+        raise InputError(f"surface_weight must be a number >= 0, got {surface_weight!r}.")
     surface = SurfaceSDF(info, smooth=smooth)
     if not surface.volume > 0:
-        raise ValueError("The object has no inside after smoothing (it is thinner than a voxel "
+        raise InputError("The object has no inside after smoothing (it is thinner than a voxel "
                          "everywhere); it cannot be described in 3-D.")
     scale = float((3 * surface.volume / (4 * np.pi)) ** (1 / 3))
     pmap = make_ball_map(ball_map, surface, scale)
@@ -268,12 +274,12 @@ def shell_maps(
         The pixel centres' angles (radians).
     """
     if channel not in ("sdf", "intensity"):
-        raise ValueError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
+        raise InputError(f"channel must be 'sdf' or 'intensity', got {channel!r}.")
     if channel == "intensity" and result.intensity_image is None:
-        raise ValueError("This result has no intensity: pass an intensity volume to pfsdm.")
+        raise InputError("This result has no intensity: pass an intensity volume to pfsdm.")
     r = np.asarray(radii, float).ravel()
     if r.size == 0 or r.min() < 0 or r.max() > 1:
-        raise ValueError("Shell radii must lie in [0, 1].")
+        raise InputError("Shell radii must lie in [0, 1].")
     theta = (np.arange(n_lat) + 0.5) * np.pi / n_lat
     phi = (np.arange(n_lon) + 0.5) * 2 * np.pi / n_lon
     st = np.sin(theta)[:, None]
@@ -317,9 +323,9 @@ def surface_mesh(
     values : ndarray of float, shape (V,)
     """
     if channel not in ("radius", "sdf", "intensity"):
-        raise ValueError(f"channel must be 'radius', 'sdf' or 'intensity', got {channel!r}.")
+        raise InputError(f"channel must be 'radius', 'sdf' or 'intensity', got {channel!r}.")
     if coordinates not in ("voxel", "physical"):
-        raise ValueError(f"coordinates must be 'voxel' or 'physical', got {coordinates!r}.")
+        raise InputError(f"coordinates must be 'voxel' or 'physical', got {coordinates!r}.")
     s = result.surface
     rel = s.verts - result.mapping.center
     dirs = rel / np.maximum(np.linalg.norm(rel, axis=1, keepdims=True), 1e-12)
@@ -330,7 +336,7 @@ def surface_mesh(
         values = s(pts) / result.scale
     else:
         if result.intensity_image is None:
-            raise ValueError("This result has no intensity: pass an intensity volume to pfsdm.")
+            raise InputError("This result has no intensity: pass an intensity volume to pfsdm.")
         inward = s.verts - 0.5 * result.spacing.min() * s.normals
         values = _sample(result.intensity_image, inward, result.spacing)
     verts = s.verts / result.spacing + result.volume_info.offset

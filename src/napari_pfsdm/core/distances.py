@@ -30,11 +30,12 @@ the time, and a feature table holds what it needs (magnitudes and outline coeffi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from ..errors import InputError
+from . import distances3d
 from .boundary import boundary_distance_matrix
+from .embeddings import Embeddings
 
 __all__ = [
     "BOUNDARY_WEIGHT",
@@ -123,43 +124,9 @@ def _parabolic_peak(corr: np.ndarray) -> np.ndarray:
 def _from_results(items, channel: str):
     attr = "embedding" if channel == "shape" else "intensity_embedding"
     if any(getattr(r, attr) is None for r in items):
-        raise ValueError("intensity_weight > 0 needs results computed with an intensity.")
+        raise InputError("intensity_weight > 0 needs results computed with an intensity.")
     emb = np.stack([getattr(r, attr) for r in items])
     return emb, items[0].weights, items[0].mode_weights
-
-
-@dataclass(frozen=True)
-class Embeddings:
-    """Magnitude embeddings of n objects with the weights that make their distances PF-SDM
-    distances: what a feature table holds, as arrays (``napari_pfsdm.analysis.tables`` turns a
-    table into this; the core never reads a table).
-
-    Attributes
-    ----------
-    shape : ndarray, shape (n, n_radii, n_fourier + 1)
-        |c_n(r)| of the SDF.
-    weights : ndarray, shape (n_radii,)
-        Ring quadrature weights.
-    mode_weights : ndarray, shape (n_fourier + 1,)
-        (1 + n)^α.
-    intensity : ndarray, same shape as ``shape``, optional
-        |c_n(r)| of the intensity.
-    outline : ndarray of complex, shape (n, 2K), optional
-        The outline coefficients of the boundary term
-        (:func:`napari_pfsdm.core.boundary.outline_coefficients`).
-    """
-
-    shape: np.ndarray
-    weights: np.ndarray
-    mode_weights: np.ndarray
-    intensity: np.ndarray | None = None
-    outline: np.ndarray | None = None
-
-    def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        emb = self.shape if name == "shape" else self.intensity
-        if emb is None:
-            raise ValueError("intensity_weight > 0 needs intensity embeddings.")
-        return emb, self.weights, self.mode_weights
 
 
 def _channel_arrays(items, channel: str):
@@ -175,8 +142,6 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
     :func:`napari_pfsdm.weighted_features`). For 3-D results the surface term is one more row
     (:mod:`.distances3d`): (n, (n_radii + 1) × (sh_degree + 1))."""
     if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
-        from . import distances3d
-
         items = list(items)
         if items and distances3d.is_3d(items):
             items = distances3d.embeddings_3d(items, with_intensity=channel == "intensity")
@@ -233,7 +198,6 @@ def distance_matrix(
     True
     """
     if not isinstance(items, Embeddings) and not hasattr(items, "columns"):
-        from . import distances3d  # 3-D results: their own branch (docs/design.md §6.5)
 
         items = list(items)
         if items and distances3d.is_3d(items):
@@ -251,11 +215,11 @@ def distance_matrix(
         invariance = "magnitude"
     boundary_weight = _check_boundary_weight(boundary_weight)
     if invariance not in INVARIANCES:
-        raise ValueError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
+        raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
     if arrays:
         if invariance != "magnitude":
-            raise ValueError(
+            raise InputError(
                 f"invariance={invariance!r} needs the complex spectra of pfsdm results; a table "
                 "holds magnitudes only. Use invariance='magnitude' for tables."
             )
@@ -312,7 +276,7 @@ def distance(a, b, intensity_weight: float = 0.0, *, invariance: str | None = No
 def _no_boundary_in_3d(weight: float | None) -> float:
     """3-D objects have no outline: their surface term (``surface_weight``) plays that part."""
     if weight:
-        raise ValueError("boundary_weight is for 2-D outlines; 3-D objects have their surface "
+        raise InputError("boundary_weight is for 2-D outlines; 3-D objects have their surface "
                          "term instead (the surface_weight option of pfsdm / measure).")
     return 0.0
 
@@ -322,7 +286,7 @@ def _check_boundary_weight(weight: float | None) -> float:
         return BOUNDARY_WEIGHT
     value = float(weight)
     if not np.isfinite(value) or value < 0:
-        raise ValueError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
+        raise InputError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
                          f"got {weight!r}.")
     return value
 
@@ -332,7 +296,7 @@ def outlines_of(items) -> np.ndarray:
     term; ``ValueError`` when embeddings carry none."""
     if isinstance(items, Embeddings):
         if items.outline is None:
-            raise ValueError(
+            raise InputError(
                 "The default distance has a boundary term, which needs the objects' outline "
                 "coefficients, and these embeddings carry none (a table measured before the "
                 "boundary term has no outline_* columns). Measure again, or pass "

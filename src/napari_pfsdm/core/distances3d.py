@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .distances import Embeddings
+from ..errors import InputError
+from .embeddings import Embeddings
 
 __all__ = ["embeddings_3d", "is_3d", "check_invariance_3d", "stack_3d"]
 
@@ -28,7 +29,7 @@ def is_3d(items) -> bool:
     items = list(items)
     dims = {getattr(r, "ndim", 2) for r in items}
     if len(dims) > 1:
-        raise ValueError("The results mix 2-D and 3-D objects; their descriptors cannot be "
+        raise InputError("The results mix 2-D and 3-D objects; their descriptors cannot be "
                          "compared. Compare 2-D and 3-D objects separately.")
     return dims == {3}
 
@@ -36,7 +37,7 @@ def is_3d(items) -> bool:
 def check_invariance_3d(invariance: str | None) -> None:
     """3-D results are compared by their invariant SH power; ``"align"`` is 2-D only."""
     if invariance not in (None, "magnitude"):
-        raise ValueError(
+        raise InputError(
             f"invariance={invariance!r} is for 2-D results (it aligns Fourier phases over "
             "rotations); 3-D results are compared by their spherical-harmonic power, which is "
             "rotation- and mirror-invariant already. Use invariance='magnitude' (the default)."
@@ -68,14 +69,14 @@ def embeddings_3d(results, with_intensity: bool = False) -> Embeddings:
                 or not np.allclose(r.weights, first.weights)
                 or not np.allclose(r.mode_weights, first.mode_weights)
                 or r.surface_weight != first.surface_weight):
-            raise ValueError("The 3-D results were computed with different options (shells, "
+            raise InputError("The 3-D results were computed with different options (shells, "
                              "sh_degree or weights); compute them all with the same options.")
     shape = stack_3d(np.stack([r.embedding for r in results]),
                      np.stack([r.surface_embedding for r in results]))
     intensity = None
     if with_intensity:
         if any(r.intensity_embedding is None for r in results):
-            raise ValueError("intensity_weight > 0 needs results computed with an intensity.")
+            raise InputError("intensity_weight > 0 needs results computed with an intensity.")
         intensity = stack_3d(np.stack([r.intensity_embedding for r in results]), None)
     weights = np.append(first.weights, first.surface_weight)
     return Embeddings(shape=shape, weights=weights, mode_weights=first.mode_weights,

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["intensity_crop"]
 
 
@@ -38,13 +40,13 @@ def intensity_crop(intensity: np.ndarray, offset: np.ndarray, mask: np.ndarray) 
     n_nan = int(np.isnan(values).sum())
     if n_nan:
         what, unit = ("volume", "voxel") if mask.ndim == 3 else ("image", "pixel")
-        raise ValueError(
+        raise InputError(
             f"The intensity {what} has {n_nan} NaN {unit}(s) inside the object. Replace them "
             "(for example with numpy.nan_to_num or an interpolation) before measuring."
         )
     mean = float(values.mean())
     if not mean > 0:
-        raise ValueError(
+        raise InputError(
             f"The object's mean intensity is {mean:.3g}; the intensity descriptor is "
             "normalised by it and needs a positive signal (subtract less background)."
         )

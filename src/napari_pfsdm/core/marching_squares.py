@@ -20,6 +20,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["BoundaryTrace", "outer_boundary", "trace_boundary"]
 
 # Sides of a 2 × 2 cell: 0 top, 1 bottom, 2 left, 3 right. The segments (from side, to side) of
@@ -101,7 +103,7 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
     """
     m = np.asarray(mask)
     if m.ndim != 2:
-        raise ValueError(f"outer_boundary needs a 2-D mask, got shape {m.shape}.")
+        raise InputError(f"outer_boundary needs a 2-D mask, got shape {m.shape}.")
     m = m.astype(np.uint8)
     shift = 0.0
     if m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any():
@@ -111,7 +113,7 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
     case = m[:-1, :-1] + 2 * m[:-1, 1:] + 4 * m[1:, :-1] + 8 * m[1:, 1:]
     r, c = np.nonzero((case > 0) & (case < 15))
     if r.size == 0:
-        raise ValueError("The mask is empty: no pixel belongs to the object.")
+        raise InputError("The mask is empty: no pixel belongs to the object.")
     kind = case[r, c]
     n_saddles = int(np.count_nonzero((kind == 6) | (kind == 9)))
     # vertex ids: the crack between (r, c) and (r, c + 1), at (r, c + ½): r·w + c; the crack

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = [
     "RADII_PLACEMENTS",
     "NORMALIZATIONS",
@@ -50,16 +52,16 @@ def ring_radii(n_radii: int, placement: str | np.ndarray = "uniform") -> np.ndar
     if not isinstance(placement, str):
         r = np.sort(np.asarray(placement, float).ravel())
         if r.size == 0 or r[0] <= 0 or r[-1] >= 1:
-            raise ValueError("Explicit radii must lie strictly between 0 and 1.")
+            raise InputError("Explicit radii must lie strictly between 0 and 1.")
         return r
     if n_radii < 1:
-        raise ValueError(f"n_radii must be at least 1, got {n_radii}.")
+        raise InputError(f"n_radii must be at least 1, got {n_radii}.")
     t = (np.arange(n_radii) + 0.5) / n_radii
     if placement == "uniform":
         return t
     if placement == "boundary":
         return np.sort(1.0 - t**2)
-    raise ValueError(f"radii must be one of {RADII_PLACEMENTS} or an array, got {placement!r}.")
+    raise InputError(f"radii must be one of {RADII_PLACEMENTS} or an array, got {placement!r}.")
 
 
 def ring_weights(radii: np.ndarray, weighting: str = "none") -> np.ndarray:
@@ -79,7 +81,7 @@ def ring_weights(radii: np.ndarray, weighting: str = "none") -> np.ndarray:
     elif weighting == "depth":
         w = w / (1.0 - r) ** 2
     elif weighting != "none":
-        raise ValueError(f"ring_weighting must be one of {RING_WEIGHTINGS}, got {weighting!r}.")
+        raise InputError(f"ring_weighting must be one of {RING_WEIGHTINGS}, got {weighting!r}.")
     return w
 
 
@@ -91,7 +93,7 @@ def mode_weights(n_fourier: int, exponent: float = 0.0) -> np.ndarray:
     as they are (the paper). The benchmarks' numbers for 0, 0.25 and 0.5 are in the README.
     """
     if not np.isfinite(exponent) or exponent < 0:
-        raise ValueError(f"mode_exponent must be a number >= 0, got {exponent!r}.")
+        raise InputError(f"mode_exponent must be a number >= 0, got {exponent!r}.")
     return (1.0 + np.arange(n_fourier + 1, dtype=float)) ** float(exponent)
 
 
@@ -123,7 +125,7 @@ def magnitude_embedding(
     ndarray, shape (n_radii, n_fourier + 1)
     """
     if n_fourier >= spec.shape[-1]:
-        raise ValueError(
+        raise InputError(
             f"n_fourier={n_fourier} needs more than {2 * n_fourier} angles; raise n_angles."
         )
     emb = np.abs(spec[..., : n_fourier + 1])
@@ -132,5 +134,5 @@ def magnitude_embedding(
         emb = emb.copy()
         emb[..., 1:] /= np.maximum(norm, 1e-12)
     elif normalization != "none":
-        raise ValueError(f"normalization must be one of {NORMALIZATIONS}, got {normalization!r}.")
+        raise InputError(f"normalization must be one of {NORMALIZATIONS}, got {normalization!r}.")
     return emb

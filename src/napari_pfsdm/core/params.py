@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .ball import BALL_MAPS
 from .contour import DEFAULT_MIN_AREA
 from .morphometric import (
@@ -59,10 +60,11 @@ class PFSDMParams:
     >>> p = PFSDMParams(n_fourier=6)
     >>> p.n_fourier, p.mapping
     (6, 'harmonic')
-    >>> PFSDMParams(mapping="harmonc")
-    Traceback (most recent call last):
-    ...
-    ValueError: mapping must be one of harmonic, bijective, radial; got 'harmonc'.
+    >>> try:
+    ...     PFSDMParams(mapping="harmonc")
+    ... except InputError as exc:
+    ...     print(exc)
+    mapping must be one of harmonic, bijective, radial; got 'harmonc'.
     >>> PFSDMParams.from_options(n_radii=8).options()["n_radii"]
     8
     """
@@ -89,31 +91,31 @@ class PFSDMParams:
             if name == "radii" and not isinstance(value, str):
                 radii = tuple(float(r) for r in np.ravel(value))
                 if not radii or not all(0.0 < r < 1.0 for r in radii):
-                    raise ValueError("radii given as numbers must all lie in (0, 1).")
+                    raise InputError("radii given as numbers must all lie in (0, 1).")
                 object.__setattr__(self, "radii", radii)
                 continue
             if value not in allowed:
-                raise ValueError(
+                raise InputError(
                     f"{name} must be one of {', '.join(allowed)}; got {value!r}."
                 )
         for name, low in (("n_fourier", 1), ("n_radii", 1), ("n_angles", 8), ("min_area", 1),
                           ("sh_degree", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not float(value).is_integer() or value < low:
-                raise ValueError(f"{name} must be a whole number >= {low}; got {value!r}.")
+                raise InputError(f"{name} must be a whole number >= {low}; got {value!r}.")
             object.__setattr__(self, name, int(value))
         if self.n_angles % 2:
-            raise ValueError(f"n_angles must be an even number of at least 8, got {self.n_angles}.")
+            raise InputError(f"n_angles must be an even number of at least 8, got {self.n_angles}.")
         if self.n_fourier >= self.n_angles // 2 + 1:  # as core.morphometric.magnitude_embedding
-            raise ValueError(f"n_fourier={self.n_fourier} needs more than {2 * self.n_fourier} "
+            raise InputError(f"n_fourier={self.n_fourier} needs more than {2 * self.n_fourier} "
                              "angles; raise n_angles.")
         if self.sh_degree > 40:
-            raise ValueError(f"sh_degree must be at most 40 (a 3-D object rarely carries detail "
+            raise InputError(f"sh_degree must be at most 40 (a 3-D object rarely carries detail "
                              f"beyond degree 20); got {self.sh_degree}.")
         for name in ("viscosity", "mode_exponent", "surface_weight"):
             value = float(getattr(self, name))
             if not np.isfinite(value) or value < 0 or (name == "viscosity" and value == 0):
-                raise ValueError(f"{name} must be a positive number; got {value!r}.")
+                raise InputError(f"{name} must be a positive number; got {value!r}.")
             object.__setattr__(self, name, value)
 
     @classmethod
@@ -128,7 +130,7 @@ class PFSDMParams:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(merged) - known - set(DERIVED))
         if unknown:
-            raise ValueError(
+            raise InputError(
                 f"unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
                 f"the options are {', '.join(sorted(known))}"
             )
@@ -151,7 +153,7 @@ class PFSDMParams:
         if changed:
             hint = ("these options are for 2-D masks (3-D ones have sh_degree, surface_weight "
                     "and ball_map)" if ndim == 3 else "these options are for 3-D volumes only")
-            raise ValueError(
+            raise InputError(
                 f"{', '.join(changed)} {'was' if len(changed) == 1 else 'were'} set, but the "
                 f"objects are {ndim}-D: {hint}. Leave {'it' if len(changed) == 1 else 'them'} "
                 "at the default."
@@ -180,7 +182,7 @@ def as_params(params: PFSDMParams | None = None, options: dict[str, Any] | None 
     """The one record of a call's options, given as ``params=`` or as keyword ``options``
     (validated); both at once is refused rather than merged silently."""
     if params is not None and options:
-        raise ValueError("give the options either as params=PFSDMParams(...) or as keywords, "
+        raise InputError("give the options either as params=PFSDMParams(...) or as keywords, "
                          "not both")
     if params is not None and not isinstance(params, PFSDMParams):
         raise TypeError(f"params must be a PFSDMParams, got {type(params).__name__}")

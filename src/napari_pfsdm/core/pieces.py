@@ -13,6 +13,8 @@ import warnings
 import numpy as np
 from scipy import ndimage as ndi
 
+from ..errors import InputError
+
 __all__ = ["fill_holes", "largest_piece"]
 
 
@@ -40,12 +42,12 @@ def largest_piece(crop: np.ndarray, components: str = "largest",
         return crop, int(n_pieces)
     sizes = np.bincount(lab.ravel())[1:]
     if components == "raise":
-        raise ValueError(
+        raise InputError(
             f"The object has {n_pieces} separate pieces (sizes {sorted(sizes.tolist())[::-1]} "
             f"{unit}). Give each piece its own label, or use components='largest'."
         )
     if components != "largest":
-        raise ValueError(f"components must be 'largest' or 'raise', got {components!r}.")
+        raise InputError(f"components must be 'largest' or 'raise', got {components!r}.")
     # stacklevel as before the move: from prepare_mask, the caller of pfsdm (2-D); from
     # prepare_volume, pfsdm (3-D, through pfsdm3d)
     warnings.warn(f"The object has {n_pieces} separate pieces; only the largest "

@@ -30,6 +30,7 @@ from scipy.interpolate import LinearNDInterpolator
 from scipy.sparse.linalg import splu
 from scipy.spatial import Delaunay, cKDTree
 
+from ..errors import InputError
 from .sdf import ExactSDF
 
 __all__ = ["MAPPINGS", "FourierMap", "BijectiveMap", "display_turn", "make_map", "push_to_disk"]
@@ -257,7 +258,7 @@ def make_map(kind: str, nodes: np.ndarray, sdf: ExactSDF, *, degree: int = 16,
         return radial_map(nodes, degree=degree)
     if kind == "bijective":
         return BijectiveMap(nodes, sdf, grid=grid)
-    raise ValueError(f"mapping must be one of {MAPPINGS}, got {kind!r}.")
+    raise InputError(f"mapping must be one of {MAPPINGS}, got {kind!r}.")
 
 
 def display_turn(result) -> float:

@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 from scipy.special import k1e
 from skimage.measure import points_in_poly
 
+from ..errors import InputError
 from .contour import signed_area
 
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
@@ -218,7 +219,7 @@ class ViscousSDF:
 
     def __init__(self, nodes: np.ndarray, viscosity: float = 0.05, refine: int = 8) -> None:
         if not viscosity > 0:
-            raise ValueError(f"viscosity must be positive, got {viscosity}.")
+            raise InputError(f"viscosity must be positive, got {viscosity}.")
         self.nu = float(viscosity)
         self.k = 1.0 / self.nu
         self.exact = ExactSDF(nodes)
@@ -301,4 +302,4 @@ def make_sdf(kind: str, nodes: np.ndarray, viscosity: float = 0.05) -> ExactSDF 
         return ExactSDF(nodes)
     if kind == "viscous":
         return ViscousSDF(nodes, viscosity=viscosity)
-    raise ValueError(f"sdf must be one of {SDF_KINDS}, got {kind!r}.")
+    raise InputError(f"sdf must be one of {SDF_KINDS}, got {kind!r}.")

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["SphereGrid", "legendre_table", "power_spectrum", "sh_analysis", "sphere_grid"]
 
 
@@ -106,11 +108,11 @@ def sphere_grid(degree: int, n_lat: int | None = None, n_lon: int | None = None)
     """
     degree = int(degree)
     if degree < 0:
-        raise ValueError(f"The spherical-harmonic degree must be >= 0, got {degree}.")
+        raise InputError(f"The spherical-harmonic degree must be >= 0, got {degree}.")
     n_lat = 2 * (degree + 1) if n_lat is None else int(n_lat)
     n_lon = 4 * (degree + 1) if n_lon is None else int(n_lon)
     if n_lat < degree + 1 or n_lon < 2 * degree + 1:
-        raise ValueError(f"A grid of {n_lat} × {n_lon} cannot resolve degree {degree}: it needs "
+        raise InputError(f"A grid of {n_lat} × {n_lon} cannot resolve degree {degree}: it needs "
                          f"at least {degree + 1} latitudes and {2 * degree + 1} longitudes.")
     x, w = np.polynomial.legendre.leggauss(n_lat)
     x, w = x[::-1], w[::-1]  # from the +z pole down
@@ -139,7 +141,7 @@ def sh_analysis(values: np.ndarray, grid: SphereGrid) -> np.ndarray:
     """
     values = np.asarray(values, float)
     if values.shape[-2:] != grid.shape:
-        raise ValueError(f"Samples of shape {values.shape[-2:]} do not match the grid "
+        raise InputError(f"Samples of shape {values.shape[-2:]} do not match the grid "
                          f"{grid.shape}.")
     n_lon = values.shape[-1]
     big_l = grid.degree

@@ -25,7 +25,11 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from ..errors import InputError
+
 __all__ = [
+    "pc_column",
+    "pc_columns",
     "BASE_COLUMNS",
     "BASE_COLUMNS_3D",
     "base_columns",
@@ -130,6 +134,31 @@ def has_outline(columns: Iterable[str]) -> int:
     return k if k and all(c in names for c in outline_columns(k)) else 0
 
 
+def pc_column(channel: str, k: int) -> str:
+    """The one name of a PCA score column: ``{channel}_PC{k}`` (k from 1), as every PCA table
+    the package writes names it (``pfsdm trajectories``, the batch reports).
+
+    Examples
+    --------
+    >>> pc_column("shape", 1)
+    'shape_PC1'
+    """
+    return f"{channel}_PC{int(k)}"
+
+
+def pc_columns(columns: Iterable[str], channel: str) -> list[str]:
+    """The PCA score columns of ``channel`` among ``columns``, in the order PC1, PC2, ….
+
+    Examples
+    --------
+    >>> pc_columns(["frame", "shape_PC2", "shape_PC1", "intensity_PC1"], "shape")
+    ['shape_PC1', 'shape_PC2']
+    """
+    prefix = pc_column(channel, 0)[:-1]
+    found = [c for c in columns if str(c).startswith(prefix) and str(c)[len(prefix):].isdigit()]
+    return sorted(found, key=lambda c: int(str(c)[len(prefix):]))
+
+
 def has_channel(columns: Iterable[str], channel: str) -> bool:
     """True when any ``{channel}_rXX_nYY`` column is present."""
     prefix = f"{channel}_r"
@@ -170,7 +199,7 @@ def check_feature_table(
         ("weights", "n_fourier")
     missing_opts = [k for k in needed if opts.get(k) is None]
     if missing_opts:
-        raise ValueError(
+        raise InputError(
             f"{where} does not say how it was measured (no {' or '.join(missing_opts)} in its "
             "options), so its distances cannot be computed correctly. Keep the .csv.json file "
             "that 'pfsdm measure' writes next to the .csv (read tables with "
@@ -184,17 +213,17 @@ def check_feature_table(
         missing = [c for c in expected if c not in columns]
         if len(missing) == len(expected):
             if channel == "intensity":
-                raise ValueError(
+                raise InputError(
                     f"{where} has no intensity features; measure with an intensity image "
                     "(--intensity IMAGE) or leave the intensity out"
                 )
-            raise ValueError(
+            raise InputError(
                 f"{where} has no shape_rXX_{'l' if table_ndim(opts) == 3 else 'n'}YY feature "
                 "columns: it is not a PF-SDM feature "
                 "table; make one with: pfsdm measure LABELS -o features.csv"
             )
         if missing:
-            raise ValueError(
+            raise InputError(
                 f"{where} misses {len(missing)} of its {len(expected)} {channel} feature "
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"

@@ -22,6 +22,7 @@ from scipy import ndimage as ndi
 from scipy.spatial import cKDTree
 from skimage.measure import marching_cubes
 
+from ..errors import InputError
 from .pieces import fill_holes, largest_piece
 
 __all__ = ["VolumeInfo", "SurfaceSDF", "check_spacing", "prepare_volume"]
@@ -43,18 +44,18 @@ def check_spacing(spacing, ndim: int = 3) -> np.ndarray:
     try:
         s = np.asarray(spacing, float).ravel()
     except (TypeError, ValueError):
-        raise ValueError(f"spacing must be {ndim} numbers (the voxel size along "
+        raise InputError(f"spacing must be {ndim} numbers (the voxel size along "
                          f"{'Z, Y, X' if ndim == 3 else 'Y, X'}), got {spacing!r}.") from None
     if s.size == 1:
         s = np.repeat(s, ndim)
     if s.size != ndim:
-        raise ValueError(
+        raise InputError(
             f"spacing has {s.size} values but the object has {ndim} spatial axes: give one voxel "
             f"size per axis ({'Z, Y, X' if ndim == 3 else 'Y, X'}), e.g. spacing="
             f"{(2.0, 0.5, 0.5) if ndim == 3 else (0.5, 0.5)}."
         )
     if not (np.all(np.isfinite(s)) and np.all(s > 0)):
-        raise ValueError(f"spacing must be positive numbers, got {tuple(s.tolist())}.")
+        raise InputError(f"spacing must be positive numbers, got {tuple(s.tolist())}.")
     return s
 
 
@@ -118,7 +119,7 @@ def prepare_volume(
     """
     mask = np.asarray(mask)
     if mask.ndim != 3:
-        raise ValueError(
+        raise InputError(
             f"Expected a 3-D mask (Z, Y, X) of one object, got {mask.ndim} dimensions "
             f"{mask.shape}. For a label volume or a time-lapse use `measure` with axes='zyx' or "
             "'tzyx'."
@@ -127,7 +128,7 @@ def prepare_volume(
     mask = mask.astype(bool, copy=False)
     box = ndi.find_objects(mask.astype(np.uint8))
     if not box or box[0] is None:
-        raise ValueError("The mask is empty: no voxel belongs to the object.")
+        raise InputError("The mask is empty: no voxel belongs to the object.")
     box = box[0]
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, mask.shape, strict=True))
     crop = np.pad(mask[box], pad)
@@ -135,7 +136,7 @@ def prepare_volume(
     filled, n_holes = fill_holes(crop)
     volume = int(filled.sum())
     if volume < min_volume:
-        raise ValueError(
+        raise InputError(
             f"The object is too small to describe its 3-D shape: {volume} voxels, the minimum "
             f"is {min_volume}. Remove tiny objects from the segmentation (or lower min_area)."
         )
@@ -197,7 +198,7 @@ class SurfaceSDF:
         self.field = ndi.gaussian_filter(info.mask.astype(np.float32), sigma, mode="constant") \
             if smooth > 0 else info.mask.astype(np.float32)
         if not self.field.max() > 0.5:
-            raise ValueError(
+            raise InputError(
                 "The object is thinner than the smoothing everywhere (a sheet or thread about "
                 "one voxel thick), so it has no inside to describe in 3-D. Describe it in 2-D "
                 "(one plane), or lower smooth."

@@ -44,6 +44,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy import ndimage as ndi
 
+from ..errors import InputError
+
 __all__ = [
     "GastruloidParams",
     "GastruloidSet",
@@ -306,13 +308,13 @@ def _render_movie(
 
 def _check(n_objects: int, n_frames: int, size: int, multi_fraction: float) -> None:
     if n_objects < 1:
-        raise ValueError(f"n_objects must be at least 1, got {n_objects}.")
+        raise InputError(f"n_objects must be at least 1, got {n_objects}.")
     if n_frames < 1:
-        raise ValueError(f"n_frames must be at least 1, got {n_frames}.")
+        raise InputError(f"n_frames must be at least 1, got {n_frames}.")
     if size < 32:
-        raise ValueError(f"size must be at least 32 pixels, got {size}: objects would vanish.")
+        raise InputError(f"size must be at least 32 pixels, got {size}: objects would vanish.")
     if not 0.0 <= multi_fraction <= 1.0:
-        raise ValueError(f"multi_fraction must be in [0, 1], got {multi_fraction}.")
+        raise InputError(f"multi_fraction must be in [0, 1], got {multi_fraction}.")
 
 
 def _class_flags(rng: np.random.Generator, n: int, multi_fraction: float) -> np.ndarray:
@@ -420,7 +422,7 @@ def make_timelapse_montage(
     n_rows = int(np.ceil(n_objects / n_cols))
     cell = size // max(n_cols, n_rows)
     if cell < 32:
-        raise ValueError(
+        raise InputError(
             f"size={size} is too small for {n_objects} objects (cells of {cell} px); "
             "use a larger size or fewer objects."
         )

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..errors import InputError
+
 __all__ = ["MovingBlobs", "RELABELLINGS", "centroid_table", "make_moving_blobs", "relabel"]
 
 #: What :func:`relabel` can do to tracked labels.
@@ -101,9 +103,9 @@ def make_moving_blobs(
     MovingBlobs
     """
     if n_objects < 1 or n_frames < 1:
-        raise ValueError("n_objects and n_frames must be at least 1")
+        raise InputError("n_objects and n_frames must be at least 1")
     if entering + leaving > n_objects:
-        raise ValueError("entering + leaving must not exceed n_objects")
+        raise InputError("entering + leaving must not exceed n_objects")
     rng = np.random.default_rng(seed)
     n_total = n_objects + (2 if division else 0)
     r0 = rng.uniform(*radius, n_total)
@@ -217,7 +219,7 @@ def relabel(labels: np.ndarray, how: str, seed: int = 0) -> np.ndarray:
     ndarray, same shape and dtype
     """
     if how not in RELABELLINGS:
-        raise ValueError(f"how must be one of {RELABELLINGS}, got {how!r}")
+        raise InputError(f"how must be one of {RELABELLINGS}, got {how!r}")
     out = labels.copy()
     if how == "tracked":
         return out

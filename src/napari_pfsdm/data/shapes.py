@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.contour import polygon_area_centroid, signed_area
+from ..errors import InputError
 
 __all__ = [
     "CLASS_NAMES",
@@ -176,7 +177,7 @@ def base_shape(name: str, n: int = N_VERTICES) -> np.ndarray:
     try:
         return _BASE[name](n)
     except KeyError:
-        raise ValueError(
+        raise InputError(
             f"Unknown base shape {name!r}; choose one of {', '.join(CLASS_NAMES)}."
         ) from None
 
@@ -268,7 +269,7 @@ def random_similarity(
     low = margin - 0.5 - placed.min(axis=0)
     high = np.array(shape, float) - 0.5 - margin - placed.max(axis=0)
     if np.any(high < low):
-        raise ValueError(
+        raise InputError(
             f"An outline {np.ptp(placed, axis=0).round(1).tolist()} pixels across does not fit in "
             f"an image of {shape} with a margin of {margin} pixels; use a larger image or a "
             "smaller base_scale."
@@ -367,14 +368,14 @@ def rasterize(
     """
     pts = np.asarray(polygon, float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
-        raise ValueError(
+        raise InputError(
             f"Expected an outline of at least 3 (row, col) vertices, got shape {pts.shape}."
         )
     if transform is not None:
         pts = transform.apply(pts)
     oversample = int(oversample)
     if oversample < 1:
-        raise ValueError(f"oversample must be a positive integer, got {oversample}.")
+        raise InputError(f"oversample must be a positive integer, got {oversample}.")
     h, w = int(shape[0]), int(shape[1])
     fine = (pts + 0.5) * oversample - 0.5
     grid = _scanline_fill(fine, (h * oversample, w * oversample))
@@ -496,7 +497,7 @@ def make_benchmark_set(
         :data:`CLASS_NAMES`.
     """
     if n_per_class < 1:
-        raise ValueError(f"n_per_class must be at least 1, got {n_per_class}.")
+        raise InputError(f"n_per_class must be at least 1, got {n_per_class}.")
     do_perturb = perturb
     rng = np.random.default_rng([int(seed), int(bool(do_perturb))])
     masks: list[np.ndarray] = []

@@ -28,6 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["VOLUME_CLASSES", "MOMENT_HARD", "NON_STAR", "blob_volume", "make_volume_set",
            "random_rotation"]
 
@@ -153,7 +155,7 @@ def blob_volume(
         For the perturbation (and nothing else).
     """
     if name not in _CLASSES and name not in NON_STAR:
-        raise ValueError(f"Unknown class {name!r}; the classes are "
+        raise InputError(f"Unknown class {name!r}; the classes are "
                          f"{', '.join(VOLUME_CLASSES + NON_STAR)}.")
     shape = (size,) * 3 if np.isscalar(size) else tuple(size)
     spacing = np.asarray(spacing, float)

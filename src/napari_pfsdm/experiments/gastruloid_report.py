@@ -36,6 +36,8 @@ import numpy as np
 import pandas as pd
 
 from ..analysis import classification as cl
+from ..core.table_options import carry_options
+from ..core.table_schema import pc_column
 from ..data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
 from ..io_csv import save_figure
 from . import pixel_baseline as pb
@@ -166,10 +168,9 @@ def plot_pca(
     for ax, kind in zip(axes, ("intensity", "shape"), strict=True):
         cols = [c for c in table.columns if c.startswith(f"{kind}_")]
         ok = table[cols].notna().all(axis=1)
-        sub = table[ok].sort_values(["object", "frame"])
-        sub.attrs = table.attrs
+        sub = carry_options(table, table[ok].sort_values(["object", "frame"]))
         scores, ev = pca_scores(sub, kind, n_components=2, standardize=True)
-        pcs = scores[[f"{kind}_PC1", f"{kind}_PC2"]].to_numpy()  # one row per row of sub
+        pcs = scores[[pc_column(kind, 1), pc_column(kind, 2)]].to_numpy()  # one row per row of sub
         for obj in sub["object"].unique():
             sel = (sub["object"] == obj).to_numpy()
             multi = bool(multi_axis[obj])

@@ -29,6 +29,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from ..analysis.classification import FitPredict, parse_frames
+from ..errors import InputError
 
 __all__ = ["augment", "cnn_model", "pixel_stacks", "sklearn_pixel_model", "torch_available"]
 
@@ -65,7 +66,7 @@ def pixel_stacks(
         The mask (as area fractions in [0, 1]) and the normalised intensity.
     """
     if labels.ndim != 4 or intensity.shape != labels.shape:
-        raise ValueError(
+        raise InputError(
             "labels and intensity must both be (n_objects, T, Y, X) one-object movies of the "
             f"same shape; got {labels.shape} and {intensity.shape}."
         )
@@ -78,7 +79,7 @@ def pixel_stacks(
         m = labels[i][sel] > 0
         s = intensity[i][sel].astype(np.float32)
         if not m.any():
-            raise ValueError(f"object {i} is empty in the chosen frames; drop it first.")
+            raise InputError(f"object {i} is empty in the chosen frames; drop it first.")
         cy, cx = ndi.center_of_mass(m.any(axis=0))
         y0, x0 = int(round(cy)) - win // 2, int(round(cx)) - win // 2
         pad = ((0, 0), (win, win), (win, win))
@@ -199,7 +200,7 @@ def cnn_model(
         from torch import nn
         from torch.nn import functional as F
     except ImportError:
-        raise ValueError(
+        raise InputError(
             "the CNN baseline needs PyTorch; install it with `pip install napari-pfsdm[cnn]` "
             "(or `pip install torch`), or run the scikit-learn pixel baseline only."
         ) from None

@@ -44,6 +44,7 @@ from ..analysis.reduction import mds_coordinates
 from ..analysis.retrieval import loo_1nn_fraction
 from ..core import DEFAULTS, distance_matrix, pfsdm
 from ..data.shapes import base_shapes, make_benchmark_set
+from ..errors import InputError
 from ..io_csv import save_figure
 
 __all__ = [
@@ -265,7 +266,7 @@ def build_set(
         For an unknown ``set_name``.
     """
     if set_name not in SETS:
-        raise ValueError(f"Unknown set(s) {[set_name]}; choose from {SETS}.")
+        raise InputError(f"Unknown set(s) {[set_name]}; choose from {SETS}.")
     return make_benchmark_set(n_per_class, perturb=set_name == "perturbed", seed=seed, size=size)
 
 
@@ -523,7 +524,7 @@ def run(
     """
     unknown = set(sets) - set(SETS)
     if unknown:
-        raise ValueError(f"Unknown set(s) {sorted(unknown)}; choose from {SETS}.")
+        raise InputError(f"Unknown set(s) {sorted(unknown)}; choose from {SETS}.")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     variants = pfsdm_variants(quick) if variants is None else [dict(v) for v in variants]

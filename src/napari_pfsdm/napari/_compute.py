@@ -19,10 +19,12 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
+from ..analysis.features import count_objects as _count_objects
 from ..analysis.interpretation import MEASURES, outline_measures
 from ..analysis.reduction import mds_coordinates
 from ..analysis.reduction import pca_scores as _pca
 from ..core.params import PFSDMParams
+from ..core.table_options import carry_options
 from ..core.table_schema import BASE_COLUMNS as _BASE_COLUMNS
 from ..core.table_schema import has_channel
 
@@ -183,20 +185,8 @@ def validate_layers_data(labels, intensity, first_axis: str = "time") -> str:
     return axes
 
 
-def count_objects(labels, axes: str = "tyx") -> int:
-    """Number of (frame, label) objects, one frame at a time (dask and zarr arrays too)."""
-    timed = axes.startswith("t")
-    frames = (labels[t] for t in range(labels.shape[0])) if timed else [labels]
-    n = 0
-    for frame in frames:
-        a = np.asarray(frame)
-        if a.dtype == bool:
-            a = a.astype(np.uint8)
-        if a.size and a.min() < 0:
-            raise ValueError("The Labels layer has negative values; labels must be 0 "
-                             "(background) or positive whole numbers.")
-        n += int(np.count_nonzero(np.bincount(a.ravel())[1:])) if a.size else 0
-    return n
+#: The package's one count of (frame, label) objects (issue 21: there were two).
+count_objects = _count_objects
 
 
 def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5) -> pd.DataFrame:
@@ -311,8 +301,8 @@ def apply_identity(output: AnalysisOutput, mode: str = "auto", tracks=None,
 
     if mode not in IDENTITY:
         raise ValueError(f"identity must be one of {IDENTITY}, got {mode!r}.")
-    table = output.table.drop(columns=[TRACK_COLUMN], errors="ignore")
-    table.attrs = dict(output.table.attrs)
+    table = carry_options(output.table,
+                          output.table.drop(columns=[TRACK_COLUMN], errors="ignore"))
     if not output.time_lapse:
         output.table, output.tracking_message = table, ""
         output.reindex()

@@ -1,0 +1,536 @@
+#!/usr/bin/env python3
+"""Mutation test of the non-GUI suite: how many plausible one-line bugs do the tests catch?
+
+    python scripts/mutation.py                      # the documented sample (docs/testing.md)
+    python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io_csv.py
+    python scripts/mutation.py --list               # the mutants it would try, nothing run
+
+Each mutant is one plausible slip on one line of the package: an operator swapped (``+``/``-``,
+``*``/``/``, ``<``/``<=``, ``==``/``!=``, ``and``/``or``), a range or slice one off, a
+number changed, a negation or a minus sign dropped, a wrong exponent; plus the mutants that
+issue 21 found surviving (:data:`CURATED`). They are drawn from core, analysis, batch/io.py,
+io_csv.py and cli.py (the napari plugin is tested under Qt, not here). Code that only builds
+messages (``raise``, f-strings, ``help=``) is not mutated.
+
+How it runs (one job at a time: the machine has 2 cores):
+
+1. The repository is copied to a temporary folder (the work tree is never changed) and the
+   tests run there with ``PYTHONPATH`` pointing at the copy's ``src``.
+2. The non-GUI suite runs once with a profiler hook that records which package functions
+   each test file calls; a mutant then runs only the test files that call the function it
+   is in (``-x``: the first failure kills it), or, for module-level code, every test file that
+   touched the module.
+3. A mutant is *killed* when those tests fail or error (or exceed ``--timeout``), *survived*
+   when they pass, *not covered* when no test calls its function (counted as survived).
+
+The report lists every survivor; docs/testing.md says which survivors are equivalent
+(no behaviour can tell them apart) and why. Use the same interpreter as the tests
+(``.venv-core/bin/python scripts/mutation.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = Path("src/napari_pfsdm")
+
+#: The modules mutated (relative to src/napari_pfsdm): core and analysis whole, the readers
+#: and writers, the command line.
+TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io_csv.py", "cli.py")
+
+#: Keyword arguments whose values only shape messages or pictures.
+COSMETIC_KEYWORDS = {"help", "metavar", "figsize", "fontsize", "lw", "alpha", "zorder", "dpi",
+                     "ms", "s", "title_fontsize", "flush", "file", "stacklevel", "indent",
+                     "desc", "unit"}
+
+#: Calls whose arguments only build messages or progress.
+MESSAGE_CALLS = {"print", "_say", "_note", "say", "warn", "progress", "log", "_Step",
+                 "add_argument", "add_parser", "add_argument_group", "set_description"}
+
+
+@dataclass
+class Mutant:
+    """One one-line change: in ``path`` (under src/napari_pfsdm), line ``line`` becomes
+    ``new`` (was ``old``)."""
+
+    path: str
+    line: int
+    kind: str
+    old: str
+    new: str
+    function: str = ""
+    first_line: int = 0  # of the enclosing function (0: module level)
+    curated: str = ""
+    verdict: str = ""
+    seconds: float = 0.0
+    tests: list[str] = field(default_factory=list)
+
+    @property
+    def ident(self) -> str:
+        return f"{self.path}:{self.line}:{self.kind}"
+
+
+#: The survivors issue 21 reported, as (path, exact old text, new text, what it is). Each
+#: must be killed now; a mismatch (the line was edited) is reported, not skipped silently.
+CURATED = [
+    ("core/morphometric.py", "w = w / (1.0 - r) ** 2", "w = w / (1.0 - r)",
+     "depth ring weight without its square"),
+    ("core/descriptor3d.py", "sh_analysis(radius / scale - 1.0, grid)",
+     "sh_analysis(radius / scale, grid)", "3-D surface term without the -1"),
+    ("analysis/tracking.py", "for back in range(2, max_gap + 2):  # gap closing over missed",
+     "for back in range(2, max_gap + 1):  # gap closing over missed",
+     "centroid gap closing one frame short"),
+    ("analysis/reduction.py", "return scores, var[:k] / max(float(var.sum()), 1e-300)",
+     "return scores, var[:k] / max(float(var[:k].sum()), 1e-300)",
+     "explained variance divided by the kept components' variance"),
+    ("analysis/rerank.py", "sigma = np.take_along_axis(off, order[:, -1:], axis=1)[:, 0]",
+     "sigma = np.take_along_axis(off, order[:, :1], axis=1)[:, 0]",
+     "local scale from the 1st instead of the k-th neighbour"),
+    ("io_csv.py", 'TEXT_COLUMNS = ("movie", "group", "error", "warnings")',
+     'TEXT_COLUMNS = ("group", "error", "warnings")', '"001" movie names read as numbers'),
+    ("cli.py", "boundary_weight=args.boundary_weight)",
+     "boundary_weight=None)", "compare --boundary-weight ignored"),
+]
+
+
+# ------------------------------------------------------------------------------------------
+# finding mutants
+# ------------------------------------------------------------------------------------------
+
+_BIN_SWAP = {ast.Add: ("+", "-"), ast.Sub: ("-", "+"), ast.Mult: ("*", "/"),
+             ast.Div: ("/", "*"), ast.FloorDiv: ("//", "/")}
+_CMP_SWAP = {ast.Lt: ("<", "<="), ast.LtE: ("<=", "<"), ast.Gt: (">", ">="),
+             ast.GtE: (">=", ">"), ast.Eq: ("==", "!="), ast.NotEq: ("!=", "==")}
+
+
+def _between(line: str, a: ast.AST, b: ast.AST) -> tuple[int, int] | None:
+    """Columns of the text between nodes a and b on one line (None if not on one line)."""
+    if a.end_lineno != b.lineno:
+        return None
+    return a.end_col_offset, b.col_offset
+
+
+def _swap_in(line: str, span: tuple[int, int], old: str, new: str) -> str | None:
+    """``line`` with the operator ``old`` between ``span`` replaced by ``new``, when the text
+    there is that operator only (with spaces or closing/opening parentheses)."""
+    i, j = span
+    seg = line[i:j]
+    if seg.strip(" ()") != old:
+        return None
+    k = i + seg.index(old)
+    return line[:k] + new + line[k + len(old):]
+
+
+def _skip_zones(tree: ast.AST) -> set[int]:
+    """ids of the nodes whose subtrees build messages, docs or annotations."""
+    skip: set[int] = set()
+
+    def mark(node: ast.AST) -> None:
+        for sub in ast.walk(node):
+            skip.add(id(sub))
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Raise | ast.JoinedStr | ast.Assert):
+            mark(node)
+        elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
+            mark(node)  # docstrings
+        elif isinstance(node, ast.AnnAssign) and node.annotation is not None:
+            mark(node.annotation)
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            for arg in [*node.args.args, *node.args.kwonlyargs, *node.args.posonlyargs]:
+                if arg.annotation is not None:
+                    mark(arg.annotation)
+            if node.returns is not None:
+                mark(node.returns)
+        elif isinstance(node, ast.keyword) and node.arg in COSMETIC_KEYWORDS:
+            mark(node)
+        elif isinstance(node, ast.Call):
+            f = node.func
+            name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) \
+                else ""
+            if name in MESSAGE_CALLS:
+                mark(node)
+        elif isinstance(node, ast.Assign) and any(
+                isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+            mark(node)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr == "reshape":
+            for arg in node.args:  # reshape(-1, 2): numpy reads any negative size as -1
+                if isinstance(arg, ast.UnaryOp) and isinstance(arg.op, ast.USub):
+                    mark(arg)
+    return skip
+
+
+def _functions(tree: ast.AST) -> list[tuple[int, int, str, int]]:
+    """(first line, last line, qualified name, first line) of every function; the first line
+    is that of its first decorator, as the code object's ``co_firstlineno`` says."""
+    out = []
+
+    def visit(node: ast.AST, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+                name = prefix + child.name
+                first = min([child.lineno] + [d.lineno for d in child.decorator_list])
+                out.append((first, child.end_lineno, name, first))
+                visit(child, name + ".")
+            elif isinstance(child, ast.ClassDef):
+                visit(child, prefix + child.name + ".")
+            else:
+                visit(child, prefix)
+
+    visit(tree, "")
+    return out
+
+
+def find_mutants(path: Path, rel: str) -> list[Mutant]:
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    tree = ast.parse(text)
+    skip = _skip_zones(tree)
+    funcs = _functions(tree)
+    found: dict[tuple[int, str], Mutant] = {}
+
+    def add(node: ast.AST, kind: str, new_line: str | None) -> None:
+        if new_line is None or id(node) in skip:
+            return
+        ln = node.lineno
+        old = lines[ln - 1]
+        if new_line == old or old.lstrip().startswith(("#", "@")):
+            return
+        if (ln, new_line) in found:
+            return
+        try:  # a mutant must still be Python: a syntax error is no plausible bug
+            ast.parse("\n".join([*lines[: ln - 1], new_line, *lines[ln:]]))
+        except SyntaxError:
+            return
+        inner = [f for f in funcs if f[0] <= ln <= f[1]]
+        fn = max(inner, key=lambda f: f[0]) if inner else None
+        m = Mutant(rel, ln, kind, old.strip(), new_line.strip(),
+                   function=fn[2] if fn else "", first_line=fn[3] if fn else 0)
+        found.setdefault((ln, new_line), m)
+
+    for node in ast.walk(tree):
+        if getattr(node, "lineno", None) is None or node.lineno != getattr(
+                node, "end_lineno", None):
+            continue
+        line = lines[node.lineno - 1]
+        if isinstance(node, ast.BinOp):
+            if any(isinstance(s, ast.JoinedStr) or (isinstance(s, ast.Constant)
+                                                    and isinstance(s.value, str))
+                   for s in (node.left, node.right)):
+                continue  # joining text
+            if type(node.op) in _BIN_SWAP:
+                span = _between(line, node.left, node.right)
+                if span:
+                    a, b = _BIN_SWAP[type(node.op)]
+                    add(node, "operator", _swap_in(line, span, a, b))
+            elif isinstance(node.op, ast.Pow) and isinstance(node.right, ast.Constant) \
+                    and isinstance(node.right.value, int | float) \
+                    and not isinstance(node.right.value, bool):
+                v = node.right.value
+                new = line[:node.right.col_offset] + repr(v + 1) + line[
+                    node.right.end_col_offset:]
+                add(node, "exponent", new)
+        elif isinstance(node, ast.Compare) and len(node.ops) == 1 \
+                and type(node.ops[0]) in _CMP_SWAP:
+            span = _between(line, node.left, node.comparators[0])
+            if span:
+                a, b = _CMP_SWAP[type(node.ops[0])]
+                add(node, "comparison", _swap_in(line, span, a, b))
+        elif isinstance(node, ast.BoolOp) and len(node.values) == 2:
+            span = _between(line, node.values[0], node.values[1])
+            if span:
+                a, b = ("and", "or") if isinstance(node.op, ast.And) else ("or", "and")
+                add(node, "boolean", _swap_in(line, span, a, b))
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+            c = node.col_offset
+            if line[c:c + 3] == "not":
+                add(node, "negation", line[:c] + line[c + 3:].lstrip(" "))
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub) \
+                and not isinstance(node.operand, ast.Constant):
+            c = node.col_offset
+            if line[c] == "-":
+                add(node, "sign", line[:c] + line[c + 1:])
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id == "range" and len(node.args) >= 2:
+            stop = node.args[1]
+            seg = line[stop.col_offset:stop.end_col_offset]
+            new = line[:stop.col_offset] + f"{seg} - 1" + line[stop.end_col_offset:]
+            add(node, "off-by-one", new)
+        elif isinstance(node, ast.Slice) and node.upper is not None \
+                and not isinstance(node.upper, ast.UnaryOp):
+            up = node.upper
+            seg = line[up.col_offset:up.end_col_offset]
+            new = line[:up.col_offset] + f"({seg}) + 1" + line[up.end_col_offset:]
+            add(node, "off-by-one", new)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
+                and not isinstance(node.value, bool) and not 0 < abs(node.value) < 1e-6:
+            # (guards against dividing by zero, 1e-12 and the like, are not mutated: no
+            # behaviour tells 1e-12 from 2e-12)
+            v = node.value
+            nv = v + 1 if isinstance(v, int) else (v * 2 if v else 1.0)
+            new = line[:node.col_offset] + repr(nv) + line[node.end_col_offset:]
+            add(node, "constant", new)
+    return sorted(found.values(), key=lambda m: (m.line, m.kind))
+
+
+def curated_mutants() -> list[Mutant]:
+    out = []
+    for rel, old, new, what in CURATED:
+        path = ROOT / PKG / rel
+        lines = path.read_text(encoding="utf-8").splitlines()
+        hits = [i for i, ln in enumerate(lines) if old in ln]
+        if len(hits) != 1:
+            raise SystemExit(f"curated mutant {what!r}: {old!r} found {len(hits)} times in "
+                             f"{rel}; update CURATED in scripts/mutation.py")
+        i = hits[0]
+        tree = ast.parse("\n".join(lines))
+        inner = [f for f in _functions(tree) if f[0] <= i + 1 <= f[1]]
+        fn = max(inner, key=lambda f: f[0]) if inner else None
+        out.append(Mutant(rel, i + 1, "curated", lines[i].strip(),
+                          lines[i].replace(old, new).strip(), function=fn[2] if fn else "",
+                          first_line=fn[3] if fn else 0, curated=what))
+    return out
+
+
+def target_files(only: list[str] | None) -> list[str]:
+    files = []
+    for pattern in TARGETS:
+        for p in sorted((ROOT / PKG).glob(pattern)):
+            rel = p.relative_to(ROOT / PKG).as_posix()
+            if p.name != "__init__.py" and (not only or rel in only):
+                files.append(rel)
+    return files
+
+
+def sample(mutants: list[Mutant], k: int, rng: random.Random) -> list[Mutant]:
+    """``k`` mutants of one module, spread over the kinds of mutation (round robin)."""
+    by_kind: dict[str, list[Mutant]] = {}
+    for m in mutants:
+        by_kind.setdefault(m.kind, []).append(m)
+    for v in by_kind.values():
+        rng.shuffle(v)
+    kinds = sorted(by_kind)
+    rng.shuffle(kinds)
+    out: list[Mutant] = []
+    while len(out) < k and any(by_kind.values()):
+        for kind in kinds:
+            if by_kind[kind] and len(out) < k:
+                out.append(by_kind[kind].pop())
+    return sorted(out, key=lambda m: m.line)
+
+
+# ------------------------------------------------------------------------------------------
+# which tests call which function
+# ------------------------------------------------------------------------------------------
+
+TRACER = r'''
+import json, os, sys, threading, time
+import pytest
+
+_SRC = os.path.join(os.environ.get("PFSDM_MUTATION_ROOT", ""), "src", "napari_pfsdm") + os.sep
+_calls = {}
+_current = ["<collect>"]
+
+def _hook(frame, event, arg):
+    if event == "call":
+        f = frame.f_code.co_filename
+        if f.startswith(_SRC):
+            _calls.setdefault(_current[0], set()).add((f[len(_SRC):], frame.f_code.co_firstlineno))
+
+def pytest_collection_modifyitems(config, items):
+    select = os.environ.get("PFSDM_MUTATION_SELECT")
+    if select:  # run only the tests that call the mutated function, in collection order
+        order = {n: k for k, n in enumerate(open(select).read().split("\n"))}
+        chosen = sorted((i for i in items if i.nodeid in order), key=lambda i: order[i.nodeid])
+        config.hook.pytest_deselected(items=[i for i in items if i.nodeid not in order])
+        items[:] = chosen
+
+_t0 = [0.0]
+_durations = {}
+
+def pytest_runtest_setup(item):
+    _current[0] = item.nodeid
+    _t0[0] = time.perf_counter()
+
+def pytest_runtest_teardown(item):
+    _durations[item.nodeid] = time.perf_counter() - _t0[0]
+
+def pytest_configure(config):
+    if os.environ.get("PFSDM_MUTATION_MAP"):
+        sys.setprofile(_hook)
+        threading.setprofile(_hook)
+
+def pytest_unconfigure(config):
+    if os.environ.get("PFSDM_MUTATION_MAP"):
+        sys.setprofile(None)
+        out = {k: sorted(v) for k, v in _calls.items()}
+        with open(os.environ["PFSDM_MUTATION_MAP"], "w") as fh:
+            json.dump({"calls": out, "seconds": _durations}, fh)
+'''
+
+
+def run_pytest(work: Path, args: list[str], timeout: float, env_extra: dict | None = None
+               ) -> tuple[int, float, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(work / "src"), str(work)])
+    env.pop("PYTEST_ADDOPTS", None)
+    env.update(env_extra or {})
+    t0 = time.perf_counter()
+    try:
+        out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                              "-p", "_mutation_tracer", *args], cwd=work, env=env,
+                             capture_output=True, text=True, timeout=timeout)
+        return out.returncode, time.perf_counter() - t0, out.stdout[-2000:]
+    except subprocess.TimeoutExpired:
+        return -1, time.perf_counter() - t0, "timeout"
+
+
+def call_map(work: Path, timeout: float) -> dict[str, list[tuple[str, int]]]:
+    """Run the suite once in ``work`` with the tracer: test id -> [(module, first line)] of
+    the package functions it called (fixtures it used included)."""
+    dest = work / "_mutation_map.json"
+    code, secs, tail = run_pytest(
+        work, ["tests"], timeout,
+        {"PFSDM_MUTATION_ROOT": str(work), "PFSDM_MUTATION_MAP": str(dest)})
+    if code != 0:
+        raise SystemExit(f"the unmutated suite does not pass in the copy ({secs:.0f} s):\n"
+                         f"{tail}")
+    print(f"call map: the unmutated suite passes ({secs:.0f} s with the tracer)", flush=True)
+    data = json.loads(dest.read_text())
+    SECONDS.update(data["seconds"])
+    return {k: [tuple(x) for x in v] for k, v in data["calls"].items()}
+
+
+#: Seconds each test took in the traced run: a mutant's tests run fastest first, so that the
+#: first failure (``-x``) comes soon.
+SECONDS: dict[str, float] = {}
+
+
+def tests_for(m: Mutant, calls: dict) -> list[str]:
+    """Tests that call the mutant's function (module-level code: that touch its module)."""
+    if m.first_line:
+        hit = [t for t, fs in calls.items() if (m.path, m.first_line) in fs]
+    else:
+        hit = [t for t, fs in calls.items() if any(f == m.path for f, _ in fs)]
+    return sorted((t for t in hit if t.startswith("tests/")),
+                  key=lambda t: (SECONDS.get(t, 1e9), t))
+
+
+# ------------------------------------------------------------------------------------------
+# running
+# ------------------------------------------------------------------------------------------
+
+def copy_repo() -> Path:
+    work = Path(tempfile.mkdtemp(prefix="pfsdm-mutation-"))
+    ignore = shutil.ignore_patterns(".git", ".venv*", "__pycache__", "*.egg-info",
+                                    ".pytest_cache", "results*", ".ruff_cache", "*.pyc")
+    for name in ("src", "tests", "docs", "scripts", "benchmarks"):
+        if (ROOT / name).exists():
+            shutil.copytree(ROOT / name, work / name, ignore=ignore)
+    for name in ("pyproject.toml", "README.md", "napari.yaml"):
+        if (ROOT / name).exists():
+            shutil.copy2(ROOT / name, work / name)
+    return work
+
+
+def apply(work: Path, m: Mutant) -> str:
+    """Write the mutant into the copy; return the original text to restore."""
+    path = work / PKG / m.path
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines(keepends=True)
+    old = lines[m.line - 1]
+    indent = old[: len(old) - len(old.lstrip())]
+    lines[m.line - 1] = indent + m.new + ("\n" if old.endswith("\n") else "")
+    path.write_text("".join(lines), encoding="utf-8")
+    return text
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--per-module", type=int, default=3,
+                    help="mutants drawn from each module (default 3)")
+    ap.add_argument("--seed", type=int, default=21, help="of the draw (default 21)")
+    ap.add_argument("--modules", nargs="*", help="only these (e.g. core/sdf.py io_csv.py)")
+    ap.add_argument("--no-curated", action="store_true", help="leave out issue 21's mutants")
+    ap.add_argument("--timeout", type=float, default=300,
+                    help="seconds per mutant before it counts as killed (default 300)")
+    ap.add_argument("--list", action="store_true", help="list the mutants and stop")
+    ap.add_argument("--report", type=Path, help="write the results as JSON here")
+    args = ap.parse_args(argv)
+
+    rng = random.Random(args.seed)
+    chosen: list[Mutant] = [] if args.no_curated else curated_mutants()
+    if args.modules:
+        chosen = [m for m in chosen if m.path in args.modules]
+    taken = {(m.path, m.line) for m in chosen}
+    pool_sizes = {}
+    for rel in target_files(args.modules):
+        found = [m for m in find_mutants(ROOT / PKG / rel, rel) if (m.path, m.line) not in taken]
+        pool_sizes[rel] = len(found)
+        chosen += sample(found, args.per_module, rng)
+    print(f"{len(chosen)} mutants from {len(pool_sizes)} modules "
+          f"({sum(pool_sizes.values())} candidates in all)", flush=True)
+    if args.list:
+        for m in chosen:
+            print(f"{m.ident:45s} {m.old}\n{'':45s} {m.new}")
+        return 0
+
+    work = copy_repo()
+    (work / "_mutation_tracer.py").write_text(TRACER)
+    select = work / "_mutation_select.txt"
+    t_start = time.perf_counter()
+    try:
+        calls = call_map(work, timeout=3600)
+        for i, m in enumerate(chosen, 1):
+            m.tests = tests_for(m, calls)
+            if not m.tests:
+                m.verdict = "not covered"
+            else:
+                original = apply(work, m)
+                select.write_text("\n".join(m.tests))
+                files = sorted({t.split("::")[0] for t in m.tests})
+                try:
+                    code, m.seconds, _ = run_pytest(work, ["-x", *files], args.timeout,
+                                                    {"PFSDM_MUTATION_SELECT": str(select)})
+                finally:
+                    (work / PKG / m.path).write_text(original, encoding="utf-8")
+                m.verdict = ("killed (timeout)" if code == -1 else
+                             "survived" if code == 0 else "killed")
+            print(f"[{i}/{len(chosen)}] {m.verdict:16s} {m.ident} ({m.seconds:.0f} s, "
+                  f"{len(m.tests)} tests)", flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+    killed = sum(m.verdict.startswith("killed") for m in chosen)
+    total = time.perf_counter() - t_start
+    print(f"\nkilled {killed} of {len(chosen)} mutants ({100 * killed / len(chosen):.0f} %) "
+          f"in {total / 60:.1f} min")
+    survivors = [m for m in chosen if not m.verdict.startswith("killed")]
+    if survivors:
+        print("\nsurvivors (judge each: a missing test, or an equivalent mutant):")
+        for m in survivors:
+            print(f"- {m.verdict}: {m.ident} in {m.function or '(module level)'}\n"
+                  f"    {m.old}\n  → {m.new}" + (f"\n    ({m.curated})" if m.curated else ""))
+    if args.report:
+        args.report.write_text(json.dumps(
+            {"killed": killed, "total": len(chosen), "minutes": total / 60,
+             "seed": args.seed, "per_module": args.per_module,
+             "mutants": [asdict(m) for m in chosen]}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
