@@ -174,7 +174,8 @@ def feature_matrix(
     for col in ("frame", object_col):
         if col not in table.columns:
             raise InputError(f"the table has no {col!r} column; it is needed to build vectors.")
-    cols = [c for c in table.columns if c.startswith(f"{channel}_")]
+    # the features (``{channel}_rXX_nYY``), not the classic measures beside them
+    cols = [c for c in table.columns if c.startswith(f"{channel}_r")]
     if not cols:
         raise InputError(
             f"the table has no '{channel}_*' columns; for intensity features, measure with an "

@@ -6,7 +6,7 @@ import threading
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,6 +27,7 @@ from ..core.table_schema import (
 )
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
+from .classic import classic_columns, classic_measures
 from .tables import failed_rows
 
 __all__ = [
@@ -153,6 +154,9 @@ class ObjectResult:
     intensity_error : str
         Why the intensity could not be described (NaN pixels, no signal) while the shape was:
         ``result`` then has no intensity embedding. Empty when fine.
+    measures : dict
+        The classic measures of the labelled pixels (:mod:`napari_pfsdm.analysis.classic`,
+        scikit-image's regionprops), with the reporter's when there is an image.
     """
 
     frame: int
@@ -164,6 +168,7 @@ class ObjectResult:
     result: PFSDMResult | None
     error: str = ""
     intensity_error: str = ""
+    measures: dict = field(default_factory=dict)
 
 
 def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
@@ -287,11 +292,12 @@ def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectRe
     start = [s.start for s in big]
     centroid = np.array(ndi.center_of_mass(mask)) + start
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, frame.shape, strict=True))
-    res, error, int_error = _describe(mask, None if image is None else image[big],
-                                      tuple(start), options)
+    crop = None if image is None else image[big]
+    res, error, int_error = _describe(mask, crop, tuple(start), options)
+    measures = classic_measures(mask, crop, spacing=options.get("spacing"))
     return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,
                         touches_border=touches, result=res, error=error,
-                        intensity_error=int_error)
+                        intensity_error=int_error, measures=measures)
 
 
 def describe_object(
@@ -402,8 +408,10 @@ def table_from_objects(
     out_cols = outline_columns(N_OUTLINE_MODES) if ndim == 2 else []
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
     nan_o = np.full(len(out_cols), np.nan)
-    base, shape_rows, int_rows, out_rows = [], [], [], []
+    classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)
+    base, classic_rows, shape_rows, int_rows, out_rows = [], [], [], [], []
     for obj in objects:
+        classic_rows.append([obj.measures.get(c, np.nan) for c in classic_cols])
         res = obj.result
         diag = res.diagnostics if res is not None else {}
         extra = (diag.get("crossing_fraction", np.nan),) if ndim == 3 else ()
@@ -424,6 +432,8 @@ def table_from_objects(
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
     blocks = [pd.DataFrame(base, columns=base_columns(ndim)),
+              pd.DataFrame(np.array(classic_rows, float).reshape(-1, len(classic_cols)),
+                           columns=classic_cols),
               pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)), columns=shape_cols)]
     if int_cols:
         blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),

@@ -368,9 +368,11 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
     for col in out.columns:
         if out[col].dtype == bool:
             out[col] = out[col].astype(np.int8)
+    from ..analysis.classic import classic_columns
     from ..core.table_schema import base_columns
 
-    known = set(base_columns(output.ndim)) | {"track_id"}
+    known = set(base_columns(output.ndim)) | {"track_id"} \
+        | set(classic_columns(output.ndim, with_intensity=True))
     base = [c for c in out.columns if c in known]
     feats = [c for c in out.columns if c not in base]
     failed = table["error"].astype(str).ne("").astype(np.int8).to_numpy() \
@@ -390,7 +392,8 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
         merged = table[["frame", "label"]].merge(output.measures, on=["frame", "label"],
                                                  how="left")
         for col in MEASURES:
-            front[col] = merged[col].to_numpy()
+            if col not in front.columns:  # the table's regionprops measures come first
+                front[col] = merged[col].to_numpy()
     blocks = [front, pd.DataFrame(pcs, index=out.index), out[feats]]
     return pd.concat(blocks, axis=1)
 

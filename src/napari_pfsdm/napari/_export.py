@@ -16,6 +16,7 @@ import pandas as pd
 
 from ..analysis.features import split_failed
 from ..analysis.reduction import distance_table as layout
+from ..core.table_schema import has_channel
 from ..io_csv import check_overwrite, read_table_csv, write_table_csv
 from ._compute import AnalysisOutput
 
@@ -49,7 +50,7 @@ def distance_table(
     w = intensity_weight
     if w is None:
         w = output.options.get("intensity_weight", 0.0)
-    if not any(c.startswith("intensity_") for c in table.columns):
+    if not has_channel(table.columns, "intensity"):
         w = 0.0
     table, left_out = split_failed(table, ("shape", "intensity") if w else ("shape",))
     d = np.asarray(distance_matrix(table, intensity_weight=w))

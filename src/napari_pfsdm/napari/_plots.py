@@ -29,6 +29,7 @@ from qtpy.QtWidgets import (
 )
 
 from ..analysis.reduction import read_groups
+from ..core.table_schema import has_channel
 from . import _layers
 from ._compute import classical_mds
 from ._store import same_layer, store_for
@@ -594,7 +595,7 @@ class ShapeComparisonWidget(_LinkedPlot):
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
         sub = table.iloc[rows]
         w = output.options.get("intensity_weight", 0.0)
-        if not any(col.startswith("intensity_") for col in sub.columns):
+        if not has_channel(sub.columns, "intensity"):
             w = 0.0
         if w:  # rows whose reporter could not be described (NaN pixels) have no intensity
             sub = split_failed(sub, ("shape", "intensity"))[0]

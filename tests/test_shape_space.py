@@ -1,0 +1,113 @@
+"""The shape space as a fitted model (napari_pfsdm.analysis.shape_space), against
+scikit-learn's PCA and hand-worked cases."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from sklearn.decomposition import PCA
+
+from napari_pfsdm import measure
+from napari_pfsdm.analysis.shape_space import ShapePCA, shape_modes
+from napari_pfsdm.analysis.tables import weighted_features
+from napari_pfsdm.errors import InputError
+
+
+def _ellipses(aspects, size: int = 96, seed: int = 0) -> np.ndarray:
+    """One ellipse per frame, of the given aspect ratios, turned at random."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[0:size, 0:size] - (size - 1) / 2
+    frames = np.zeros((len(aspects), size, size), np.uint8)
+    for t, q in enumerate(aspects):
+        a = 30.0
+        b = a / q
+        th = rng.uniform(0, np.pi)
+        u = xx * np.cos(th) + yy * np.sin(th)
+        v = -xx * np.sin(th) + yy * np.cos(th)
+        frames[t][(u / a) ** 2 + (v / b) ** 2 <= 1] = 1
+    return frames
+
+
+@pytest.fixture(scope="module")
+def tables():
+    reference = measure(_ellipses(np.linspace(1.0, 3.0, 9)))
+    other = measure(_ellipses([1.3, 2.2, 2.8], seed=5))
+    return reference, other
+
+
+def _aligned(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``b``'s columns with the signs that best match ``a``'s (PCA signs are a convention)."""
+    signs = np.sign(np.sum(a * b, axis=0))
+    return b * np.where(signs == 0, 1, signs)
+
+
+def test_fit_transform_is_scikit_learns_pca_of_the_weighted_features(tables):
+    reference, other = tables
+    space = ShapePCA(n_components=3).fit(reference)
+    x_ref, x_other = weighted_features(reference), weighted_features(other)
+    sk = PCA(n_components=3).fit(x_ref)
+    ours = space.transform(reference)[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy()
+    np.testing.assert_allclose(ours, _aligned(ours, sk.transform(x_ref)), atol=1e-9)
+    np.testing.assert_allclose(space.explained_variance_ratio_, sk.explained_variance_ratio_,
+                               rtol=1e-9)
+    # another movie projected into the reference's space: scikit-learn's transform too
+    theirs = space.transform(other)[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy()
+    signs = np.sign(np.sum(ours * sk.transform(x_ref), axis=0))
+    np.testing.assert_allclose(theirs, sk.transform(x_other) * signs, atol=1e-9)
+    assert space.transform(other)["frame"].tolist() == [0, 1, 2]
+
+
+def test_same_signs_as_pca_scores_on_the_reference(tables):
+    from napari_pfsdm.analysis.reduction import pca_scores
+
+    reference, _ = tables
+    scores, ratios = pca_scores(reference, n_components=3)
+    ours = ShapePCA(n_components=3).fit_transform(reference)
+    np.testing.assert_allclose(ours[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
+                               scores[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
+                               atol=1e-12)
+
+
+def test_a_table_measured_with_other_options_is_refused_in_words(tables):
+    reference, _ = tables
+    space = ShapePCA(n_components=2).fit(reference)
+    coarse = measure(_ellipses([1.5, 2.5]), n_fourier=6)
+    with pytest.raises(InputError, match="n_fourier: reference 10, this table 6"):
+        space.transform(coarse)
+
+
+def test_loadings_read_as_rings_by_harmonics_and_elongation_is_harmonic_2(tables):
+    reference, _ = tables
+    space = ShapePCA(n_components=2).fit(reference)
+    maps = space.loadings(1)
+    opts = reference.attrs["pfsdm"]
+    assert maps.shape == (opts["n_radii"], opts["n_fourier"] + 1)
+    np.testing.assert_array_equal(maps.ravel(), space.components_[0])
+    # the ellipses differ only in elongation: on PC1, harmonic 2 carries the most weight
+    # after the ring means (harmonic 0, the thickness, which elongation changes too)
+    power = (maps**2).sum(axis=0)
+    assert int(np.argmax(power[1:])) + 1 == 2
+    with pytest.raises(InputError, match="component must be 1"):
+        space.loadings(7)
+
+
+def test_regressing_out_a_measure_leaves_scores_uncorrelated_with_it(tables):
+    reference, other = tables
+    space = ShapePCA(n_components=2, regress_out=["area"]).fit(reference)
+    scores = space.transform(reference)
+    r = np.corrcoef(scores["shape_PC1"], reference["area"])[0, 1]
+    assert abs(r) < 1e-8  # least-squares residuals are orthogonal to the regressor
+    plain = ShapePCA(n_components=2).fit_transform(reference)
+    assert abs(np.corrcoef(plain["shape_PC1"], reference["area"])[0, 1]) > 0.5
+    with pytest.raises(InputError, match="no perimeter"):
+        ShapePCA(regress_out=["perimeter"]).fit(reference.drop(columns=["perimeter"],
+                                                                errors="ignore"))
+
+
+def test_shape_modes_pick_the_objects_nearest_mean_plus_sigmas():
+    scores = pd.DataFrame({"frame": [0, 0, 1, 1, 2], "label": [1, 2, 1, 2, 1],
+                           "shape_PC1": [0.0, 1.0, 2.0, 3.0, 4.0]})
+    modes = shape_modes(scores, 1)
+    # by hand: mean 2, sd sqrt(2); targets 2 - 2.83, 2 - 1.41, 2, 3.41, 4.83
+    np.testing.assert_allclose(modes["target"], 2 + np.sqrt(2) * np.array([-2, -1, 0, 1, 2]))
+    assert modes["row"].tolist() == [0, 1, 2, 3, 4]
+    assert modes[["frame", "label"]].values.tolist() == [[0, 1], [0, 2], [1, 1], [1, 2], [2, 1]]
