@@ -174,8 +174,11 @@ def feature_matrix(
     for col in ("frame", object_col):
         if col not in table.columns:
             raise InputError(f"the table has no {col!r} column; it is needed to build vectors.")
-    # the features (``{channel}_rXX_nYY``), not the classic measures beside them
-    cols = [c for c in table.columns if c.startswith(f"{channel}_r")]
+    # the features, not the classic measures beside them (``intensity_mean``, …)
+    from .classic import REPORTER_MEASURES
+
+    cols = [c for c in table.columns
+            if c.startswith(f"{channel}_") and c not in REPORTER_MEASURES]
     if not cols:
         raise InputError(
             f"the table has no '{channel}_*' columns; for intensity features, measure with an "

@@ -1,0 +1,73 @@
+"""Predicting a group from early frames (napari_pfsdm.analysis.prediction) on cases whose
+answer is known."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from napari_pfsdm import measure
+from napari_pfsdm.analysis.prediction import predict_outcome
+from napari_pfsdm.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def two_sizes():
+    """Ten small and ten large ellipses per frame, three frames, ids kept; group by size."""
+    rng = np.random.default_rng(3)
+    cell, n = 64, 20
+    labels = np.zeros((3, cell * 4, cell * 5), np.uint16)
+    yy, xx = np.mgrid[0:cell, 0:cell] - (cell - 1) / 2
+    groups = {}
+    for k in range(n):
+        big = k % 2 == 1
+        groups[k + 1] = "large" if big else "small"
+        r, c = divmod(k, 5)
+        for t in range(3):
+            a = (24 if big else 12) * rng.uniform(0.9, 1.1)
+            b = a / rng.uniform(1.2, 1.8)
+            th = rng.uniform(0, np.pi)
+            u = xx * np.cos(th) + yy * np.sin(th)
+            v = -xx * np.sin(th) + yy * np.cos(th)
+            labels[t, r * cell:(r + 1) * cell, c * cell:(c + 1) * cell][
+                (u / a) ** 2 + (v / b) ** 2 <= 1] = k + 1
+    return measure(labels), groups
+
+
+def test_a_group_that_size_separates_is_found_by_the_classic_measures_and_the_fusion(two_sizes):
+    table, groups = two_sizes
+    pred = predict_outcome(table, groups, frames=[0, 1], n_splits=5, n_repeats=1, seed=0)
+    assert pred.groups == ("large", "small") and pred.frames == [0, 1]
+    assert list(pred.summary.index) == ["fused", "shape alone", "classic alone", "chance"]
+    assert pred.summary.loc["classic alone", "mean"] == 1.0  # area alone tells them apart
+    assert pred.summary.loc["fused", "mean"] >= 0.9
+    assert pred.summary.loc["chance", "mean"] == 0.5
+    assert pred.summary.loc["fused", "n_splits"] == 5
+    # every object gets both probabilities, summing to one, on the right side of 0.5
+    probs = pred.probabilities.set_index("label")
+    np.testing.assert_allclose(probs["p_large"] + probs["p_small"], 1.0)
+    right = [(probs.loc[k, "p_large"] > 0.5) == (g == "large") for k, g in groups.items()]
+    assert np.mean(right) >= 0.9
+    # how early: one point per last frame used
+    assert pred.curve["last_frame"].tolist() == [0, 1]
+
+
+def test_objects_without_a_group_are_predicted_too(two_sizes):
+    table, groups = two_sizes
+    known = {k: g for k, g in groups.items() if k <= 16}
+    pred = predict_outcome(table, known, frames=[0], n_splits=3, n_repeats=1, curve=False)
+    probs = pred.probabilities.set_index("label")
+    assert probs.index.tolist() == sorted(groups)
+    for k in (17, 18, 19, 20):  # never seen with a group: predicted from their size
+        assert (probs.loc[k, "p_large"] > 0.5) == (groups[k] == "large")
+    assert pred.curve.empty
+
+
+def test_bad_groups_are_refused_in_words(two_sizes):
+    table, groups = two_sizes
+    with pytest.raises(InputError, match="exactly two groups, got 1"):
+        predict_outcome(table, dict.fromkeys(groups, "x"))
+    with pytest.raises(InputError, match="has 1 object"):
+        predict_outcome(table, {1: "small", 2: "large", 3: "small"})
+    with pytest.raises(InputError, match="frames \\[7\\] are not in the table"):
+        predict_outcome(table, groups, frames=[0, 7])
+    assert isinstance(table, pd.DataFrame)
