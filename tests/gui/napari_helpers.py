@@ -9,6 +9,7 @@ RUN_TIMEOUT_MS = 180_000
 ANALYSIS = "PF-SDM analysis"
 TRAJECTORIES = "PF-SDM trajectories (PCA)"
 COMPARISON = "PF-SDM shape comparison"
+PREDICTION = "PF-SDM prediction"
 
 
 def dock(viewer, name: str = ANALYSIS):

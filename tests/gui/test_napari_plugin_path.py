@@ -373,3 +373,45 @@ def test_a_run_uses_no_private_napari_attribute(viewer_widget, qtbot):
             plot.flush()
     private = [str(w.message) for w in caught if "Private attribute" in str(w.message)]
     assert private == []
+
+
+def test_prediction_from_the_widget_writes_p_group_into_every_row(viewer_widget, qtbot,
+                                                                   tmp_path):
+    """Point 4 of issue 22: train on the sample's groups from the prediction dock (docked from
+    the menu), read the accuracy, find the probabilities in the features and the export."""
+    from napari_helpers import PREDICTION
+
+    viewer, widget = viewer_widget
+    out = run_and_wait(qtbot, widget)
+    labels = viewer.layers["gastruloids"]
+    groups = labels.metadata["groups"]
+    csv = tmp_path / "groups.csv"
+    csv.write_text("label,group\n" + "".join(f"{k},{v}\n" for k, v in groups.items()))
+    predict = dock(viewer, PREDICTION)
+    assert predict.layer_combo.currentText() == "gastruloids"
+    predict.load_groups(csv)
+    predict.first.setValue(0)
+    predict.last.setValue(3)
+    worker = predict.run()
+    assert worker is not None and not predict.run_button.isEnabled()
+    qtbot.waitUntil(lambda: predict.worker is None, timeout=120_000)
+    assert "Balanced accuracy" in predict.status.text(), predict.status.text()
+    assert "chance 0.50" in predict.status.text()
+    names = sorted({f"p_{g}" for g in groups.values()})
+    feats = labels.features
+    for name in names:
+        assert name in feats.columns and np.isfinite(feats[name]).all()
+    np.testing.assert_allclose(feats[names[0]] + feats[names[1]], 1.0)
+    assert predict.result.frames == [0, 1, 2, 3] and len(predict.result.curve) == 4
+    # the export carries them too
+    paths = widget.export(tmp_path / "export")
+    table = pd.read_csv(next(p for p in paths if p.name.endswith("_features.csv")))
+    assert set(names) <= set(table.columns) and len(table) == len(out.table)
+    # a class given by clicking: the selected label of the frame shown
+    predict.source.setCurrentText("clicked classes")
+    predict.classes = {}
+    predict.class_name.setText("odd")
+    labels.selected_label = 3
+    predict.give_selected_class()
+    assert predict.classes == {int(out.table.loc[out.table["label"] == 3, "track_id"].iat[0])
+                               if "track_id" in out.table else 3: "odd"}

@@ -40,6 +40,8 @@ WEIGHT_STEP = 0.25
 #: measures.
 C_FEATURES = 0.01
 C_CLASSIC = 1.0
+#: Points of the accuracy-against-last-frame curve, at most.
+CURVE_POINTS = 6
 
 
 @dataclass
@@ -190,7 +192,8 @@ def predict_outcome(
     n_splits, n_repeats : int
         Stratified shuffle splits (20 % test each) and their repeats.
     curve : bool
-        Also score the fused model on the frames up to each chosen frame.
+        Also score the fused model on the frames up to each of (at most
+        :data:`CURVE_POINTS`, evenly spread) chosen frames.
     progress : callable(done, total), optional
         Called as the work goes on (a worker may raise from it to stop).
 
@@ -241,7 +244,8 @@ def predict_outcome(
     xs_all = matrices(frames)
     xs = [x[labelled] for x in xs_all]
     splits = make_splits(y, n_splits=n_splits, test_size=0.2, n_repeats=n_repeats, seed=seed)
-    steps = len(splits) * (1 + (len(frames) - 1 if curve and len(frames) > 1 else 0)) + 1
+    n_curve = min(CURVE_POINTS, len(frames)) - 1 if curve and len(frames) > 1 else 0
+    steps = len(splits) * (1 + n_curve) + 1
     done = [0]
 
     def tick(*_):
@@ -260,7 +264,10 @@ def predict_outcome(
     summary.loc["chance"] = [0.5, 0.0, len(splits)]
     curve_rows = []
     if curve and len(frames) > 1:
-        for j in range(1, len(frames) + 1):
+        # at most CURVE_POINTS last frames, evenly spread (each point is a whole evaluation)
+        ends = np.unique(np.round(np.linspace(1, len(frames), min(CURVE_POINTS, len(frames))))
+                         ).astype(int)
+        for j in ends:
             if j == len(frames):
                 s = scores[scores["method"] == "fused"]["balanced_accuracy"]
             else:
