@@ -10,6 +10,7 @@ ANALYSIS = "PF-SDM analysis"
 TRAJECTORIES = "PF-SDM trajectories (PCA)"
 COMPARISON = "PF-SDM shape comparison"
 PREDICTION = "PF-SDM prediction"
+COMPONENTS = "PF-SDM components"
 
 
 def dock(viewer, name: str = ANALYSIS):

@@ -24,7 +24,7 @@ def test_manifest_is_valid_and_its_commands_import():
     assert mf.name == "napari-pfsdm"
     widgets = {w.display_name for w in mf.contributions.widgets}
     assert widgets == {"PF-SDM analysis", "PF-SDM trajectories (PCA)", "PF-SDM shape comparison",
-                       "PF-SDM prediction"}
+                       "PF-SDM prediction", "PF-SDM components"}
     assert [s.key for s in mf.contributions.sample_data] == ["gastruloids", "five_shapes"]
     menus = mf.contributions.menus
     assert {"napari/layers/measure", "napari/layers/visualize"} <= set(menus)
@@ -37,7 +37,7 @@ def test_installed_plugin_is_discovered():
     pm = npe2.PluginManager.instance()
     pm.discover()
     mf = pm.get_manifest("napari-pfsdm")
-    assert len(mf.contributions.widgets) == 4
+    assert len(mf.contributions.widgets) == 5
 
 
 def test_sample_data_is_deterministic_and_small():

@@ -415,3 +415,31 @@ def test_prediction_from_the_widget_writes_p_group_into_every_row(viewer_widget,
     predict.give_selected_class()
     assert predict.classes == {int(out.table.loc[out.table["label"] == 3, "track_id"].iat[0])
                                if "track_id" in out.table else 3: "odd"}
+
+
+def test_reading_a_component_loadings_and_shape_modes(viewer_widget, qtbot):
+    """Point 3 of issue 22: the loadings of the chosen PC as rings x harmonics, the real objects
+    at -2 ... +2 sigma, and the PCA beyond the classic measures (uncorrelated with them)."""
+    from napari_helpers import COMPONENTS
+
+    viewer, widget = viewer_widget
+    out = run_and_wait(qtbot, widget)
+    comp = dock(viewer, COMPONENTS)
+    qtbot.waitUntil(lambda: comp.worker is None and comp.result is not None, timeout=60_000)
+    space, scores, modes, outlines = comp.result
+    opts = out.table.attrs["pfsdm"]
+    heat = comp.figure.axes[0].images[0].get_array()
+    assert heat.shape == (opts["n_radii"], opts["n_fourier"] + 1)
+    words = comp.figure.axes[0].get_xlabel()
+    assert "0 thickness, 1 off-centre, 2 elongation, 3 triangularity" in words
+    assert "weighted" in comp.figure.axes[0].get_title()
+    assert len(outlines) == 5 and modes["sigma"].tolist() == [-2, -1, 0, 1, 2]
+    v = scores["shape_PC1"].to_numpy()
+    assert modes["score"].iat[0] <= modes["score"].iat[2] <= modes["score"].iat[4]
+    assert modes["score"].iat[2] == pytest.approx(v[np.argmin(np.abs(v - v.mean()))])
+    comp.kind.setCurrentText("beyond the classic measures")
+    qtbot.waitUntil(lambda: comp.worker is None and "beyond" in
+                    comp.figure.axes[0].get_title(), timeout=60_000)
+    scores = comp.result[1]
+    merged = scores.merge(out.table[["frame", "label", "circularity"]], on=["frame", "label"])
+    assert abs(np.corrcoef(merged["shape_PC1"], merged["circularity"])[0, 1]) < 1e-6

@@ -83,9 +83,9 @@ class PredictionWidget(QWidget):
         self.status = QLabel("", wordWrap=True)
         self.figure = Figure(figsize=(3.6, 2.6), constrained_layout=True)
         self.canvas = FigureCanvasQTAgg(self.figure)
-        self.canvas.setMinimumSize(260, 200)
+        self.canvas.setMinimumSize(260, 170)
 
-        form = QFormLayout()
+        form = self.form = QFormLayout()
         form.addRow("Layer", self.layer_combo)
         form.addRow("Groups from", self.source)
         form.addRow("Class", self.class_name)
@@ -167,12 +167,12 @@ class PredictionWidget(QWidget):
             self.column.addItems(numeric)
 
     def _show_source(self, text: str) -> None:
+        """Only the rows of the chosen source (labels included)."""
         clicked, csv, column = (text == s for s in SOURCES)
-        for w in (self.class_name, self.give_button):
-            w.setVisible(clicked)
-        self.csv_button.setVisible(csv)
-        for w in (self.column, self.threshold):
-            w.setVisible(column)
+        for w, shown in ((self.class_name, clicked), (self.give_button, clicked),
+                         (self.csv_button, csv), (self.column, column),
+                         (self.threshold, column)):
+            self.form.setRowVisible(w, shown)
 
     def object_col(self) -> str:
         out = self.output
