@@ -111,3 +111,33 @@ def test_shape_modes_pick_the_objects_nearest_mean_plus_sigmas():
     np.testing.assert_allclose(modes["target"], 2 + np.sqrt(2) * np.array([-2, -1, 0, 1, 2]))
     assert modes["row"].tolist() == [0, 1, 2, 3, 4]
     assert modes[["frame", "label"]].values.tolist() == [[0, 1], [0, 2], [1, 1], [1, 2], [2, 1]]
+
+
+def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, capsys):
+    from napari_pfsdm.cli import main
+    from napari_pfsdm.io_csv import write_table_csv
+
+    reference, other = tables
+    write_table_csv(reference, tmp_path / "control.csv", reference.attrs["pfsdm"],
+                    table_type="features")
+    write_table_csv(other, tmp_path / "treated.csv", other.attrs["pfsdm"],
+                    table_type="features")
+    rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
+               str(tmp_path / "control.csv"), "-o", str(tmp_path / "pca.csv"),
+               "--channel", "shape", "--components", "2", "--link", "none", "-q"])
+    assert rc == 0
+    scores = pd.read_csv(tmp_path / "pca.csv")
+    sk = PCA(n_components=2).fit(weighted_features(reference))
+    expected = sk.transform(weighted_features(other))
+    got = scores[["shape_PC1", "shape_PC2"]].to_numpy()
+    np.testing.assert_allclose(np.abs(got), np.abs(expected), atol=1e-6)
+    # a reference measured otherwise: refused, exit 2, in words
+    coarse = measure(_ellipses([1.5, 2.5, 2.0]), n_fourier=6)
+    write_table_csv(coarse, tmp_path / "coarse.csv", coarse.attrs["pfsdm"],
+                    table_type="features")
+    rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
+               str(tmp_path / "coarse.csv"), "-o", str(tmp_path / "pca2.csv"),
+               "--channel", "shape", "--link", "none", "-q"])
+    assert rc == 2
+    assert "n_fourier" in capsys.readouterr().err
+    assert not (tmp_path / "pca2.csv").exists()

@@ -413,15 +413,28 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
                             args.quiet)
     scores = None
     explained = {}
-    with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)})", args.quiet):
+    reference = None
+    if args.reference:  # a fitted shape space: the reference's axes (analysis.shape_space)
+        reference = load_features(args.reference)
+        reference, _ = _measured(reference, list(dict.fromkeys(["shape", *channels])),
+                                 "reference rows", args.quiet)
+    what = f" in the space of {args.reference}" if args.reference else ""
+    with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)}){what}", args.quiet):
         for ch in channels:
-            s, ev = pca_scores(table, ch, n_components=args.components)
+            if reference is not None:
+                from .analysis.shape_space import ShapePCA
+
+                space = ShapePCA(n_components=args.components, channel=ch).fit(reference)
+                s, ev = space.transform(table), space.explained_variance_ratio_
+            else:
+                s, ev = pca_scores(table, ch, n_components=args.components)
             explained[ch] = ev
             scores = s if scores is None else pd.concat(
                 [scores, s[pc_columns(s.columns, ch)]], axis=1)
     opts = table_options(table)
     write_table_csv(scores, out, opts, table_type="pca", extra={
         "features": str(args.features),
+        **({"reference": str(args.reference)} if args.reference else {}),
         "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
         "left_out": left.to_dict("records")})
     ev_txt = ", ".join(
@@ -866,6 +879,7 @@ measure' does by default).
 examples:
   pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
   pfsdm trajectories cellpose_features.csv --link centroid -o pca.csv --plot pca.png
+  pfsdm trajectories treated_features.csv --reference control_features.csv -o pca.csv
 """)
     p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
@@ -876,6 +890,10 @@ examples:
                    help="features to analyse (default both when the table has reporter ones)")
     p.add_argument("--components", type=int, default=3, metavar="K",
                    help="principal components to keep (default 3)")
+    p.add_argument("--reference", metavar="REFERENCE.csv",
+                   help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
+                        "FEATURES.csv is projected into that space; both must be measured "
+                        "with the same options")
     p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
     p.add_argument("--link", choices=("centroid", "laptrack", "none"),
