@@ -443,3 +443,38 @@ def test_reading_a_component_loadings_and_shape_modes(viewer_widget, qtbot):
     scores = comp.result[1]
     merged = scores.merge(out.table[["frame", "label", "circularity"]], on=["frame", "label"])
     assert abs(np.corrcoef(merged["shape_PC1"], merged["circularity"])[0, 1]) < 1e-6
+
+
+def test_trajectories_in_the_pc_space_of_another_layer_or_a_saved_reference(
+        make_napari_viewer, qtbot, tmp_path):
+    """Point 5 of issue 22: the plot's axes from a control layer; a saved table too; a
+    reference measured otherwise is refused in words."""
+    from napari_pfsdm.analysis.shape_space import ShapePCA
+    from napari_pfsdm.data.gastruloids import make_timelapse_montage
+    from napari_pfsdm.io_csv import write_table_csv
+
+    viewer = make_napari_viewer()
+    control, _, _ = make_timelapse_montage(n_objects=4, n_frames=3, size=192, seed=1)
+    treated, _, _ = make_timelapse_montage(n_objects=4, n_frames=3, size=192, seed=2)
+    viewer.add_labels(control, name="control")
+    viewer.add_labels(treated, name="treated")
+    widget = dock(viewer)
+    ref = run_and_wait(qtbot, widget, labels=viewer.layers["control"])
+    out = run_and_wait(qtbot, widget, labels=viewer.layers["treated"])
+    plot = dock(viewer, TRAJECTORIES)
+    plot.show_layer(viewer.layers["treated"])
+    assert [plot.space.itemText(i) for i in range(plot.space.count())] == ["this layer",
+                                                                           "control"]
+    plot.space.setCurrentText("control")
+    expected = ShapePCA(n_components=5).fit(ref.table).transform(out.table)
+    np.testing.assert_allclose(plot._points[:, 0], expected["shape_PC1"], atol=1e-9)
+    assert "PC space of layer 'control'" in plot._axes_points.get_title()
+    # a saved reference measured with other options: refused, said in the plot
+    from napari_pfsdm import measure
+
+    coarse = measure(control, n_fourier=6)
+    write_table_csv(coarse, tmp_path / "coarse.csv", coarse.attrs["pfsdm"],
+                    table_type="features")
+    plot.load_reference(tmp_path / "coarse.csv")
+    assert plot.space.currentText() == "saved reference"
+    assert "n_fourier" in plot.info.text()

@@ -41,6 +41,9 @@ RERANK_TIP = ("Re-rank the distances through the whole collection (diffusion on 
               "among many objects with several of each kind (MPEG-7: 79.5 → 88.7 % "
               "bull's-eye); hurts with few objects per kind and for the single nearest "
               "neighbour. Off by default.")
+#: The trajectory plot's own PC space, and a saved table as the reference space.
+THIS_LAYER = "this layer"
+SAVED_REFERENCE = "saved reference"
 #: Plots follow the slider and the selection once they have been still this long (ms).
 DEBOUNCE_MS = 120
 
@@ -85,6 +88,7 @@ class _LinkedPlot(QWidget):
         self.info = QLabel("Run the PF-SDM analysis to fill this plot.", wordWrap=True)
         self.controls = QHBoxLayout()
         self.controls2 = QHBoxLayout()
+        self.controls3 = QHBoxLayout()
         top = QHBoxLayout()
         top.addWidget(QLabel("Layer"))
         top.addWidget(self.layer_combo, 1)
@@ -92,6 +96,7 @@ class _LinkedPlot(QWidget):
         layout.addLayout(top)
         layout.addLayout(self.controls)
         layout.addLayout(self.controls2)
+        layout.addLayout(self.controls3)
         layout.addWidget(self.canvas, 1)
         layout.addWidget(self.info)
         self._layer: Labels | None = None
@@ -332,7 +337,7 @@ class _LinkedPlot(QWidget):
 def _objects_of(output, scores, channel: str) -> np.ndarray:
     """The object of each PCA row: its ``track_id`` when the table has one, else its label
     (once per table and channel: no table merge on each redraw)."""
-    key = ("objects", channel)
+    key = ("objects", channel, len(scores))
     if key not in output.derived:
         labels = scores["label"].to_numpy().astype(np.int64)
         table = output.table
@@ -363,6 +368,15 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self.groups_button = QPushButton("Groups CSV…", toolTip="Load a CSV with columns "
                                          "label,group (e.g. 3,multi-axes) to colour by group.")
         self.groups: dict[int, str] = {}
+        self.space = QComboBox(toolTip="The axes of the plot: this layer's own PCA, or the PCA "
+                               "of another analysed layer or of a saved feature table (a "
+                               "control movie) with this layer projected into it.")
+        self.space.addItem(THIS_LAYER)
+        self.reference_button = QPushButton("Reference…", toolTip="Load a saved feature "
+                                            "table (CSV) whose PCA gives the axes.")
+        self.reference_table = None
+        self.reference_path = ""
+        self.space_note = ""
         #: Sentences on what PC1 and PC2 follow (classic measures), after each draw.
         self.explanation: list[str] = []
         super().__init__(napari_viewer)
@@ -378,6 +392,81 @@ class TrajectoryPlotWidget(_LinkedPlot):
         for box in (self.pc_x, self.pc_y):
             box.valueChanged.connect(lambda *a: self.redraw())
         self.groups_button.clicked.connect(self._groups_dialog)
+        self.controls3.addWidget(QLabel("PC space of"))
+        self.controls3.addWidget(self.space, 1)
+        self.controls3.addWidget(self.reference_button)
+        self.space.currentIndexChanged.connect(lambda *a: self.redraw())
+        self.reference_button.clicked.connect(self._reference_dialog)
+
+    # ------------------------------------------------------------ reference space
+    def _refresh_spaces(self) -> None:
+        """'PC space of': this layer, the other analysed layers, a saved reference."""
+        names = [THIS_LAYER] + [lay.name for lay in self._analysed()
+                                if self._layer is None or not same_layer(lay, self._layer)]
+        if self.reference_table is not None:
+            names.append(SAVED_REFERENCE)
+        offered = [self.space.itemText(k) for k in range(self.space.count())]
+        if names != offered:
+            current = self.space.currentText()
+            self.space.blockSignals(True)
+            self.space.clear()
+            self.space.addItems(names)
+            self.space.setCurrentText(current if current in names else THIS_LAYER)
+            self.space.blockSignals(False)
+
+    def load_reference(self, path) -> None:
+        """Use a saved feature table (a control movie's) as the PC space."""
+        from ..io_csv import read_table_csv
+
+        self.reference_table = read_table_csv(path)
+        self.reference_path = str(path)
+        self._refresh_spaces()
+        self.space.setCurrentText(SAVED_REFERENCE)
+        self.redraw()
+
+    def _reference_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Reference feature table", "",
+                                              "CSV (*.csv);;All files (*)")
+        if path:
+            try:
+                self.load_reference(path)
+            except (ValueError, OSError) as err:
+                show_error(f"Could not read the reference: {err}")
+
+    def _scores(self, output, channel: str):
+        """(scores with ``frame``, ``label``, ``PC1`` …, explained ratios) in the chosen
+        space: the layer's own PCA, or the layer projected into a reference's
+        (:class:`napari_pfsdm.analysis.shape_space.ShapePCA`; another layer analysed with
+        other options is refused in words)."""
+        space = self.space.currentText() or THIS_LAYER
+        if space == THIS_LAYER:
+            scores = output.pca.get(channel)
+            if scores is None or "PC1" not in scores:
+                raise ValueError(f"No {channel} features: analyse with an intensity image "
+                                 "first." if channel == "intensity" else
+                                 "Not enough objects for a PCA.")
+            self.space_note = "PCA of this layer"
+            return scores, scores.attrs.get("explained_variance_ratio", [])
+        if space == SAVED_REFERENCE:
+            reference, where = self.reference_table, self.reference_path
+        else:
+            ref_layer = self.viewer.layers[space] if space in self.viewer.layers else None
+            ref_out = self._store.get(ref_layer)
+            if ref_out is None:
+                raise ValueError(f"'{space}' has no PF-SDM results any more.")
+            reference, where = ref_out.table, f"layer '{space}'"
+        key = ("space", id(reference), channel)
+        if key not in output.derived:
+            from ..analysis.shape_space import ShapePCA
+            from ..core.table_schema import pc_columns
+
+            model = ShapePCA(n_components=5, channel=channel).fit(reference)
+            projected = model.transform(output.table)
+            rename = {c: c[len(channel) + 1:] for c in pc_columns(projected.columns, channel)}
+            output.derived[key] = (projected.rename(columns=rename),
+                                   list(model.explained_variance_ratio_))
+        self.space_note = f"in the PC space of {where}"
+        return output.derived[key]
 
     def load_groups(self, path) -> None:
         """Colour by the groups of a CSV (label → group)."""
@@ -408,13 +497,10 @@ class TrajectoryPlotWidget(_LinkedPlot):
             self.info.setText("Run the PF-SDM analysis to fill this plot.")
             return
         channel = self.view.currentText()
-        scores = output.pca.get(channel)
-        if scores is None or "PC1" not in scores:
-            raise ValueError(f"No {channel} features: analyse with an intensity image first."
-                             if channel == "intensity" else "Not enough objects for a PCA.")
+        self._refresh_spaces()
+        scores, ratios = self._scores(output, channel)
         n_pc = sum(c.startswith("PC") for c in scores.columns)
         i, j = min(self.pc_x.value(), n_pc), min(self.pc_y.value(), n_pc)
-        ratios = scores.attrs.get("explained_variance_ratio", [])
         c = self._theme()
         ax = self.figure.add_subplot(111)
         self._style(ax)
@@ -456,7 +542,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
                 cb.ax.tick_params(colors=c["fg"], labelsize=7)
         ax.set_xlabel(f"PC{i}" + _percent(ratios, i))
         ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
-        ax.set_title(f"{channel} trajectories", fontsize=9)
+        ax.set_title(f"{channel} trajectories, {self.space_note}", fontsize=8)
         self._points = np.column_stack([x, y])
         self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
         self._objects = objects
