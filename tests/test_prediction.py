@@ -71,3 +71,34 @@ def test_bad_groups_are_refused_in_words(two_sizes):
     with pytest.raises(InputError, match="frames \\[7\\] are not in the table"):
         predict_outcome(table, groups, frames=[0, 7])
     assert isinstance(table, pd.DataFrame)
+
+
+def test_the_command_line_writes_each_objects_probabilities(two_sizes, tmp_path, capsys):
+    import json
+
+    from napari_pfsdm.cli import main
+    from napari_pfsdm.io_csv import write_table_csv
+
+    table, groups = two_sizes
+    write_table_csv(table, tmp_path / "features.csv", table.attrs["pfsdm"],
+                    table_type="features")
+    (tmp_path / "groups.csv").write_text(
+        "label,group\n" + "".join(f"{k},{g}\n" for k, g in groups.items() if k <= 16))
+    rc = main(["predict", str(tmp_path / "features.csv"), "--groups",
+               str(tmp_path / "groups.csv"), "--frames", "0-1", "-o",
+               str(tmp_path / "pred.csv"), "--repeats", "1"])
+    assert rc == 0
+    said = capsys.readouterr().out
+    assert "classic alone: balanced accuracy 1.00" in said and "chance: balanced" in said
+    pred = pd.read_csv(tmp_path / "pred.csv")  # plain CSV
+    assert len(pred) == 20 and {"p_large", "p_small"} <= set(pred.columns)
+    ids = pred["object"].astype(str).tolist()
+    for k in (17, 18, 19, 20):  # no group given: predicted from their size
+        p = pred["p_large"].iat[ids.index(str(k))]
+        assert (p > 0.5) == (groups[k] == "large")
+    side = json.loads((tmp_path / "pred.csv.json").read_text())
+    assert side["frames"] == [0, 1] and side["balanced_accuracy"][0]["method"] == "fused"
+    (tmp_path / "one.csv").write_text("label,group\n1,small\n2,small\n")
+    rc = main(["predict", str(tmp_path / "features.csv"), "--groups", str(tmp_path / "one.csv"),
+               "-o", str(tmp_path / "pred2.csv")])
+    assert rc == 2 and "exactly two groups" in capsys.readouterr().err

@@ -536,6 +536,43 @@ def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> 
         )
 
 
+def cmd_predict(args: argparse.Namespace) -> int:
+    from .analysis import classification as clf
+    from .analysis.prediction import predict_outcome
+    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .batch.reports import load_features
+    from .core.table_options import table_options
+    from .io_csv import write_table_csv
+
+    out = _check_output(args.output, force=args.force, inputs=[args.features])
+    table = load_features(args.features)
+    table = attach_groups(table, read_groups(args.groups))
+    frames = clf.parse_frames(args.frames) if args.frames else None
+    if frames is None or len(frames) > 1:
+        table = _follow_objects(table, None, args.quiet, command="predict")
+    table = table.assign(object=object_ids(table).to_numpy())
+    groups = {o: g for o, g in zip(table["object"], table["group"], strict=True) if g}
+
+    def tick(done: int, total: int) -> None:
+        if done == total or done % max(1, total // 5) == 0:
+            _note(f"predicting: step {done}/{total}", args.quiet)
+
+    pred = predict_outcome(table, groups, frames, object_col="object", n_splits=args.splits,
+                           n_repeats=args.repeats, seed=args.seed, progress=tick)
+    summary = pred.summary.reset_index().rename(columns={"index": "method"})
+    write_table_csv(pred.probabilities, out, table_options(table), table_type="predictions",
+                    extra={"features": str(args.features), "groups": str(args.groups),
+                           "frames": pred.frames, "channels": pred.channels,
+                           "balanced_accuracy": summary.to_dict("records"),
+                           "curve": pred.curve.to_dict("records")})
+    for row in summary.itertuples():
+        _say(f"{row.method:>16}: balanced accuracy {row.mean:.2f} ± {row.std:.2f}",
+             args.quiet)
+    _say(f"wrote {out}: {', '.join(pred.columns())} for {len(pred.probabilities)} objects "
+         "(out-of-fold for those with a group)", args.quiet)
+    return 0
+
+
 def cmd_classify(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -932,6 +969,34 @@ example:
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
+
+    p = sub.add_parser(
+        "predict", formatter_class=fmt,
+        help="each object's probability of a group, from shape, reporter and classic measures",
+        description="""\
+Predict each object's group from its features at the chosen frames: the shape, the reporter
+and the classic measures (area, circularity, ...) as three channels, fused late with weights
+chosen inside each training split only. Prints the balanced accuracy of the fusion, of each
+channel alone and of chance over repeated stratified splits; writes each object's p_<group>
+(out-of-fold for the objects with a group, predicted for the others) with the scores and the
+accuracy against the last frame used in its .csv.json.
+
+example:
+  pfsdm predict features.csv --groups groups.csv --frames 0-5 -o predictions.csv
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
+                   help="CSV with a 'group' column (two groups) and 'label'/'track_id'/"
+                        "'movie' columns; objects without a group are predicted only")
+    p.add_argument("--frames", metavar="RANGE",
+                   help="frames whose features are used, e.g. 0-5 (default: all)")
+    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
+    p.add_argument("--repeats", type=int, default=2, help="repeats (default 2)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser(
         "demo", formatter_class=fmt,

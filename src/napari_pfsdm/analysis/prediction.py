@@ -205,9 +205,12 @@ def predict_outcome(
     object_col = object_col or ("track_id" if "track_id" in table.columns else "label")
     if object_col not in table.columns:
         raise InputError(f"the table has no {object_col!r} column to name the objects")
-    ok = table["error"].fillna("").astype(str).eq("").to_numpy() if "error" in table.columns \
-        else np.ones(len(table), bool)
-    table = table.loc[ok & (table[object_col].to_numpy() >= 0)]
+    ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
+          if "error" in table.columns else np.ones(len(table), bool))
+    ids = table[object_col]
+    if pd.api.types.is_numeric_dtype(ids):  # track_id -1: rows no track reaches
+        ok &= ids.to_numpy() >= 0
+    table = table.loc[ok]
     all_frames = sorted(int(f) for f in table["frame"].unique())
     frames = all_frames if frames is None else sorted(int(f) for f in frames)
     missing = sorted(set(frames) - set(all_frames))
@@ -222,8 +225,17 @@ def predict_outcome(
         raise InputError(f"prediction needs exactly two groups, got {len(names)}: "
                          f"{', '.join(names) or 'none'}")
     objects = np.array(sorted(table[object_col].unique()))
-    labelled = np.array([o in known or int(o) in known or str(o) in known for o in objects])
-    group_of = [known.get(o, known.get(int(o), known.get(str(o)))) for o in objects]
+    def group(o):  # ids given as numbers or as text
+        for key in (o, str(o)):
+            if key in known:
+                return known[key]
+        try:
+            return known.get(int(o))
+        except (TypeError, ValueError):
+            return None
+
+    group_of = [group(o) for o in objects]
+    labelled = np.array([g is not None for g in group_of])
     y_all = np.array([names.index(g) if g is not None else -1 for g in group_of])
     y = y_all[labelled]
     counts = np.bincount(y, minlength=2)
