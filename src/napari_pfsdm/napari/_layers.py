@@ -511,9 +511,11 @@ def hide_pictures(viewer, labels_layer, note: str) -> None:
 
 
 def has_pfsdm_features(labels_layer) -> bool:
-    """True when the layer's features are (still) the plugin's table (its shape features,
-    ``shape_r<ring>_n<harmonic>``, are there)."""
-    return any(str(c).startswith("shape_r") for c in labels_layer.features.columns)
+    """True when the layer's features are (still) the plugin's table (its rows by frame and
+    label, with the shape PCs)."""
+    cols = set(labels_layer.features.columns)
+    return {"frame", "label", "failed"} <= cols and any(
+        str(c).startswith("shape_PC") for c in cols)
 
 
 def set_features(labels_layer, output: AnalysisOutput) -> None:
