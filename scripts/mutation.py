@@ -469,9 +469,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="seconds per mutant before it counts as killed (default 300)")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", type=Path, help="write the results as JSON here")
+    ap.add_argument("--again", type=Path, metavar="REPORT",
+                    help="run only the survivors of an earlier --report again (found by "
+                         "their line's text: after the tests that should kill them)")
     args = ap.parse_args(argv)
 
     rng = random.Random(args.seed)
+    if args.again:
+        chosen = survivors_of(args.again)
+        print(f"{len(chosen)} survivors of {args.again} again", flush=True)
+        return run(chosen, args)
     chosen: list[Mutant] = [] if args.no_curated else curated_mutants()
     if args.modules:
         chosen = [m for m in chosen if m.path in args.modules]
@@ -487,7 +494,33 @@ def main(argv: list[str] | None = None) -> int:
         for m in chosen:
             print(f"{m.ident:45s} {m.old}\n{'':45s} {m.new}")
         return 0
+    return run(chosen, args)
 
+
+def survivors_of(report: Path) -> list[Mutant]:
+    """The survivors of an earlier report, at the line that now holds their old text."""
+    out = []
+    for d in json.loads(report.read_text())["mutants"]:
+        if d["verdict"].startswith("killed"):
+            continue
+        path = ROOT / PKG / d["path"]
+        lines = [ln.strip() for ln in path.read_text(encoding="utf-8").splitlines()]
+        hits = [i for i, ln in enumerate(lines) if ln == d["old"]]
+        if not hits:
+            print(f"gone: {d['path']}:{d['line']} {d['old']!r} (the line was changed)")
+            continue
+        i = min(hits, key=lambda k: abs(k + 1 - d["line"]))
+        tree = ast.parse("\n".join(path.read_text(encoding="utf-8").splitlines()))
+        inner = [f for f in _functions(tree) if f[0] <= i + 1 <= f[1]]
+        fn = max(inner, key=lambda f: f[0]) if inner else None
+        out.append(Mutant(d["path"], i + 1, d["kind"], d["old"], d["new"],
+                          function=fn[2] if fn else "", first_line=fn[3] if fn else 0,
+                          curated=d.get("curated", "")))
+    return out
+
+
+def run(chosen: list[Mutant], args: argparse.Namespace) -> int:
+    """Run the mutants in a copy of the repository; print and (``--report``) save the score."""
     work = copy_repo()
     (work / "_mutation_tracer.py").write_text(TRACER)
     select = work / "_mutation_select.txt"

@@ -177,3 +177,146 @@ def test_leading_singleton_axes_are_dropped_down_to_a_time_lapse(tmp_path):
                           chunks=(1, 1, 16, 20), zarr_format=2)
     z[:] = 1
     assert open_movie(tmp_path / "m.zarr").shape == (1, 16, 20)
+
+
+def test_a_short_arm_of_a_y_is_pruned_and_the_long_ones_kept():
+    """A Y: a stem of 20 px, a long arm of 10 px, a short arm of 3 px meeting the stem's end
+    diagonally. The short arm reaches the junction through one neighbour that has three, so
+    it is a side branch (< 5 px): removed; the rest is kept. Mutant: ``and`` for ``or`` in
+    the junction test (the walk then passes the junction and keeps the arm)."""
+    from napari_pfsdm.core.medial_axis import prune_branches
+
+    skel = np.zeros((40, 30), bool)
+    skel[2:21, 10] = True  # stem, junction at (20, 10)
+    for k in range(1, 11):
+        skel[20 + k, 10 + k] = True  # long arm, down-right
+    short = [(20 + k, 10 - k) for k in range(1, 4)]
+    for q in short:
+        skel[q] = True
+    out = prune_branches(skel, min_length=5)
+    assert not any(out[q] for q in short)
+    assert out[2:21, 10].all() and all(out[20 + k, 10 + k] for k in range(1, 11))
+
+
+# ---- survivors of the second run --------------------------------------------------------
+
+def _ball(radius: float = 8.0, size: int = 24) -> np.ndarray:
+    zz, yy, xx = np.mgrid[:size, :size, :size] - (size - 1) / 2
+    return zz**2 + yy**2 + xx**2 < radius**2
+
+
+def test_thousands_of_rays_in_chunks_all_meet_a_balls_surface_at_its_radius():
+    """Rays from a ball's centre leave it at its radius (one exit each), for more rays than one
+    chunk holds. Mutant: chunks written one ray too long."""
+    from napari_pfsdm.core.descriptor3d import pfsdm3d
+
+    res = pfsdm3d(_ball(), n_radii=4, sh_degree=4)
+    rng = np.random.default_rng(2)
+    dirs = rng.normal(size=(25000, 3))  # a chunk holds 400,000 samples: ~10,000 rays here
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    r, exits = res.mapping.rays(dirs)
+    assert r.shape == (25000,) and (exits == 1).all()
+    np.testing.assert_allclose(r, 8.0, atol=0.7)  # a raster ball: within a voxel's reach
+    np.testing.assert_allclose(r.mean(), res.diagnostics["scale"], rtol=0.02)
+
+
+@pytest.mark.parametrize("weight", [-1.0, float("nan"), float("inf")])
+def test_a_negative_or_missing_surface_weight_is_refused(weight):
+    """Mutant: ``or`` for ``and`` (a finite negative weight accepted)."""
+    from napari_pfsdm.core.descriptor3d import pfsdm3d
+
+    with pytest.raises(InputError, match="surface_weight must be a number >= 0"):
+        pfsdm3d(_ball(), n_radii=4, sh_degree=4, surface_weight=weight)
+
+
+def test_shell_maps_take_radii_from_0_to_1():
+    """The shell at r = 0 is the centre: one value everywhere. Mutant: 0 refused."""
+    from napari_pfsdm.core.descriptor3d import pfsdm3d, shell_maps
+
+    res = pfsdm3d(_ball(), n_radii=4, sh_degree=4)
+    images, theta, phi = shell_maps(res, radii=(0.0, 1.0), n_lat=8, n_lon=16)
+    assert images.shape == (2, 8, 16)
+    np.testing.assert_allclose(images[0], images[0, 0, 0], atol=1e-12)
+    assert images[0, 0, 0] < -0.8  # the centre of a ball: about one radius deep, normalised
+    with pytest.raises(InputError, match=r"Shell radii must lie in \[0, 1\]"):
+        shell_maps(res, radii=(-0.1, 0.5))
+
+
+def test_the_efa_outline_keeps_every_point_counter_clockwise():
+    """mask_contour is skimage's find_contours outline (the longest, without its repeated end
+    point), turned counter-clockwise. Mutant: every other point kept when turning it."""
+    from skimage.measure import find_contours
+
+    from napari_pfsdm.analysis.baselines import mask_contour
+
+    mask = np.zeros((40, 50), bool)
+    mask[5:30, 8:20] = True
+    mask[5:12, 8:45] = True  # an L
+    ref = max(find_contours(np.pad(mask.astype(float), 1), 0.5), key=len)[:-1] - 1.0
+    got = mask_contour(mask)
+    assert len(got) == len(ref)
+    x, y = got[:, 1], got[:, 0]
+    area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)  # shoelace, (row, col)
+    assert abs(abs(area) - abs(0.5 * np.sum(ref[:, 1] * np.roll(ref[:, 0], -1)
+                                            - np.roll(ref[:, 1], -1) * ref[:, 0]))) < 1e-9
+    assert {tuple(p) for p in got.tolist()} == {tuple(p) for p in ref.tolist()}
+
+
+def test_an_object_in_pieces_is_warned_about():
+    """Mutant: the number of pieces read as 1 whatever the diagnostics say."""
+    lab = np.zeros((60, 60), np.uint8)
+    lab[5:30, 5:30] = 1
+    lab[40:50, 40:50] = 1  # a second, smaller piece of object 1
+    table = P.measure(lab)
+    assert table.loc[0, "warnings"] == "2 pieces, the largest kept"
+    assert table.loc[0, "area"] == 725  # the label's pixels, both pieces (as regionprops)
+
+
+def test_explain_components_words_the_correlations():
+    """PC1 follows circularity exactly (r = +1); PC2 is unrelated to both measures given."""
+    from napari_pfsdm.analysis.interpretation import explain_components
+
+    s = pd.DataFrame({"frame": 0, "label": [1, 2, 3, 4], "PC1": [1.0, 2.0, 3.0, 4.0],
+                      "PC2": [1.0, -1.0, -1.0, 1.0], "PC3": [0.0, 1.0, 0.0, 2.0]})
+    m = pd.DataFrame({"frame": 0, "label": [1, 2, 3, 4],
+                      "circularity": [0.2, 0.4, 0.6, 0.8], "solidity": [0.5, 0.6, 0.7, 0.8]})
+    out = explain_components(s, m, ratios=[0.6], n=2)
+    assert len(out) == 2  # n = 2 of the three PCs
+    assert out[0].startswith("PC1 (60 %) follows circularity (4πA/P²), r = +1.00")
+    assert out[1].startswith("PC2 is none of the classic measures (largest |r| = 0.00")
+
+
+def test_standardized_pca_ignores_a_constant_feature():
+    """A feature that never changes has no variance to scale: it is left as it is (0 after
+    centring), not divided by 0. Mutant: ``sd >= 0`` (0/0 = NaN everywhere)."""
+    from napari_pfsdm.analysis.reduction import pca_scores
+
+    lab = np.zeros((60, 200), np.uint16)
+    yy, xx = np.mgrid[:60, :200]
+    for k, (a, b) in enumerate([(20, 10), (15, 15), (22, 8), (12, 18)]):
+        lab[((yy - 30) / a) ** 2 + ((xx - 25 - 50 * k) / b) ** 2 <= 1] = k + 1
+    table = P.measure(lab, n_fourier=4, n_radii=4)
+    table["shape_r00_n01"] = 0.125  # constant
+    scores, explained = pca_scores(table, "shape", n_components=2, standardize=True)
+    assert np.isfinite(scores[["shape_PC1", "shape_PC2"]].to_numpy()).all()
+    assert np.isfinite(explained).all() and 0 < explained.sum() <= 1
+
+
+def test_an_empty_tracks_layer_names_no_object():
+    from napari_pfsdm.analysis.tracking import track_ids_from_tracks
+
+    table = pd.DataFrame({"frame": [0, 1], "label": [1, 1], "centroid_y": [5.0, 6.0],
+                          "centroid_x": [5.0, 6.0], "area": [50.0, 50.0]})
+    got = track_ids_from_tracks(np.zeros((0, 4)), table)
+    assert np.asarray(got).tolist() == [-1, -1]
+
+
+def test_classify_accepts_the_smallest_split_it_can_make():
+    """Two objects of each group, --test-size 0.5: 2 test and 2 training objects, the least a
+    split may hold (allowed); five objects at 0.2 leave 1 test object (refused in plain
+    words). Mutant: ``n_train <= 2``."""
+    from napari_pfsdm.cli import UserError, _check_class_sizes
+
+    _check_class_sizes(np.array([1, 1, 0, 0]), ["a", "b"], "a", 0.5)
+    with pytest.raises(UserError, match="too few for a 20% test split"):
+        _check_class_sizes(np.array([1, 1, 1, 0, 0]), ["a", "b"], "a", 0.2)

@@ -258,7 +258,7 @@ def shell_maps(
     Parameters
     ----------
     result : PFSDM3DResult
-    radii : sequence of float in (0, 1]
+    radii : sequence of float in [0, 1]
         The shells to show.
     n_lat, n_lon : int
         Image size: rows are polar angles θ from 0 (the +z pole) to π at pixel centres, columns
