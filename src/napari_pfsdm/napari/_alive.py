@@ -20,3 +20,17 @@ def while_alive(method):
             raise
 
     return wrapper
+
+
+def offer(combo, names: list[str]) -> None:
+    """Put ``names`` in a combo box when they differ from what it offers, keeping the current
+    choice when it is still there, without emitting its change signals."""
+    if names == [combo.itemText(i) for i in range(combo.count())]:
+        return
+    current = combo.currentText()
+    combo.blockSignals(True)
+    combo.clear()
+    combo.addItems(names)
+    if current in names:
+        combo.setCurrentText(current)
+    combo.blockSignals(False)

@@ -20,7 +20,7 @@ from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QComboBox, QHBoxLayout, QLabel, QSpinBox, QVBoxLayout, QWidget
 
 from ..analysis.shape_space import HARMONIC_WORDS
-from ._alive import while_alive
+from ._alive import offer, while_alive
 from ._store import store_for
 
 #: The PCAs offered, and how each is fitted.
@@ -113,14 +113,7 @@ class ComponentsWidget(QWidget):
     def _refresh(self, *args) -> None:
         names = [lay.name for lay in self.viewer.layers
                  if isinstance(lay, Labels) and self._store.get(lay) is not None]
-        if names != [self.layer_combo.itemText(i) for i in range(self.layer_combo.count())]:
-            current = self.layer_combo.currentText()
-            self.layer_combo.blockSignals(True)
-            self.layer_combo.clear()
-            self.layer_combo.addItems(names)
-            if current in names:
-                self.layer_combo.setCurrentText(current)
-            self.layer_combo.blockSignals(False)
+        offer(self.layer_combo, names)
         if args and not isinstance(args[0], Labels) and self.result is not None:
             return  # a layer came or went: nothing to recompute
         self.update_reading()

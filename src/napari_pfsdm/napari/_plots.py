@@ -31,6 +31,7 @@ from qtpy.QtWidgets import (
 from ..analysis.reduction import read_groups
 from ..core.table_schema import has_channel
 from . import _layers
+from ._alive import offer
 from ._compute import classical_mds
 from ._store import same_layer, store_for
 
@@ -138,15 +139,7 @@ class _LinkedPlot(QWidget):
         """Offer the analysed Labels layers; rebind (and redraw) only when the layer shown
         changes: the plugin's own picture layers come and go without touching the plots."""
         names = [lay.name for lay in self._analysed()]
-        offered = [self.layer_combo.itemText(i) for i in range(self.layer_combo.count())]
-        if names != offered:
-            current = self.layer_combo.currentText()
-            self.layer_combo.blockSignals(True)
-            self.layer_combo.clear()
-            self.layer_combo.addItems(names)
-            if current in names:
-                self.layer_combo.setCurrentText(current)
-            self.layer_combo.blockSignals(False)
+        offer(self.layer_combo, names)
         self._on_layer_choice()
 
     def _on_results(self, layer) -> None:

@@ -38,7 +38,7 @@ from qtpy.QtWidgets import (
 
 from ..analysis.reduction import read_groups
 from . import _layers
-from ._alive import while_alive
+from ._alive import offer, while_alive
 from ._store import store_for
 
 SOURCES = ("clicked classes", "groups CSV", "numeric column")
@@ -138,14 +138,7 @@ class PredictionWidget(QWidget):
     def _refresh(self, *args) -> None:
         names = [lay.name for lay in self.viewer.layers
                  if isinstance(lay, Labels) and self._store.get(lay) is not None]
-        current = self.layer_combo.currentText()
-        if names != [self.layer_combo.itemText(i) for i in range(self.layer_combo.count())]:
-            self.layer_combo.blockSignals(True)
-            self.layer_combo.clear()
-            self.layer_combo.addItems(names)
-            if current in names:
-                self.layer_combo.setCurrentText(current)
-            self.layer_combo.blockSignals(False)
+        offer(self.layer_combo, names)
         self._on_layer()
 
     def _on_layer(self, *args) -> None:
