@@ -13,14 +13,13 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Generator
-from dataclasses import dataclass, field, replace
-from types import SimpleNamespace
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from ..analysis.features import count_objects as _count_objects
-from ..analysis.interpretation import MEASURES, outline_measures
+from ..analysis.interpretation import MEASURES
 from ..analysis.reduction import mds_coordinates
 from ..analysis.reduction import pca_scores as _pca
 from ..core.params import PFSDMParams
@@ -213,36 +212,28 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 
 classical_mds = mds_coordinates
 
 
-def _rows_only(obj):
-    """The object with only what its table row needs (embeddings, diagnostics): the full
-    result (SDF, map, skeleton) of every object is not kept for the whole run."""
-    res = obj.result
-    if res is None:
-        return obj
-    light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
-                            intensity_embedding=res.intensity_embedding,
-                            surface_embedding=getattr(res, "surface_embedding", None),
-                            outline=getattr(res, "outline", None))
-    return replace(obj, result=light)
-
-
 def run_analysis(
     labels,
     intensity=None,
     options: PFSDMParams | dict | None = None,
     first_axis: str = "time",
     spacing=None,
+    workers: int | None = None,
 ) -> Generator[tuple[int, int, int, int], None, AnalysisOutput]:
     """Measure every (frame, label) object as :func:`napari_pfsdm.measure` does; a generator
     for worker threads.
 
     ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
     as a dict of keywords). ``first_axis`` (``"time"`` or ``"z"``) says what the first axis of
-    3-D labels is; ``spacing`` is the voxel size (z, y, x) of Z-stacks. Yields ``(done, total,
-    frame, label)`` after each object; returns an :class:`AnalysisOutput`. Closing the generator
-    (or the worker stopping at a yield) stops the work and keeps nothing.
+    3-D labels is; ``spacing`` is the voxel size (z, y, x) of Z-stacks. ``workers``: processes
+    measuring the objects (default: every core; :mod:`napari_pfsdm.analysis.parallel`, one
+    process below :data:`~napari_pfsdm.analysis.parallel.MIN_OBJECTS` objects). Yields
+    ``(done, total, frame, label)`` as objects are done; returns an :class:`AnalysisOutput`.
+    Closing the generator (or the worker stopping at a yield) stops the work, and the worker
+    processes, and keeps nothing.
     """
-    from ..analysis.features import iter_objects, table_from_objects
+    from ..analysis.features import table_from_objects
+    from ..analysis.parallel import iter_rows
 
     params = (options if isinstance(options, PFSDMParams)
               else PFSDMParams.from_options(dict(options or {})))
@@ -255,17 +246,12 @@ def run_analysis(
     if not total:
         raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
                          "segmentation first.")
-    boxes: dict = {}
-    collected = []
-    measures = []
-    for done, obj in enumerate(iter_objects(labels, intensity, params=params, **where),
-                               start=1):
-        collected.append(_rows_only(obj))  # the table needs rows, not the whole results
-        boxes[(int(obj.frame), int(obj.label))] = obj.bbox
-        if obj.result is not None and not volume:
-            measures.append({"frame": int(obj.frame), "label": int(obj.label),
-                             **outline_measures(obj.result.contour.points)})
-        yield done, total, int(obj.frame), int(obj.label)
+    rows = yield from iter_rows(labels, intensity, params=params, axes=axes, spacing=spacing,
+                                workers=workers, total=total)
+    collected = [obj for obj, _ in rows]  # the table needs rows, not the whole results
+    boxes = {(int(obj.frame), int(obj.label)): obj.bbox for obj in collected}
+    measures = [{"frame": int(obj.frame), "label": int(obj.label), **m}
+                for obj, m in rows if m is not None]
     table = table_from_objects(collected, with_intensity=intensity is not None, params=params,
                                **where)
     pca = {"shape": pca_scores(table, "shape")}

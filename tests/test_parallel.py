@@ -1,0 +1,105 @@
+"""Objects measured on several processes (napari_pfsdm.analysis.parallel): the same table as
+``measure``, every object once and in order, and a stop that stops the processes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import napari_pfsdm as pf
+from napari_pfsdm.analysis import parallel
+from napari_pfsdm.analysis.features import table_from_objects
+from napari_pfsdm.core.params import PFSDMParams
+from napari_pfsdm.data.gastruloids import make_timelapse_montage
+
+
+def _drain(gen):
+    steps = []
+    try:
+        while True:
+            steps.append(next(gen))
+    except StopIteration as stop:
+        return stop.value, steps
+
+
+def test_plan_tasks_lists_every_object_once_in_order():
+    counts = [np.array([1, 2, 3]), np.array([], int), np.array([2, 5, 7, 9, 11, 12, 13]),
+              np.array([4])]
+    tasks = parallel.plan_tasks(counts, 4)
+    flat = [(t, int(lab)) for task in tasks for t, labels in task for lab in labels]
+    expected = [(t, int(lab)) for t, c in enumerate(counts) for lab in c]
+    assert flat == expected
+    # 11 objects in 4 tasks of ceil(11 / 4) = 3: the big frame 2 is cut after labels 7 and 12,
+    # its last label shares a task with frame 3 (the empty frame 1 gives no task)
+    assert [[(t, lab.tolist()) for t, lab in task] for task in tasks] == [
+        [(0, [1, 2, 3])], [(2, [2, 5, 7])], [(2, [9, 11, 12])], [(2, [13]), (3, [4])]]
+
+
+def test_plan_tasks_of_one_frame_and_of_more_tasks_than_objects():
+    one = parallel.plan_tasks([np.arange(1, 11)], 3)  # 10 objects, ceil(10/3) = 4 per task
+    assert [lab.tolist() for task in one for _, lab in task] == [[1, 2, 3, 4], [5, 6, 7, 8],
+                                                                [9, 10]]
+    many = parallel.plan_tasks([np.array([1]), np.array([3])], 10)
+    assert [[(t, lab.tolist()) for t, lab in task] for task in many] == [[(0, [1])], [(1, [3])]]
+
+
+@pytest.fixture
+def small_movie():
+    labels, intensity = make_timelapse_montage(5, 4, 160, seed=3)[:2]
+    return labels, intensity
+
+
+@pytest.mark.parametrize("with_intensity", [True, False])
+def test_rows_from_two_processes_make_measures_table(small_movie, monkeypatch, with_intensity):
+    labels, intensity = small_movie
+    intensity = intensity if with_intensity else None
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)  # a small movie, still in processes
+    params = PFSDMParams()
+    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=params, axes="tyx",
+                                            workers=2))
+    assert parallel._POOL["pool"] is not None  # it did use the pool
+    table = table_from_objects([obj for obj, _ in rows], with_intensity=with_intensity,
+                               params=params, axes="tyx")
+    expected = pf.measure(labels, intensity)
+    pd.testing.assert_frame_equal(table, expected)
+    n = len(expected)
+    assert steps[-1][:2] == (n, n)
+    assert all(a[0] <= b[0] for a, b in zip(steps, steps[1:], strict=False))
+    # the outline measures travel with their rows (2-D)
+    assert all(m is not None and "circularity" in m for obj, m in rows if obj.result is not None)
+
+
+def test_one_large_frame_is_split_between_processes(monkeypatch):
+    labels, _ = make_timelapse_montage(12, 1, 256, seed=5)[:2]
+    frame = labels[0]
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
+    tasks = parallel.plan_tasks([np.unique(frame)[1:]], 2 * parallel.TASKS_PER_WORKER)
+    assert len(tasks) > 1 and all(len(task) == 1 for task in tasks)  # blocks of one frame
+    rows, _ = _drain(parallel.iter_rows(frame, params=PFSDMParams(), axes="yx", workers=2))
+    table = table_from_objects([obj for obj, _ in rows], params=PFSDMParams(), axes="yx")
+    pd.testing.assert_frame_equal(table, pf.measure(frame))
+
+
+def test_few_objects_stay_in_this_process(small_movie, monkeypatch):
+    labels, intensity = small_movie
+    parallel.shutdown_pool()
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 10_000)
+    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+                                            axes="tyx", workers=2))
+    assert parallel._POOL["pool"] is None
+    assert len(steps) == len(rows)  # one step per object
+
+
+def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
+    labels, intensity = small_movie
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
+    gen = parallel.iter_rows(labels, intensity, params=PFSDMParams(), axes="tyx", workers=2)
+    next(gen)
+    pool = parallel._POOL["pool"]
+    processes = list(pool._pool)
+    gen.close()  # what a napari worker's quit does at a yield
+    assert parallel._POOL["pool"] is None
+    for proc in processes:
+        proc.join(timeout=10)
+        assert not proc.is_alive()
