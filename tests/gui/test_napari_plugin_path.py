@@ -73,6 +73,45 @@ def test_result_layers_never_become_the_active_layer(make_napari_viewer, sample_
     assert all(layer.name not in names for layer in viewer.layers.selection)
 
 
+def test_first_pictures_add_one_layer_per_event_loop_slot(viewer_widget, qtbot):
+    """napari needs about 0.1 s per new layer under software OpenGL: the five result layers
+    of the first pictures are added in five slots of Qt's event loop, not in one."""
+    from qtpy.QtCore import QTimer
+
+    viewer, widget = viewer_widget
+    turns = [0]
+    ticker = QTimer(interval=0)
+    ticker.timeout.connect(lambda: turns.__setitem__(0, turns[0] + 1))
+    names = set(_layers.layer_names("gastruloids").values())
+    added = []
+    viewer.layers.events.inserted.connect(
+        lambda e: added.append(turns[0]) if e.value.name in names else None)
+    ticker.start()
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
+    ticker.stop()
+    assert len(added) == 5
+    assert len(set(added)) == 5, added  # one slot each: the loop turned between them
+
+
+def test_a_run_of_many_objects_uses_worker_processes_and_gives_measures_table(
+        viewer_widget, qtbot, monkeypatch):
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis import parallel
+
+    viewer, widget = viewer_widget
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)  # the sample, as if it were large
+    parallel.shutdown_pool()
+    out = run_and_wait(qtbot, widget)
+    assert parallel._POOL["pool"] is not None  # the run went through the process pool
+    labels = viewer.layers["gastruloids"].data
+    reporter = viewer.layers["gastruloids reporter"].data
+    expected = pf.measure(labels, reporter)
+    table = out.table.drop(columns=["track_id"], errors="ignore")
+    pd.testing.assert_frame_equal(table[expected.columns], expected)
+    assert widget.progress.value() == widget.progress.maximum() == len(expected)
+
+
 def test_plots_redraw_only_when_their_data_change(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     labels = viewer.layers["gastruloids"]

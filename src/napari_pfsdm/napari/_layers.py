@@ -272,8 +272,52 @@ def _place_picture(viewer, name: str, image: np.ndarray, colormap: str, limits, 
                    _ticks(*limits, unit))
 
 
+def picture_steps(viewer, labels_layer, pictures):
+    """Show one object's pictures (2-D: :class:`ObjectPictures`; 3-D: volume pictures) one
+    result layer at a time: a generator that yields after each layer was added or updated and
+    returns ``{key: layer}``. Adding a layer costs napari about 0.1 s under software OpenGL;
+    the widget runs one step per event-loop slot the first time (so the viewer never freezes
+    for all of them at once), and all steps at once afterwards (updates in place are cheap)."""
+    if hasattr(pictures, "shells"):
+        return _pictures_3d(viewer, labels_layer, pictures)
+    return _pictures_2d(viewer, labels_layer, pictures)
+
+
+def layers_missing(viewer, labels_layer, pictures) -> bool:
+    """True when a result layer that ``pictures`` need is not in the viewer yet (it will be
+    added: worth one event-loop slot per layer)."""
+    names = layer_names(labels_layer.name)
+    keys = (("shells", "surface") if hasattr(pictures, "shells")
+            else ("sdf", "disk", "skeleton")) + ("legend",)
+    return any(names[k] not in viewer.layers for k in keys)
+
+
+def finish(steps) -> dict:
+    """Run the remaining steps of :func:`picture_steps` now; their result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
 def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     """Show one object's pictures in the result layers (added on first use); returns them.
+
+    Each picture carries its own colour bar (per-object contrast); the legend layer gives the
+    bar's values and says in words what the picture shows.
+    """
+    return finish(_pictures_2d(viewer, labels_layer, pictures))
+
+
+def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
+    """Show one 3-D object's pictures (:func:`_pictures_3d`); returns the layers."""
+    return finish(_pictures_3d(viewer, labels_layer, pictures))
+
+
+def _pictures_2d(viewer, labels_layer, pictures: ObjectPictures):
+    """Show one object's pictures in the result layers (added on first use), a step per
+    layer (:func:`picture_steps`); returns them.
 
     Each picture carries its own colour bar (per-object contrast); the legend layer gives the
     bar's values and says in words what the picture shows.
@@ -293,15 +337,18 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     s_sdf = side / size
     picture("sdf", pictures.sdf, "RdBu_r", symmetric_limits(pictures.sdf), "px", s_sdf,
             (top, left))
+    yield
     top_d, left_d, side_d = geo["disk"]
     size = pictures.disk.shape[0]
     s_disk = side_d / size
     picture("disk", pictures.disk, "RdBu_r", symmetric_limits(pictures.disk), "", s_disk,
             (top_d, left_d))
+    yield
     if pictures.intensity_disk is not None:
         top_i, left_i, side_i = geo["intensity_disk"]
         picture("intensity_disk", pictures.intensity_disk, "magma",
                 _range_limits(pictures.intensity_disk), "× mean", side_i / size, (top_i, left_i))
+        yield
     else:  # hidden, not removed: removing and adding layers stalls the viewer
         _hide(viewer, names, ["intensity_disk"])
     # lines: skeleton on the object, on the SDF and on the disk; the outline on the SDF
@@ -320,11 +367,12 @@ def show_pictures(viewer, labels_layer, pictures: ObjectPictures) -> dict:
     lines.append(on_sdf(pictures.outline))
     colors.append(OUTLINE_COLOR)
     out["skeleton"] = _replace_lines(viewer, names["skeleton"], lines, colors)
+    yield
     out["legend"] = _legend(viewer, labels_layer, pictures, bars=bars)
     return out
 
 
-def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
+def _pictures_3d(viewer, labels_layer, pictures):
     """Show one 3-D object's pictures: its shells as sphere maps beside the stack (one image,
     the shells from the centre outwards, top to bottom, with a colour bar), the reporter's
     shells, and its surface coloured by each vertex's distance from the centre (1 = the sphere
@@ -353,9 +401,11 @@ def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
     anomaly = pictures.shells - np.nanmean(pictures.shells, axis=(1, 2), keepdims=True)
     img = stacked(anomaly)
     picture("shells", img, "RdBu_r", symmetric_limits(img), "", "sdf")
+    yield
     if pictures.intensity_shells is not None:
         img = stacked(pictures.intensity_shells)
         picture("intensity_shells", img, "magma", _range_limits(img), "× mean", "disk")
+        yield
     else:
         _hide(viewer, names, ["intensity_shells"])
     verts, faces, values = pictures.surface
@@ -372,6 +422,7 @@ def show_volume_pictures(viewer, labels_layer, pictures) -> dict:
         with keep_selection(viewer):
             layer = viewer.add_surface((verts, faces, values), name=names["surface"], **kwargs)
     out["surface"] = layer
+    yield
     out["legend"] = _volume_legend(viewer, labels_layer, pictures, bars)
     return out
 

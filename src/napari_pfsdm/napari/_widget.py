@@ -35,7 +35,6 @@ from ._compute import (
     AnalysisOutput,
     PictureCache,
     PicturesCancelled,
-    VolumePictures,
     finish_output,
     object_pictures,
     run_analysis,
@@ -180,6 +179,9 @@ class AnalysisWidget(QWidget):
         # pictures are made ahead only once the user has paused: a job under way delays the
         # next selection's pictures by up to one job
         self._prefetch_timer = QTimer(self, singleShot=True, interval=PREFETCH_DELAY_MS)
+        self._steps = None  # (labels, pictures, steps) of pictures being shown layer by layer
+        self._step_timer = QTimer(self, singleShot=True, interval=0)
+        self._step_timer.timeout.connect(self._step_pictures)
         self._prefetch_timer.timeout.connect(self._prefetch)
 
         from ..core.descriptor import DEFAULTS
@@ -805,15 +807,45 @@ class AnalysisWidget(QWidget):
         return None
 
     def _show_pictures(self, labels: Labels, pics) -> None:
+        """Show ``pics``: all at once when the result layers exist (in-place updates), else
+        one new layer per event-loop slot (:func:`_layers.picture_steps`), so that the viewer
+        never freezes for all the layers napari adds at once; a newer object's pictures
+        take over the remaining steps."""
+        self._steps = (labels, pics, _layers.picture_steps(self.viewer, labels, pics))
+        if _layers.layers_missing(self.viewer, labels, pics):
+            self._step_pictures()
+        else:
+            while self._steps is not None:
+                self._step_pictures(again=False)
+
+    @while_alive
+    def _step_pictures(self, again: bool = True) -> None:
+        if self._steps is None:
+            return
+        labels, pics, steps = self._steps
+        if labels not in self.viewer.layers:  # removed meanwhile: nothing to show it beside
+            self._steps = None
+            return
         # adding a layer moves napari's dims: the events it sends must not start a second
         # showing inside this one (nested layer insertions crash napari's layer list)
         self._syncing = True
         try:
-            if isinstance(pics, VolumePictures):
-                _layers.show_volume_pictures(self.viewer, labels, pics)
-            else:
-                _layers.show_pictures(self.viewer, labels, pics)
-            self.shown_key = (pics.frame, pics.label)
+            next(steps)
+        except StopIteration:
+            self._steps = None
+        except Exception as err:  # noqa: BLE001 - e.g. the layer was removed meanwhile
+            self._steps = None
+            self._message(f"The pictures could not be shown: {err}", error=True)
+            return
+        finally:
+            self._syncing = False
+        if self._steps is not None:
+            if again:
+                self._step_timer.start()
+            return
+        self.shown_key = (pics.frame, pics.label)
+        self._syncing = True
+        try:
             self.viewer.layers.selection.active = labels
             if self._refit:
                 self._refit = False
