@@ -103,3 +103,30 @@ def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
     for proc in processes:
         proc.join(timeout=10)
         assert not proc.is_alive()
+
+
+def test_a_script_without_a_main_guard_runs_once(tmp_path):
+    """spawn/forkserver children re-import the main module: a biologist's script with no
+    ``if __name__ == "__main__":`` must not start again in every worker process."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "no_guard.py"
+    script.write_text(
+        "from napari_pfsdm.analysis import parallel\n"
+        "from napari_pfsdm.core.params import PFSDMParams\n"
+        "from napari_pfsdm.data.gastruloids import make_timelapse_montage\n"
+        "print('script body runs', flush=True)\n"
+        "parallel.MIN_OBJECTS = 1\n"
+        "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)\n"
+        "g = parallel.iter_rows(lab, img, params=PFSDMParams(), axes='tyx', workers=2)\n"
+        "try:\n"
+        "    while True:\n"
+        "        next(g)\n"
+        "except StopIteration as stop:\n"
+        "    print('rows', len(stop.value))\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("script body runs") == 1
+    assert "rows 6" in done.stdout

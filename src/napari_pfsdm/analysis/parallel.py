@@ -24,7 +24,9 @@ from __future__ import annotations
 import atexit
 import multiprocessing as mp
 import os
+import sys
 import threading
+import types
 from collections.abc import Generator, Iterator
 from dataclasses import replace
 from types import SimpleNamespace
@@ -172,6 +174,23 @@ def _context():
     return mp.get_context("spawn")  # pragma: no cover - Windows, macOS default
 
 
+def _start(workers: int):
+    """A pool whose processes do not run the caller's script.
+
+    multiprocessing's spawn and forkserver children re-import the main module (a script
+    without an ``if __name__ == "__main__":`` guard, e.g. one that opens a napari viewer,
+    would start again in every child and make processes without end). The workers need only
+    this module: while they start, ``__main__`` is a bare stand-in, so nothing else runs.
+    """
+    main = sys.modules.get("__main__")
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        return _context().Pool(workers)
+    finally:
+        if main is not None:
+            sys.modules["__main__"] = main
+
+
 def shared_pool(workers: int | None = None):
     """The process pool of this Python session (started on first use, then kept).
 
@@ -186,7 +205,7 @@ def shared_pool(workers: int | None = None):
         if pool is None or _POOL["workers"] != workers:
             if pool is not None:
                 pool.terminate()
-            pool = _context().Pool(workers)
+            pool = _start(workers)
             _POOL.update(pool=pool, workers=workers)
         return pool
 

@@ -811,12 +811,22 @@ class AnalysisWidget(QWidget):
         one new layer per event-loop slot (:func:`_layers.picture_steps`), so that the viewer
         never freezes for all the layers napari adds at once; a newer object's pictures
         take over the remaining steps."""
-        self._steps = (labels, pics, _layers.picture_steps(self.viewer, labels, pics))
+        steps = self._then_fit(_layers.picture_steps(self.viewer, labels, pics))
+        self._steps = (labels, pics, steps)
         if _layers.layers_missing(self.viewer, labels, pics):
             self._step_pictures()
         else:
             while self._steps is not None:
                 self._step_pictures(again=False)
+
+    def _then_fit(self, steps):
+        """The picture steps, then (the first time) fitting the view to them: a redraw of
+        everything, in a slot of its own."""
+        yield from steps
+        if self._refit:
+            yield
+            self._refit = False
+            self._fit_view()
 
     @while_alive
     def _step_pictures(self, again: bool = True) -> None:
@@ -847,9 +857,6 @@ class AnalysisWidget(QWidget):
         self._syncing = True
         try:
             self.viewer.layers.selection.active = labels
-            if self._refit:
-                self._refit = False
-                self._fit_view()
         finally:
             self._syncing = False
         self._prefetch_timer.start()
