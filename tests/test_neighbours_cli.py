@@ -171,12 +171,14 @@ def test_the_map_comes_from_the_graph_above_the_limit(features, tmp_path, capsys
     assert "classical MDS of the full matrix" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("method", ["tsne", "spectral"])
+@pytest.mark.parametrize("method", ["tsne", "spectral", "umap"])
 def test_graph_map_keeps_separate_kinds_apart(method):
     """Four blobs of 40 points in 12-D: in the 2-D map drawn from the 10-neighbour graph
     alone, a point's nearest point is of its blob for ≥ 95 % of the points."""
     from napari_pfsdm.analysis.reduction import graph_coordinates
 
+    if method == "umap":
+        pytest.importorskip("umap")
     rng = np.random.default_rng(0)
     pts = np.vstack([rng.normal(size=(40, 12)) + 6 * np.eye(12)[c] for c in range(4)])
     labels = np.repeat(np.arange(4), 40)
@@ -186,3 +188,14 @@ def test_graph_map_keeps_separate_kinds_apart(method):
     assert xy.shape == (160, 2) and np.isfinite(xy).all()
     d2 = ((xy[:, None] - xy[None]) ** 2).sum(-1) + np.diag(np.full(160, np.inf))
     assert (labels[d2.argmin(axis=1)] == labels).mean() >= 0.95
+
+
+def test_umap_map_without_umap_learn_says_what_to_install(monkeypatch, features, tmp_path,
+                                                          capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "umap", None)
+    monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 5)
+    assert main(["compare", str(features), "--neighbours", "3", "-o", str(tmp_path / "e.csv"),
+                 "--mds", str(tmp_path / "m.png"), "--map", "umap"]) == 2
+    assert 'pip install "napari-pfsdm[umap]"' in capsys.readouterr().err

@@ -383,9 +383,12 @@ def _median_distance(table, args: argparse.Namespace, size: int = 400) -> float:
     return float(np.median(d[~np.eye(len(d), dtype=bool)]))
 
 
+_MAP_NAMES = {"tsne": "t-SNE", "umap": "UMAP", "spectral": "spectral embedding"}
+
+
 def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
-    """``--mds``: classical MDS of the full matrix up to FULL_MATRIX_LIMIT objects; above, t-SNE
-    of the neighbour graph (given, or from the matrix), and the output says so."""
+    """``--mds``: classical MDS of the full matrix up to FULL_MATRIX_LIMIT objects; above, a map
+    of the neighbour graph (given, or from the matrix; ``--map``), and the output says so."""
     from .analysis.reduction import graph_coordinates, mds_coordinates
     from .batch.reports import plot_mds
 
@@ -408,12 +411,13 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
     if graph is None:
         graph = _graph_of_matrix(matrix, k)
     idx, dist = graph[0][:, :k], graph[1][:, :k]
+    name = _MAP_NAMES[args.map]
     with _Step(f"drawing the 2-D map of {n:,} objects from their {k} nearest neighbours "
-               "(t-SNE)", args.quiet):
-        coords = graph_coordinates(idx, dist, "tsne")
-        plot_mds(coords, table, args.mds, axis_name="t-SNE",
-                 title=f"PF-SDM {k}-nearest-neighbour graph, t-SNE")
-    _say(f"wrote {args.mds}: a t-SNE map of the {k}-nearest-neighbour graph, not MDS "
+               f"({name})", args.quiet):
+        coords = graph_coordinates(idx, dist, args.map)
+        plot_mds(coords, table, args.mds, axis_name=name.split()[0],
+                 title=f"PF-SDM {k}-nearest-neighbour graph, {name}")
+    _say(f"wrote {args.mds}: a {name} map of the {k}-nearest-neighbour graph, not MDS "
          f"(above {FULL_MATRIX_LIMIT:,} objects the map is drawn from the neighbours, "
          "without the full matrix)", args.quiet)
 
@@ -1036,7 +1040,12 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
     p.add_argument("--mds", metavar="PNG",
                    help="also draw a 2-D map of the distances: classical MDS up to "
                         f"{FULL_MATRIX_LIMIT:,} objects, above that t-SNE of each object's "
-                        f"{MAP_NEIGHBOURS} nearest neighbours")
+                        f"{MAP_NEIGHBOURS} nearest neighbours (--map)")
+    p.add_argument("--map", choices=("tsne", "umap", "spectral"), default="tsne",
+                   help=f"how the map of more than {FULL_MATRIX_LIMIT:,} objects is drawn from "
+                        "the neighbour graph: 'tsne' (default; keeps kinds of shapes apart "
+                        "best on MPEG-7), 'umap' (about 7x faster at 10,000 objects; pip "
+                        "install \"napari-pfsdm[umap]\"), 'spectral' (fastest, mixes kinds)")
     p.add_argument("--frames", metavar="RANGE",
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
     p.add_argument("--intensity-weight", type=float, default=0.0, metavar="W",
