@@ -8,7 +8,8 @@ file pfsdm did not write) print one line starting with ``pfsdm: error:`` and exi
 the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong, plus the
 file system's ``OSError`` and a missing optional package; any other exception is a bug of
 napari-pfsdm: pfsdm says so, where to report it, and exits with status 1. Tables are
-plain CSV with their options in a ``.csv.json`` sidecar. Messages and progress go to stderr
+plain CSV with their options in a ``.csv.json`` sidecar (Parquet for a ``.parquet`` name).
+Messages and progress go to stderr
 (``-q`` silences them); results and summaries to stdout.
 """
 
@@ -977,7 +978,9 @@ examples:
                    help="reporter movie(s) of the same size as the labels")
     p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
                    help="the feature table to write (plain CSV; the options go into "
-                        "FEATURES.csv.json beside it: keep the two together)")
+                        "FEATURES.csv.json beside it: keep the two together). A name "
+                        "ending in .parquet writes Parquet (faster for large tables; pip "
+                        "install \"napari-pfsdm[parquet]\"), which every command reads too")
     p.add_argument("--allow-empty", dest="allow_empty", action="store_true",
                    help="write an empty table when the labels hold no object (default: an "
                         "error, as labels with only background are usually the wrong file)")
@@ -1044,7 +1047,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
     p.add_argument("--map", choices=("tsne", "umap", "spectral"), default="tsne",
                    help=f"how the map of more than {FULL_MATRIX_LIMIT:,} objects is drawn from "
                         "the neighbour graph: 'tsne' (default; keeps kinds of shapes apart "
-                        "best on MPEG-7), 'umap' (about 7x faster at 10,000 objects; pip "
+                        "best on MPEG-7), 'umap' (faster for tens of thousands of objects; pip "
                         "install \"napari-pfsdm[umap]\"), 'spectral' (fastest, mixes kinds)")
     p.add_argument("--frames", metavar="RANGE",
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
