@@ -69,7 +69,7 @@ def nearest_neighbours(
     *,
     intensity_weight: float = 0.0,
     boundary_weight: float | None = None,
-    method: str = "brute",
+    method: str = "bound",
     block: int = 512,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The k nearest neighbours of every object under the default PF-SDM distance.

@@ -19,11 +19,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .boundary import boundary_distance_matrix
+from .boundary import boundary_distance_matrix, boundary_distance_pairs
 
 __all__ = ["NeighbourIndex", "METHODS", "search", "search_rows"]
 
-METHODS = ("brute",)
+METHODS = ("bound", "brute")
+
+#: Relative safety margins of the single-precision lower bound (its rounding error is far
+#: smaller: ~r × 6e-8 of the squared norms for r projected features, ~2K × 6e-8 for Σ|a||b|).
+_MARGIN_SQ = 1e-5
+_MARGIN_C = 1e-5
+_MARGIN_LB = 1e-6
+#: Principal components of the features kept for the bound (or fewer, when they hold all but
+#: 1e-4 of the variance): a projection never lengthens a difference, so the bound stays valid.
+_MAX_COMPONENTS = 32
+#: Candidates evaluated exactly in the first round, per query: max(2 k, k + 16).
 
 
 @dataclass(frozen=True)
@@ -47,6 +57,8 @@ class NeighbourIndex:
     outline: np.ndarray | None
     boundary_weight: float
     valid: np.ndarray
+    bound_rows: np.ndarray | None = None
+    bound_cols: np.ndarray | None = None
 
     @classmethod
     def build(cls, features: np.ndarray, outline: np.ndarray | None,
@@ -63,10 +75,136 @@ class NeighbourIndex:
             if a.shape[0] != len(f):
                 raise InputError(f"{len(f)} feature rows but {a.shape[0]} outlines")
             valid &= np.isfinite(a).all(axis=1)
-        return cls(f, a, float(boundary_weight), valid)
+        lam = float(boundary_weight)
+        rows, cols = _bound_arrays(np.where(valid[:, None], f, 0.0),
+                                   None if a is None else np.where(valid[:, None], a, 0), lam)
+        return cls(f, a, lam, valid, rows, cols)
 
     def __len__(self) -> int:
         return len(self.features)
+
+
+def _bound_arrays(f: np.ndarray, a: np.ndarray | None,
+                  lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """Single-precision rows and columns whose products give the two parts of the lower bound
+    by one matrix product each (see :func:`_lower_bound`): for the SDF term
+    [x, (1 − m)|x|², 1] · [−2y, 1, (1 − m)|y|²] = (1 − m)(|x|² + |y|²) − 2 x·y ≤ |x − y|²
+    on centred, projected features x, y; for the boundary term [λ|a|, λ m] · [|b|, 1] =
+    λ (Σ|a||b| + m) ≥ λ C (docs/design.md §2.9, :func:`.boundary.boundary_lower_bound`)."""
+    n = len(f)
+    x = f - f.mean(axis=0) if n else f
+    if n > 1 and x.shape[1] > 1:
+        cov = x.T @ x
+        vals, vecs = np.linalg.eigh(cov)
+        vals, vecs = vals[::-1], vecs[:, ::-1]
+        total = max(vals.sum(), 1e-300)
+        r = int(np.searchsorted(np.cumsum(vals) / total, 1 - 1e-4) + 1)
+        x = x @ vecs[:, : min(r, _MAX_COMPONENTS, x.shape[1])]
+    sq = np.einsum("ij,ij->i", x, x) * (1 - _MARGIN_SQ)
+    one = np.ones((n, 1))
+    rows = [x, sq[:, None], one]
+    cols = [-2 * x, one, sq[:, None]]
+    if lam:
+        mag = np.abs(a)
+        rows += [lam * mag, np.full((n, 1), lam * _MARGIN_C)]
+        cols += [mag, one]
+    return (np.ascontiguousarray(np.hstack(rows), np.float32),
+            np.ascontiguousarray(np.hstack(cols), np.float32))
+
+
+def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    """LB ≤ D for the queries ``rows`` against all objects (len(rows), n), float32:
+    sqrt of the projected squared distance (with its margin) plus λ sqrt(1 − min(1, Σ|a||b|)²);
+    inf for itself and for invalid objects."""
+    d = index.features.shape[0]
+    q, c = index.bound_rows[rows], index.bound_cols
+    w = c.shape[1] - (0 if not index.boundary_weight else index.outline.shape[1] + 1)
+    lam = np.float32(index.boundary_weight)
+    out = np.empty((len(rows), d), np.float32)
+    for j0 in range(0, d, chunk):
+        j1 = min(j0 + chunk, d)
+        o = out[:, j0:j1]
+        np.matmul(q[:, :w], c[j0:j1, :w].T, out=o)
+        np.maximum(o, 0, out=o)
+        np.sqrt(o, out=o)
+        if lam:
+            b = q[:, w:] @ c[j0:j1, w:].T  # λ (Σ|a||b| + margin)
+            np.minimum(b, lam, out=b)
+            b *= b
+            np.subtract(lam * lam, b, out=b)
+            np.sqrt(b, out=b)
+            o += b
+    out[:, ~index.valid] = np.inf
+    out[np.arange(len(rows)), rows] = np.inf
+    return out
+
+
+def _exact_pairs(index: NeighbourIndex, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
+    """D for the pairs (ii, jj), in double precision; each pair in the orientation that
+    :func:`.distances.distance_matrix` computes (smaller row first)."""
+    lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
+    out = np.empty(len(ii))
+    f = index.features
+    step = 32768
+    for p0 in range(0, len(ii), step):
+        p1 = min(p0 + step, len(ii))
+        diff = f[lo[p0:p1]] - f[hi[p0:p1]]
+        out[p0:p1] = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    if index.boundary_weight:
+        out += index.boundary_weight * boundary_distance_pairs(index.outline[lo],
+                                                               index.outline[hi])
+    return out
+
+
+def _bound_rows(index: NeighbourIndex, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Exact search by the lower bound: the queries' bound against all objects, the
+    m = max(2k, k + 16) smallest evaluated exactly; where the k-th exact distance is above
+    the (m + 1)-th bound, also every object whose bound is below it. Nothing left out can be
+    nearer: its bound, hence its distance, is at least the k-th distance found."""
+    lb = _lower_bound(index, rows)
+    n_ok = np.isfinite(lb).sum(axis=1)
+    m = min(max(2 * k, k + 16), lb.shape[1] - 1)
+    thr = np.partition(lb, m, axis=1)[:, m]  # every object outside lb < thr has lb ≥ thr
+    ri, cj = np.nonzero(lb < thr[:, None])
+    dist = _exact_pairs(index, rows[ri], cj)
+    kth = _kth_per_row(ri, dist, len(rows), k)
+    more = np.flatnonzero((kth >= thr * (1 - _MARGIN_LB)) & (n_ok > 0))
+    if more.size:
+        sub = lb[more]
+        r2, c2 = np.nonzero((sub >= thr[more, None])
+                            & (sub * (1 - _MARGIN_LB) <= kth[more, None]))
+        r2 = more[r2]
+        d2 = _exact_pairs(index, rows[r2], c2)
+        ri, cj, dist = np.concatenate([ri, r2]), np.concatenate([cj, c2]), \
+            np.concatenate([dist, d2])
+    return _top_k_sparse(ri, cj, dist, len(rows), k)
+
+
+def _kth_per_row(ri: np.ndarray, dist: np.ndarray, n_rows: int, k: int) -> np.ndarray:
+    """The k-th smallest ``dist`` of each row (inf where a row has fewer than k)."""
+    order = np.lexsort((dist, ri))
+    start = np.searchsorted(ri[order], np.arange(n_rows))
+    count = np.bincount(ri, minlength=n_rows)
+    out = np.full(n_rows, np.inf)
+    ok = count >= k
+    out[ok] = dist[order[start[ok] + k - 1]]
+    return out
+
+
+def _top_k_sparse(ri: np.ndarray, cj: np.ndarray, dist: np.ndarray, n_rows: int,
+                  k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest of each row among candidate triples (row, column, distance), nearest
+    first, equal distances by column; padded with -1 / inf."""
+    order = np.lexsort((cj, dist, ri))
+    ri, cj, dist = ri[order], cj[order], dist[order]
+    start = np.searchsorted(ri, np.arange(n_rows))
+    rank = np.arange(len(ri)) - start[ri]
+    keep = rank < k
+    idx = np.full((n_rows, k), -1, np.intp)
+    out = np.full((n_rows, k), np.inf)
+    idx[ri[keep], rank[keep]] = cj[keep]
+    out[ri[keep], rank[keep]] = dist[keep]
+    return idx, out
 
 
 def check_k(k: int, n: int) -> int:
@@ -143,7 +281,7 @@ def search_rows(index: NeighbourIndex, rows: np.ndarray, k: int,
     rows = np.asarray(rows, np.intp)
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    idx, dist = _brute_rows(index, rows, k)
+    idx, dist = (_brute_rows if method == "brute" else _bound_rows)(index, rows, k)
     bad = ~index.valid[rows]
     idx[bad] = -1
     dist[bad] = np.nan
@@ -155,7 +293,7 @@ def blocks(n: int, block: int) -> list[np.ndarray]:
     return [np.arange(i, min(i + block, n)) for i in range(0, n, block)]
 
 
-def search(index: NeighbourIndex, k: int, *, method: str = "brute",
+def search(index: NeighbourIndex, k: int, *, method: str = "bound",
            block: int = 512) -> tuple[np.ndarray, np.ndarray]:
     """Neighbours of every object of ``index`` (:func:`search_rows` over row blocks)."""
     k = check_k(k, len(index))
