@@ -1,11 +1,14 @@
 """nearest_neighbours (issue 23): the k nearest objects under the default distance, checked
 against an independent reference, ``np.argsort`` of ``distance_matrix``'s rows."""
 
+import time
+
 import numpy as np
 import pytest
 
 import napari_pfsdm as pf
 from napari_pfsdm.analysis.features import iter_objects
+from napari_pfsdm.analysis.neighbours import neighbour_index
 from napari_pfsdm.core import neighbours as core_nn
 from napari_pfsdm.core.boundary import (
     boundary_distance_matrix,
@@ -139,7 +142,7 @@ def test_the_lower_bound_is_below_the_distance(blobs, rng):
     assert (lb <= d_b + 1e-7).all()
     assert np.median(lb[np.triu_indices(len(every), 1)]) > 0.2 * np.median(d_b)  # not trivial
     # the search's own single-precision bound of the whole distance, on random pairs
-    index = pf.analysis.neighbours.neighbour_index(results)
+    index = neighbour_index(results)
     rows = rng.choice(len(results), 40, replace=False)
     bound = core_nn._lower_bound(index, rows).astype(float)
     d = pf.distance_matrix(results)[rows]
@@ -155,3 +158,40 @@ def test_boundary_distance_pairs_are_the_matrix_entries(blobs, rng):
     i, j = rng.integers(0, len(a), (2, 500))
     i, j = np.minimum(i, j), np.maximum(i, j)
     np.testing.assert_allclose(boundary_distance_pairs(a[i], a[j]), d_b[i, j], atol=1e-7)
+
+
+def test_dask_schedulers_and_a_local_cluster_give_the_local_neighbours(blobs):
+    distributed = pytest.importorskip("distributed")
+    results, table = blobs
+    idx, dist = pf.nearest_neighbours(table, K, n_jobs=1)
+    with distributed.LocalCluster(n_workers=2, processes=False, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        got = pf.nearest_neighbours(table, K, client=client, block=50)  # 4 tasks
+        for _ in range(100):  # the scattered index and the blocks are released (async)
+            if not client.who_has():
+                break
+            time.sleep(0.05)
+        assert not client.who_has()
+        again = pf.nearest_neighbours(results, K, scheduler=cluster.scheduler_address,
+                                      block=64)
+    sync = pf.nearest_neighbours(table, K, scheduler="sync", block=70)
+    for other in (got, again, sync):
+        np.testing.assert_array_equal(other[0], idx)
+        # blocks group the exact pairs differently: single-precision coarse searches may
+        # differ in the last bit, the refined distances by ~1e-15
+        np.testing.assert_allclose(other[1], dist, rtol=0, atol=1e-12)
+
+
+def test_volumes_by_shells_and_surface_term(rng):
+    from napari_pfsdm.data.volumes import blob_volume, random_rotation
+
+    vols = [blob_volume(name, size=40, radius=10, rotation=random_rotation(rng))
+            for name in ("tetrahedron", "line", "tetrahedron", "line", "tetrahedron")]
+    results = [pf.pfsdm(v) for v in vols]
+    idx, dist = pf.nearest_neighbours(results, 2)
+    ref_idx, ref_d = reference(pf.distance_matrix(results), 2)
+    np.testing.assert_array_equal(idx, ref_idx)
+    np.testing.assert_allclose(dist, ref_d, atol=1e-7)
+    with pytest.raises(InputError, match="boundary_weight"):
+        pf.nearest_neighbours(results, 2, boundary_weight=1.0)
