@@ -61,6 +61,16 @@ def test_neighbours_are_the_sorted_rows_of_the_distance_matrix(blobs, method):
     assert (np.diff(dist, axis=1) >= 0).all()
 
 
+def test_a_small_pool_falls_back_to_every_object(blobs, monkeypatch):
+    results, _ = blobs
+    d = pf.distance_matrix(results)
+    monkeypatch.setattr(core_nn, "_POOL", 1)  # pools of 2k = 20: many queries need more
+    ref_idx, ref_d = reference(d, K)
+    idx, dist = pf.nearest_neighbours(results, K)
+    np.testing.assert_array_equal(idx, ref_idx)
+    np.testing.assert_allclose(dist, ref_d, rtol=0, atol=1e-7)
+
+
 def test_boundary_weight_and_intensity_weight_reach_the_distance(blobs):
     results, _ = blobs
     for lam, w_i in [(0.5, 0.0), (0.0, 0.0), (1.0, 0.7)]:
@@ -176,7 +186,8 @@ def test_dask_schedulers_and_a_local_cluster_give_the_local_neighbours(blobs):
         again = pf.nearest_neighbours(results, K, scheduler=cluster.scheduler_address,
                                       block=64)
     sync = pf.nearest_neighbours(table, K, scheduler="sync", block=70)
-    for other in (got, again, sync):
+    threads = pf.nearest_neighbours(table, K, n_jobs=2, block=30)
+    for other in (got, again, sync, threads):
         np.testing.assert_array_equal(other[0], idx)
         # blocks group the exact pairs differently: single-precision coarse searches may
         # differ in the last bit, the refined distances by ~1e-15

@@ -14,6 +14,7 @@ intensity channel appended with the factor √w_I), d_B the outline's full Procr
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +113,21 @@ def _bound_arrays(f: np.ndarray, a: np.ndarray | None,
             np.ascontiguousarray(np.hstack(cols), np.float32))
 
 
-def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 4096) -> np.ndarray:
+_WORKSPACE = threading.local()
+
+
+def _buffer(name: str, shape: tuple[int, int]) -> np.ndarray:
+    """A float32 array of ``shape`` re-used by the same thread from block to block (fresh
+    100 MB arrays cost as much in page faults as the arithmetic on them)."""
+    size = shape[0] * shape[1]
+    flat = getattr(_WORKSPACE, name, None)
+    if flat is None or flat.size < size:
+        flat = np.empty(size, np.float32)
+        setattr(_WORKSPACE, name, flat)
+    return flat[:size].reshape(shape)
+
+
+def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 1024) -> np.ndarray:
     """LB ≤ D for the queries ``rows`` against all objects (len(rows), n), float32:
     sqrt of the projected squared distance (with its margin) plus λ sqrt(1 − min(1, Σ|a||b|)²);
     inf for itself and for invalid objects."""
@@ -120,11 +135,10 @@ def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 4096) -> 
     q, c = index.bound_rows[rows], index.bound_cols
     w = c.shape[1] - (0 if not index.boundary_weight else index.outline.shape[1] + 1)
     lam = np.float32(index.boundary_weight)
-    out = np.empty((len(rows), d), np.float32)
+    out = _buffer("bound", (len(rows), d))
     for j0 in range(0, d, chunk):
         j1 = min(j0 + chunk, d)
-        o = out[:, j0:j1]
-        np.matmul(q[:, :w], c[j0:j1, :w].T, out=o)
+        o = q[:, :w] @ c[j0:j1, :w].T  # contiguous, small enough to stay in cache
         np.maximum(o, 0, out=o)
         np.sqrt(o, out=o)
         if lam:
@@ -134,6 +148,7 @@ def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 4096) -> 
             np.subtract(lam * lam, b, out=b)
             np.sqrt(b, out=b)
             o += b
+        out[:, j0:j1] = o
     out[:, ~index.valid] = np.inf
     out[np.arange(len(rows)), rows] = np.inf
     return out
@@ -145,7 +160,7 @@ def _exact_pairs(index: NeighbourIndex, ii: np.ndarray, jj: np.ndarray) -> np.nd
     lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
     out = np.empty(len(ii))
     f = index.features
-    step = 32768
+    step = 4096  # temporaries of a few MB: re-used by malloc, no page faults
     for p0 in range(0, len(ii), step):
         p1 = min(p0 + step, len(ii))
         diff = f[lo[p0:p1]] - f[hi[p0:p1]]
@@ -156,28 +171,70 @@ def _exact_pairs(index: NeighbourIndex, ii: np.ndarray, jj: np.ndarray) -> np.nd
     return out
 
 
+#: Objects of smallest bound kept per query for the rounds (the rest is looked at again only
+#: for a query whose k-th distance is above its pool's largest bound).
+_POOL = 1024
+
+
 def _bound_rows(index: NeighbourIndex, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Exact search by the lower bound: the queries' bound against all objects, the
-    m = max(2k, k + 16) smallest evaluated exactly; where the k-th exact distance is above
-    the (m + 1)-th bound, also every object whose bound is below it. Nothing left out can be
+    """Exact search by the lower bound, in rounds: the queries' bound LB against all objects,
+    a pool of the ``_POOL`` smallest per query sorted by LB; round r computes D exactly for
+    pool ranks 2^r·2k … 2^(r+1)·2k whose LB is at most the k-th distance found so far; a
+    query is done when its k-th distance is below its next LB. Nothing left out can be
     nearer: its bound, hence its distance, is at least the k-th distance found."""
     lb = _lower_bound(index, rows)
-    n_ok = np.isfinite(lb).sum(axis=1)
-    m = min(max(2 * k, k + 16), lb.shape[1] - 1)
-    thr = np.partition(lb, m, axis=1)[:, m]  # every object outside lb < thr has lb ≥ thr
-    ri, cj = np.nonzero(lb < thr[:, None])
-    dist = _exact_pairs(index, rows[ri], cj)
-    kth = _kth_per_row(ri, dist, len(rows), k)
-    more = np.flatnonzero((kth >= thr * (1 - _MARGIN_LB)) & (n_ok > 0))
-    if more.size:
-        sub = lb[more]
-        r2, c2 = np.nonzero((sub >= thr[more, None])
-                            & (sub * (1 - _MARGIN_LB) <= kth[more, None]))
-        r2 = more[r2]
-        d2 = _exact_pairs(index, rows[r2], c2)
-        ri, cj, dist = np.concatenate([ri, r2]), np.concatenate([cj, c2]), \
-            np.concatenate([dist, d2])
-    return _top_k_sparse(ri, cj, dist, len(rows), k)
+    n_rows, n = lb.shape
+    safe = np.float32(1 - _MARGIN_LB)
+    size = min(max(_POOL, 2 * k), n - 1)
+    if size < n - 1:
+        work = _buffer("partition", lb.shape)
+        np.copyto(work, lb)
+        work.partition(size, axis=1)
+        edge = work[:, size].copy()  # outside the pool: LB ≥ edge
+        pr, pc = np.nonzero(lb < edge[:, None])
+    else:
+        edge = np.full(n_rows, np.inf, np.float32)
+        pr, pc = np.nonzero(np.isfinite(lb))
+    # the pool as (rows, size), sorted by LB, padded with column -1 and LB inf
+    start = np.searchsorted(pr, np.arange(n_rows))
+    slot = np.arange(len(pr)) - start[pr]
+    cols = np.full((n_rows, size), -1, np.intp)
+    vals = np.full((n_rows, size), np.inf, np.float32)
+    cols[pr, slot] = pc
+    vals[pr, slot] = lb[pr, pc]
+    order = np.argsort(vals, axis=1, kind="stable")
+    cols = np.take_along_axis(cols, order, 1)
+    vals = np.take_along_axis(vals, order, 1)
+    exact = np.full((n_rows, size), np.inf)
+    kth = np.full(n_rows, np.inf)
+    todo = np.flatnonzero(np.isfinite(vals[:, 0]))
+    lo, hi = 0, min(2 * k, size)
+    while todo.size:
+        v = vals[todo, lo:hi]
+        ri, sj = np.nonzero(v * safe <= kth[todo, None])
+        ri, sj = todo[ri], sj + lo
+        exact[ri, sj] = _exact_pairs(index, rows[ri], cols[ri, sj])
+        kth[todo] = np.partition(exact[todo, :hi], k - 1, axis=1)[:, k - 1] \
+            if hi >= k else np.inf
+        nxt = vals[todo, hi] if hi < size else edge[todo]
+        todo = todo[~(kth[todo] < nxt * safe)]
+        if hi >= size:
+            break
+        lo, hi = hi, min(2 * hi, size)
+    idx, dist = _top_k(exact, cols, k)
+    if todo.size:  # the pool was not enough (or fewer than k objects): every other object
+        sub = lb[todo]
+        r2, c2 = np.nonzero((sub >= edge[todo, None]) & (sub * safe <= kth[todo, None]))
+        r2 = todo[r2]
+        fin = np.isfinite(exact[todo])
+        r1, s1 = np.nonzero(fin)
+        r1 = todo[r1]
+        ri = np.concatenate([r1, r2])
+        cj = np.concatenate([cols[r1, s1], c2])
+        d = np.concatenate([exact[r1, s1], _exact_pairs(index, rows[r2], c2)])
+        i2, d2 = _top_k_sparse(np.searchsorted(todo, ri), cj, d, len(todo), k)
+        idx[todo], dist[todo] = i2, d2
+    return idx, dist
 
 
 def _kth_per_row(ri: np.ndarray, dist: np.ndarray, n_rows: int, k: int) -> np.ndarray:
