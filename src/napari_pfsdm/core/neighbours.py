@@ -14,16 +14,27 @@ intensity channel appended with the factor √w_I), d_B the outline's full Procr
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
-from .boundary import boundary_distance_matrix
+from .boundary import boundary_distance_matrix, boundary_distance_pairs
 
 __all__ = ["NeighbourIndex", "METHODS", "search", "search_rows"]
 
-METHODS = ("brute",)
+METHODS = ("bound", "brute")
+
+#: Relative safety margins of the single-precision lower bound (its rounding error is far
+#: smaller: ~r × 6e-8 of the squared norms for r projected features, ~2K × 6e-8 for Σ|a||b|).
+_MARGIN_SQ = 1e-5
+_MARGIN_C = 1e-5
+_MARGIN_LB = 1e-6
+#: Principal components of the features kept for the bound (or fewer, when they hold all but
+#: 1e-4 of the variance): a projection never lengthens a difference, so the bound stays valid.
+_MAX_COMPONENTS = 32
+#: Candidates evaluated exactly in the first round, per query: max(2 k, k + 16).
 
 
 @dataclass(frozen=True)
@@ -47,6 +58,8 @@ class NeighbourIndex:
     outline: np.ndarray | None
     boundary_weight: float
     valid: np.ndarray
+    bound_rows: np.ndarray | None = None
+    bound_cols: np.ndarray | None = None
 
     @classmethod
     def build(cls, features: np.ndarray, outline: np.ndarray | None,
@@ -63,10 +76,192 @@ class NeighbourIndex:
             if a.shape[0] != len(f):
                 raise InputError(f"{len(f)} feature rows but {a.shape[0]} outlines")
             valid &= np.isfinite(a).all(axis=1)
-        return cls(f, a, float(boundary_weight), valid)
+        lam = float(boundary_weight)
+        rows, cols = _bound_arrays(np.where(valid[:, None], f, 0.0),
+                                   None if a is None else np.where(valid[:, None], a, 0), lam)
+        return cls(f, a, lam, valid, rows, cols)
 
     def __len__(self) -> int:
         return len(self.features)
+
+
+def _bound_arrays(f: np.ndarray, a: np.ndarray | None,
+                  lam: float) -> tuple[np.ndarray, np.ndarray]:
+    """Single-precision rows and columns whose products give the two parts of the lower bound
+    by one matrix product each (see :func:`_lower_bound`): for the SDF term
+    [x, (1 − m)|x|², 1] · [−2y, 1, (1 − m)|y|²] = (1 − m)(|x|² + |y|²) − 2 x·y ≤ |x − y|²
+    on centred, projected features x, y; for the boundary term [λ|a|, λ m] · [|b|, 1] =
+    λ (Σ|a||b| + m) ≥ λ C (docs/design.md §2.9, :func:`.boundary.boundary_lower_bound`)."""
+    n = len(f)
+    x = f - f.mean(axis=0) if n else f
+    if n > 1 and x.shape[1] > 1:
+        cov = x.T @ x
+        vals, vecs = np.linalg.eigh(cov)
+        vals, vecs = vals[::-1], vecs[:, ::-1]
+        total = max(vals.sum(), 1e-300)
+        r = int(np.searchsorted(np.cumsum(vals) / total, 1 - 1e-4) + 1)
+        x = x @ vecs[:, : min(r, _MAX_COMPONENTS, x.shape[1])]
+    sq = np.einsum("ij,ij->i", x, x) * (1 - _MARGIN_SQ)
+    one = np.ones((n, 1))
+    rows = [x, sq[:, None], one]
+    cols = [-2 * x, one, sq[:, None]]
+    if lam:
+        mag = np.abs(a)
+        rows += [lam * mag, np.full((n, 1), lam * _MARGIN_C)]
+        cols += [mag, one]
+    return (np.ascontiguousarray(np.hstack(rows), np.float32),
+            np.ascontiguousarray(np.hstack(cols), np.float32))
+
+
+_WORKSPACE = threading.local()
+
+
+def _buffer(name: str, shape: tuple[int, int]) -> np.ndarray:
+    """A float32 array of ``shape`` re-used by the same thread from block to block (fresh
+    100 MB arrays cost as much in page faults as the arithmetic on them)."""
+    size = shape[0] * shape[1]
+    flat = getattr(_WORKSPACE, name, None)
+    if flat is None or flat.size < size:
+        flat = np.empty(size, np.float32)
+        setattr(_WORKSPACE, name, flat)
+    return flat[:size].reshape(shape)
+
+
+def _lower_bound(index: NeighbourIndex, rows: np.ndarray, chunk: int = 1024) -> np.ndarray:
+    """LB ≤ D for the queries ``rows`` against all objects (len(rows), n), float32:
+    sqrt of the projected squared distance (with its margin) plus λ sqrt(1 − min(1, Σ|a||b|)²);
+    inf for itself and for invalid objects."""
+    d = index.features.shape[0]
+    q, c = index.bound_rows[rows], index.bound_cols
+    w = c.shape[1] - (0 if not index.boundary_weight else index.outline.shape[1] + 1)
+    lam = np.float32(index.boundary_weight)
+    out = _buffer("bound", (len(rows), d))
+    for j0 in range(0, d, chunk):
+        j1 = min(j0 + chunk, d)
+        o = q[:, :w] @ c[j0:j1, :w].T  # contiguous, small enough to stay in cache
+        np.maximum(o, 0, out=o)
+        np.sqrt(o, out=o)
+        if lam:
+            b = q[:, w:] @ c[j0:j1, w:].T  # λ (Σ|a||b| + margin)
+            np.minimum(b, lam, out=b)
+            b *= b
+            np.subtract(lam * lam, b, out=b)
+            np.sqrt(b, out=b)
+            o += b
+        out[:, j0:j1] = o
+    out[:, ~index.valid] = np.inf
+    out[np.arange(len(rows)), rows] = np.inf
+    return out
+
+
+def _exact_pairs(index: NeighbourIndex, ii: np.ndarray, jj: np.ndarray) -> np.ndarray:
+    """D for the pairs (ii, jj), in double precision; each pair in the orientation that
+    :func:`.distances.distance_matrix` computes (smaller row first)."""
+    lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
+    out = np.empty(len(ii))
+    f = index.features
+    step = 4096  # temporaries of a few MB: re-used by malloc, no page faults
+    for p0 in range(0, len(ii), step):
+        p1 = min(p0 + step, len(ii))
+        diff = f[lo[p0:p1]] - f[hi[p0:p1]]
+        out[p0:p1] = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    if index.boundary_weight:
+        out += index.boundary_weight * boundary_distance_pairs(index.outline[lo],
+                                                               index.outline[hi])
+    return out
+
+
+#: Objects of smallest bound kept per query for the rounds (the rest is looked at again only
+#: for a query whose k-th distance is above its pool's largest bound).
+_POOL = 1024
+
+
+def _bound_rows(index: NeighbourIndex, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Exact search by the lower bound, in rounds: the queries' bound LB against all objects,
+    a pool of the ``_POOL`` smallest per query sorted by LB; round r computes D exactly for
+    pool ranks 2^r·2k … 2^(r+1)·2k whose LB is at most the k-th distance found so far; a
+    query is done when its k-th distance is below its next LB. Nothing left out can be
+    nearer: its bound, hence its distance, is at least the k-th distance found."""
+    lb = _lower_bound(index, rows)
+    n_rows, n = lb.shape
+    safe = np.float32(1 - _MARGIN_LB)
+    size = min(max(_POOL, 2 * k), n - 1)
+    if size < n - 1:
+        work = _buffer("partition", lb.shape)
+        np.copyto(work, lb)
+        work.partition(size, axis=1)
+        edge = work[:, size].copy()  # outside the pool: LB ≥ edge
+        pr, pc = np.nonzero(lb < edge[:, None])
+    else:
+        edge = np.full(n_rows, np.inf, np.float32)
+        pr, pc = np.nonzero(np.isfinite(lb))
+    # the pool as (rows, size), sorted by LB, padded with column -1 and LB inf
+    start = np.searchsorted(pr, np.arange(n_rows))
+    slot = np.arange(len(pr)) - start[pr]
+    cols = np.full((n_rows, size), -1, np.intp)
+    vals = np.full((n_rows, size), np.inf, np.float32)
+    cols[pr, slot] = pc
+    vals[pr, slot] = lb[pr, pc]
+    order = np.argsort(vals, axis=1, kind="stable")
+    cols = np.take_along_axis(cols, order, 1)
+    vals = np.take_along_axis(vals, order, 1)
+    exact = np.full((n_rows, size), np.inf)
+    kth = np.full(n_rows, np.inf)
+    todo = np.flatnonzero(np.isfinite(vals[:, 0]))
+    lo, hi = 0, min(2 * k, size)
+    while todo.size:
+        v = vals[todo, lo:hi]
+        ri, sj = np.nonzero(v * safe <= kth[todo, None])
+        ri, sj = todo[ri], sj + lo
+        exact[ri, sj] = _exact_pairs(index, rows[ri], cols[ri, sj])
+        kth[todo] = np.partition(exact[todo, :hi], k - 1, axis=1)[:, k - 1] \
+            if hi >= k else np.inf
+        nxt = vals[todo, hi] if hi < size else edge[todo]
+        todo = todo[~(kth[todo] < nxt * safe)]
+        if hi >= size:
+            break
+        lo, hi = hi, min(2 * hi, size)
+    idx, dist = _top_k(exact, cols, k)
+    if todo.size:  # the pool was not enough (or fewer than k objects): every other object
+        sub = lb[todo]
+        r2, c2 = np.nonzero((sub >= edge[todo, None]) & (sub * safe <= kth[todo, None]))
+        r2 = todo[r2]
+        fin = np.isfinite(exact[todo])
+        r1, s1 = np.nonzero(fin)
+        r1 = todo[r1]
+        ri = np.concatenate([r1, r2])
+        cj = np.concatenate([cols[r1, s1], c2])
+        d = np.concatenate([exact[r1, s1], _exact_pairs(index, rows[r2], c2)])
+        i2, d2 = _top_k_sparse(np.searchsorted(todo, ri), cj, d, len(todo), k)
+        idx[todo], dist[todo] = i2, d2
+    return idx, dist
+
+
+def _kth_per_row(ri: np.ndarray, dist: np.ndarray, n_rows: int, k: int) -> np.ndarray:
+    """The k-th smallest ``dist`` of each row (inf where a row has fewer than k)."""
+    order = np.lexsort((dist, ri))
+    start = np.searchsorted(ri[order], np.arange(n_rows))
+    count = np.bincount(ri, minlength=n_rows)
+    out = np.full(n_rows, np.inf)
+    ok = count >= k
+    out[ok] = dist[order[start[ok] + k - 1]]
+    return out
+
+
+def _top_k_sparse(ri: np.ndarray, cj: np.ndarray, dist: np.ndarray, n_rows: int,
+                  k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest of each row among candidate triples (row, column, distance), nearest
+    first, equal distances by column; padded with -1 / inf."""
+    order = np.lexsort((cj, dist, ri))
+    ri, cj, dist = ri[order], cj[order], dist[order]
+    start = np.searchsorted(ri, np.arange(n_rows))
+    rank = np.arange(len(ri)) - start[ri]
+    keep = rank < k
+    idx = np.full((n_rows, k), -1, np.intp)
+    out = np.full((n_rows, k), np.inf)
+    idx[ri[keep], rank[keep]] = cj[keep]
+    out[ri[keep], rank[keep]] = dist[keep]
+    return idx, out
 
 
 def check_k(k: int, n: int) -> int:
@@ -143,7 +338,7 @@ def search_rows(index: NeighbourIndex, rows: np.ndarray, k: int,
     rows = np.asarray(rows, np.intp)
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    idx, dist = _brute_rows(index, rows, k)
+    idx, dist = (_brute_rows if method == "brute" else _bound_rows)(index, rows, k)
     bad = ~index.valid[rows]
     idx[bad] = -1
     dist[bad] = np.nan
@@ -155,7 +350,7 @@ def blocks(n: int, block: int) -> list[np.ndarray]:
     return [np.arange(i, min(i + block, n)) for i in range(0, n, block)]
 
 
-def search(index: NeighbourIndex, k: int, *, method: str = "brute",
+def search(index: NeighbourIndex, k: int, *, method: str = "bound",
            block: int = 512) -> tuple[np.ndarray, np.ndarray]:
     """Neighbours of every object of ``index`` (:func:`search_rows` over row blocks)."""
     k = check_k(k, len(index))
