@@ -155,16 +155,20 @@ def test_neighbours_refuses_what_it_cannot_do(features, tmp_path, capsys):
 def test_the_map_comes_from_the_graph_above_the_limit(features, tmp_path, capsys,
                                                       monkeypatch):
     monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 5)
+    monkeypatch.setattr(cli, "TSNE_SLOW", 10)  # 12 objects: "slow", suggest UMAP
     png = tmp_path / "map.png"
     assert main(["compare", str(features), "--neighbours", "3", "-o",
                  str(tmp_path / "e.csv"), "--mds", str(png)]) == 0
-    said = capsys.readouterr().out
-    assert "t-SNE map of the 11-nearest-neighbour graph, not MDS" in said
+    said = capsys.readouterr()
+    assert "t-SNE map of the 11-nearest-neighbour graph, not MDS" in said.out
+    assert "--map umap" in said.err
     assert png.stat().st_size > 1000
     # without --neighbours too: the map of the full matrix's graph
     assert main(["compare", str(features), "-o", str(tmp_path / "d.csv"), "--mds",
-                 str(tmp_path / "m2.png")]) == 0
-    assert "not MDS" in capsys.readouterr().out
+                 str(tmp_path / "m2.png"), "--map", "spectral"]) == 0
+    said = capsys.readouterr()
+    assert "spectral embedding map of the 11-nearest-neighbour graph, not MDS" in said.out
+    assert "--map umap" not in said.err
     monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 2000)
     assert main(["compare", str(features), "--neighbours", "3", "-o",
                  str(tmp_path / "e2.csv"), "--mds", str(tmp_path / "m3.png")]) == 0

@@ -344,6 +344,9 @@ def _select_frames(table, frames: str | None):
 FULL_MATRIX_LIMIT = 2000
 #: Neighbours per object of the graph a map is drawn from (benchmarks/neighbour_maps.py).
 MAP_NEIGHBOURS = 15
+#: Above this many objects a t-SNE map takes minutes (10,000: 33 s, 50,000: 474 s measured
+#: here; UMAP 20 s and 47 s): the output suggests --map umap.
+TSNE_SLOW = 10_000
 #: Column that carries a row's position in the feature file through the selections.
 _FILE_ROW = "_pfsdm_file_row"
 
@@ -413,6 +416,9 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
         graph = _graph_of_matrix(matrix, k)
     idx, dist = graph[0][:, :k], graph[1][:, :k]
     name = _MAP_NAMES[args.map]
+    if args.map == "tsne" and n > TSNE_SLOW:
+        _note(f"t-SNE of {n:,} objects takes minutes (50,000: ~8 min here); --map umap "
+              "draws it in under a minute (pip install \"napari-pfsdm[umap]\")", args.quiet)
     with _Step(f"drawing the 2-D map of {n:,} objects from their {k} nearest neighbours "
                f"({name})", args.quiet):
         coords = graph_coordinates(idx, dist, args.map)
