@@ -105,3 +105,71 @@ def test_transduction_reranking_by_hand():
     f = np.linalg.inv(np.eye(4) - 0.9 * s[:, None] * w0 * s[None, :])
     want = 1 - np.clip(f / np.sqrt(np.outer(np.diag(f), np.diag(f))), 0, 1) + tie
     np.testing.assert_allclose(rerank(d, "transduction", k=2), want, rtol=1e-10, atol=1e-12)
+
+
+# ---- the same on a neighbour graph (napari_pfsdm.analysis.rerank.rerank_neighbours) ----------
+
+def _blobs(n_per=60, classes=5, seed=1):
+    rng = np.random.default_rng(seed)
+    pts = np.vstack([rng.normal(size=(n_per, 4)) * 0.6 + 3 * c for c in range(classes)])
+    return np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1))
+
+
+def _graph_of(d, K):
+    """The exact K-neighbour graph, built independently of the code under test."""
+    order = np.argsort(d + np.diag(np.full(len(d), np.inf)), axis=1)[:, :K]
+    return order, np.take_along_axis(d, order, axis=1)
+
+
+@pytest.mark.parametrize("method", ["diffusion", "mutual"])
+def test_rerank_neighbours_is_the_full_route_restricted_to_the_graph(method):
+    """Overlapping blobs (300 points): every re-ranked distance returned is the full route's
+    value for that pair; wherever the result says exact, its 10 neighbours are the full route's
+    10 nearest (argsort of rerank(d)), and with K = 30 that is at least 90 % of the objects
+    (measured: 98 % diffusion, 95 % mutual)."""
+    from napari_pfsdm.analysis.rerank import rerank_neighbours
+
+    d = _blobs()
+    n = len(d)
+    med = float(np.median(d[~np.eye(n, dtype=bool)]))
+    full = rerank(d, method, k=10)
+    full_order = np.argsort(full + np.diag(np.full(n, np.inf)), axis=1)[:, :10]
+    idx, dist, exact = rerank_neighbours(*_graph_of(d, 30), method, k=10, scale=med,
+                                         n_neighbours=10, return_exact=True)
+    np.testing.assert_allclose(dist, np.take_along_axis(full, idx, axis=1), rtol=1e-12)
+    assert np.all(np.diff(dist, axis=1) >= 0)
+    assert exact.mean() >= 0.9
+    np.testing.assert_array_equal(idx[exact], full_order[exact])
+    # the whole graph (K = n - 1): every object exact and equal
+    idx, dist, exact = rerank_neighbours(*_graph_of(d, n - 1), method, k=10, scale=med,
+                                         n_neighbours=10, return_exact=True)
+    assert exact.all()
+    np.testing.assert_array_equal(idx, full_order)
+
+
+def test_rerank_neighbours_follows_chains_like_the_full_route():
+    """The chains of test_rerank_follows_chains, from a 12-neighbour graph: 95 % own chain."""
+    from napari_pfsdm.analysis.rerank import rerank_neighbours
+
+    t = np.linspace(0, 12, 40)
+    pts = np.vstack([np.column_stack([t, np.zeros_like(t)]),
+                     np.column_stack([t, np.full_like(t, 0.7)])])
+    labels = np.repeat([0, 1], 40)
+    d = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1))
+    idx, _ = rerank_neighbours(*_graph_of(d, 12), k=4, n_neighbours=6)
+    plain = _graph_of(d, 6)[0]
+    assert (labels[plain] == labels[:, None]).mean() < 0.7
+    assert (labels[idx] == labels[:, None]).mean() > 0.9
+
+
+def test_rerank_neighbours_refuses_what_it_cannot_do():
+    from napari_pfsdm.analysis.rerank import rerank_neighbours
+
+    d = _blobs(10, 2)
+    idx, dist = _graph_of(d, 5)
+    with pytest.raises(ValueError, match="full matrix"):
+        rerank_neighbours(idx, dist, "transduction", k=5)
+    with pytest.raises(ValueError, match="needs at least 8"):
+        rerank_neighbours(idx, dist, k=8)
+    with pytest.raises(ValueError, match="exclude each object"):
+        rerank_neighbours(np.c_[np.arange(20), idx[:, 1:]], dist, k=3)

@@ -37,6 +37,7 @@ _EXPORTS: dict[str, tuple[str, str]] = {
     "drop_failed": (".analysis.features", "drop_failed"),
     "iter_objects": (".analysis.features", "iter_objects"),
     "measure": (".analysis.features", "measure"),
+    "nearest_neighbours": (".analysis.neighbours", "nearest_neighbours"),
     "check_tracking": (".analysis.tracking", "check_tracking"),
     "link": (".analysis.tracking", "link"),
     "track_ids_from_tracks": (".analysis.tracking", "track_ids_from_tracks"),
@@ -61,6 +62,7 @@ __all__ = [
     "iter_objects",
     "link",
     "measure",
+    "nearest_neighbours",
     "pfsdm",
     "read_table",
     "render_disk",
@@ -90,6 +92,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .analysis.features import ObjectResult, drop_failed, iter_objects, measure
+    from .analysis.neighbours import nearest_neighbours
     from .analysis.rerank import rerank
     from .analysis.tables import distance_matrix, embeddings_from_table, weighted_features
     from .analysis.tracking import check_tracking, link, track_ids_from_tracks

@@ -11,6 +11,12 @@ A table written by :func:`write_table_csv` is two files::
 with its index) reads back the same, as long as the sidecar travels with it. Tables of older
 versions, which carried the options in a first ``# pfsdm: {json}`` comment line, still read.
 
+A name ending in ``.parquet`` is written (and read) as Apache Parquet instead, with the same
+sidecar (``features.parquet.json``): the columns and their dtypes come back exactly as written,
+and reading or writing 50,000 rows x 350 columns takes a fraction of a second where CSV takes
+seconds (docs/benchmarks.md). It needs pyarrow: ``pip install "napari-pfsdm[parquet]"``.
+A Parquet file is recognised by its first bytes too, whatever its name.
+
 Writing is atomic: each file goes to a temporary file in the same folder which then replaces
 the target in one step, so an error or a killed process never leaves a half-written file. The
 files get the permissions of any new file (``0o666`` less the umask), not the ``0o600`` of a
@@ -37,9 +43,11 @@ from .errors import InputError
 
 __all__ = [
     "HEADER_PREFIX",
+    "PARQUET_INSTALL",
     "SIDECAR_SUFFIX",
     "atomic_write",
     "check_overwrite",
+    "is_parquet",
     "read_options",
     "read_sidecar",
     "read_table_csv",
@@ -62,6 +70,34 @@ SIDECAR_SUFFIX = ".json"
 PNG_SOFTWARE = "napari-pfsdm"
 
 _UMASK_LOCK = threading.Lock()
+
+#: What to install for Parquet tables (the ``parquet`` extra: pyarrow).
+PARQUET_INSTALL = 'pip install "napari-pfsdm[parquet]"'
+
+
+def is_parquet(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is (to be) a Parquet table: its name ends in ``.parquet``, or the file
+    exists and starts with Parquet's magic bytes ``PAR1``."""
+    path = Path(path)
+    if path.suffix.lower() == ".parquet":
+        return True
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(4) == b"PAR1"
+    except OSError:
+        return False
+
+
+def _pyarrow(path: Path, doing: str) -> Any:
+    try:
+        import pyarrow
+        import pyarrow.parquet  # noqa: F401
+    except ImportError:
+        raise InputError(
+            f"{doing} {path} as Parquet needs the pyarrow package, which is not installed: "
+            f"{PARQUET_INSTALL} (or use a .csv name)"
+        ) from None
+    return pyarrow
 
 
 def _version() -> str:
@@ -191,7 +227,10 @@ def write_table_csv(
     table_type: str = "table",
     extra: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write a table as plain CSV plus its JSON sidecar (``path + ".json"``).
+    """Write a table as plain CSV (or Parquet) plus its JSON sidecar (``path + ".json"``).
+
+    A ``path`` ending in ``.parquet`` writes Apache Parquet (pyarrow, the ``parquet`` extra)
+    with the same sidecar; :func:`read_table_csv` reads either back.
 
     Parameters
     ----------
@@ -240,8 +279,18 @@ def write_table_csv(
     out = plain(df)  # pandas must not try to serialise attrs itself
 
     path = Path(path)
-    # the table first into a temporary file: if that fails, neither file has changed
-    tmp = _write_temp(path, lambda h: out.to_csv(h, index=index, lineterminator="\n"))
+    if is_parquet(path):
+        _pyarrow(path, "writing")
+        side["format"] = "parquet"
+        text = json.dumps(side, indent=1) + "\n"
+
+        def fill(handle: IO) -> None:
+            out.to_parquet(handle, engine="pyarrow", index=index)
+
+        tmp = _write_temp(path, fill, binary=True)
+    else:
+        # the table first into a temporary file: if that fails, neither file has changed
+        tmp = _write_temp(path, lambda h: out.to_csv(h, index=index, lineterminator="\n"))
     try:
         atomic_write(sidecar_path(path), lambda h: h.write(text))
         os.replace(tmp, path)
@@ -321,6 +370,10 @@ _NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan
 def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
+    A Parquet table (a ``.parquet`` name, or a file starting with Parquet's magic bytes) is read
+    with pyarrow: every column and dtype as written (``index_col`` is not needed: the index a
+    table was written with comes back); the rest of this note is about CSV.
+
     Floats are parsed so that they round-trip exactly; the text columns (``movie``,
     ``group``, ``error``, ``warnings``: :data:`TEXT_COLUMNS`) come back as the strings written
     (``"001"`` stays ``"001"``, ``"NA"`` stays ``"NA"``) with ``""`` for empty cells,
@@ -339,6 +392,8 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     path = Path(path)
     if not path.exists():
         raise InputError(f"cannot read {path}: no such file")
+    if path.is_file() and is_parquet(path):
+        return _read_parquet(path)
     what = _looks_binary(path)
     if what is not None:
         raise InputError(f"{path} is {what}, not a CSV table")
@@ -376,6 +431,20 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
             df[TRACK_COLUMN] = tracks.astype(np.int64)
     if side_options is not None:
         set_options(df, side_options)
+    return df
+
+
+def _read_parquet(path: Path) -> pd.DataFrame:
+    """A Parquet table with its sidecar's options: the columns and dtypes as written."""
+    _pyarrow(path, "reading")
+    side = read_sidecar(path)
+    try:
+        df = pd.read_parquet(path, engine="pyarrow")
+    except Exception as exc:  # pyarrow's own errors: a damaged or truncated file
+        raise InputError(f"{path} is not a readable Parquet table ({exc})") from None
+    df.attrs = {}
+    if side is not None:
+        set_options(df, dict(side.get("options") or {}))
     return df
 
 

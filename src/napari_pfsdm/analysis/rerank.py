@@ -38,9 +38,12 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["RERANK_METHODS", "rerank"]
+__all__ = ["RERANK_METHODS", "SPARSE_RERANK_METHODS", "rerank", "rerank_neighbours"]
 
 RERANK_METHODS = ("diffusion", "mutual", "transduction")
+#: The variants :func:`rerank_neighbours` computes on a neighbour graph (transduction inverts a
+#: dense n x n matrix: it needs the full matrix).
+SPARSE_RERANK_METHODS = ("diffusion", "mutual")
 
 #: Share of the original distance (divided by its median) kept as a tie-breaker.
 TIE_BREAK = 0.01
@@ -197,3 +200,228 @@ def rerank(d: np.ndarray, method: str = "diffusion", *, k: int = 10, steps: int 
     out = 0.5 * (out + out.T)
     np.fill_diagonal(out, 0.0)
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# the same on a neighbour graph: (indices, distances) of napari_pfsdm.nearest_neighbours
+# --------------------------------------------------------------------------------------------
+
+def _check_graph(indices, distances, k: int) -> tuple[np.ndarray, np.ndarray]:
+    idx = np.asarray(indices)
+    dist = np.asarray(distances, float)
+    if idx.ndim != 2 or idx.shape != dist.shape:
+        raise InputError(f"indices and distances must be two (n, K) arrays of the same shape; "
+                         f"got {idx.shape} and {dist.shape}.")
+    n, kk = idx.shape
+    if n < 3:
+        raise InputError(f"Re-ranking needs at least 3 objects, got {n}.")
+    if isinstance(k, bool) or int(k) != k or k < 1:
+        raise InputError(f"k must be a whole number >= 1, got {k!r}.")
+    if kk < min(int(k), n - 1):
+        raise InputError(f"the graph holds {kk} neighbours per object; re-ranking with k = {k} "
+                         f"needs at least {min(int(k), n - 1)}: ask nearest_neighbours for more.")
+    if idx.dtype.kind not in "iu" or idx.min() < 0 or idx.max() >= n:
+        raise InputError(f"indices must be whole numbers in 0 … {n - 1}.")
+    if (idx == np.arange(n)[:, None]).any():
+        raise InputError("indices must exclude each object itself (as nearest_neighbours "
+                         "returns them).")
+    if not np.isfinite(dist).all() or (dist < 0).any():
+        raise InputError("The neighbour distances must be finite and >= 0.")
+    return idx.astype(np.int64), dist
+
+
+def _graph(idx: np.ndarray, values: np.ndarray, n: int, *, diagonal: float | None = None):
+    """Symmetric sparse matrix holding ``values`` on the pairs (i, idx[i, j]) and their mirror
+    images (the larger value where both are given), ``diagonal`` on the diagonal."""
+    from scipy import sparse
+
+    rows = np.repeat(np.arange(n), idx.shape[1])
+    a = sparse.coo_matrix((values.ravel(), (rows, idx.ravel())), shape=(n, n)).tocsr()
+    a = a.maximum(a.T)
+    if diagonal is not None:  # the graph holds no (i, i): self is excluded
+        a = a + sparse.identity(n, format="csr") * diagonal
+    a = a.tocsr()
+    a.sort_indices()
+    return a
+
+
+def _sparse_affinities(idx: np.ndarray, dist: np.ndarray, k: int):
+    """:func:`_knn_affinities` on the graph: the k nearest of each object (and itself) and
+    their mirror images, w_ij = exp(-d_ij² / (σ_i σ_j)), σ_i the k-th neighbour's distance."""
+    n = len(idx)
+    k = min(k, n - 1)
+    sigma = np.maximum(dist[:, k - 1], np.finfo(float).tiny)
+    ik, dk = idx[:, :k], dist[:, :k]
+    w = np.exp(-(dk**2) / (sigma[:, None] * sigma[ik]))
+    # exp(-d²/σσ) is symmetric in i, j: the mirror image of a kept pair carries the same value
+    # (the maximum only matters for distances that differ in the last bits)
+    return _graph(ik, np.maximum(w, np.finfo(float).tiny), n, diagonal=1.0)
+
+
+def _sparse_cosine(f):
+    """Cosine similarity of the rows of a sparse matrix, on the pairs whose rows overlap."""
+    from scipy import sparse
+
+    g = (f @ f.T).tocsr()
+    norm = np.sqrt(np.maximum(g.diagonal(), np.finfo(float).tiny))
+    inv = sparse.diags(1.0 / norm)
+    g = (inv @ g @ inv).tocsr()
+    g.data = np.clip(g.data, 0.0, 1.0)
+    return g
+
+
+def _sparse_diffusion(idx, dist, k: int, steps: int):
+    from scipy import sparse
+
+    w = _sparse_affinities(idx, dist, k)
+    p = (sparse.diags(1.0 / np.asarray(w.sum(axis=1)).ravel()) @ w).tocsr()
+    f = p
+    for _ in range(steps - 1):
+        f = (f @ p).tocsr()
+    return _sparse_cosine(f)
+
+
+def _sparse_mutual(idx, dist, k: int):
+    """Weighted Jaccard similarity of the mutual-neighbour rows (:func:`_mutual`)."""
+    from scipy import sparse
+
+    n = len(idx)
+    kk = min(k, n - 1)
+    one_way = sparse.coo_matrix((np.ones(n * kk), (np.repeat(np.arange(n), kk),
+                                                    idx[:, :kk].ravel())), shape=(n, n)).tocsr()
+    mutual = one_way.multiply(one_way.T).tocsr()  # i among j's k nearest and j among i's
+    w = _sparse_affinities(idx, dist, k).multiply(mutual).tocsr()
+    w = w + sparse.identity(n, format="csr")
+    w = (sparse.diags(1.0 / np.asarray(w.sum(axis=1)).ravel()) @ w).tocsc()
+    # Σ_c min(w_ic, w_jc): every pair of rows that share a column c gains min of the two
+    counts = np.diff(w.indptr)
+    start = w.indptr[:-1]
+    # all ordered pairs (a, b) of entries within each column
+    pair_col = np.repeat(np.arange(n), counts**2)
+    offs = np.arange(int((counts**2).sum())) - np.repeat(np.cumsum(counts**2) - counts**2,
+                                                          counts**2)
+    ca = np.repeat(counts, counts**2)
+    a = start[pair_col] + offs // ca
+    b = start[pair_col] + offs % ca
+    inter = sparse.coo_matrix((np.minimum(w.data[a], w.data[b]),
+                               (w.indices[a], w.indices[b])), shape=(n, n)).tocsr()
+    inter.sum_duplicates()
+    inter.data = inter.data / (2.0 - inter.data)  # Jaccard similarity = 1 - distance
+    return inter
+
+
+def rerank_neighbours(
+    indices, distances, method: str = "diffusion", *, k: int = 10, steps: int = 2,
+    scale: float | None = None, n_neighbours: int | None = None, return_exact: bool = False,
+):
+    """Re-rank a neighbour graph: :func:`rerank` without the n x n matrix.
+
+    Takes the graph of :func:`napari_pfsdm.nearest_neighbours` (each object's K nearest,
+    nearest first, itself excluded) and returns each object's neighbours re-ranked by the
+    same neighbourhood similarity as :func:`rerank` (same ``k``, ``steps``, tie-break). The
+    candidates of an object are the pairs whose distance the graph holds: its K nearest and
+    the objects that have it among theirs. Every value computed is the one :func:`rerank`
+    gives on the full matrix (when ``scale`` is that matrix's median distance); the result
+    differs from the full route's top neighbours only where the full route brings up an
+    object beyond these candidates (two steps away in the graph). ``return_exact=True``
+    says for which objects that provably cannot happen.
+
+    Parameters
+    ----------
+    indices, distances : array_like, shape (n, K)
+        The graph: K ≥ k neighbours per object, nearest first, itself excluded. Several
+        times k (e.g. K = 3k) lets more objects be certified exact.
+    method : {"diffusion", "mutual"}
+        As in :func:`rerank`; ``"transduction"`` needs the full matrix (a dense inverse).
+    k, steps : int
+        As in :func:`rerank` (k nearest of each object in the affinity graph).
+    scale : float, optional
+        The median distance between two objects of the collection, the unit of the
+        tie-break (:data:`TIE_BREAK` × d / scale) as in :func:`rerank`. Default: the median
+        of the graph's distances (smaller than the collection's median, so the tie-break
+        weighs more than in :func:`rerank`); ``pfsdm compare`` estimates it from 400
+        random objects.
+    n_neighbours : int, optional
+        Neighbours returned per object (default K).
+    return_exact : bool
+        Also return a boolean array: True where the returned neighbours are provably those
+        of :func:`rerank` on the full matrix (no object outside the candidates can score
+        below the last one returned).
+
+    Returns
+    -------
+    indices : ndarray of int64, shape (n, n_neighbours)
+    distances : ndarray, shape (n, n_neighbours)
+        The re-ranked distances (as :func:`rerank` gives them), nearest first.
+    exact : ndarray of bool, shape (n,)
+        Only with ``return_exact=True``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.r_[np.linspace(0, 1, 12), np.linspace(10, 11, 12)]
+    >>> d = np.abs(x[:, None] - x[None, :])
+    >>> order = np.argsort(d + np.diag(np.full(24, np.inf)), axis=1)[:, :15]
+    >>> idx, dist = rerank_neighbours(order, np.take_along_axis(d, order, 1), k=5,
+    ...                               scale=float(np.median(d[~np.eye(24, dtype=bool)])))
+    >>> full = rerank(d, k=5)
+    >>> bool(np.allclose(dist, np.take_along_axis(full, idx, 1)))
+    True
+    >>> bool((idx[:12, :5] < 12).all() and (idx[12:, :5] >= 12).all())
+    True
+    """
+    if method not in SPARSE_RERANK_METHODS:
+        extra = (" (its inverse is dense: it needs the full matrix, napari_pfsdm.rerank)"
+                 if method == "transduction" else "")
+        raise InputError(f"method must be one of {', '.join(SPARSE_RERANK_METHODS)} on a "
+                         f"neighbour graph; got {method!r}{extra}.")
+    if isinstance(steps, bool) or int(steps) != steps or steps < 1:
+        raise InputError(f"steps must be a whole number >= 1, got {steps!r}.")
+    idx, dist = _check_graph(indices, distances, k)
+    n, kk = idx.shape
+    m = kk if n_neighbours is None else int(n_neighbours)
+    if not 1 <= m <= kk:
+        raise InputError(f"n_neighbours must lie in 1 … {kk}, got {n_neighbours!r}.")
+    if scale is None:
+        scale = float(np.median(dist))
+    scale = float(scale)
+    if not scale > 0:
+        scale = 1.0
+    sim = (_sparse_diffusion(idx, dist, int(k), int(steps)) if method == "diffusion"
+           else _sparse_mutual(idx, dist, int(k)))
+    # the candidates: every pair whose distance the graph holds (both directions)
+    d_graph = _graph(idx, dist + 1.0, n)  # + 1: a zero distance stays a stored entry
+    d_graph.data -= 1.0
+    sim = sim.tocsr()
+    # sim on the candidate pattern: elementwise product with a pattern of ones
+    pattern = d_graph.copy()
+    pattern.data = np.ones_like(pattern.data)
+    s_cand = sim.multiply(pattern).tocsr()
+    # align s_cand with d_graph's pattern (sim may be zero: no overlap)
+    s_aligned = (pattern + s_cand).tocsr()  # 1 + sim on the pattern
+    s_aligned.sort_indices()
+    score = (1.0 - (s_aligned.data - 1.0)) + TIE_BREAK * d_graph.data / scale
+    rows = np.repeat(np.arange(n), np.diff(d_graph.indptr))
+    cols = d_graph.indices
+    order = np.lexsort((cols, score, rows))  # by row, then score, ties by index
+    counts = np.diff(d_graph.indptr)
+    first = d_graph.indptr[:-1]
+    take = first[:, None] + np.arange(m)[None, :]
+    out_idx = cols[order][take]
+    out_dist = score[order][take]
+    if not return_exact:
+        return out_idx, out_dist
+    # a non-candidate j of i has d_ij >= i's K-th distance (the graph holds i's K nearest),
+    # and its similarity is what sim holds (0 where no overlap): a lower bound of its score
+    from scipy import sparse
+
+    outside = (sim - sim.multiply(pattern)).tocsr()
+    outside = (outside - sparse.diags(outside.diagonal())).tocsr()  # itself: no candidate
+    outside.eliminate_zeros()
+    best_out = np.zeros(n)
+    if outside.nnz:
+        best_out = np.asarray(outside.max(axis=1).todense()).ravel()
+    bound = 1.0 - best_out + TIE_BREAK * dist[:, -1] / scale
+    bound[counts >= n - 1] = np.inf  # every other object is a candidate
+    exact = out_dist[:, -1] <= bound
+    return out_idx, out_dist, exact

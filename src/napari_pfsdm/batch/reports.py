@@ -118,9 +118,11 @@ def plot_trajectories(
 
 
 def plot_mds(
-    coords: np.ndarray, table: pd.DataFrame, path: str | os.PathLike, *, title: str = ""
+    coords: np.ndarray, table: pd.DataFrame, path: str | os.PathLike, *, title: str = "",
+    axis_name: str = "MDS",
 ) -> Path:
-    """Scatter of 2-D MDS coordinates, coloured by group (or frame), labelled by object."""
+    """Scatter of 2-D map coordinates (MDS, or a neighbour-graph map: ``axis_name``), coloured
+    by group (or frame), labelled by object."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
@@ -161,8 +163,8 @@ def plot_mds(
         for (x, y), oid in zip(coords, names, strict=True):
             if np.isfinite(x):
                 ax.annotate(oid, (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("MDS 1")
-    ax.set_ylabel("MDS 2")
+    ax.set_xlabel(f"{axis_name} 1")
+    ax.set_ylabel(f"{axis_name} 2")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title or "PF-SDM distances, 2-D MDS")
     save_figure(fig, path, dpi=120)

@@ -32,6 +32,8 @@ from ..errors import InputError
 __all__ = [
     "N_OUTLINE_MODES",
     "boundary_distance_matrix",
+    "boundary_distance_pairs",
+    "boundary_lower_bound",
     "normalised_modes",
     "outline_coefficients",
     "outline_modes",
@@ -195,17 +197,7 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
         ii, jj = np.triu_indices(len(a), 1)
     else:
         ii, jj = (x.ravel() for x in np.indices((len(a), len(b))))
-    v0, v1 = val[0, ii, jj], val[1, ii, jj]
-    first = v1 > v0  # the reflection with the better coarse peak is refined for every pair,
-    c = _refine(a0, b0, ii, jj, shift[first.astype(int), ii, jj], first)
-    # the other one too for near copies where single precision cannot tell them apart
-    # (mirror-symmetric outlines): there sqrt(1 − C²) magnifies the smallest difference
-    close = np.flatnonzero((np.abs(v1 - v0) < AMBIGUOUS) & (np.maximum(v0, v1) > NEAR))
-    if close.size:
-        other = ~first[close]
-        c[close] = np.maximum(c[close], _refine(a0, b0, ii[close], jj[close],
-                                                 shift[other.astype(int), ii[close], jj[close]],
-                                                 other))
+    c = _best_correlation(a0, b0, ii, jj, val[:, ii, jj], shift[:, ii, jj])
     out = np.zeros((len(a), len(b)))
     out[ii, jj] = np.sqrt(np.maximum(1.0 - c**2, 0.0))
     if same:
@@ -213,6 +205,97 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     out[~ok_a] = np.nan
     out[:, ~ok_b] = np.nan
     return out
+
+
+def _best_correlation(a0: np.ndarray, b0: np.ndarray, ii: np.ndarray, jj: np.ndarray,
+                      val: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """C for the pairs (a0[ii], b0[jj]) from the coarse peaks ``val`` (2, P) and their shifts
+    ``shift`` (2, P) of the two reflections (row 1: the mirror image)."""
+    v0, v1 = val[0], val[1]
+    first = v1 > v0  # the reflection with the better coarse peak is refined for every pair,
+    pick = np.arange(len(ii))
+    c = _refine(a0, b0, ii, jj, shift[first.astype(int), pick], first)
+    # the other one too for near copies where single precision cannot tell them apart
+    # (mirror-symmetric outlines): there sqrt(1 − C²) magnifies the smallest difference
+    close = np.flatnonzero((np.abs(v1 - v0) < AMBIGUOUS) & (np.maximum(v0, v1) > NEAR))
+    if close.size:
+        other = ~first[close]
+        c[close] = np.maximum(c[close], _refine(a0, b0, ii[close], jj[close],
+                                                 shift[other.astype(int), close], other))
+    return c
+
+
+def boundary_distance_pairs(coefs: np.ndarray, others: np.ndarray, *,
+                            chunk: int = 8192) -> np.ndarray:
+    """d_B of aligned pairs of outlines: ``d_B(coefs[p], others[p])`` for every row p.
+
+    The same search as :func:`boundary_distance_matrix` (48 coarse start shifts for both
+    reflections in single precision, then Newton steps in double precision), for a list of
+    pairs rather than all of them: what a nearest-neighbour search needs for its few
+    candidates (:mod:`napari_pfsdm.core.neighbours`, docs/design.md §2.9). Equal to the
+    matrix's entries to rounding (the coarse values are summed in another order, ~1e-7).
+
+    Parameters
+    ----------
+    coefs, others : ndarray of complex, shape (P, 2K)
+        :func:`outline_coefficients` of the two sides of each pair (NaN rows give NaN).
+    chunk : int
+        Pairs searched at once (memory about chunk × 1 kB).
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        d_B in [0, 1].
+    """
+    a = np.asarray(coefs, complex)
+    b = np.asarray(others, complex)
+    if a.ndim != 2 or a.shape != b.shape:
+        raise InputError(f"pairs of outline coefficients must be two (P, 2K) arrays of the "
+                         f"same shape, got {a.shape} and {b.shape}")
+    k = len(_modes_of(a)) // 2
+    kc = min(k, COARSE_MODES)
+    keep = np.abs(outline_modes(k)) <= kc
+    nc = outline_modes(k)[keep]
+    shifts = 2 * np.pi * np.arange(COARSE_SHIFTS) / COARSE_SHIFTS
+    phase_t = np.exp(1j * np.outer(nc, shifts)).astype(np.complex64)  # (2kc, S)
+    ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    a0, b0 = np.where(ok[:, None], a, 0), np.where(ok[:, None], b, 0)
+    out = np.empty(len(a))
+    for p0 in range(0, len(a), chunk):
+        p1 = min(p0 + chunk, len(a))
+        ak, bk = a0[p0:p1, keep], b0[p0:p1, keep]
+        val = np.empty((2, p1 - p0))
+        shift = np.empty((2, p1 - p0))
+        # mirror False: Σ a_n e^{ins} conj(b_n); mirror True: Σ a_n e^{ins} b_n
+        for mirror, x in enumerate((ak * np.conj(bk), ak * bk)):
+            vals = np.abs(x.astype(np.complex64) @ phase_t).T  # (S, pairs)
+            val[mirror] = vals.max(axis=0)
+            shift[mirror] = _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS)
+        pairs = np.arange(p1 - p0)
+        c = _best_correlation(a0[p0:p1], b0[p0:p1], pairs, pairs, val, shift)
+        out[p0:p1] = np.sqrt(np.maximum(1.0 - c**2, 0.0))
+    out[~ok] = np.nan
+    return out
+
+
+def boundary_lower_bound(coefs: np.ndarray, others: np.ndarray | None = None) -> np.ndarray:
+    """A lower bound of d_B for all pairs, from the coefficients' magnitudes only.
+
+    For unit-norm coefficients, |Σ_n a_n e^{ins} conj(b_n')| ≤ Σ_n |a_n| |b_n| for every
+    start shift s and both reflections (triangle inequality; |b_n'| = |b_n|), so C ≤
+    Σ |a_n||b_n| and d_B = sqrt(1 − C²) ≥ sqrt(1 − min(1, Σ |a_n||b_n|)²). One real matrix
+    product for all pairs; what lets :func:`napari_pfsdm.nearest_neighbours` skip most pairs
+    exactly (docs/design.md §2.9).
+
+    Returns
+    -------
+    ndarray, shape (n, n) or (n, m)
+        The bound, in [0, 1] (NaN rows give NaN).
+    """
+    a = np.abs(np.asarray(coefs, complex))
+    b = a if others is None else np.abs(np.asarray(others, complex))
+    c = np.minimum(a @ b.T, 1.0)
+    return np.sqrt(np.maximum(1.0 - c * c, 0.0))
 
 
 def _parabolic_shift(vals: np.ndarray) -> np.ndarray:

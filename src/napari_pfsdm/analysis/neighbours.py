@@ -1,0 +1,206 @@
+"""Nearest neighbours under the default distance, for collections too big for a matrix.
+
+:func:`nearest_neighbours` is the package's public ``napari_pfsdm.nearest_neighbours``: the
+k nearest objects of every object (results, embeddings or a feature table), without ever
+holding the n × n distance matrix (docs/design.md §2.6, §2.9; the search itself is
+:mod:`napari_pfsdm.core.neighbours`).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from ..core import distances as _dist
+from ..core import distances3d
+from ..core.embeddings import Embeddings
+from ..core.neighbours import METHODS, NeighbourIndex, blocks, check_k, search_rows
+from ..core.table_options import table_options
+from ..core.table_schema import table_ndim
+from .tables import embeddings as _table_embeddings
+from .tables import is_table
+
+__all__ = ["nearest_neighbours", "neighbour_index"]
+
+
+def neighbour_index(items, intensity_weight: float = 0.0,
+                    boundary_weight: float | None = None) -> NeighbourIndex:
+    """The arrays a neighbour search needs, from results, :class:`Embeddings` or a table, with
+    the same options and checks as :func:`napari_pfsdm.distance_matrix` (so that its
+    distances are that matrix's entries)."""
+    if is_table(items):
+        channels = ["shape"] + (["intensity"] if intensity_weight else [])
+        volumes = table_ndim(table_options(items)) == 3
+        items = _table_embeddings(items, channels)
+        if volumes:
+            boundary_weight = _dist._no_boundary_in_3d(boundary_weight)
+        elif items.outline is None and boundary_weight is None:
+            warnings.warn(
+                "This table has no outline_* columns (it was measured before the boundary "
+                "term): its neighbours are by the SDF term alone, not the default distance. "
+                "Measure again to get the default.", stacklevel=3)
+            boundary_weight = 0.0
+    elif not isinstance(items, Embeddings):
+        items = list(items)
+        if items and distances3d.is_3d(items):
+            items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
+            boundary_weight = _dist._no_boundary_in_3d(boundary_weight)
+    lam = _dist._check_boundary_weight(boundary_weight)
+    w_i = float(intensity_weight)
+    if not np.isfinite(w_i) or w_i < 0:
+        from ..errors import InputError
+
+        raise InputError(f"intensity_weight must be a number >= 0, got {intensity_weight!r}")
+    if not isinstance(items, Embeddings) and not items:
+        return NeighbourIndex.build(np.zeros((0, 1)), None, 0.0)
+    feats = _dist._magnitude_features(*_dist._channel_arrays(items, "shape"))
+    if w_i:
+        inten = _dist._magnitude_features(*_dist._channel_arrays(items, "intensity"))
+        feats = np.hstack([feats, np.sqrt(w_i) * inten])  # d² = d_shape² + w_I d_int²
+    outline = _dist.outlines_of(items) if lam else None
+    return NeighbourIndex.build(feats, outline, lam)
+
+
+def nearest_neighbours(
+    items: Any,
+    k: int = 10,
+    *,
+    intensity_weight: float = 0.0,
+    boundary_weight: float | None = None,
+    method: str = "bound",
+    block: int = 512,
+    n_jobs: int | None = None,
+    scheduler: Any = None,
+    client: Any = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest neighbours of every object under the default PF-SDM distance.
+
+    The distance is :func:`napari_pfsdm.distance_matrix`'s default, D = d_SDF + λ d_B
+    (docs/design.md §2.6: the Euclidean distance of the weighted magnitude features, plus the
+    intensity term; §2.9: λ times the outline's Procrustes distance), computed for blocks of
+    rows against all objects, so that memory stays about ``block × n`` numbers.
+
+    Parameters
+    ----------
+    items : sequence of PFSDMResult, Embeddings, or a feature table
+        As :func:`napari_pfsdm.distance_matrix` accepts them (a table must carry its options
+        and have no failed rows: :func:`napari_pfsdm.drop_failed`). 3-D results: the shells
+        and the surface term, no boundary term.
+    k : int
+        Neighbours per object, 1 ≤ k ≤ n − 1 (else :class:`~napari_pfsdm.errors.InputError`).
+    intensity_weight : float
+        w_I, as in :func:`napari_pfsdm.distance_matrix`.
+    boundary_weight : float, optional
+        λ (default 1, :data:`napari_pfsdm.core.distances.BOUNDARY_WEIGHT`; 0: SDF term only).
+    method : {"bound", "brute"}
+        ``"bound"`` (default): exact search by a lower bound (below); ``"brute"``: every
+        pair, block by block (the reference, ~2 µs per pair).
+    block : int
+        Query rows computed at once (memory: about 1 kB × block × n per worker).
+    n_jobs : int, optional
+        Threads over the query blocks when no ``scheduler`` / ``client`` is given (default:
+        the number of cores; BLAS runs one thread each meanwhile).
+    scheduler : str or distributed.Client, optional
+        Run the query blocks as dask tasks, as :func:`napari_pfsdm.batch.measure_dask` does:
+        ``"threads"``, ``"processes"``, ``"sync"``, or a scheduler address such as
+        ``"tcp://10.0.0.5:8786"`` (a client is opened and closed for this call).
+    client : distributed.Client, optional
+        Run on this cluster: the objects' arrays (n × ~250 numbers) are scattered to every
+        worker once, each task is one block of queries against all objects.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (n, k)
+        Row numbers of each object's neighbours, nearest first, never the object itself.
+        Equal distances are ordered by row number.
+    distances : ndarray of float, shape (n, k)
+        Their distances: the entries of ``distance_matrix(items)`` (to rounding, ~1e-7).
+
+    Notes
+    -----
+    The search is exact (the same neighbours as sorting the rows of ``distance_matrix``,
+    tested). For each block of queries it computes, for all objects at once and in single
+    precision, a lower bound LB ≤ D: the distance of the features projected on their first
+    principal components (a projection never lengthens a difference) plus λ sqrt(1 − min(1,
+    Σ_n |a_n||b_n|)²), which is ≤ d_B because the correlation of two unit-norm outlines over
+    every start shift and the mirror is at most Σ_n |a_n||b_n| (docs/design.md §2.9). D is
+    then computed exactly for the max(2k, k + 16) objects of smallest LB, and where the k-th
+    of those is above the next LB, for every object whose LB is below it: whatever is left
+    out has LB, hence D, at least the k-th distance found (safety margins cover the single
+    precision). On 3,000 moving blobs that is ~54 exact distances per object instead of
+    3,000 (docs/benchmarks.md, "Nearest neighbours").
+
+    Objects without features or outline (NaN rows of results or embeddings) are nobody's
+    neighbour, and their own rows are index -1 and distance NaN; when fewer than k other
+    objects have features, the missing places are index -1 and distance inf.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from napari_pfsdm import measure
+    >>> labels = np.zeros((64, 200), int)
+    >>> labels[10:50, 10:50] = 1           # a square
+    >>> labels[12:48, 60:100] = 2          # a slightly smaller, wider one
+    >>> labels[25:35, 120:190] = 3         # a bar
+    >>> idx, dist = nearest_neighbours(measure(labels), k=1)
+    >>> idx[:, 0].tolist()
+    [1, 0, 1]
+    """
+    index = neighbour_index(items, intensity_weight, boundary_weight)
+    k = check_k(k, len(index))
+    if method not in METHODS:
+        from ..errors import InputError
+
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    parts = blocks(len(index), max(1, int(block)))
+    if scheduler is None and client is None:
+        out = _run_threads(index, parts, k, method, n_jobs)
+    else:
+        out = _run_dask(index, parts, k, method, scheduler, client)
+    return np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out])
+
+
+def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,
+                  method: str) -> tuple[np.ndarray, np.ndarray]:
+    """One dask task / thread: a block of queries with BLAS on one thread."""
+    from .features import _one_blas_thread
+
+    with _one_blas_thread():
+        return search_rows(index, rows, k, method)
+
+
+def _run_threads(index, parts, k, method, n_jobs):
+    n_jobs = max(1, min(int(n_jobs or os.cpu_count() or 1), len(parts)))
+    if n_jobs == 1:
+        return [_search_block(index, rows, k, method) for rows in parts]
+    with ThreadPoolExecutor(n_jobs) as pool:
+        return list(pool.map(lambda rows: _search_block(index, rows, k, method), parts))
+
+
+def _run_dask(index, parts, k, method, scheduler, client):
+    from ..batch.run import _client_for, resolve_scheduler
+
+    kind, obj = resolve_scheduler(scheduler, client)
+    if kind == "local":
+        import dask
+
+        shared = dask.delayed(index, traverse=False)
+        tasks = [dask.delayed(_search_block, pure=False)(shared, rows, k, method)
+                 for rows in parts]
+        return list(dask.compute(*tasks, scheduler=obj))
+    with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
+        shared = handle.scatter(index, broadcast=True)
+        tag = os.urandom(4).hex()
+        futures = [handle.submit(_search_block, shared, rows, k, method, pure=False,
+                                 key=f"pfsdm-neighbours-{i}-{tag}")
+                   for i, rows in enumerate(parts)]
+        try:
+            return handle.gather(futures)
+        finally:
+            for f in futures:
+                f.release()
+            shared.release()
