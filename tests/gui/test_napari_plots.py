@@ -252,3 +252,42 @@ def test_screenshot_of_a_3d_object(make_napari_viewer, qtbot, tmp_path):
             else tmp_path / "screenshot_3d.png")
     imwrite(path, img[..., :3])
     assert path.stat().st_size > 10_000
+
+
+def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer_widget, qtbot,
+                                                                          monkeypatch):
+    """More objects than the matrix view holds (GRAPH_ROWS, lowered here to the sample's
+    size): each object's nearest shapes, by the same distances as the full matrix, and a map
+    of the neighbour graph; a click on a bar selects that neighbour in the viewer."""
+    from matplotlib.backend_bases import MouseEvent
+
+    from napari_pfsdm import distance_matrix
+    from napari_pfsdm.napari import _plots
+
+    viewer, widget = viewer_widget
+    labels_layer = viewer.layers["gastruloids"]
+    out = run_and_wait(qtbot, widget)
+    monkeypatch.setattr(_plots, "GRAPH_ROWS", 20)
+    comp = dock(viewer, COMPARISON)
+    comp.frame_choice.setCurrentText("all frames")
+    wait_computed(qtbot, comp, timeout=120_000)
+    assert comp.distances is None and comp._graph is not None  # no n x n matrix
+    assert len(comp._keys) == len(out.table)
+    assert comp._graph.xy.shape == (len(out.table), 2)
+    viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 3)
+    labels_layer.selected_label = 2
+    comp.flush()
+    near = comp.nearest_shown()
+    assert len(near) == _plots.NEAREST_SHOWN
+    # the reference: the sorted row of the all-pairs matrix of the same rows
+    d = distance_matrix(out.table, intensity_weight=out.options["intensity_weight"])
+    me = comp._keys.index((3, 2))
+    order = [j for j in np.argsort(d[me], kind="stable") if j != me][:len(near)]
+    np.testing.assert_allclose([v for _, v in near], d[me, order], atol=1e-7)
+    assert [k for k, _ in near] == [comp._keys[j] for j in order]
+    # click the third bar: the viewer goes to that object
+    target = near[2][0]
+    comp.canvas.draw()
+    x, y = comp._ax_near.transData.transform((0.5 * comp._ax_near.get_xlim()[1], 2))
+    MouseEvent("button_press_event", comp.canvas, x, y, button=1)._process()
+    assert (_frame(viewer, labels_layer), labels_layer.selected_label) == target

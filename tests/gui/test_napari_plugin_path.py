@@ -207,17 +207,35 @@ def test_export_runs_in_a_worker_and_always_writes_features_and_pca(viewer_widge
         "gastruloids_features.csv", "gastruloids_pca_shape.csv",
         "gastruloids_pca_intensity.csv", "gastruloids_distances.csv"])
     # a collection too large for the all-pairs matrix: features and PCA still written, the
-    # distances left out with a sentence in the sidecar and in the status line
+    # matrix left out with a sentence in the sidecar and in the status line, and each
+    # object's nearest neighbours written instead
     monkeypatch.setattr(_export, "MAX_DISTANCE_ROWS", len(out.table) - 1)
     widget.export_async(tmp_path / "large")
     qtbot.waitUntil(lambda: not widget.exporting, timeout=60_000)
     written = sorted(p.name for p in (tmp_path / "large").glob("*.csv"))
     assert written == sorted(["gastruloids_features.csv", "gastruloids_pca_shape.csv",
-                              "gastruloids_pca_intensity.csv"])
+                              "gastruloids_pca_intensity.csv", "gastruloids_neighbours.csv"])
     side = json.loads((tmp_path / "large" / "gastruloids_features.csv.json").read_text())
     assert f"{len(out.table)} objects are more than the" in side["distances"]
+    assert "gastruloids_neighbours.csv" in side["distances"]
     assert "distance matrix was left out" in widget.status.text()
-    assert len(pd.read_csv(tmp_path / "large" / "gastruloids_features.csv")) == len(out.table)
+    features = pd.read_csv(tmp_path / "large" / "gastruloids_features.csv")
+    assert len(features) == len(out.table)
+    # the edge list against the small export's all-pairs matrix (another computation):
+    # each object's nearest, in order, by the matrix's own distances
+    matrix = pd.read_csv(tmp_path / "small" / "gastruloids_distances.csv", index_col=0)
+    edges = pd.read_csv(tmp_path / "large" / "gastruloids_neighbours.csv")
+    assert {"row", "neighbour", "rank", "distance", "frame", "label",
+            "neighbour_frame", "neighbour_label"} <= set(edges.columns)
+    for row, group in edges.groupby("row"):
+        me = f"t{features['frame'][row]}/l{features['label'][row]}"
+        assert (group["frame"] == features["frame"][row]).all()
+        d = matrix.loc[me].drop(me).sort_values(kind="stable")
+        names = [f"t{f}/l{lb}" for f, lb in zip(group["neighbour_frame"],
+                                                  group["neighbour_label"], strict=True)]
+        assert names == list(d.index[:len(group)]) or np.allclose(
+            d.to_numpy()[:len(group)], group["distance"], atol=1e-9)  # ties may swap
+        np.testing.assert_allclose(group["distance"], matrix.loc[me, names], atol=1e-7)
 
 
 def test_cancelled_export_writes_nothing(viewer_widget, qtbot, tmp_path, monkeypatch):

@@ -57,19 +57,43 @@ def distance_table(
     return layout(table, d), left_out
 
 
-def too_many_for_distances(n: int) -> str:
+def too_many_for_distances(n: int, prefix: str = "<layer>") -> str:
     """The sentence said (status line, sidecar) when the distance matrix is left out."""
+    from ._graph import GRAPH_K
+
     return (f"The distance matrix was left out: {n:,} objects are more than the "
             f"{MAX_DISTANCE_ROWS:,} whose all-pairs distances the viewer exports (a matrix of "
-            f"{n:,} × {n:,}); compare them with the command line (pfsdm compare).")
+            f"{n:,} × {n:,}); {prefix}_neighbours.csv lists each object's {GRAPH_K} nearest "
+            "shapes instead (exact; row and neighbour are rows of the features file).")
+
+
+def neighbour_export_steps(output: AnalysisOutput, prefix: str = "<layer>"):
+    """The slow part of exporting more than :data:`MAX_DISTANCE_ROWS` objects, in steps for
+    a worker (yields ``(rows done, rows)``): each measured object's nearest neighbours as an
+    edge list (:func:`napari_pfsdm.analysis.reduction.neighbour_table`; ``row`` and
+    ``neighbour`` are rows of the features file). Returns ``{"neighbours": edges, "note":
+    sentence}``."""
+    from ..analysis.reduction import neighbour_table
+    from ._graph import GRAPH_K, neighbour_steps
+
+    table = output.table
+    w = output.options.get("intensity_weight", 0.0)
+    if not has_channel(table.columns, "intensity"):
+        w = 0.0
+    sub = table.iloc[np.flatnonzero(output.measured())]
+    if w:  # rows whose reporter could not be described have no intensity features
+        sub, _ = split_failed(sub, ("shape", "intensity"))
+    idx, dist = yield from neighbour_steps(sub, GRAPH_K, w)
+    edges = neighbour_table(sub, idx, dist, rows=table.index.get_indexer(sub.index))
+    return {"neighbours": edges, "note": too_many_for_distances(len(table), prefix)}
 
 
 def export_names(output: AnalysisOutput, prefix: str) -> list[str]:
     """The file names an export writes: features, one PCA per channel, distances (only when
     the collection is small enough for the all-pairs matrix)."""
     names = [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in output.pca)]
-    if len(output.table) <= MAX_DISTANCE_ROWS:
-        names.append(f"{prefix}_distances.csv")
+    big = len(output.table) > MAX_DISTANCE_ROWS
+    names.append(f"{prefix}_neighbours.csv" if big else f"{prefix}_distances.csv")
     return names
 
 
@@ -77,7 +101,12 @@ def prepare_export(output: AnalysisOutput) -> dict:
     """The slow part of an export (the distance matrix), for a worker thread; ``{"distances":
     (table, left out)}`` or ``{"note": sentence}`` when the matrix is left out."""
     if len(output.table) > MAX_DISTANCE_ROWS:
-        return {"note": too_many_for_distances(len(output.table))}
+        steps = neighbour_export_steps(output)
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
     return {"distances": distance_table(output)}
 
 
@@ -101,6 +130,9 @@ def write_export(output: AnalysisOutput, folder, prefix: str, prepared: dict) ->
         h = dict(opts, pca_features=channel, explained_variance_ratio=list(ratios))
         written.append(write_csv(scores, folder / f"{prefix}_pca_{channel}.csv", h,
                                  table_type="pca"))
+    if "neighbours" in prepared:
+        written.append(write_csv(prepared["neighbours"], folder / names[-1], opts,
+                                 table_type="neighbours"))
     if "distances" in prepared:
         dist, left_out = prepared["distances"]
         written.append(write_table_csv(dist, folder / names[-1], opts, index=True,

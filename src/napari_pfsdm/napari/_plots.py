@@ -7,6 +7,8 @@ the matching points.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import napari
 import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
@@ -33,10 +35,13 @@ from ..core.table_schema import has_channel
 from . import _layers
 from ._alive import offer
 from ._compute import classical_mds
+from ._graph import GRAPH_ROWS
 from ._store import same_layer, store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
+#: Bars of the nearest-shapes panel (neighbour-graph view).
+NEAREST_SHOWN = 10
 RERANK_TIP = ("Re-rank the distances through the whole collection (diffusion on the "
               "10-nearest-neighbour graph, napari_pfsdm.rerank): helps find similar shapes "
               "among many objects with several of each kind (MPEG-7: 79.5 → 88.7 % "
@@ -607,6 +612,10 @@ class ShapeComparisonWidget(_LinkedPlot):
         self._matrix_keys: list[tuple[int, int]] = []
         self._ax_matrix = None
         self._artists: dict = {}  # the full draw's image, colour bar, points, labels
+        self._graph: GraphResult | None = None  # the neighbour-graph view's data
+        self._ax_near = None
+        self._nearest: list = []
+        self._graph_rows: dict = {}
         # (id(output), frame or None, weight, re-ranked) → (distances, MDS map)
         self._cache: dict = {}
         self._worker = None
@@ -653,7 +662,6 @@ class ShapeComparisonWidget(_LinkedPlot):
         """``(key, rows, frame shown or None, title, weight, re-ranked)`` of the objects to
         compare now; ``ValueError`` (plain words) when there is nothing to compare."""
         from ..analysis.features import split_failed
-        from ._export import MAX_DISTANCE_ROWS
 
         output = self.output
         table = output.table
@@ -665,11 +673,6 @@ class ShapeComparisonWidget(_LinkedPlot):
         else:
             rows = np.flatnonzero(ok)
             shown, title = None, "all frames"
-            if len(rows) > MAX_DISTANCE_ROWS:
-                raise ValueError(
-                    f"{len(rows):,} objects are too many for an all-pairs map in the viewer "
-                    f"(up to {MAX_DISTANCE_ROWS:,}): choose 'current frame', or compare them "
-                    "with the command line (pfsdm compare).")
         if len(rows) < 2:
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
         sub = table.iloc[rows]
@@ -690,8 +693,12 @@ class ShapeComparisonWidget(_LinkedPlot):
             if self._worker_key == key:
                 return
             self._worker.quit()
-        worker = _comparison_worker(sub, w, reranked, _ignore_errors=True)
+        by_graph = len(sub) > GRAPH_ROWS
+        make = _graph_worker if by_graph else _comparison_worker
+        worker = make(sub, w, reranked, _ignore_errors=True)
         self._worker, self._worker_key = worker, key
+        if by_graph:
+            worker.yielded.connect(self._on_graph_progress)
 
         def done(result, key=key):
             if len(self._cache) > 256:
@@ -718,9 +725,20 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.cancel_button.setVisible(True)
         worker.start()
 
+    def _on_graph_progress(self, step) -> None:
+        try:
+            if isinstance(step, tuple):
+                self.info.setText(f"Nearest neighbours: {step[0]:,} of {step[1]:,} objects…")
+            else:
+                self.info.setText(f"Drawing the map of the neighbour graph ({step})…")
+        except RuntimeError:  # the widget is gone
+            pass
+
     # ------------------------------------------------------------------ drawing
     def draw_plot(self) -> None:
         self._ax_matrix = None
+        self._ax_near = None
+        self._graph = None
         self._artists = {}
         if self.output is None:
             self.info.setText("Run the PF-SDM analysis to fill this view.")
@@ -744,6 +762,9 @@ class ShapeComparisonWidget(_LinkedPlot):
             return
         if isinstance(cached, Exception):
             raise ValueError(f"The distances could not be computed: {cached}")
+        if isinstance(cached, GraphResult):
+            self._draw_graph(sub, cached, title)
+            return
         d, xy = cached
         c = self._theme()
         ax_m = self.figure.add_subplot(121)
@@ -795,6 +816,45 @@ class ShapeComparisonWidget(_LinkedPlot):
                          "n": len(keys), "shown": shown, "reranked": reranked,
                          "ticks": len(keys) <= 20}
         self._set_shown(keys, xy, d, ax_p, ax_m)
+
+    def _draw_graph(self, sub, graph: GraphResult, title: str) -> None:
+        """More objects than a matrix shows: each object's nearest shapes (left, for the
+        object selected in the viewer; click a bar to go there) and the map of the neighbour
+        graph (right; one rasterised collection, however many points)."""
+        c = self._theme()
+        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        ax_n = self.figure.add_subplot(121)
+        ax_p = self.figure.add_subplot(122)
+        for ax in (ax_n, ax_p):
+            self._style(ax)
+        k = min(NEAREST_SHOWN, graph.indices.shape[1])
+        finite = graph.distances[:, :k][np.isfinite(graph.distances[:, :k])]
+        ax_n.set_xlim(0, float(finite.max()) * 1.05 if finite.size else 1.0)
+        ax_n.set_ylim(k - 0.5, -0.5)
+        ax_n.set_yticks([])
+        ax_n.set_xlabel("re-ranked distance" if graph.reranked else "PF-SDM distance",
+                        fontsize=7)
+        ax_n.set_title("nearest shapes of the selected object", fontsize=9)
+        frames = np.array([f for f, _ in keys])
+        sc = ax_p.scatter(graph.xy[:, 0], graph.xy[:, 1], s=3 if len(keys) > 10_000 else 6,
+                          c=frames, cmap="viridis", edgecolors="none", rasterized=True)
+        if self.output.time_lapse:
+            cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
+            cb.set_label("frame", color=c["fg"], fontsize=7)
+            cb.ax.tick_params(colors=c["fg"], labelsize=6)
+        ax_p.set_title(f"{graph.method} map of the neighbour graph, {title}", fontsize=9)
+        ax_p.set_xlabel("close = among each other's nearest shapes", fontsize=7)
+        ax_p.set_xticks([])
+        ax_p.set_yticks([])
+        self._graph = graph
+        self._ax_near = ax_n
+        self._points, self._keys, self._axes_points = graph.xy, keys, ax_p
+        self._matrix_keys = keys
+        self._graph_rows = {key: i for i, key in enumerate(keys)}
+        self.distances = None
+        self.info.setText(f"{len(keys):,} objects: compared by each one's {graph.k} nearest "
+                          "shapes (exact), not all pairs. Click a point or a bar to select "
+                          "that object.")
 
     def _set_shown(self, keys, xy, d, ax_p, ax_m) -> None:
         self._points = xy
@@ -851,7 +911,18 @@ class ShapeComparisonWidget(_LinkedPlot):
         self.canvas.draw_idle()
         return True
 
+    def nearest_shown(self) -> list[tuple[tuple[int, int], float]]:
+        """The bars of the nearest-shapes panel: ((frame, label), distance), nearest first
+        (empty outside the neighbour-graph view or when nothing is selected)."""
+        return list(self._nearest)
+
     def _on_click(self, event) -> None:
+        near = self._nearest
+        if event.inaxes is not None and event.inaxes is self._ax_near and event.ydata is not None:
+            i = int(np.rint(event.ydata))
+            if 0 <= i < len(near):
+                self.select_point(self._graph_rows[near[i][0]])
+            return
         if event.inaxes is not None and event.inaxes is self._ax_matrix and event.ydata is not None:
             i = int(np.rint(event.ydata))
             if 0 <= i < len(self._keys):
@@ -869,6 +940,8 @@ class ShapeComparisonWidget(_LinkedPlot):
         if self._shown_frame is None:
             sel &= keys[:, 0] == frame
         c = self._theme()
+        if self._graph is not None:
+            self._highlight_graph(ax, np.flatnonzero(sel), c)
         if sel.any():
             self._highlight_artists.append(ax.scatter(
                 *self._points[sel].T, s=120, marker="*", color=c["accent"], edgecolors=c["fg"],
@@ -877,6 +950,62 @@ class ShapeComparisonWidget(_LinkedPlot):
                 self._highlight_artists.append(self._ax_matrix.axhline(
                     i, color=c["accent"], lw=1.0, alpha=0.8))
         self._finish_highlight(draw)
+
+
+    def _highlight_graph(self, ax, selected: np.ndarray, c: dict) -> None:
+        """The selected object's nearest shapes: bars (left) and rings on the map."""
+        self._nearest = []
+        if not len(selected):
+            return
+        graph, i = self._graph, int(selected[0])
+        k = min(NEAREST_SHOWN, graph.indices.shape[1])
+        idx, dist = graph.indices[i, :k], graph.distances[i, :k]
+        keep = idx >= 0
+        idx, dist = idx[keep], dist[keep]
+        self._nearest = [(self._keys[j], float(v)) for j, v in zip(idx, dist, strict=True)]
+        self._highlight_artists.append(ax.scatter(
+            *self._points[idx].T, s=50, facecolors="none", edgecolors=c["accent"], lw=1.2,
+            zorder=3))
+        near = self._ax_near
+        bars = near.barh(np.arange(len(dist)), dist, color=c["accent"], height=0.7)
+        self._highlight_artists += list(bars)
+        for y, ((f, lb), v) in enumerate(self._nearest):
+            name = f"{f}:{lb}" if self.output is not None and self.output.time_lapse \
+                else str(lb)
+            self._highlight_artists.append(near.text(
+                0.01 * near.get_xlim()[1], y, f"{name}  {v:.3g}", va="center", fontsize=6,
+                color=c["fg"]))
+
+
+class GraphResult(NamedTuple):
+    """What the neighbour-graph view shows: each object's k nearest (row numbers of the
+    compared rows, nearest first), their distances, the 2-D map and how it was drawn."""
+
+    indices: np.ndarray
+    distances: np.ndarray
+    xy: np.ndarray
+    method: str
+    reranked: bool
+
+    @property
+    def k(self) -> int:
+        return int(self.indices.shape[1])
+
+
+@thread_worker(start_thread=False)
+def _graph_worker(sub, intensity_weight: float, reranked: bool):
+    """Worker: the neighbour graph of ``sub``'s rows (progress, and Cancel between blocks),
+    re-ranked if asked, and its map (in a worker process, which Cancel terminates)."""
+    from ._graph import GRAPH_K, map_method, map_steps, neighbour_steps, rerank_graph
+
+    idx, dist = yield from neighbour_steps(sub, GRAPH_K, intensity_weight)
+    if reranked:
+        idx, dist = rerank_graph(idx, dist)
+        yield "re-ranked"
+    method = map_method()
+    xy = yield from map_steps(idx, dist, method)
+    return GraphResult(idx, dist, xy, {"tsne": "t-SNE", "umap": "UMAP"}.get(method, method),
+                       reranked)
 
 
 @thread_worker(start_thread=False)

@@ -884,7 +884,8 @@ class AnalysisWidget(QWidget):
     def export_async(self, folder):
         """Export in a worker: the distance matrix is computed there, then the files are
         written (features and PCA always; the distances when the collection is small enough,
-        else a sentence in the sidecar and the status line). Cancel stops before anything is
+        else each object's nearest neighbours, with a sentence in the sidecar and the status
+        line). Cancel stops before anything is
         written. Returns the worker (None when refused)."""
         from ._export import export_names
 
@@ -902,6 +903,7 @@ class AnalysisWidget(QWidget):
         self.progress.setRange(0, 0)
         self._message(f"Exporting to {folder}…")
         worker = _export_worker(output, folder, prefix, _ignore_errors=True)
+        worker.yielded.connect(self._on_export_progress)
         worker.returned.connect(self._on_exported)
         worker.errored.connect(self._export_failed)
         worker.aborted.connect(lambda: self._message("Export cancelled; nothing was written."))
@@ -909,6 +911,13 @@ class AnalysisWidget(QWidget):
         self._export_worker = worker
         worker.start()
         return worker
+
+    @while_alive
+    def _on_export_progress(self, step) -> None:
+        if isinstance(step, tuple):  # (done, total) objects of the neighbour search
+            self.progress.setRange(0, step[1])
+            self.progress.setValue(step[0])
+            self.progress.setFormat("nearest neighbours: %v / %m objects")
 
     @while_alive
     def _on_exported(self, result) -> None:
@@ -995,9 +1004,12 @@ def _analysis_worker(labels, intensity, options, first_axis, spacing, identity):
 @thread_worker(start_thread=False)
 def _export_worker(output, folder, prefix):
     """Worker: the distances (the slow part), then the files; stops before writing."""
-    from ._export import prepare_export, write_export
+    from ._export import MAX_DISTANCE_ROWS, neighbour_export_steps, prepare_export, write_export
 
-    prepared = prepare_export(output)
+    if len(output.table) > MAX_DISTANCE_ROWS:  # the neighbours, block by block (Cancel)
+        prepared = yield from neighbour_export_steps(output, prefix)
+    else:
+        prepared = prepare_export(output)
     yield "prepared"
     return write_export(output, folder, prefix, prepared), prepared.get("note", "")
 

@@ -1,0 +1,98 @@
+"""Comparing more objects than an all-pairs matrix holds, in the viewer's workers (no Qt).
+
+Above :data:`GRAPH_ROWS` objects the comparison view and the export use each object's
+nearest neighbours (:func:`napari_pfsdm.nearest_neighbours`' exact search, block by block so
+that a worker can report progress and stop between blocks) and a map drawn from that graph
+(:func:`napari_pfsdm.analysis.reduction.graph_coordinates`), never the n × n matrix: 50,000
+objects would need 18.6 GiB for it (docs/benchmarks.md, "Nearest neighbours").
+
+The map runs in a worker *process* (:mod:`napari_pfsdm.analysis.parallel`'s pool): t-SNE
+cannot be stopped half-way inside a thread, a process can (Cancel terminates it).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+from collections.abc import Generator
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pandas as pd
+
+#: Above this many objects the viewer compares by nearest neighbours, not all pairs (the
+#: command line's ``FULL_MATRIX_LIMIT``: the matrix image and classical MDS grow as n²).
+GRAPH_ROWS = 2000
+#: Neighbours per object kept for the map, the re-ranking and the export.
+GRAPH_K = 15
+#: Query rows per step (one step per thread; progress and Cancel between steps).
+STEP_ROWS = 256
+
+
+def map_method() -> str:
+    """The graph map the viewer draws: UMAP when umap-learn is installed (under a minute for
+    50,000 objects), else t-SNE (scikit-learn only; it separates kinds of shapes best but
+    costs minutes above 10,000 objects: docs/benchmarks.md, "Maps and re-ranking")."""
+    try:
+        import umap  # noqa: F401
+    except ImportError:
+        return "tsne"
+    return "umap"
+
+
+def neighbour_steps(sub: pd.DataFrame, k: int = GRAPH_K, intensity_weight: float = 0.0,
+                    threads: int = 2) -> Generator[tuple[int, int], None, tuple]:
+    """The k nearest neighbours of every row of the feature table ``sub``, in steps.
+
+    Yields ``(rows done, rows)`` after every ``threads`` blocks of :data:`STEP_ROWS` queries
+    (each block on its own thread, BLAS on one thread each); returns ``(indices,
+    distances)`` as :func:`napari_pfsdm.nearest_neighbours` does (tested equal).
+    """
+    from ..analysis.neighbours import _search_block, neighbour_index
+    from ..core.neighbours import blocks, check_k
+
+    index = neighbour_index(sub, intensity_weight)
+    n = len(index)
+    k = check_k(min(int(k), n - 1), n)
+    parts = blocks(n, STEP_ROWS)
+    found: list[tuple[np.ndarray, np.ndarray]] = []
+    with ThreadPoolExecutor(max(1, threads)) as pool:
+        for i in range(0, len(parts), max(1, threads)):
+            chunk = parts[i:i + max(1, threads)]
+            found += list(pool.map(lambda rows: _search_block(index, rows, k, "bound"), chunk))
+            yield int(chunk[-1][-1]) + 1, n
+    return np.vstack([f[0] for f in found]), np.vstack([f[1] for f in found])
+
+
+def rerank_graph(indices: np.ndarray, distances: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The neighbour graph re-ranked by diffusion (:func:`napari_pfsdm.analysis.rerank.
+    rerank_neighbours`, k = 10 as the matrix view's re-ranking)."""
+    from ..analysis.rerank import rerank_neighbours
+
+    out = rerank_neighbours(indices, distances, "diffusion", k=min(10, indices.shape[1]))
+    return out[0], out[1]
+
+
+def map_steps(indices: np.ndarray, distances: np.ndarray,
+              method: str | None = None) -> Generator[str, None, np.ndarray]:
+    """The 2-D map of a neighbour graph (:func:`~napari_pfsdm.analysis.reduction.
+    graph_coordinates`), computed in a worker process; yields ``"mapping"`` about every
+    0.2 s while it runs, so that the caller can stop (closing the generator terminates the
+    process); returns the (n, 2) coordinates."""
+    from ..analysis import parallel
+    from ..analysis.reduction import graph_coordinates
+
+    pool = parallel.shared_pool()
+    job = pool.apply_async(graph_coordinates, (indices, distances, method or map_method()))
+    finished = False
+    try:
+        while True:
+            try:
+                xy = job.get(timeout=0.2)
+                break
+            except mp.TimeoutError:
+                yield "mapping"
+        finished = True
+    finally:
+        if not finished:
+            parallel.shutdown_pool()
+    return np.asarray(xy)
