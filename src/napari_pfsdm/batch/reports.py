@@ -129,19 +129,20 @@ def plot_mds(
     fig = Figure(figsize=(5.6, 4.8), layout="constrained")
     ax = fig.subplots()
     by_group = "group" in table.columns and table["group"].astype(str).ne("").any()
+    size = 28.0 if len(coords) <= 500 else max(2.0, 28.0 * (500 / len(coords)) ** 0.5)
     if by_group:
         names = sorted(set(table["group"].astype(str)))
         tab10 = colormaps["tab10"]
         for i, n in enumerate(names):
             m = (table["group"].astype(str) == n).to_numpy()
-            ax.scatter(coords[m, 0], coords[m, 1], s=28, color=tab10(i % 10),
+            ax.scatter(coords[m, 0], coords[m, 1], s=size, color=tab10(i % 10),
                        label=n or "(no group)")
         ax.legend(fontsize=8)
     elif table["frame"].nunique() > 1:
-        sc = ax.scatter(coords[:, 0], coords[:, 1], c=table["frame"], cmap="viridis", s=28)
+        sc = ax.scatter(coords[:, 0], coords[:, 1], c=table["frame"], cmap="viridis", s=size)
         fig.colorbar(sc, ax=ax, label="frame")
     else:  # one frame: a colour scale would say nothing
-        ax.scatter(coords[:, 0], coords[:, 1], s=28, color="tab:blue")
+        ax.scatter(coords[:, 0], coords[:, 1], s=size, color="tab:blue")
     # objects cut by the border or folded by the map are often the outliers: ring them (holes
     # are filled before measuring and do not change the shape, so they are not ringed)
     flagged = np.zeros(len(table), bool)
