@@ -337,16 +337,10 @@ def _select_frames(table, frames: str | None):
     return sub
 
 
-#: Above this many objects the 2-D map of ``pfsdm compare --mds`` is drawn from the neighbour
-#: graph (t-SNE of each object's :data:`MAP_NEIGHBOURS` nearest) instead of classical MDS of the
-#: full n x n matrix: at 2,000 objects the matrix costs ~8 s and its MDS (an n x n eigen-
-#: decomposition) a few more, and both grow as n² and n³ (docs/benchmarks.md).
-FULL_MATRIX_LIMIT = 2000
-#: Neighbours per object of the graph a map is drawn from (benchmarks/neighbour_maps.py).
-MAP_NEIGHBOURS = 15
-#: Above this many objects a t-SNE map takes minutes (10,000: 33 s, 50,000: 474 s measured
-#: here; UMAP 20 s and 47 s): the output suggests --map umap.
-TSNE_SLOW = 10_000
+# when a map is drawn from the neighbour graph, and how: one set of numbers for the command
+# line and the plugin (napari_pfsdm.analysis.reduction)
+from .analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW  # noqa: E402
+
 #: Column that carries a row's position in the feature file through the selections.
 _FILE_ROW = "_pfsdm_file_row"
 

@@ -187,6 +187,18 @@ def mds_coordinates(d: np.ndarray, n_components: int = 2) -> np.ndarray:
 
 #: The embeddings of :func:`graph_coordinates`, the default first (benchmarks/neighbour_maps.py).
 GRAPH_MAPS = ("tsne", "umap", "spectral")
+#: Above this many objects maps are drawn from the neighbour graph (t-SNE of each object's
+#: :data:`MAP_NEIGHBOURS` nearest) instead of classical MDS of the full n x n matrix: at 2,000
+#: objects the matrix costs ~8 s and its MDS (an n x n eigendecomposition) a few more, and
+#: both grow as n² and n³ (docs/benchmarks.md). ``pfsdm compare --mds`` and the plugin's
+#: "all frames" comparison.
+FULL_MATRIX_LIMIT = 2000
+#: Neighbours per object of the graph a map is drawn from (benchmarks/neighbour_maps.py).
+MAP_NEIGHBOURS = 15
+#: Above this many objects a t-SNE map takes minutes (10,000: 33 s, 50,000: 474 s measured
+#: here; UMAP 20 s and 47 s): ``pfsdm compare`` suggests --map umap, the plugin draws the
+#: spectral map when umap-learn is missing.
+TSNE_SLOW = 10_000
 
 
 def graph_coordinates(indices: np.ndarray, distances: np.ndarray, method: str = "tsne", *,

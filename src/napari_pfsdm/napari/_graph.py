@@ -19,23 +19,31 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pandas as pd
 
-#: Above this many objects the viewer compares by nearest neighbours, not all pairs (the
-#: command line's ``FULL_MATRIX_LIMIT``: the matrix image and classical MDS grow as n²).
-GRAPH_ROWS = 2000
+from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
+
+#: Above this many objects the viewer compares by nearest neighbours, not all pairs (as
+#: ``pfsdm compare``: the matrix image and classical MDS grow as n² and n³).
+GRAPH_ROWS = FULL_MATRIX_LIMIT
 #: Neighbours per object kept for the map, the re-ranking and the export.
-GRAPH_K = 15
+GRAPH_K = MAP_NEIGHBOURS
 #: Query rows per step (one step per thread; progress and Cancel between steps).
 STEP_ROWS = 256
 
 
-def map_method() -> str:
-    """The graph map the viewer draws: UMAP when umap-learn is installed (under a minute for
-    50,000 objects), else t-SNE (scikit-learn only; it separates kinds of shapes best but
-    costs minutes above 10,000 objects: docs/benchmarks.md, "Maps and re-ranking")."""
+#: Above this many objects t-SNE takes minutes (50,000: ~8 min): without umap-learn the
+#: viewer draws the spectral map instead (seconds; it mixes kinds of shapes more).
+TSNE_ROWS = TSNE_SLOW
+
+
+def map_method(n: int = 0) -> str:
+    """The graph map the viewer draws for ``n`` objects: UMAP when umap-learn is installed
+    (under a minute for 50,000 objects), else t-SNE up to :data:`TSNE_ROWS` objects
+    (scikit-learn only; it keeps kinds of shapes apart best), else spectral
+    (docs/benchmarks.md, "Maps and re-ranking on the neighbour graph")."""
     try:
         import umap  # noqa: F401
     except ImportError:
-        return "tsne"
+        return "tsne" if n <= TSNE_ROWS else "spectral"
     return "umap"
 
 

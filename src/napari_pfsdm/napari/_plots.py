@@ -40,6 +40,8 @@ from ._store import same_layer, store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
+#: Above this many points the plots draw them small and as one raster image.
+MANY_POINTS = 5000
 #: Bars of the nearest-shapes panel (neighbour-graph view).
 NEAREST_SHOWN = 10
 RERANK_TIP = ("Re-rank the distances through the whole collection (diffusion on the "
@@ -331,6 +333,17 @@ class _LinkedPlot(QWidget):
     def highlight(self, draw: bool = True) -> None:  # pragma: no cover - overridden
         pass
 
+    def _key_array(self) -> np.ndarray:
+        """:attr:`_keys` as an (n, 2) array of (frame, label), made once per drawing (a
+        highlight runs at every slider step: 50,000 tuples converted each time cost more
+        than drawing the markers)."""
+        keys = self._keys
+        cached = getattr(self, "_key_cache", None)
+        if cached is None or cached[0] is not keys:
+            cached = (keys, np.asarray(keys, dtype=np.int64).reshape(-1, 2))
+            self._key_cache = cached
+        return cached[1]
+
 
 def _objects_of(output, scores, channel: str) -> np.ndarray:
     """The object of each PCA row: its ``track_id`` when the table has one, else its label
@@ -521,19 +534,23 @@ class TrajectoryPlotWidget(_LinkedPlot):
             segments.append(np.column_stack([x[sel], y[sel]]))
             seg_colors.append(tab(names.index(groups[lab]) % 10) if by_group and lab in groups
                               else c["grid"])
-        ax.add_collection(LineCollection(segments, colors=seg_colors, linewidths=1.0,
-                                         alpha=0.8, zorder=1))
+        many = len(x) > MANY_POINTS  # one raster image in the figure, not 50,000 markers
+        ax.add_collection(LineCollection(segments, colors=seg_colors,
+                                         linewidths=0.5 if many else 1.0, alpha=0.8, zorder=1,
+                                         rasterized=many))
+        size = 4 if many else 18
         if by_group:
             colors = [tab(names.index(groups[lab]) % 10) if lab in groups else c["grid"]
                       for lab in labels]
-            ax.scatter(x, y, c=colors, s=18, zorder=2, edgecolors="none")
+            ax.scatter(x, y, c=colors, s=size, zorder=2, edgecolors="none", rasterized=many)
             for k, name in enumerate(names):
                 ax.scatter([], [], color=tab(k % 10), s=18, label=name)
             leg = ax.legend(fontsize=7, facecolor=c["panel"], edgecolor=c["grid"],
                             labelcolor=c["fg"], loc="best")
             leg.set_zorder(5)
         else:
-            sc = ax.scatter(x, y, c=frames, cmap="viridis", s=18, zorder=2, edgecolors="none")
+            sc = ax.scatter(x, y, c=frames, cmap="viridis", s=size, zorder=2,
+                            edgecolors="none", rasterized=many)
             if output.time_lapse:
                 cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
                 cb.set_label("frame", color=c["fg"])
@@ -562,7 +579,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         if ax is None:
             return
         frame, label = self.current()
-        keys = np.asarray(self._keys)
+        keys = self._key_array()
         c = self._theme()
         in_frame = keys[:, 0] == frame
         if in_frame.any():
@@ -852,9 +869,11 @@ class ShapeComparisonWidget(_LinkedPlot):
         self._matrix_keys = keys
         self._graph_rows = {key: i for i, key in enumerate(keys)}
         self.distances = None
+        hint = (" (pip install umap-learn for a map that keeps kinds of shapes apart)"
+                if graph.method == "spectral" else "")
         self.info.setText(f"{len(keys):,} objects: compared by each one's {graph.k} nearest "
                           "shapes (exact), not all pairs. Click a point or a bar to select "
-                          "that object.")
+                          f"that object.{hint}")
 
     def _set_shown(self, keys, xy, d, ax_p, ax_m) -> None:
         self._points = xy
@@ -935,7 +954,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         if ax is None:
             return
         frame, label = self.current()
-        keys = np.asarray(self._keys)
+        keys = self._key_array()
         sel = keys[:, 1] == label
         if self._shown_frame is None:
             sel &= keys[:, 0] == frame
@@ -1002,7 +1021,7 @@ def _graph_worker(sub, intensity_weight: float, reranked: bool):
     if reranked:
         idx, dist = rerank_graph(idx, dist)
         yield "re-ranked"
-    method = map_method()
+    method = map_method(len(idx))
     xy = yield from map_steps(idx, dist, method)
     return GraphResult(idx, dist, xy, {"tsne": "t-SNE", "umap": "UMAP"}.get(method, method),
                        reranked)
