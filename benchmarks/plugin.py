@@ -776,7 +776,7 @@ def main(argv=None) -> int:
                         help="small versions of b, c (4 frames) and d (400 objects); 3 looks "
                              "and 3 steps")
     parser.add_argument("--looks", type=int, default=8, help="labels selected per data set")
-    parser.add_argument("--many", type=int, default=MANY,
+    parser.add_argument("--many", type=int, default=50_000,
                         help="objects of data set e, the movie of many objects (default 50,000)")
     parser.add_argument("--steps", type=int, default=8, help="time-slider steps per data set")
     parser.add_argument("--only", default="", help="data sets to run, e.g. 'ad' (default all)")
