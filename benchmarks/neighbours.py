@@ -13,7 +13,7 @@ and with ``--jobs`` threads. Reported per size:
   computed (n ≤ ``--exact-max``; also against itself on the objects in another order),
   else of reference rows for ``--sample`` random queries (the magnitude distance by
   ``scipy.spatial.distance.cdist`` plus ``boundary_distance_matrix(queries, all)``);
-- peak memory (the subprocess's ru_maxrss, table included; target < 4 GiB);
+- peak memory (the subprocess's peak resident set, VmHWM, table included; target < 4 GiB);
 - the brute force, blocked rows against all: its time per reference row × n (estimate) and the
   n × n matrix's size.
 
@@ -56,6 +56,19 @@ PER_FRAME = 250
 TIE = 1e-6
 
 
+def _peak_mib() -> float:
+    """This process's peak resident memory (MiB): VmHWM, which starts afresh at exec (Linux's
+    ru_maxrss keeps the parent's peak across fork + exec, so it would count the parent)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def _child(path: str, jobs: int) -> None:
     """Subprocess: load the table, run nearest_neighbours, print JSON (time, peak memory)."""
     import warnings
@@ -66,7 +79,7 @@ def _child(path: str, jobs: int) -> None:
     warnings.simplefilter("ignore")
     with open(path, "rb") as fh:
         table = pickle.load(fh)
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base = _peak_mib()
     counted = [0]
     exact = core_nn._exact_pairs
 
@@ -80,8 +93,7 @@ def _child(path: str, jobs: int) -> None:
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     np.save(path + f".idx{jobs}.npy", idx)
     print(json.dumps({"wall": wall, "cpu": cpu, "pairs": counted[0] / len(idx),
-                      "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                      "base_mib": base / 1024}))
+                      "peak_mib": _peak_mib(), "base_mib": base}))
 
 
 def _run_child(path: Path, jobs: int) -> dict:
