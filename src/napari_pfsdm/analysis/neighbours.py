@@ -118,21 +118,27 @@ def nearest_neighbours(
         Row numbers of each object's neighbours, nearest first, never the object itself.
         Equal distances are ordered by row number.
     distances : ndarray of float, shape (n, k)
-        Their distances: the entries of ``distance_matrix(items)`` (to rounding, ~1e-7).
+        Their distances: the entries of ``distance_matrix(items)`` (to rounding; ≤ 1.1e-6
+        on MPEG-7, where the boundary term's start-shift search of an ambiguous pair depends
+        on the order of summation: the matrix itself moves by up to 1.7e-3 when the objects
+        come in another order).
 
     Notes
     -----
     The search is exact (the same neighbours as sorting the rows of ``distance_matrix``,
-    tested). For each block of queries it computes, for all objects at once and in single
-    precision, a lower bound LB ≤ D: the distance of the features projected on their first
-    principal components (a projection never lengthens a difference) plus λ sqrt(1 − min(1,
+    tested; on MPEG-7 up to ties within 1e-6, which the matrix itself does not reproduce
+    when the objects are reordered: docs/benchmarks.md, "Nearest neighbours"). For each
+    block of queries it computes, for all objects at once and in single precision, a lower
+    bound LB ≤ D: the distance of the features projected on their first ≤ 32 principal
+    components (a projection never lengthens a difference) plus λ sqrt(1 − min(1,
     Σ_n |a_n||b_n|)²), which is ≤ d_B because the correlation of two unit-norm outlines over
-    every start shift and the mirror is at most Σ_n |a_n||b_n| (docs/design.md §2.9). D is
-    then computed exactly for the max(2k, k + 16) objects of smallest LB, and where the k-th
-    of those is above the next LB, for every object whose LB is below it: whatever is left
-    out has LB, hence D, at least the k-th distance found (safety margins cover the single
-    precision). On 3,000 moving blobs that is ~54 exact distances per object instead of
-    3,000 (docs/benchmarks.md, "Nearest neighbours").
+    every start shift and the mirror is at most Σ_n |a_n||b_n| (docs/design.md §2.12). D is
+    then computed exactly, in increasing order of LB and in rounds of 2k, 4k, ... out of a
+    pool of each query's 1,024 smallest bounds, for the objects whose LB is at most the k-th
+    distance found so far, until the k-th distance is below the next LB (past the pool,
+    every object is looked at): whatever is left out has LB, hence D, at least the k-th
+    distance found (margins cover the single precision). On 3,000 moving blobs that is ~48
+    exact distances per object instead of 2,999 (docs/benchmarks.md, "Nearest neighbours").
 
     Objects without features or outline (NaN rows of results or embeddings) are nobody's
     neighbour, and their own rows are index -1 and distance NaN; when fewer than k other

@@ -233,7 +233,10 @@ def boundary_distance_pairs(coefs: np.ndarray, others: np.ndarray, *,
     reflections in single precision, then Newton steps in double precision), for a list of
     pairs rather than all of them: what a nearest-neighbour search needs for its few
     candidates (:mod:`napari_pfsdm.core.neighbours`, docs/design.md §2.9). Equal to the
-    matrix's entries to rounding (the coarse values are summed in another order, ~1e-7).
+    matrix's entries to rounding on most pairs; the coarse values are summed in another
+    order, which can move the refined peak of an ambiguous pair (measured on 1,500 MPEG-7
+    outlines: ≤ 1.1e-6; the matrix itself, for the same objects in another order, moves by
+    up to 1.7e-3 on 0.06 % of the pairs for the same reason).
 
     Parameters
     ----------
