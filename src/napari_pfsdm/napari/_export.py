@@ -74,7 +74,7 @@ def neighbour_export_steps(output: AnalysisOutput, prefix: str = "<layer>"):
     ``neighbour`` are rows of the features file). Returns ``{"neighbours": edges, "note":
     sentence}``."""
     from ..analysis.reduction import neighbour_table
-    from ._graph import GRAPH_K, neighbour_steps
+    from ._graph import graph_of
 
     table = output.table
     w = output.options.get("intensity_weight", 0.0)
@@ -83,7 +83,7 @@ def neighbour_export_steps(output: AnalysisOutput, prefix: str = "<layer>"):
     sub = table.iloc[np.flatnonzero(output.measured())]
     if w:  # rows whose reporter could not be described have no intensity features
         sub, _ = split_failed(sub, ("shape", "intensity"))
-    idx, dist = yield from neighbour_steps(sub, GRAPH_K, w)
+    idx, dist = yield from graph_of(output, sub, w)
     edges = neighbour_table(sub, idx, dist, rows=table.index.get_indexer(sub.index))
     return {"neighbours": edges, "note": too_many_for_distances(len(table), prefix)}
 

@@ -711,8 +711,10 @@ class ShapeComparisonWidget(_LinkedPlot):
                 return
             self._worker.quit()
         by_graph = len(sub) > GRAPH_ROWS
-        make = _graph_worker if by_graph else _comparison_worker
-        worker = make(sub, w, reranked, _ignore_errors=True)
+        if by_graph:
+            worker = _graph_worker(sub, w, reranked, self.output, _ignore_errors=True)
+        else:
+            worker = _comparison_worker(sub, w, reranked, _ignore_errors=True)
         self._worker, self._worker_key = worker, key
         if by_graph:
             worker.yielded.connect(self._on_graph_progress)
@@ -1012,12 +1014,12 @@ class GraphResult(NamedTuple):
 
 
 @thread_worker(start_thread=False)
-def _graph_worker(sub, intensity_weight: float, reranked: bool):
+def _graph_worker(sub, intensity_weight: float, reranked: bool, output=None):
     """Worker: the neighbour graph of ``sub``'s rows (progress, and Cancel between blocks),
     re-ranked if asked, and its map (in a worker process, which Cancel terminates)."""
-    from ._graph import GRAPH_K, map_method, map_steps, neighbour_steps, rerank_graph
+    from ._graph import graph_of, map_method, map_steps, rerank_graph
 
-    idx, dist = yield from neighbour_steps(sub, GRAPH_K, intensity_weight)
+    idx, dist = yield from graph_of(output, sub, intensity_weight)
     if reranked:
         idx, dist = rerank_graph(idx, dist)
         yield "re-ranked"
