@@ -16,6 +16,7 @@ from napari_pfsdm import cli
 from napari_pfsdm.analysis.rerank import rerank
 from napari_pfsdm.cli import main
 from napari_pfsdm.io_csv import read_table_csv
+from test_cli_options import three_objects
 
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
 
@@ -37,13 +38,7 @@ def neighbours_available(monkeypatch):
 
 def _objects(n_frames=4):
     """Three objects per frame that change shape over time: 12 rows."""
-    yy, xx = np.mgrid[:64, :120]
-    labels = np.zeros((n_frames, 64, 120), np.uint16)
-    for t in range(n_frames):
-        labels[t][((yy - 20) / (10 + 2 * t)) ** 2 + ((xx - 20) / 8) ** 2 < 1] = 1
-        labels[t][(abs(yy - 40) < 6 + t) & (abs(xx - 60) < 15 - t)] = 2
-        labels[t][((yy - 30) ** 2 + (xx - 100) ** 2) < (9 + t) ** 2] = 3
-    return labels
+    return three_objects(n_frames)[0]  # the CLI tests' movie (tests/test_cli_options.py)
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ import napari_pfsdm as P
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_options import plain
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from test_cli_options import three_objects
 
 pytest.importorskip("pyarrow")
 
@@ -23,13 +24,8 @@ FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
 
 
 def _movie(n_frames=3):
-    yy, xx = np.mgrid[:64, :120]
-    labels = np.zeros((n_frames, 64, 120), np.uint16)
-    for t in range(n_frames):
-        labels[t][((yy - 20) / (10 + 2 * t)) ** 2 + ((xx - 20) / 8) ** 2 < 1] = 1
-        labels[t][(abs(yy - 40) < 6 + t) & (abs(xx - 60) < 15 - t)] = 2
-        labels[t][((yy - 30) ** 2 + (xx - 100) ** 2) < (9 + t) ** 2] = 3
-    return labels
+    """Three objects per frame that change shape over time."""
+    return three_objects(n_frames)[0]  # the CLI tests' movie (tests/test_cli_options.py)
 
 
 def test_a_measured_table_reads_back_identically(tmp_path):

@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib.backend_bases import MouseEvent
 from napari_helpers import (
@@ -259,8 +260,6 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
     """More objects than the matrix view holds (GRAPH_ROWS, lowered here to the sample's
     size): each object's nearest shapes, by the same distances as the full matrix, and a map
     of the neighbour graph; a click on a bar selects that neighbour in the viewer."""
-    from matplotlib.backend_bases import MouseEvent
-
     from napari_pfsdm import distance_matrix
     from napari_pfsdm.napari import _plots
 
@@ -291,3 +290,39 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
     x, y = comp._ax_near.transData.transform((0.5 * comp._ax_near.get_xlim()[1], 2))
     MouseEvent("button_press_event", comp.canvas, x, y, button=1)._process()
     assert (_frame(viewer, labels_layer), labels_layer.selected_label) == target
+
+
+def test_a_movie_beyond_the_old_3000_limit_compares_and_exports_by_neighbours(
+        make_napari_viewer, qtbot, tmp_path, monkeypatch):
+    """3,000+ objects (the old limit of the matrix view and export): Run measures them on
+    worker processes, 'all frames' is the neighbour-graph view (no n x n matrix), and the
+    export writes the edge list beside features and PCA."""
+    from napari_pfsdm import nearest_neighbours
+    from napari_pfsdm.analysis.features import split_failed
+    from napari_pfsdm.data.moving_blobs import make_moving_blobs
+    from napari_pfsdm.napari import _graph
+
+    labels = make_moving_blobs(n_objects=250, n_frames=13, size=1024, radius=(10.0, 16.0),
+                               seed=3).labels
+    viewer = make_napari_viewer()
+    viewer.add_labels(labels, name="blobs")
+    widget = dock(viewer)
+    out = run_and_wait(qtbot, widget)
+    assert len(out.table) > 3000
+    monkeypatch.setattr(_graph, "map_method", lambda n=0: "spectral")  # seconds, not a minute
+    comp = dock(viewer, COMPARISON)
+    comp.frame_choice.setCurrentText("all frames")
+    wait_computed(qtbot, comp, timeout=300_000)
+    graph = comp._graph
+    assert graph is not None and comp.distances is None
+    measured = split_failed(out.table.iloc[np.flatnonzero(out.measured())], ("shape",))[0]
+    assert graph.indices.shape == (len(measured), _graph.GRAPH_K)
+    rows = np.random.default_rng(0).choice(len(measured), 20, replace=False)
+    idx, dist = nearest_neighbours(measured, k=_graph.GRAPH_K)
+    np.testing.assert_array_equal(graph.indices[rows], idx[rows])
+    widget.export_async(tmp_path)
+    qtbot.waitUntil(lambda: not widget.exporting, timeout=300_000)
+    names = sorted(p.name for p in tmp_path.glob("*.csv"))
+    assert names == ["blobs_features.csv", "blobs_neighbours.csv", "blobs_pca_shape.csv"]
+    edges = pd.read_csv(tmp_path / "blobs_neighbours.csv")
+    assert len(edges) == len(measured) * _graph.GRAPH_K

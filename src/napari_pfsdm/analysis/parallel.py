@@ -60,9 +60,10 @@ __all__ = [
 #: Below this many objects a run stays in one process: handing frames to other processes and
 #: collecting their rows costs more than it saves (the 72-object sample measures in 0.3 s).
 MIN_OBJECTS = 300
-#: About this many tasks per worker process: enough to balance uneven frames and to report
-#: progress, few enough that sending frames costs little.
-TASKS_PER_WORKER = 8
+#: About this many tasks per worker process: enough to balance uneven frames (the last task
+#: of one worker is the other's idle time) and to report progress, few enough that sending
+#: frames costs little. 10,000 blobs: 8 tasks per worker 0.61x measure's time, 32 0.58x.
+TASKS_PER_WORKER = 32
 
 Row = tuple[ObjectResult, "dict | None"]
 
@@ -137,8 +138,13 @@ def plan_tasks(counts: list[np.ndarray], n_tasks: int) -> list[list[tuple[int, n
 def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray]:
     out = []
     for t in range(n_frames):
-        frame = _frame(labels, t, timelapse)
-        present = np.unique(frame)
+        frame = _frame(labels, t, timelapse).ravel()
+        if frame.dtype == bool:
+            frame = frame.astype(np.uint8)
+        if frame.size and int(frame.max()) < 2**24:  # a count per value: 10x np.unique
+            present = np.flatnonzero(np.bincount(frame)) if frame.size else np.zeros(0, int)
+        else:
+            present = np.unique(frame)
         out.append(present[present > 0].astype(np.int64))
     return out
 
