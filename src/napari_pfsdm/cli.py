@@ -347,9 +347,9 @@ _FILE_ROW = "_pfsdm_file_row"
 
 def _nearest(table, k: int, args: argparse.Namespace):
     """Each object's k nearest, itself excluded (napari_pfsdm.nearest_neighbours)."""
-    import napari_pfsdm
+    from .analysis.neighbours import nearest_neighbours
 
-    return napari_pfsdm.nearest_neighbours(
+    return nearest_neighbours(
         table, k=k, intensity_weight=args.intensity_weight,
         boundary_weight=args.boundary_weight)
 

@@ -442,7 +442,7 @@ def _read_parquet(path: Path) -> pd.DataFrame:
         df = pd.read_parquet(path, engine="pyarrow")
     except Exception as exc:  # pyarrow's own errors: a damaged or truncated file
         raise InputError(f"{path} is not a readable Parquet table ({exc})") from None
-    df.attrs = {}
+    df = plain(df)  # pandas restores attrs from the file's metadata: the sidecar's count
     if side is not None:
         set_options(df, dict(side.get("options") or {}))
     return df

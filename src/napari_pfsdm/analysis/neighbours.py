@@ -188,7 +188,7 @@ def _run_threads(index, parts, k, method, n_jobs):
 
 
 def _run_dask(index, parts, k, method, scheduler, client):
-    from ..batch.run import _client_for, resolve_scheduler
+    from .schedulers import _client_for, resolve_scheduler
 
     kind, obj = resolve_scheduler(scheduler, client)
     if kind == "local":

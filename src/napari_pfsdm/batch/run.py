@@ -20,13 +20,14 @@ import hashlib
 import json
 import os
 import re
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from ..analysis.schedulers import _client_for, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -36,7 +37,6 @@ from .io import Movie, check_labels, file_identity, open_movie
 
 __all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
 
-LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
 
 class _Slice:
@@ -111,55 +111,6 @@ def default_frames_per_task(
     by_balance = max(1, -(-n_frames // (4 * max(workers, 1))))
     k = max(1, min(by_memory, by_balance))
     return max(chunk_t, (k // chunk_t) * chunk_t) if chunk_t <= by_memory else chunk_t
-
-
-def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, Any]:
-    """Normalise the scheduler choice into ``(kind, object)``.
-
-    Returns ``("distributed", Client)``, ``("address", str)`` (a client is opened on demand)
-    or ``("local", name)`` with name in threads / processes / sync.
-    """
-    if client is not None:
-        return "distributed", client
-    if scheduler is None:
-        return "local", "threads"
-    if isinstance(scheduler, str):
-        s = scheduler.strip()
-        if s in LOCAL_SCHEDULERS:
-            return "local", {"synchronous": "sync", "single-threaded": "sync"}.get(s, s)
-        if "://" in s or re.fullmatch(r"[\w.\-]+:\d+", s):
-            return "address", s
-        raise InputError(
-            f"unknown scheduler {scheduler!r}: use threads, processes, sync, or the address "
-            "of a dask scheduler such as tcp://10.0.0.5:8786"
-        )
-    # a distributed.Client passed as scheduler
-    if hasattr(scheduler, "submit") and hasattr(scheduler, "gather"):
-        return "distributed", scheduler
-    raise InputError(f"unknown scheduler {scheduler!r}")
-
-
-@contextlib.contextmanager
-def _client_for(kind: str, obj: Any) -> Iterator[Any]:
-    if kind == "address":
-        try:
-            from distributed import Client
-        except ImportError as exc:
-            raise InputError(
-                "running on a dask cluster needs the distributed package: "
-                "pip install 'napari-pfsdm[batch]'"
-            ) from exc
-
-        try:
-            client = Client(obj, timeout="20s")
-        except OSError as exc:
-            raise InputError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
-        try:
-            yield client
-        finally:
-            client.close()
-    else:
-        yield obj
 
 
 def measure_dask(
