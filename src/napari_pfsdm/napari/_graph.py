@@ -6,8 +6,9 @@ that a worker can report progress and stop between blocks) and a map drawn from 
 (:func:`napari_pfsdm.analysis.reduction.graph_coordinates`), never the n × n matrix: 50,000
 objects would need 18.6 GiB for it (docs/benchmarks.md, "Nearest neighbours").
 
-The map runs in a worker *process* (:mod:`napari_pfsdm.analysis.parallel`'s pool): t-SNE
-cannot be stopped half-way inside a thread, a process can (Cancel terminates it).
+The map runs in a worker *process* of its own (started like
+:mod:`napari_pfsdm.analysis.parallel`'s pool): t-SNE cannot be stopped half-way inside a
+thread, a process can (Cancel terminates it, and only it).
 """
 
 from __future__ import annotations
@@ -104,18 +105,16 @@ def map_steps(indices: np.ndarray, distances: np.ndarray,
     from ..analysis import parallel
     from ..analysis.reduction import graph_coordinates
 
-    pool = parallel.shared_pool()
-    job = pool.apply_async(graph_coordinates, (indices, distances, method or map_method()))
-    finished = False
+    # a process of its own, not the shared pool: stopping the map must not stop a Run
+    pool = parallel._start(1)
     try:
+        job = pool.apply_async(graph_coordinates, (indices, distances, method or map_method()))
         while True:
             try:
                 xy = job.get(timeout=0.2)
                 break
             except mp.TimeoutError:
                 yield "mapping"
-        finished = True
     finally:
-        if not finished:
-            parallel.shutdown_pool()
+        pool.terminate()
     return np.asarray(xy)
