@@ -435,6 +435,16 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
             print(f"  napari-clusters-plotter not docked: {type(err).__name__}: {err}")
         viewer.layers.selection.active = labels_layer
         bench.spin(1000)
+        # the widget starts its worker processes when docked (in the background); a person
+        # takes longer than that to choose the layers: Run once they are up (time reported)
+        from napari_pfsdm.analysis.parallel import pool_ready
+
+        waited = 1.0
+        while not pool_ready() and waited < 20:
+            bench.spin(100)
+            waited += 0.1
+        info["processes ready after docking"] = (f"{waited:.1f} s" if pool_ready()
+                                                 else "not within 20 s")
         if widget.labels_combo.currentText() != labels_layer.name:
             bench.note("setup", f"the widget chose '{widget.labels_combo.currentText()}'")
         images = [lay for lay in layers if isinstance(lay, Image)]

@@ -91,6 +91,43 @@ def test_few_objects_stay_in_this_process(small_movie, monkeypatch):
     assert len(steps) == len(rows)  # one step per object
 
 
+def test_a_warm_pool_measures_even_a_small_movie_in_processes(monkeypatch):
+    """warm_pool starts the processes in the background; once they run, a movie far below
+    MIN_OBJECTS goes to them (and gives measure's table), in a few tasks of at least
+    MIN_TASK_OBJECTS objects, not one task per object."""
+    labels, intensity = make_timelapse_montage(8, 6, 160, seed=4)[:2]  # 48 objects
+    parallel.shutdown_pool()
+    assert not parallel.pool_ready(2)
+    thread = parallel.warm_pool(2)
+    assert thread is not None
+    thread.join(timeout=120)
+    assert parallel.pool_ready(2) and parallel.warm_pool(2) is None  # started once
+    pool = parallel._POOL["pool"]
+    sent = []
+    real_plan = parallel.plan_tasks
+    monkeypatch.setattr(parallel, "plan_tasks",
+                        lambda counts, n: sent.append(n) or real_plan(counts, n))
+    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+                                            axes="tyx", workers=2))
+    assert parallel._POOL["pool"] is pool  # the same processes, not a new pool
+    assert sent == [max(2, 48 // parallel.MIN_TASK_OBJECTS)] == [3]
+    table = table_from_objects([obj for obj, _ in rows], with_intensity=True,
+                               params=PFSDMParams(), axes="tyx")
+    pd.testing.assert_frame_equal(table, pf.measure(labels, intensity))
+    assert len(steps) < len(rows)  # a step per task, not per object
+
+
+def test_a_warm_pool_of_another_size_or_too_few_objects_stays_here(monkeypatch):
+    labels, intensity = make_timelapse_montage(4, 6, 160, seed=4)[:2]  # 24 < 2 x 16
+    parallel.shutdown_pool()
+    parallel.warm_pool(2).join(timeout=120)
+    monkeypatch.setattr(parallel, "plan_tasks", None)  # the pool's route would call it
+    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+                                            axes="tyx", workers=2))
+    assert len(steps) == len(rows) == 24  # one step per object: measured here
+    assert not parallel.pool_ready(3)
+
+
 def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
     labels, intensity = small_movie
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)

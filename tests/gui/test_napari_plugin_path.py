@@ -112,6 +112,29 @@ def test_a_run_of_many_objects_uses_worker_processes_and_gives_measures_table(
     assert widget.progress.value() == widget.progress.maximum() == len(expected)
 
 
+def test_docking_starts_the_processes_so_a_small_run_uses_them(viewer_widget, qtbot,
+                                                               monkeypatch):
+    """The widget warms the process pool when docked: the 72-object sample, far below
+    MIN_OBJECTS, is then measured in the processes too, with measure's table."""
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis import parallel
+
+    if parallel.available_cores() < 2:
+        pytest.skip("one core: no process pool")
+    viewer, widget = viewer_widget
+    qtbot.waitUntil(parallel.pool_ready, timeout=120_000)
+    routes = []
+    real = parallel._iter_rows_pool
+    monkeypatch.setattr(parallel, "_iter_rows_pool",
+                        lambda *a, **k: routes.append("pool") or real(*a, **k))
+    out = run_and_wait(qtbot, widget)
+    assert routes == ["pool"]
+    labels = viewer.layers["gastruloids"].data
+    reporter = viewer.layers["gastruloids reporter"].data
+    expected = pf.measure(labels, reporter)
+    pd.testing.assert_frame_equal(out.table[expected.columns], expected)
+
+
 def test_plots_redraw_only_when_their_data_change(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     labels = viewer.layers["gastruloids"]

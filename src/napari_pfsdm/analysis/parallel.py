@@ -54,12 +54,19 @@ __all__ = [
     "plan_tasks",
     "row_of",
     "shared_pool",
+    "pool_ready",
     "shutdown_pool",
+    "warm_pool",
 ]
 
-#: Below this many objects a run stays in one process: handing frames to other processes and
-#: collecting their rows costs more than it saves (the 72-object sample measures in 0.3 s).
+#: Below this many objects a run stays in one process unless the pool is already running
+#: (:func:`warm_pool`): starting the processes (about 0.6 s) costs more than they save (the
+#: 72-object sample measures in 0.2 s).
 MIN_OBJECTS = 300
+#: At least this many objects per task: fewer, and sending a task and its rows costs more
+#: than measuring it (the sample on a running pool: 64 tasks of one object 0.23 s, 4 tasks
+#: of 18 objects 0.13 s, one process 0.21 s).
+MIN_TASK_OBJECTS = 16
 #: About this many tasks per worker process: enough to balance uneven frames (the last task
 #: of one worker is the other's idle time) and to report progress, few enough that sending
 #: frames costs little. 10,000 blobs: 8 tasks per worker 0.61x measure's time, 32 0.58x.
@@ -169,13 +176,17 @@ def _measure_task(frames: list[tuple], options: dict, volume: bool) -> list[Row]
 # --------------------------------------------------------------------------- the pool
 _POOL: dict[str, Any] = {"pool": None, "workers": 0}
 _POOL_LOCK = threading.Lock()
+#: Imported once by the fork server, so that no worker imports them in its first task
+#: (what the first object imports lazily: regionprops, contours, moments, BLAS control).
+_PRELOAD = ("skimage.measure._regionprops", "skimage.measure._find_contours",
+            "skimage.measure._moments", "threadpoolctl")
 
 
 def _context():
     methods = mp.get_all_start_methods()
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload([__name__])
+        ctx.set_forkserver_preload([__name__, *_PRELOAD])
         return ctx
     return mp.get_context("spawn")  # pragma: no cover - Windows, macOS default
 
@@ -216,6 +227,44 @@ def shared_pool(workers: int | None = None):
         return pool
 
 
+def pool_ready(workers: int | None = None) -> bool:
+    """Whether the shared pool is running with ``workers`` processes (default
+    :func:`available_cores`), without waiting for one being started."""
+    workers = int(workers or available_cores())
+    return _POOL["pool"] is not None and _POOL["workers"] == workers
+
+
+def warm_pool(workers: int | None = None) -> threading.Thread | None:
+    """Start the shared pool in the background, so that the next run, however small, is
+    measured on every core without waiting for the processes.
+
+    The napari widget calls it when it is docked. Returns the starting thread (None when
+    the pool is running already or there is one core only). The processes wait idle until a
+    run; :func:`shutdown_pool` stops them.
+    """
+    workers = int(workers or available_cores())
+    if workers <= 1 or pool_ready(workers):
+        return None
+    thread = threading.Thread(target=_start_warm, args=(workers,), name="pfsdm-warm-pool",
+                              daemon=True)
+    thread.start()
+    return thread
+
+
+def _start_warm(workers: int) -> None:
+    pool = shared_pool(workers)
+    # one small object per process: its first FFTs and contours cost 0.1 s more than later
+    # ones (plans, caches); a pool stopped meanwhile just ends the wait
+    pool.map_async(_warm_task, range(workers), chunksize=1).wait(timeout=60)
+
+
+def _warm_task(_index: int) -> None:
+    yy, xx = np.mgrid[:32, :32]
+    frame = ((yy - 15.5) ** 2 + (xx - 15.5) ** 2 < 100).astype(np.uint8)
+    args = [(0, frame, frame.astype(np.float32), np.array([1]))]
+    _measure_task(args, PFSDMParams().options(), False)
+
+
 def shutdown_pool() -> None:
     """Stop the shared pool's processes now (a cancelled run; the end of the session)."""
     with _POOL_LOCK:
@@ -243,8 +292,10 @@ def iter_rows(
     params : PFSDMParams
         The method's options.
     workers : int, optional
-        Processes: default :func:`available_cores`; 1 (or fewer than :data:`MIN_OBJECTS`
-        objects) measures here, in this thread, object by object.
+        Processes: default :func:`available_cores`. 1 measures here, in this thread, object
+        by object; so do fewer than :data:`MIN_OBJECTS` objects, unless the pool is running
+        already (:func:`pool_ready`) and there are at least :data:`MIN_TASK_OBJECTS` per
+        process.
     total : int, optional
         The number of objects, if already counted (progress says ``done / total``).
 
@@ -267,7 +318,9 @@ def iter_rows(
 
         total = count_objects(labels, axes)
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
-    if workers <= 1 or total < MIN_OBJECTS:
+    pooled = total >= MIN_OBJECTS or (pool_ready(workers)
+                                      and total >= workers * MIN_TASK_OBJECTS)
+    if workers <= 1 or not pooled:
         rows = []
         for done, obj in enumerate(iter_objects(labels, intensity, params=params, **where),
                                    start=1):
@@ -292,8 +345,8 @@ def _iter_rows_pool(labels, intensity, params, axes, spacing, workers, total):
     if voxel is not None:
         options["spacing"] = voxel
     volume = "z" in axes
-    tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse),
-                       workers * TASKS_PER_WORKER)
+    n_tasks = min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS))
+    tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse), n_tasks)
     pool = shared_pool(workers)
     args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, volume)
                              for task in tasks)

@@ -296,6 +296,11 @@ class AnalysisWidget(QWidget):
             event.connect(self._refresh_layers)
         napari_viewer.dims.events.current_step.connect(self._on_step)
         self._refresh_layers()
+        # the processes of a Run start now, in the background (about a second), while the
+        # person chooses layers: then a Run of any size measures on every core at once
+        from ..analysis.parallel import warm_pool
+
+        warm_pool()
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
         """A narrow panel: the canvas keeps most of a laptop screen's width."""
@@ -464,7 +469,11 @@ class AnalysisWidget(QWidget):
         weight = self.intensity_weight.value() if image is not None else 0.0
         self.last_error = ""
         self.run_summary = ""
-        self.progress.setRange(0, 0)  # busy until the objects are counted
+        # not Qt's busy bar (setRange(0, 0)): its animation repaints the window all through
+        # the run, and each repaint holds Python's lock that the run's thread needs
+        self.progress.setRange(0, 1)
+        self.progress.setValue(0)
+        self.progress.setFormat("counting the objects…")
         self._message(f"Analysing '{labels.name}'…")
         self.run_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
@@ -577,7 +586,8 @@ class AnalysisWidget(QWidget):
         self.objects_button.setEnabled(output.time_lapse)
         self.objects_button.setVisible(output.time_lapse)  # needed for time-lapses only
         self.reading_box.setVisible(True)
-        self._reset_progress()
+        # one repaint of the bar, not three (each setValue repaints the window at once)
+        self.progress.setFormat("%v / %m objects")
         self.progress.setRange(0, len(output.table))
         self.progress.setValue(len(output.table))
         self.finished.emit(labels)
