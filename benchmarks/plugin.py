@@ -544,6 +544,13 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
                 f"{title} · comparison: tick re-rank", lambda: comp.rerank.setChecked(True),
                 {"drawn": lambda: not comp.computing}, settle=1.5, timeout=300)
             add("comparison: tick re-rank", res)
+            # what the person sees (look at them): the plots of many objects
+            out = Path(args.out)
+            out.mkdir(parents=True, exist_ok=True)
+            for plot, what in ((widget.plots[0], "trajectories"), (comp, "comparison")):
+                path = out / f"plugin_{title[0]}_{what}.png"
+                plot.figure.savefig(path, dpi=110, facecolor=plot.figure.get_facecolor())
+                info[f"{what} figure"] = str(path)
         if crowd:
             bench.spin(500)
             folder = Path(tempfile.mkdtemp(prefix="pfsdm-export-"))

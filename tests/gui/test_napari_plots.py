@@ -267,10 +267,15 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
     labels_layer = viewer.layers["gastruloids"]
     out = run_and_wait(qtbot, widget)
     monkeypatch.setattr(_plots, "GRAPH_ROWS", 20)
+    monkeypatch.setattr(_plots, "MANY_POINTS", 50)  # the map as a density image
     comp = dock(viewer, COMPARISON)
     comp.frame_choice.setCurrentText("all frames")
     wait_computed(qtbot, comp, timeout=120_000)
     assert comp.distances is None and comp._graph is not None  # no n x n matrix
+    from matplotlib.image import AxesImage
+
+    assert [type(a) for a in comp._axes_points.get_children()
+            if isinstance(a, AxesImage)] == [AxesImage]
     assert len(comp._keys) == len(out.table)
     assert comp._graph.xy.shape == (len(out.table), 2)
     viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 3)
@@ -326,3 +331,40 @@ def test_a_movie_beyond_the_old_3000_limit_compares_and_exports_by_neighbours(
     assert names == ["blobs_features.csv", "blobs_neighbours.csv", "blobs_pca_shape.csv"]
     edges = pd.read_csv(tmp_path / "blobs_neighbours.csv")
     assert len(edges) == len(measured) * _graph.GRAPH_K
+
+
+def test_many_points_are_drawn_as_one_density_image_and_stay_clickable(viewer_widget, qtbot,
+                                                                      monkeypatch):
+    """Above MANY_POINTS the trajectory plot draws one image (its cost does not grow with
+    the points), no line per object; clicking a point and the highlight work as before."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.image import AxesImage
+
+    from napari_pfsdm.napari import _plots
+
+    viewer, widget = viewer_widget
+    labels_layer = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget)
+    monkeypatch.setattr(_plots, "MANY_POINTS", 10)  # the sample's 72 points are "many"
+    plot = dock(viewer, TRAJECTORIES)
+    plot.redraw()
+    ax = plot._axes_points
+    images = [a for a in ax.get_children() if isinstance(a, AxesImage)]
+    assert len(images) == 1
+    assert not [a for a in ax.collections if isinstance(a, LineCollection)]
+    # every point is in a coloured pixel, and there are no more coloured pixels than points
+    img = images[0]
+    rgba = np.asarray(img.get_array())
+    x0, x1, y0, y1 = img.get_extent()
+    bins = rgba.shape[0]
+    px = np.clip(((plot._points[:, 0] - x0) / (x1 - x0) * bins).astype(int), 0, bins - 1)
+    py = np.clip(((plot._points[:, 1] - y0) / (y1 - y0) * bins).astype(int), 0, bins - 1)
+    assert (rgba[py, px, 3] > 0).all()
+    assert np.count_nonzero(rgba[..., 3]) == len({*zip(px.tolist(), py.tolist(), strict=True)})
+    assert "density" in plot.info.text()
+    target = plot._keys.index((7, 5))
+    _click(plot, target)
+    assert (_frame(viewer, labels_layer), labels_layer.selected_label) == (7, 5)
+    assert plot.highlighted_keys() == [(7, 5)]
+    track = [a for a in plot._highlight_artists if a in ax.lines]
+    assert len(track) == 1 and len(track[0].get_xdata()) > 1  # the selected object's track

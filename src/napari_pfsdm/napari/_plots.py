@@ -35,12 +35,13 @@ from ..core.table_schema import has_channel
 from . import _layers
 from ._alive import offer
 from ._compute import classical_mds
+from ._density import density_image, padded_extent
 from ._graph import GRAPH_ROWS
 from ._store import same_layer, store_for
 
 #: A click selects the nearest point closer than this (screen pixels).
 PICK_RADIUS_PX = 12
-#: Above this many points the plots draw them small and as one raster image.
+#: Above this many points the plots draw them as one density image (:mod:`._density`).
 MANY_POINTS = 5000
 #: Bars of the nearest-shapes panel (neighbour-graph view).
 NEAREST_SHOWN = 10
@@ -333,6 +334,15 @@ class _LinkedPlot(QWidget):
     def highlight(self, draw: bool = True) -> None:  # pragma: no cover - overridden
         pass
 
+    def _draw_density(self, ax, x: np.ndarray, y: np.ndarray, colors: np.ndarray) -> None:
+        """Many points as one image (:mod:`._density`): a draw that costs the same for 5,000
+        or 50,000 points."""
+        extent = padded_extent(x, y)
+        ax.imshow(density_image(x, y, colors, extent), origin="lower", extent=extent,
+                  aspect="auto", interpolation="nearest", zorder=2)
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+
     def _key_array(self) -> np.ndarray:
         """:attr:`_keys` as an (n, 2) array of (frame, label), made once per drawing (a
         highlight runs at every slider step: 50,000 tuples converted each time cost more
@@ -524,33 +534,42 @@ class TrajectoryPlotWidget(_LinkedPlot):
         import matplotlib
 
         tab = matplotlib.colormaps["tab10"]
+        many = len(x) > MANY_POINTS  # one density image, not 50,000 markers and lines
         segments, seg_colors = [], []
         order = np.lexsort((frames, objects))  # by object, then frame: one sort, not n scans
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
-        for sel in np.split(order, starts[1:]) if len(order) else []:  # a line per object
+        for sel in np.split(order, starts[1:]) if len(order) and not many else []:
             if objects[sel[0]] < 0 or len(sel) < 2:  # -1: rows no track reaches
                 continue
             lab = labels[sel[0]]
             segments.append(np.column_stack([x[sel], y[sel]]))
             seg_colors.append(tab(names.index(groups[lab]) % 10) if by_group and lab in groups
                               else c["grid"])
-        many = len(x) > MANY_POINTS  # one raster image in the figure, not 50,000 markers
-        ax.add_collection(LineCollection(segments, colors=seg_colors,
-                                         linewidths=0.5 if many else 1.0, alpha=0.8, zorder=1,
-                                         rasterized=many))
-        size = 4 if many else 18
+        if not many:  # a line per object
+            ax.add_collection(LineCollection(segments, colors=seg_colors, linewidths=1.0,
+                                             alpha=0.8, zorder=1))
+        viridis = matplotlib.colormaps["viridis"]
+        norm = matplotlib.colors.Normalize(float(frames.min()) if len(frames) else 0.0,
+                                           float(frames.max()) if len(frames) else 1.0)
         if by_group:
             colors = [tab(names.index(groups[lab]) % 10) if lab in groups else c["grid"]
                       for lab in labels]
-            ax.scatter(x, y, c=colors, s=size, zorder=2, edgecolors="none", rasterized=many)
+            if many:
+                self._draw_density(ax, x, y, matplotlib.colors.to_rgba_array(colors))
+            else:
+                ax.scatter(x, y, c=colors, s=18, zorder=2, edgecolors="none")
             for k, name in enumerate(names):
                 ax.scatter([], [], color=tab(k % 10), s=18, label=name)
             leg = ax.legend(fontsize=7, facecolor=c["panel"], edgecolor=c["grid"],
                             labelcolor=c["fg"], loc="best")
             leg.set_zorder(5)
         else:
-            sc = ax.scatter(x, y, c=frames, cmap="viridis", s=size, zorder=2,
-                            edgecolors="none", rasterized=many)
+            if many:
+                self._draw_density(ax, x, y, viridis(norm(frames)))
+                sc = matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
+            else:
+                sc = ax.scatter(x, y, c=frames, cmap=viridis, norm=norm, s=18, zorder=2,
+                                edgecolors="none")
             if output.time_lapse:
                 cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
                 cb.set_label("frame", color=c["fg"])
@@ -570,7 +589,10 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self.explanation = words
         warning = output.tracking_message if output.tracking_message.startswith("Warning") \
             else ""
-        self.info.setText((warning + " " if warning else "")
+        dense = (f"{len(x):,} points, drawn as a density (colour: the mean "
+                 f"{'group' if by_group else 'frame'} of the objects in each pixel; the "
+                 "selected object's track on top). ") if many else ""
+        self.info.setText((warning + " " if warning else "") + dense
                           + ("; ".join(words) + ". " if words else "")
                           + "Click a point to go to that object and frame.")
 
@@ -839,7 +861,7 @@ class ShapeComparisonWidget(_LinkedPlot):
     def _draw_graph(self, sub, graph: GraphResult, title: str) -> None:
         """More objects than a matrix shows: each object's nearest shapes (left, for the
         object selected in the viewer; click a bar to go there) and the map of the neighbour
-        graph (right; one rasterised collection, however many points)."""
+        graph (right; a density image above :data:`MANY_POINTS` points)."""
         c = self._theme()
         keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
         ax_n = self.figure.add_subplot(121)
@@ -854,9 +876,17 @@ class ShapeComparisonWidget(_LinkedPlot):
         ax_n.set_xlabel("re-ranked distance" if graph.reranked else "PF-SDM distance",
                         fontsize=7)
         ax_n.set_title("nearest shapes of the selected object", fontsize=9)
+        import matplotlib
+
         frames = np.array([f for f, _ in keys])
-        sc = ax_p.scatter(graph.xy[:, 0], graph.xy[:, 1], s=3 if len(keys) > 10_000 else 6,
-                          c=frames, cmap="viridis", edgecolors="none", rasterized=True)
+        norm = matplotlib.colors.Normalize(float(frames.min()), float(frames.max()))
+        viridis = matplotlib.colormaps["viridis"]
+        if len(keys) > MANY_POINTS:  # one image, however many points
+            self._draw_density(ax_p, graph.xy[:, 0], graph.xy[:, 1], viridis(norm(frames)))
+            sc = matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
+        else:
+            sc = ax_p.scatter(graph.xy[:, 0], graph.xy[:, 1], s=6, c=frames, cmap=viridis,
+                              norm=norm, edgecolors="none")
         if self.output.time_lapse:
             cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
             cb.set_label("frame", color=c["fg"], fontsize=7)
