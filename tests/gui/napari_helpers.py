@@ -20,6 +20,14 @@ def dock(viewer, name: str = ANALYSIS):
     return widget
 
 
+def open_plots(qtbot, widget) -> list:
+    """Press "Open plots" and wait for both plots to be docked (the second docks in the next
+    turn of the event loop)."""
+    widget.open_plots()
+    qtbot.waitUntil(lambda: len(widget.plots) == 2, timeout=30_000)
+    return widget.plots
+
+
 def wait_computed(qtbot, plot, timeout: int = 60_000) -> None:
     """Flush a plot's pending redraw and wait for its distances (computed in a worker)."""
     plot.flush()

@@ -13,6 +13,7 @@ from napari_helpers import (
     COMPARISON,
     TRAJECTORIES,
     dock,
+    open_plots,
     run_and_wait,
     wait_computed,
     wait_pictures,
@@ -152,7 +153,7 @@ def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_lay
     run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
     widget.labels_combo.setCurrentText("five shapes")
     run_and_wait(qtbot, widget)
-    widget.open_plots()
+    open_plots(qtbot, widget)
     assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
 
@@ -176,7 +177,7 @@ def test_screenshot_of_the_docked_widgets_after_a_run(make_napari_viewer, sample
     window.resize(*window_size)
     widget = dock(viewer)
     run_and_wait(qtbot, widget)
-    widget.open_plots()
+    open_plots(qtbot, widget)
     labels_layer = viewer.layers["gastruloids"]
     viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 9)
     labels_layer.selected_label = 5

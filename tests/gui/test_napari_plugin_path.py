@@ -13,6 +13,7 @@ from napari_helpers import (
     COMPARISON,
     TRAJECTORIES,
     dock,
+    open_plots,
     run_and_wait,
     wait_computed,
     wait_pictures,
@@ -308,7 +309,7 @@ def test_panel_is_readable_on_a_laptop_screen_with_the_plots_open(make_napari_vi
     window.resize(*size)
     widget = dock(viewer)
     run_and_wait(qtbot, widget)
-    widget.open_plots()
+    open_plots(qtbot, widget)
     wait_pictures(qtbot, widget)
     qtbot.wait(300)
     # the window still fits the screen: the docks do not force it taller
@@ -448,7 +449,7 @@ def test_a_run_uses_no_private_napari_attribute(viewer_widget, qtbot):
         warnings.simplefilter("always")
         run_and_wait(qtbot, widget)
         wait_pictures(qtbot, widget)
-        widget.open_plots()
+        open_plots(qtbot, widget)
         for plot in widget.plots:
             plot.flush()
     private = [str(w.message) for w in caught if "Private attribute" in str(w.message)]

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Pixels of the density image along each axis (the plot's axes are ~250-400 px wide).
-DENSITY_BINS = 200
+#: Pixels of the density image along each axis (the plot's axes are ~250-400 px wide: a
+#: point is a visible dot of 2-3 screen pixels).
+DENSITY_BINS = 150
 #: Opacity of a pixel holding one point; pixels with the most points are opaque.
 MIN_ALPHA = 0.45
 

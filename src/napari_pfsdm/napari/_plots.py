@@ -604,10 +604,11 @@ class TrajectoryPlotWidget(_LinkedPlot):
         keys = self._key_array()
         c = self._theme()
         in_frame = keys[:, 0] == frame
-        if in_frame.any():
+        if in_frame.any():  # rings round this frame's points (small when there are many)
+            many = len(keys) > MANY_POINTS
             self._highlight_artists.append(ax.scatter(
-                *self._points[in_frame].T, s=60, facecolors="none", edgecolors=c["fg"], lw=0.8,
-                zorder=3))
+                *self._points[in_frame].T, s=16 if many else 60, facecolors="none",
+                edgecolors=c["fg"], lw=0.5 if many else 0.8, zorder=3))
         here = np.flatnonzero(in_frame & (keys[:, 1] == label))
         if len(here) and self._objects[here[0]] >= 0:  # the selected object's whole track
             mine = self._objects == self._objects[here[0]]
@@ -875,7 +876,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         ax_n.set_yticks([])
         ax_n.set_xlabel("re-ranked distance" if graph.reranked else "PF-SDM distance",
                         fontsize=7)
-        ax_n.set_title("nearest shapes of the selected object", fontsize=9)
+        ax_n.set_title("nearest shapes", fontsize=8)
         import matplotlib
 
         frames = np.array([f for f, _ in keys])
@@ -891,8 +892,8 @@ class ShapeComparisonWidget(_LinkedPlot):
             cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
             cb.set_label("frame", color=c["fg"], fontsize=7)
             cb.ax.tick_params(colors=c["fg"], labelsize=6)
-        ax_p.set_title(f"{graph.method} map of the neighbour graph, {title}", fontsize=9)
-        ax_p.set_xlabel("close = among each other's nearest shapes", fontsize=7)
+        ax_p.set_title(f"{graph.method} map, {title}", fontsize=8)
+        ax_p.set_xlabel("close = similar shapes", fontsize=7)
         ax_p.set_xticks([])
         ax_p.set_yticks([])
         self._graph = graph
@@ -1025,7 +1026,7 @@ class ShapeComparisonWidget(_LinkedPlot):
                 else str(lb)
             self._highlight_artists.append(near.text(
                 0.01 * near.get_xlim()[1], y, f"{name}  {v:.3g}", va="center", fontsize=6,
-                color=c["fg"]))
+                color=c["fg"], clip_on=True))
 
 
 class GraphResult(NamedTuple):

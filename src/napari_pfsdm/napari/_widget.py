@@ -959,34 +959,40 @@ class AnalysisWidget(QWidget):
             self.export_async(folder)
 
     def open_plots(self) -> None:
-        """Dock the PCA trajectory plot and the shape comparison view."""
+        """Dock the PCA trajectory plot now and the shape comparison view in the next turn of
+        the event loop (each dock and first drawing is one stretch of the GUI thread; both in
+        one froze the viewer twice as long). :attr:`plots` holds both once docked."""
+        self.plots = []
+        self._open_plot(0)
+        QTimer.singleShot(0, lambda: self._open_plot(1))
+
+    @while_alive
+    def _open_plot(self, i: int) -> None:
         from ._plots import ShapeComparisonWidget, TrajectoryPlotWidget
 
+        cls, name = ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
+                     (ShapeComparisonWidget, "PF-SDM shape comparison"))[i]
         window = self.viewer.window
         labels = self._linked_layer
-        self.plots = []
-        first = None
-        for i, (cls, name) in enumerate(((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
-                                         (ShapeComparisonWidget, "PF-SDM shape comparison"))):
-            widget = None
-            try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice;
-                # the two plots share one place (tabs): the window then fits a laptop screen
-                dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name,
-                                                             tabify=i > 0)
-                if i == 0:
-                    first = dock
-            except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
-                docks = getattr(window, "dock_widgets", {})
-                if name in docks:
-                    widget = docks[name].widget() if hasattr(docks[name], "widget") else None
-                else:
-                    widget = cls(self.viewer)
-                    window.add_dock_widget(widget, name=name, area="right")
-            if isinstance(widget, cls):
-                self.plots.append(widget)
-                if labels is not None:  # the layer this widget analysed last, not the first
-                    widget.show_layer(labels)
-        if first is not None:  # the trajectories' tab in front
+        widget = None
+        try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice;
+            # the two plots share one place (tabs): the window then fits a laptop screen
+            dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name, tabify=i > 0)
+            if i == 0:
+                self._plots_dock = dock
+        except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
+            docks = getattr(window, "dock_widgets", {})
+            if name in docks:
+                widget = docks[name].widget() if hasattr(docks[name], "widget") else None
+            else:
+                widget = cls(self.viewer)
+                window.add_dock_widget(widget, name=name, area="right")
+        if isinstance(widget, cls):
+            self.plots.append(widget)
+            if labels is not None:  # the layer this widget analysed last, not the first
+                widget.show_layer(labels)
+        first = getattr(self, "_plots_dock", None)
+        if i == 1 and first is not None:  # the trajectories' tab in front
             QTimer.singleShot(0, first.raise_)
         # the canvas is narrower with the plots docked: fit the view again, unless the user
         # has moved it since the plugin last fitted it
