@@ -226,8 +226,9 @@ def run_analysis(
     ``options`` is the method's :class:`~napari_pfsdm.core.params.PFSDMParams` (or the same
     as a dict of keywords). ``first_axis`` (``"time"`` or ``"z"``) says what the first axis of
     3-D labels is; ``spacing`` is the voxel size (z, y, x) of Z-stacks. ``workers``: processes
-    measuring the objects (default: every core; :mod:`napari_pfsdm.analysis.parallel`, one
-    process below :data:`~napari_pfsdm.analysis.parallel.MIN_OBJECTS` objects). Yields
+    measuring the objects (default: every core; :mod:`napari_pfsdm.analysis.parallel`: one
+    process below :data:`~napari_pfsdm.analysis.parallel.MIN_OBJECTS` objects unless its pool
+    is running already, see :func:`~napari_pfsdm.analysis.parallel.warm_pool`). Yields
     ``(done, total, frame, label)`` as objects are done; returns an :class:`AnalysisOutput`.
     Closing the generator (or the worker stopping at a yield) stops the work, and the worker
     processes, and keeps nothing.
