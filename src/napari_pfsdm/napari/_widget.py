@@ -987,8 +987,8 @@ class AnalysisWidget(QWidget):
             else:
                 widget = cls(self.viewer)
                 window.add_dock_widget(widget, name=name, area="right")
-        if isinstance(widget, cls):
-            self.plots.append(widget)
+        if isinstance(widget, cls) and not any(isinstance(p, cls) for p in self.plots):
+            self.plots.append(widget)  # once, even when the button is pressed twice quickly
             if labels is not None:  # the layer this widget analysed last, not the first
                 widget.show_layer(labels)
         first = getattr(self, "_plots_dock", None)
