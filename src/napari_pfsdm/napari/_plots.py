@@ -343,6 +343,21 @@ class _LinkedPlot(QWidget):
         ax.set_xlim(extent[0], extent[1])
         ax.set_ylim(extent[2], extent[3])
 
+    def _frame_points(self, ax, x: np.ndarray, y: np.ndarray, frames: np.ndarray,
+                      size: float):
+        """Points coloured by frame: markers, or one density image above
+        :data:`MANY_POINTS`; returns what a colour bar of the frames needs."""
+        import matplotlib
+
+        viridis = matplotlib.colormaps["viridis"]
+        norm = matplotlib.colors.Normalize(float(frames.min()) if len(frames) else 0.0,
+                                           float(frames.max()) if len(frames) else 1.0)
+        if len(x) > MANY_POINTS:
+            self._draw_density(ax, x, y, viridis(norm(frames)))
+            return matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
+        return ax.scatter(x, y, c=frames, cmap=viridis, norm=norm, s=size, zorder=2,
+                          edgecolors="none")
+
     def _key_array(self) -> np.ndarray:
         """:attr:`_keys` as an (n, 2) array of (frame, label), made once per drawing (a
         highlight runs at every slider step: 50,000 tuples converted each time cost more
@@ -548,9 +563,6 @@ class TrajectoryPlotWidget(_LinkedPlot):
         if not many:  # a line per object
             ax.add_collection(LineCollection(segments, colors=seg_colors, linewidths=1.0,
                                              alpha=0.8, zorder=1))
-        viridis = matplotlib.colormaps["viridis"]
-        norm = matplotlib.colors.Normalize(float(frames.min()) if len(frames) else 0.0,
-                                           float(frames.max()) if len(frames) else 1.0)
         if by_group:
             colors = [tab(names.index(groups[lab]) % 10) if lab in groups else c["grid"]
                       for lab in labels]
@@ -564,12 +576,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
                             labelcolor=c["fg"], loc="best")
             leg.set_zorder(5)
         else:
-            if many:
-                self._draw_density(ax, x, y, viridis(norm(frames)))
-                sc = matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
-            else:
-                sc = ax.scatter(x, y, c=frames, cmap=viridis, norm=norm, s=18, zorder=2,
-                                edgecolors="none")
+            sc = self._frame_points(ax, x, y, frames, 18)
             if output.time_lapse:
                 cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
                 cb.set_label("frame", color=c["fg"])
@@ -877,17 +884,8 @@ class ShapeComparisonWidget(_LinkedPlot):
         ax_n.set_xlabel("re-ranked distance" if graph.reranked else "PF-SDM distance",
                         fontsize=7)
         ax_n.set_title("nearest shapes", fontsize=8)
-        import matplotlib
-
         frames = np.array([f for f, _ in keys])
-        norm = matplotlib.colors.Normalize(float(frames.min()), float(frames.max()))
-        viridis = matplotlib.colormaps["viridis"]
-        if len(keys) > MANY_POINTS:  # one image, however many points
-            self._draw_density(ax_p, graph.xy[:, 0], graph.xy[:, 1], viridis(norm(frames)))
-            sc = matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
-        else:
-            sc = ax_p.scatter(graph.xy[:, 0], graph.xy[:, 1], s=6, c=frames, cmap=viridis,
-                              norm=norm, edgecolors="none")
+        sc = self._frame_points(ax_p, graph.xy[:, 0], graph.xy[:, 1], frames, 6)
         if self.output.time_lapse:
             cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
             cb.set_label("frame", color=c["fg"], fontsize=7)
