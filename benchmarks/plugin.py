@@ -77,7 +77,10 @@ upper bounds, and they are noisy (run twice before believing a 20 ms difference)
 ``--profile PATTERN`` runs cProfile on the main thread during every window whose
 "dataset · action" contains PATTERN (case-insensitive; alternatives separated by "|") and
 prints the 15 cumulative-heaviest lines of the 3 longest of them (profiled windows are
-slower; the others are not affected).
+slower; the others are not affected). ``--stacks PATTERN`` instead samples the main thread's
+stack every ~2 ms in those windows and prints, for the longest gap of each, the functions
+seen in it (a function counted once per sample, with the time it was on the stack): what
+ran during the freeze itself, not during the whole window.
 
 Writes ``plugin.csv`` (the table), ``plugin_samples.csv`` (every window), ``plugin_run.csv``
 (the library-vs-widget table) and ``plugin.png`` to ``--out``.
@@ -93,7 +96,9 @@ import io
 import os
 import pstats
 import shutil
+import sys
 import tempfile
+import threading
 import time
 import traceback
 import tracemalloc
@@ -237,7 +242,7 @@ def _numeric_equal(a: pd.DataFrame, b: pd.DataFrame) -> bool:
 class Bench:
     """The Qt side: spinning the event loop, timed windows, and what happened in them."""
 
-    def __init__(self, profile_pattern: str | None) -> None:
+    def __init__(self, profile_pattern: str | None, stacks_pattern: str | None = None) -> None:
         from qtpy.QtCore import QEventLoop, Qt, QTimer
 
         self.QEventLoop, self.QTimer, self.precise = QEventLoop, QTimer, Qt.TimerType.PreciseTimer
@@ -245,6 +250,8 @@ class Bench:
         self.events: list[dict] = []  # notifications, exceptions, layers made active
         self.profile_pattern = (profile_pattern or "").lower() or None
         self.profiles: list[tuple[float, str, pstats.Stats]] = []
+        self.stacks_pattern = (stacks_pattern or "").lower() or None
+        self.stacks: list[tuple[float, str, str]] = []
 
     def note(self, kind: str, text: str) -> None:
         self.events.append({"where": self.context, "kind": kind, "text": text})
@@ -270,6 +277,9 @@ class Bench:
         if self.profile_pattern and any(p.strip() and p.strip() in name.lower()
                                         for p in self.profile_pattern.split("|")):
             prof = cProfile.Profile()
+        sampler = (_StackSampler() if self.stacks_pattern and any(
+            p.strip() and p.strip() in name.lower() for p in self.stacks_pattern.split("|"))
+            else None)
 
         def tick():
             now = time.perf_counter()
@@ -296,6 +306,8 @@ class Bench:
                 loop.quit()
 
         def go():
+            if sampler is not None:
+                sampler.start()
             state["t0"] = time.perf_counter()
             if prof is not None:
                 prof.enable()
@@ -317,11 +329,18 @@ class Bench:
         timer.stop()
         if prof is not None:
             prof.disable()
+        if sampler is not None:
+            sampler.stop()
         t0 = state["t0"]
         ticks = np.asarray(ticks)
         before = np.flatnonzero(ticks <= t0)
         tail = ticks[before[-1]:] if len(before) else ticks
         gap = 1e3 * float(np.diff(tail).max()) if len(tail) > 1 else float("nan")
+        if sampler is not None and len(tail) > 1:
+            i = int(np.argmax(np.diff(tail)))
+            text = sampler.report(tail[i], tail[i + 1])
+            self.stacks.append((gap, name, text))
+            print(f"  stacks in the longest gap of {name} ({gap:.0f} ms):\n{text}", flush=True)
         if prof is not None:
             self.profiles.append((gap, name, pstats.Stats(prof)))
         if state["error"] is not None:
@@ -336,6 +355,50 @@ class Bench:
                 "error": state.get("action_error", ""),
                 **{f"{k}_ms": 1e3 * (v - t0) for k, v in hit.items()},
                 "window_s": float(ticks[-1] - t0) if len(ticks) else float("nan")}
+
+
+class _StackSampler:
+    """Samples the main thread's Python stack every ~2 ms from a thread (``--stacks``)."""
+
+    def __init__(self, every_s: float = 0.002) -> None:
+        self.every_s = every_s
+        self.main = threading.main_thread().ident
+        self.samples: list[tuple[float, tuple]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            frame = sys._current_frames().get(self.main)
+            stack = []
+            while frame is not None and len(stack) < 80:
+                code = frame.f_code
+                stack.append((code.co_filename, code.co_name, frame.f_lineno))
+                frame = frame.f_back
+            self.samples.append((time.perf_counter(), tuple(stack)))
+            time.sleep(self.every_s)
+
+    def report(self, start: float, end: float, top: int = 25) -> str:
+        """The functions on the stack between ``start`` and ``end``, heaviest first."""
+        inside = [(t, s) for t, s in self.samples if start <= t <= end]
+        if not inside:
+            return "  (no samples in the gap)"
+        dt = (end - start) / len(inside)
+        seen: dict[str, float] = {}
+        for _t, stack in inside:
+            names = {f"{Path(f).parent.name}/{Path(f).name}:{fn}" for f, fn, _ln in stack}
+            for name in names:
+                seen[name] = seen.get(name, 0.0) + dt
+        rows = sorted(seen.items(), key=lambda kv: -kv[1])[:top]
+        return "\n".join(f"  {1e3 * v:7.1f} ms  {k}" for k, v in rows) + (
+            f"\n  ({len(inside)} samples in {1e3 * (end - start):.0f} ms)")
 
 
 # ------------------------------------------------------------------------ the viewer
@@ -719,7 +782,7 @@ def run_one(args, name: str, make) -> dict:
     import napari_pfsdm as pf
     from napari_pfsdm.napari._compute import run_analysis
 
-    bench = Bench(args.profile)
+    bench = Bench(args.profile, args.stacks)
     notification_manager.install_hooks()
 
     def on_notification(event):
@@ -749,12 +812,15 @@ def run_one(args, name: str, make) -> dict:
     print(f"\n== {title}: labels {labels.shape} {labels.dtype}"
           f"{', with a reporter' if intensity is not None else ''} "
           f"(made in {time.perf_counter() - t0:.1f} s)", flush=True)
-    table, t_lib, mem_lib = _timed_and_peak_mb(lambda: pf.measure(labels, intensity))
-    out, t_ra, mem_ra = _timed_and_peak_mb(lambda: _drain(run_analysis(labels, intensity)))
-    same = _numeric_equal(table, out.table)
-    print(f"  pf.measure {t_lib:.2f} s, {mem_lib:.0f} MB; run_analysis {t_ra:.2f} s, "
-          f"{mem_ra:.0f} MB; tables identical: {same}", flush=True)
-    del out
+    if args.skip_library:  # the viewer windows only (no ratio, no table comparison)
+        table, t_lib, mem_lib, t_ra, mem_ra, same = None, np.nan, np.nan, np.nan, np.nan, None
+    else:
+        table, t_lib, mem_lib = _timed_and_peak_mb(lambda: pf.measure(labels, intensity))
+        out, t_ra, mem_ra = _timed_and_peak_mb(lambda: _drain(run_analysis(labels, intensity)))
+        same = _numeric_equal(table, out.table)
+        print(f"  pf.measure {t_lib:.2f} s, {mem_lib:.0f} MB; run_analysis {t_ra:.2f} s, "
+              f"{mem_ra:.0f} MB; tables identical: {same}", flush=True)
+        del out
     samples: list[dict] = []
     result = {"title": title, "samples": samples, "events": bench.events, "run_row": None,
               "ratio": None, "profile": None}
@@ -768,7 +834,8 @@ def run_one(args, name: str, make) -> dict:
         info = None
     if info is not None:
         ratio = info["run_s"] / t_lib
-        widget_same = _numeric_equal(table, info.pop("table"))
+        widget_table = info.pop("table")
+        widget_same = None if table is None else _numeric_equal(table, widget_table)
         result["ratio"] = ratio
         result["run_row"] = {"dataset": title, "objects": n, "pf.measure s": t_lib,
                              "pf.measure MB": mem_lib, "run_analysis s": t_ra,
@@ -802,6 +869,13 @@ def main(argv=None) -> int:
     parser.add_argument("--profile", default="", metavar="PATTERN",
                         help="cProfile the windows whose 'dataset · action' contains PATTERN "
                              "(alternatives: a|b)")
+    parser.add_argument("--skip-library", action="store_true",
+                        help="skip pf.measure and run_analysis outside the viewer (faster; "
+                             "no Run ÷ measure ratio)")
+    parser.add_argument("--stacks", default="", metavar="PATTERN",
+                        help="sample the main thread's stack in the windows whose "
+                             "'dataset · action' contains PATTERN; print what ran in each "
+                             "one's longest gap")
     parser.add_argument("--no-clusters-plotter", action="store_true",
                         help="do not dock napari-clusters-plotter (to tell its cost apart)")
     parser.add_argument("--readd", choices=("remove", "beside"), default="remove",

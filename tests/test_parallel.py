@@ -117,6 +117,27 @@ def test_a_warm_pool_measures_even_a_small_movie_in_processes(monkeypatch):
     assert len(steps) < len(rows)  # a step per task, not per object
 
 
+def test_many_objects_go_in_tasks_of_at_most_max_task_objects(monkeypatch):
+    """Each task's rows come back as one pickle, unpickled holding the interpreter lock (the
+    viewer freezes meanwhile): a large movie goes in tasks of at most MAX_TASK_OBJECTS,
+    more than TASKS_PER_WORKER per worker if need be; the table is measure's."""
+    labels, intensity = make_timelapse_montage(8, 6, 160, seed=4)[:2]  # 48 objects
+    parallel.warm_pool(2).join(timeout=120) if not parallel.pool_ready(2) else None
+    monkeypatch.setattr(parallel, "MAX_TASK_OBJECTS", 5)
+    monkeypatch.setattr(parallel, "TASKS_PER_WORKER", 1)  # alone: 2 tasks of 24
+    planned = []
+    real_plan = parallel.plan_tasks
+    monkeypatch.setattr(parallel, "plan_tasks",
+                        lambda counts, n: planned.append(real_plan(counts, n)) or planned[-1])
+    rows, _ = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(), axes="tyx",
+                                        workers=2))
+    sizes = [sum(len(wanted) for _t, wanted in task) for task in planned[0]]
+    assert len(sizes) == 10 and max(sizes) == 5 and sum(sizes) == 48  # ceil(48 / 5) tasks
+    table = table_from_objects([obj for obj, _ in rows], with_intensity=True,
+                               params=PFSDMParams(), axes="tyx")
+    pd.testing.assert_frame_equal(table, pf.measure(labels, intensity))
+
+
 def test_a_warm_pool_of_another_size_or_too_few_objects_stays_here(monkeypatch):
     labels, intensity = make_timelapse_montage(4, 6, 160, seed=4)[:2]  # 24 < 2 x 16
     parallel.shutdown_pool()

@@ -259,3 +259,31 @@ def test_each_viewer_has_its_own_result_store():
     assert store_for(a).get(layer) == "output of a" and store_for(b).get(layer) is None
     assert heard == []  # b's plots are not told about a's results
     assert isinstance(_STORES, weakref.WeakKeyDictionary)  # kept only while the viewer lives
+
+
+def test_neighbour_export_rows_are_rows_of_the_features_file_with_an_intensity_weight():
+    """The edge list's ``row`` and ``neighbour`` name rows of the features file even when
+    rows without intensity features are left out (they were renumbered from 0 before)."""
+    from napari_pfsdm.core.table_schema import table_feature_columns
+    from napari_pfsdm.data.gastruloids import make_timelapse_montage
+    from napari_pfsdm.napari._export import neighbour_export_steps
+
+    labels, intensity, _ = make_timelapse_montage(n_objects=4, n_frames=3, size=128, seed=2)
+    out, _ = _run(labels, intensity, n_fourier=6)
+    out.options["intensity_weight"] = 0.5
+    cols = table_feature_columns(out.table.attrs["pfsdm"], "intensity")
+    out.table.loc[out.table.index[1], cols] = np.nan  # the second object's reporter: NaN
+    out.reindex()
+    steps = neighbour_export_steps(out)
+    try:
+        while True:
+            next(steps)
+    except StopIteration as done:
+        edges = done.value["neighbours"]
+    table = out.table
+    assert 1 not in set(edges["row"]) | set(edges["neighbour"])
+    assert set(edges["row"]) == set(range(len(table))) - {1}
+    for end, prefix in (("row", ""), ("neighbour", "neighbour_")):
+        for key in ("frame", "label"):
+            np.testing.assert_array_equal(table[key].to_numpy()[edges[end].to_numpy()],
+                                          edges[prefix + key].to_numpy())

@@ -194,7 +194,7 @@ def test_comparison_is_computed_in_a_worker_and_can_be_cancelled(viewer_widget, 
     real = _plots._comparison_worker
 
     @_plots.thread_worker(start_thread=False)
-    def held(sub, w, reranked):
+    def held(table, rows, w, reranked):
         while not release.is_set():  # a computation that waits: only Cancel ends it
             release.wait(0.005)
             yield "waiting"

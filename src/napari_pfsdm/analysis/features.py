@@ -432,18 +432,36 @@ def table_from_objects(
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
     blocks = [pd.DataFrame(base, columns=base_columns(ndim)),
-              pd.DataFrame(np.array(classic_rows, float).reshape(-1, len(classic_cols)),
+              pd.DataFrame(_stack_rows(classic_rows, len(classic_cols), float),
                            columns=classic_cols),
-              pd.DataFrame(np.array(shape_rows).reshape(-1, len(shape_cols)), columns=shape_cols)]
+              pd.DataFrame(_stack_rows(shape_rows, len(shape_cols)), columns=shape_cols)]
     if int_cols:
-        blocks.append(pd.DataFrame(np.array(int_rows).reshape(-1, len(int_cols)),
-                                   columns=int_cols))
+        blocks.append(pd.DataFrame(_stack_rows(int_rows, len(int_cols)), columns=int_cols))
     if out_cols:
-        blocks.append(pd.DataFrame(np.array(out_rows).reshape(-1, len(out_cols)),
-                                   columns=out_cols))
+        blocks.append(pd.DataFrame(_stack_rows(out_rows, len(out_cols)), columns=out_cols))
     table = pd.concat(blocks, axis=1)
     set_options(table, opts)
     return table
+
+
+#: Rows per piece of :func:`_stack_rows`.
+STACK_PIECE_ROWS = 2048
+
+
+def _stack_rows(rows: list, width: int, dtype=None) -> np.ndarray:
+    """``np.array(rows).reshape(-1, width)``, piece by piece.
+
+    One ``np.array`` over 50,000 rows holds the interpreter lock for ~175 ms; the viewer's
+    Run does this in a worker thread, and the viewer froze as long. Pieces of
+    :data:`STACK_PIECE_ROWS` rows let the GUI thread in between; the values and the dtype
+    are those of ``np.array(rows)``.
+    """
+    if dtype is None:
+        dtype = np.result_type(*{np.asarray(r).dtype for r in rows}) if rows else float
+    out = np.empty((len(rows), width), dtype=dtype)
+    for i in range(0, len(rows), STACK_PIECE_ROWS):
+        out[i:i + STACK_PIECE_ROWS] = rows[i:i + STACK_PIECE_ROWS]
+    return out
 
 
 def object_warnings(obj: ObjectResult, *, with_intensity: bool = False) -> list[str]:

@@ -48,6 +48,7 @@ from .features import (
 from .interpretation import outline_measures
 
 __all__ = [
+    "MAX_TASK_OBJECTS",
     "MIN_OBJECTS",
     "available_cores",
     "iter_rows",
@@ -71,6 +72,10 @@ MIN_TASK_OBJECTS = 16
 #: of one worker is the other's idle time) and to report progress, few enough that sending
 #: frames costs little. 10,000 blobs: 8 tasks per worker 0.61x measure's time, 32 0.58x.
 TASKS_PER_WORKER = 32
+#: At most this many objects per task: a task's rows come back as one pickle, which the
+#: pool's result thread unpickles holding the interpreter lock. 50,000 objects in 64 tasks
+#: (745 per task) held it 100-220 ms per task: the viewer froze as long, 64 times per Run.
+MAX_TASK_OBJECTS = 128
 
 Row = tuple[ObjectResult, "dict | None"]
 
@@ -345,7 +350,8 @@ def _iter_rows_pool(labels, intensity, params, axes, spacing, workers, total):
     if voxel is not None:
         options["spacing"] = voxel
     volume = "z" in axes
-    n_tasks = min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS))
+    n_tasks = max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
+                  -(-total // MAX_TASK_OBJECTS))
     tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse), n_tasks)
     pool = shared_pool(workers)
     args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, volume)

@@ -34,3 +34,19 @@ def offer(combo, names: list[str]) -> None:
     if current in names:
         combo.setCurrentText(current)
     combo.blockSignals(False)
+
+
+#: Delay of :func:`next_turn` (ms): any timer, not a posted event.
+NEXT_TURN_MS = 1
+
+
+def next_turn(callback) -> None:
+    """Call ``callback`` in a later turn of Qt's event loop, after what is due now.
+
+    ``QTimer.singleShot(0, ...)`` is a posted event, which Qt delivers before the timers
+    already due (napari's, the canvas's): two heavy steps chained that way freeze the viewer
+    as one. A 1 ms timer is ordered by time with the others, so what was due runs between.
+    """
+    from qtpy.QtCore import QTimer
+
+    QTimer.singleShot(NEXT_TURN_MS, callback)

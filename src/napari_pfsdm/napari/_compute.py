@@ -118,6 +118,19 @@ class AnalysisOutput:
             self.derived["measured"] = np.array([not str(e) for e in errors], dtype=bool)
         return self.derived["measured"]
 
+    def comparable(self, channels: tuple[str, ...] = ("shape",)) -> np.ndarray:
+        """Boolean mask of the rows with finite features of every one of ``channels`` and no
+        ``error`` (:func:`napari_pfsdm.analysis.tables.failed_rows`), computed once per
+        table and channels."""
+        key = ("comparable", tuple(channels))
+        if key not in self.derived:
+            from ..analysis.tables import failed_rows
+
+            keep = self.measured().copy()
+            keep[[row[0] for row in failed_rows(self.table, channels)]] = False
+            self.derived[key] = keep
+        return self.derived[key]
+
     def rows_of(self, frames, labels) -> np.ndarray:
         """Row positions of ``(frame, label)`` pairs in :attr:`table` (-1 when absent)."""
         return np.array([self._rows.get((int(f) if self.time_lapse else 0, int(lab)), -1)
@@ -335,7 +348,46 @@ def finish_output(output: AnalysisOutput, mode: str = "auto", tracks=None,
         apply_identity(output, "labels")
         output.tracking_message = f"{err} The label ids were used."
     output.derived["layer_features"] = layer_features(output)
+    for channel, scores in output.pca.items():  # what the plots' first drawing needs
+        objects_of(output, scores, channel)
+        explanation(output, channel)
     return output
+
+
+def objects_of(output: AnalysisOutput, scores: pd.DataFrame, channel: str) -> np.ndarray:
+    """The object of each PCA row: its ``track_id`` when the table has one, else its label
+    (once per table and channel, kept in ``output.derived``: the trajectory plot draws a
+    line per object; :func:`finish_output` computes it in the Run's worker)."""
+    key = ("objects", channel, len(scores))
+    if key not in output.derived:
+        labels = scores["label"].to_numpy().astype(np.int64)
+        table = output.table
+        if "track_id" in table.columns:
+            rows = output.rows_of(scores["frame"].to_numpy(), labels)
+            tracks = np.asarray(table["track_id"].to_numpy(dtype=float, na_value=np.nan))
+            ids = np.where(rows >= 0, tracks[np.maximum(rows, 0)], np.nan)
+            labels = np.where(np.isfinite(ids), ids, -1).astype(np.int64)
+        output.derived[key] = labels
+    return output.derived[key]
+
+
+def explanation(output: AnalysisOutput, channel: str = "shape") -> list[str]:
+    """What PC1 and PC2 of the layer's own PCA follow, in words
+    (:func:`napari_pfsdm.analysis.interpretation.explain_components`; outline measures of
+    2-D shapes only, else ``[]``), once per table: :func:`finish_output` computes it in the
+    Run's worker (50,000 rows: ~20 ms the GUI thread does not spend)."""
+    key = ("explanation", channel)
+    if key not in output.derived:
+        from ..analysis.interpretation import explain_components
+
+        scores = output.pca.get(channel)
+        words = []
+        if (output.measures is not None and channel == "shape" and scores is not None
+                and "PC1" in scores):
+            words = explain_components(scores, output.measures,
+                                       scores.attrs.get("explained_variance_ratio", []), n=2)
+        output.derived[key] = words
+    return output.derived[key]
 
 
 # ------------------------------------------------------------------------ layer.features

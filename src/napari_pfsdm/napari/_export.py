@@ -80,11 +80,12 @@ def neighbour_export_steps(output: AnalysisOutput, prefix: str = "<layer>"):
     w = output.options.get("intensity_weight", 0.0)
     if not has_channel(table.columns, "intensity"):
         w = 0.0
-    sub = table.iloc[np.flatnonzero(output.measured())]
+    keep = output.measured()
     if w:  # rows whose reporter could not be described have no intensity features
-        sub, _ = split_failed(sub, ("shape", "intensity"))
-    idx, dist = yield from graph_of(output, sub, w)
-    edges = neighbour_table(sub, idx, dist, rows=table.index.get_indexer(sub.index))
+        keep = keep & output.comparable(("shape", "intensity"))
+    rows = np.flatnonzero(keep)  # positions = rows of the features file
+    idx, dist = yield from graph_of(output, rows, w)
+    edges = neighbour_table(table.iloc[rows], idx, dist, rows=rows)
     return {"neighbours": edges, "note": too_many_for_distances(len(table), prefix)}
 
 

@@ -13,6 +13,7 @@ thread, a process can (Cancel terminates it, and only it).
 
 from __future__ import annotations
 
+import importlib.util
 import multiprocessing as mp
 from collections.abc import Generator
 from concurrent.futures import ThreadPoolExecutor
@@ -41,9 +42,10 @@ def map_method(n: int = 0) -> str:
     (under a minute for 50,000 objects), else t-SNE up to :data:`TSNE_ROWS` objects
     (scikit-learn only; it keeps kinds of shapes apart best), else spectral
     (docs/benchmarks.md, "Maps and re-ranking on the neighbour graph")."""
-    try:
-        import umap  # noqa: F401
-    except ImportError:
+    # asked of the installation, not imported: importing umap-learn (numba, LLVM) takes
+    # ~2 s and held the interpreter lock long enough to freeze the viewer; the map is
+    # computed in a process of its own, which imports it
+    if importlib.util.find_spec("umap") is None:
         return "tsne" if n <= TSNE_ROWS else "spectral"
     return "umap"
 
@@ -72,16 +74,19 @@ def neighbour_steps(sub: pd.DataFrame, k: int = GRAPH_K, intensity_weight: float
     return np.vstack([f[0] for f in found]), np.vstack([f[1] for f in found])
 
 
-def graph_of(output, sub: pd.DataFrame, intensity_weight: float = 0.0
+def graph_of(output, rows: np.ndarray, intensity_weight: float = 0.0
              ) -> Generator[tuple[int, int], None, tuple]:
-    """:func:`neighbour_steps` of ``sub`` (rows of ``output.table``), computed once per run's
-    table and kept in ``output.derived``: the comparison view, its re-ranking and the export
-    share one search (50,000 objects: about a minute and a half each)."""
-    key = ("neighbours", float(intensity_weight), tuple(sub.index[[0, -1]]), len(sub), GRAPH_K)
+    """:func:`neighbour_steps` of the rows at positions ``rows`` of ``output.table``,
+    computed once per run's table and kept in ``output.derived``: the comparison view, its
+    re-ranking and the export share one search (50,000 objects: about a minute and a half
+    each). The rows are taken from the table only when the search runs (in the worker)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    key = ("neighbours", float(intensity_weight), int(rows[0]), int(rows[-1]), len(rows),
+           GRAPH_K)
     derived = getattr(output, "derived", None)
     if derived is not None and key in derived:
         return derived[key]
-    found = yield from neighbour_steps(sub, GRAPH_K, intensity_weight)
+    found = yield from neighbour_steps(output.table.iloc[rows], GRAPH_K, intensity_weight)
     if derived is not None:
         derived[key] = found
     return found

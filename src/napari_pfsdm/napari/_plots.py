@@ -11,7 +11,6 @@ from typing import NamedTuple
 
 import napari
 import numpy as np
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from napari.layers import Labels
@@ -34,7 +33,8 @@ from ..analysis.reduction import read_groups
 from ..core.table_schema import has_channel
 from . import _layers
 from ._alive import offer
-from ._compute import classical_mds
+from ._canvas import PlotCanvas
+from ._compute import classical_mds, explanation, objects_of
 from ._density import density_image, padded_extent
 from ._graph import GRAPH_ROWS
 from ._store import same_layer, store_for
@@ -92,7 +92,7 @@ class _LinkedPlot(QWidget):
         self._timer.timeout.connect(self._flush)
         self.layer_combo = QComboBox(toolTip="The analysed Labels layer whose results are shown.")
         self.figure = Figure(figsize=(3.6, 2.8), constrained_layout=True)
-        self.canvas = FigureCanvasQTAgg(self.figure)
+        self.canvas = PlotCanvas(self.figure)
         self.canvas.setMinimumSize(260, 220)
         self.info = QLabel("Run the PF-SDM analysis to fill this plot.", wordWrap=True)
         self.controls = QHBoxLayout()
@@ -272,8 +272,7 @@ class _LinkedPlot(QWidget):
         self._background = None
         self._highlight_artists = []
         self.figure.clear()
-        self.figure.set_layout_engine("constrained")
-        self._frozen = False
+        self.figure.set_layout_engine("constrained")  # laid out in a turn of its own
         self.figure.set_facecolor(c["panel"])
         self._points = np.zeros((0, 2))
         self._keys = []
@@ -293,11 +292,10 @@ class _LinkedPlot(QWidget):
         animated artists), then draw the markers on top. A new highlight then only restores
         this picture and draws its few markers (blitting), instead of drawing the whole figure
         on the GUI thread at each slider step."""
-        if not getattr(self, "_frozen", True):
+        if self.canvas.layout_pending:  # drawn directly (canvas.draw()): laid out now
             # the layout of a full redraw is kept: updates in place (a new frame's distances)
             # then draw without the layout engine, a third of the cost
             self.figure.set_layout_engine("none")
-            self._frozen = True
         self._background = self.canvas.copy_from_bbox(self.figure.bbox)
         self._blit_highlight()
 
@@ -358,6 +356,14 @@ class _LinkedPlot(QWidget):
         return ax.scatter(x, y, c=frames, cmap=viridis, norm=norm, s=size, zorder=2,
                           edgecolors="none")
 
+    def _set_keys(self, frames: np.ndarray, labels: np.ndarray) -> None:
+        """:attr:`_keys` (a list of (frame, label) Python ints) and its array, from two
+        arrays (50,000 tuples made one by one cost ~30 ms of the GUI thread)."""
+        frames = np.asarray(frames).astype(np.int64)
+        labels = np.asarray(labels).astype(np.int64)
+        self._keys = list(zip(frames.tolist(), labels.tolist(), strict=True))
+        self._key_cache = (self._keys, np.column_stack([frames, labels]))
+
     def _key_array(self) -> np.ndarray:
         """:attr:`_keys` as an (n, 2) array of (frame, label), made once per drawing (a
         highlight runs at every slider step: 50,000 tuples converted each time cost more
@@ -368,22 +374,6 @@ class _LinkedPlot(QWidget):
             cached = (keys, np.asarray(keys, dtype=np.int64).reshape(-1, 2))
             self._key_cache = cached
         return cached[1]
-
-
-def _objects_of(output, scores, channel: str) -> np.ndarray:
-    """The object of each PCA row: its ``track_id`` when the table has one, else its label
-    (once per table and channel: no table merge on each redraw)."""
-    key = ("objects", channel, len(scores))
-    if key not in output.derived:
-        labels = scores["label"].to_numpy().astype(np.int64)
-        table = output.table
-        if "track_id" in table.columns:
-            rows = output.rows_of(scores["frame"].to_numpy(), labels)
-            tracks = np.asarray(table["track_id"].to_numpy(dtype=float, na_value=np.nan))
-            ids = np.where(rows >= 0, tracks[np.maximum(rows, 0)], np.nan)
-            labels = np.where(np.isfinite(ids), ids, -1).astype(np.int64)
-        output.derived[key] = labels
-    return output.derived[key]
 
 
 class TrajectoryPlotWidget(_LinkedPlot):
@@ -542,7 +532,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
         self._style(ax)
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         frames, labels = scores["frame"].to_numpy(), scores["label"].to_numpy()
-        objects = _objects_of(output, scores, channel)  # a track or a label: one line each
+        objects = objects_of(output, scores, channel)  # a track or a label: one line each
         groups = self._group_of()
         by_group = self.color_by.currentText() == "group" and groups
         names = sorted(set(groups.values())) if by_group else []
@@ -585,13 +575,15 @@ class TrajectoryPlotWidget(_LinkedPlot):
         ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
         ax.set_title(f"{channel} trajectories, {self.space_note}", fontsize=8)
         self._points = np.column_stack([x, y])
-        self._keys = [(int(f), int(lb)) for f, lb in zip(frames, labels, strict=True)]
+        self._set_keys(frames, labels)
         self._objects = objects
         self._axes_points = ax
-        from ..analysis.interpretation import explain_components
-
         words = []
-        if output.measures is not None and channel == "shape":
+        if self.space.currentText() in ("", THIS_LAYER):
+            words = explanation(output, channel)  # computed in the Run's worker
+        elif output.measures is not None and channel == "shape":
+            from ..analysis.interpretation import explain_components
+
             words = explain_components(scores, output.measures, ratios, n=2)
         self.explanation = words
         warning = output.tracking_message if output.tracking_message.startswith("Warning") \
@@ -707,44 +699,50 @@ class ShapeComparisonWidget(_LinkedPlot):
     # ------------------------------------------------------------ what to compare
     def _selection(self):
         """``(key, rows, frame shown or None, title, weight, re-ranked)`` of the objects to
-        compare now; ``ValueError`` (plain words) when there is nothing to compare."""
-        from ..analysis.features import split_failed
-
+        compare now (``rows``: their positions in the table); ``ValueError`` (plain words)
+        when there is nothing to compare. Masks only: the rows themselves are taken in the
+        worker (a copy of 50,000 rows took 0.2 s of the GUI thread)."""
         output = self.output
         table = output.table
-        ok = output.measured()
+        keep = output.measured()
         frame = self.current()[0]
         if self.frame_choice.currentText() == "current frame":
-            rows = np.flatnonzero(ok & (table["frame"].to_numpy() == frame))
+            keep = keep & (table["frame"].to_numpy() == frame)
             shown, title = frame, f"frame {frame}"
         else:
-            rows = np.flatnonzero(ok)
             shown, title = None, "all frames"
-        if len(rows) < 2:
+        if keep.sum() < 2:
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
-        sub = table.iloc[rows]
         w = output.options.get("intensity_weight", 0.0)
-        if not has_channel(sub.columns, "intensity"):
+        if not has_channel(table.columns, "intensity"):
             w = 0.0
         if w:  # rows whose reporter could not be described (NaN pixels) have no intensity
-            sub = split_failed(sub, ("shape", "intensity"))[0]
-            if len(sub) < 2:
+            keep = keep & output.comparable(("shape", "intensity"))
+            if keep.sum() < 2:
                 raise ValueError("Fewer than two objects with intensity features here.")
-        reranked = self.rerank.isChecked() and len(sub) >= 3
+        rows = np.flatnonzero(keep)
+        reranked = self.rerank.isChecked() and len(rows) >= 3
         key = (id(output), shown, float(w), reranked)
-        return key, sub, shown, title, w, reranked
+        return key, rows, shown, title, w, reranked
 
-    def _start(self, key, sub, w: float, reranked: bool) -> None:
-        """Compute the distances of ``sub`` in a worker (one at a time; the last asked wins)."""
+    def _frames_labels(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Frames and labels of the table's ``rows``."""
+        table = self.output.table
+        return table["frame"].to_numpy()[rows], table["label"].to_numpy()[rows]
+
+    def _start(self, key, rows: np.ndarray, w: float, reranked: bool) -> None:
+        """Compute the distances of the table's ``rows`` in a worker (one at a time; the last
+        asked wins)."""
         if self._worker is not None:
             if self._worker_key == key:
                 return
             self._worker.quit()
-        by_graph = len(sub) > GRAPH_ROWS
+        by_graph = len(rows) > GRAPH_ROWS
         if by_graph:
-            worker = _graph_worker(sub, w, reranked, self.output, _ignore_errors=True)
+            worker = _graph_worker(self.output, rows, w, reranked, _ignore_errors=True)
         else:
-            worker = _comparison_worker(sub, w, reranked, _ignore_errors=True)
+            worker = _comparison_worker(self.output.table, rows, w, reranked,
+                                        _ignore_errors=True)
         self._worker, self._worker_key = worker, key
         if by_graph:
             worker.yielded.connect(self._on_graph_progress)
@@ -792,7 +790,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         if self.output is None:
             self.info.setText("Run the PF-SDM analysis to fill this view.")
             return
-        key, sub, shown, title, w, reranked = self._selection()
+        key, rows, shown, title, w, reranked = self._selection()
         self._shown_frame = shown
         cached = self._cache.get(key)
         if cached is None and key == self._cancelled_key:
@@ -800,11 +798,11 @@ class ShapeComparisonWidget(_LinkedPlot):
                              "option to compute them again.")
         self._cancelled_key = None
         if cached is None:
-            self._start(key, sub, w, reranked)
+            self._start(key, rows, w, reranked)
             ax = self.figure.add_subplot(111)
             self._style(ax)
             ax.set_axis_off()
-            ax.text(0.5, 0.5, f"computing the distances of {len(sub):,} objects…",
+            ax.text(0.5, 0.5, f"computing the distances of {len(rows):,} objects…",
                     ha="center", va="center", color=self._theme()["fg"], fontsize=9,
                     transform=ax.transAxes)
             self.info.setText("Computing in the background; the viewer stays usable.")
@@ -812,7 +810,7 @@ class ShapeComparisonWidget(_LinkedPlot):
         if isinstance(cached, Exception):
             raise ValueError(f"The distances could not be computed: {cached}")
         if isinstance(cached, GraphResult):
-            self._draw_graph(sub, cached, title)
+            self._draw_graph(rows, cached, title)
             return
         d, xy = cached
         c = self._theme()
@@ -825,8 +823,9 @@ class ShapeComparisonWidget(_LinkedPlot):
         cb.set_label("re-ranked distance" if reranked else "PF-SDM distance", color=c["fg"],
                      fontsize=7)
         cb.ax.tick_params(colors=c["fg"], labelsize=6)
-        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
-        frames = np.array([f for f, _ in keys])
+        frames, labels = self._frames_labels(rows)
+        self._set_keys(frames, labels)
+        keys = self._keys
         if len(keys) <= 20:
             ticks = [str(lb) if shown is not None else f"{f}:{lb}" for f, lb in keys]
             ax_m.set_xticks(range(len(keys)), ticks, fontsize=6, rotation=90)
@@ -866,12 +865,14 @@ class ShapeComparisonWidget(_LinkedPlot):
                          "ticks": len(keys) <= 20}
         self._set_shown(keys, xy, d, ax_p, ax_m)
 
-    def _draw_graph(self, sub, graph: GraphResult, title: str) -> None:
+    def _draw_graph(self, rows: np.ndarray, graph: GraphResult, title: str) -> None:
         """More objects than a matrix shows: each object's nearest shapes (left, for the
         object selected in the viewer; click a bar to go there) and the map of the neighbour
         graph (right; a density image above :data:`MANY_POINTS` points)."""
         c = self._theme()
-        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        frames, labels = self._frames_labels(rows)
+        self._set_keys(frames, labels)
+        keys = self._keys
         ax_n = self.figure.add_subplot(121)
         ax_p = self.figure.add_subplot(122)
         for ax in (ax_n, ax_p):
@@ -884,7 +885,6 @@ class ShapeComparisonWidget(_LinkedPlot):
         ax_n.set_xlabel("re-ranked distance" if graph.reranked else "PF-SDM distance",
                         fontsize=7)
         ax_n.set_title("nearest shapes", fontsize=8)
-        frames = np.array([f for f, _ in keys])
         sc = self._frame_points(ax_p, graph.xy[:, 0], graph.xy[:, 1], frames, 6)
         if self.output.time_lapse:
             cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
@@ -923,20 +923,21 @@ class ShapeComparisonWidget(_LinkedPlot):
         if not art or art["shown"] is None or self.output is None:
             return False
         try:
-            key, sub, shown, title, _w, reranked = self._selection()
+            key, rows, shown, title, _w, reranked = self._selection()
         except ValueError:
             return False
-        if len(sub) != art["n"] or reranked != art["reranked"] or key == self._cancelled_key:
+        if len(rows) != art["n"] or reranked != art["reranked"] or key == self._cancelled_key:
             return False
         cached = self._cache.get(key)
         if cached is None:  # computed in a worker; the frame shown stays until they are ready
-            self._start(key, sub, _w, reranked)
+            self._start(key, rows, _w, reranked)
             self.info.setText(f"Computing the distances of {title}…")
             return True
         if isinstance(cached, Exception):
             return False
         d, xy = cached
-        keys = [(int(f), int(lb)) for f, lb in zip(sub["frame"], sub["label"], strict=True)]
+        self._set_keys(*self._frames_labels(rows))
+        keys = self._keys
         im, ax_m, ax_p = art["image"], self._ax_matrix, self._axes_points
         im.set_data(d)
         im.set_clim(float(np.min(d)), float(np.max(d)))
@@ -1043,12 +1044,13 @@ class GraphResult(NamedTuple):
 
 
 @thread_worker(start_thread=False)
-def _graph_worker(sub, intensity_weight: float, reranked: bool, output=None):
-    """Worker: the neighbour graph of ``sub``'s rows (progress, and Cancel between blocks),
-    re-ranked if asked, and its map (in a worker process, which Cancel terminates)."""
+def _graph_worker(output, rows: np.ndarray, intensity_weight: float, reranked: bool):
+    """Worker: the neighbour graph of the table's ``rows`` (progress, and Cancel between
+    blocks), re-ranked if asked, and its map (in a worker process, which Cancel
+    terminates)."""
     from ._graph import graph_of, map_method, map_steps, rerank_graph
 
-    idx, dist = yield from graph_of(output, sub, intensity_weight)
+    idx, dist = yield from graph_of(output, rows, intensity_weight)
     if reranked:
         idx, dist = rerank_graph(idx, dist)
         yield "re-ranked"
@@ -1059,12 +1061,12 @@ def _graph_worker(sub, intensity_weight: float, reranked: bool, output=None):
 
 
 @thread_worker(start_thread=False)
-def _comparison_worker(sub, intensity_weight: float, reranked: bool):
-    """Worker: the distances of ``sub``'s rows, re-ranked if asked, and their 2-D MDS map;
-    it can stop between the steps (Cancel)."""
+def _comparison_worker(table, rows: np.ndarray, intensity_weight: float, reranked: bool):
+    """Worker: the distances of the ``table``'s ``rows``, re-ranked if asked, and their 2-D
+    MDS map; it can stop between the steps (Cancel)."""
     from ..analysis.tables import distance_matrix
 
-    d = np.asarray(distance_matrix(sub, intensity_weight=intensity_weight))
+    d = np.asarray(distance_matrix(table.iloc[rows], intensity_weight=intensity_weight))
     yield "distances"
     if reranked:
         from ..analysis.rerank import rerank

@@ -30,11 +30,12 @@ from superqt import QCollapsible
 
 from ..core.params import PFSDMParams
 from . import _layers
-from ._alive import while_alive
+from ._alive import next_turn, while_alive
 from ._compute import (
     AnalysisOutput,
     PictureCache,
     PicturesCancelled,
+    explanation,
     finish_output,
     object_pictures,
     run_analysis,
@@ -567,14 +568,9 @@ class AnalysisWidget(QWidget):
                  else "its SDF, disk and skeleton show beside the image")
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label"
                + (" or move the time slider" if output.time_lapse else "") + f": {shown}.")
-        from ..analysis.interpretation import explain_components
-
-        scores = output.pca.get("shape")
-        if output.measures is not None and scores is not None and "PC1" in scores:
-            words = explain_components(scores, output.measures,
-                                       scores.attrs.get("explained_variance_ratio"), n=1)
-            if words:
-                msg += f" {words[0]}."
+        words = explanation(output, "shape")  # computed in the Run's worker
+        if words:
+            msg += f" {words[0]}."
         summary = warnings_summary(output.table)
         if summary:
             msg += f" {summary[0].upper()}{summary[1:]}."
@@ -964,7 +960,7 @@ class AnalysisWidget(QWidget):
         one froze the viewer twice as long). :attr:`plots` holds both once docked."""
         self.plots = []
         self._open_plot(0)
-        QTimer.singleShot(0, lambda: self._open_plot(1))
+        next_turn(lambda: self._open_plot(1))
 
     @while_alive
     def _open_plot(self, i: int) -> None:
@@ -993,7 +989,7 @@ class AnalysisWidget(QWidget):
                 widget.show_layer(labels)
         first = getattr(self, "_plots_dock", None)
         if i == 1 and first is not None:  # the trajectories' tab in front
-            QTimer.singleShot(0, first.raise_)
+            next_turn(first.raise_)
         # the canvas is narrower with the plots docked: fit the view again, unless the user
         # has moved it since the plugin last fitted it
         QTimer.singleShot(150, self._refit_if_untouched)
