@@ -9,7 +9,7 @@ import pytest
 
 import napari_pfsdm as pf
 from napari_pfsdm.analysis import parallel
-from napari_pfsdm.analysis.features import table_from_objects
+from napari_pfsdm.analysis.row_blocks import join_blocks
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
 
@@ -56,18 +56,21 @@ def test_rows_from_two_processes_make_measures_table(small_movie, monkeypatch, w
     intensity = intensity if with_intensity else None
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)  # a small movie, still in processes
     params = PFSDMParams()
-    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=params, axes="tyx",
+    blocks, steps = _drain(parallel.iter_blocks(labels, intensity, params=params, axes="tyx",
                                             workers=2))
     assert parallel._POOL["pool"] is not None  # it did use the pool
-    table = table_from_objects([obj for obj, _ in rows], with_intensity=with_intensity,
-                               params=params, axes="tyx")
+    table = join_blocks(blocks).table
     expected = pf.measure(labels, intensity)
     pd.testing.assert_frame_equal(table, expected)
     n = len(expected)
     assert steps[-1][:2] == (n, n)
     assert all(a[0] <= b[0] for a, b in zip(steps, steps[1:], strict=False))
-    # the outline measures travel with their rows (2-D)
-    assert all(m is not None and "circularity" in m for obj, m in rows if obj.result is not None)
+    # the outline measures travel with their rows (2-D): one row per measured object
+    measures = join_blocks(blocks).measures
+    measured = expected[expected["error"].fillna("") == ""]
+    assert measures[["frame", "label"]].values.tolist() == \
+        measured[["frame", "label"]].values.tolist()
+    assert np.isfinite(measures["circularity"]).all()
 
 
 def test_one_large_frame_is_split_between_processes(monkeypatch):
@@ -76,19 +79,18 @@ def test_one_large_frame_is_split_between_processes(monkeypatch):
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
     tasks = parallel.plan_tasks([np.unique(frame)[1:]], 2 * parallel.TASKS_PER_WORKER)
     assert len(tasks) > 1 and all(len(task) == 1 for task in tasks)  # blocks of one frame
-    rows, _ = _drain(parallel.iter_rows(frame, params=PFSDMParams(), axes="yx", workers=2))
-    table = table_from_objects([obj for obj, _ in rows], params=PFSDMParams(), axes="yx")
-    pd.testing.assert_frame_equal(table, pf.measure(frame))
+    blocks, _ = _drain(parallel.iter_blocks(frame, params=PFSDMParams(), axes="yx", workers=2))
+    pd.testing.assert_frame_equal(join_blocks(blocks).table, pf.measure(frame))
 
 
 def test_few_objects_stay_in_this_process(small_movie, monkeypatch):
     labels, intensity = small_movie
     parallel.shutdown_pool()
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 10_000)
-    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+    blocks, steps = _drain(parallel.iter_blocks(labels, intensity, params=PFSDMParams(),
                                             axes="tyx", workers=2))
     assert parallel._POOL["pool"] is None
-    assert len(steps) == len(rows)  # one step per object
+    assert len(blocks) == 1 and len(steps) == len(blocks[0].table)  # a step per object
 
 
 def test_a_warm_pool_measures_even_a_small_movie_in_processes(monkeypatch):
@@ -107,14 +109,13 @@ def test_a_warm_pool_measures_even_a_small_movie_in_processes(monkeypatch):
     real_plan = parallel.plan_tasks
     monkeypatch.setattr(parallel, "plan_tasks",
                         lambda counts, n: sent.append(n) or real_plan(counts, n))
-    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+    blocks, steps = _drain(parallel.iter_blocks(labels, intensity, params=PFSDMParams(),
                                             axes="tyx", workers=2))
     assert parallel._POOL["pool"] is pool  # the same processes, not a new pool
     assert sent == [max(2, 48 // parallel.MIN_TASK_OBJECTS)] == [3]
-    table = table_from_objects([obj for obj, _ in rows], with_intensity=True,
-                               params=PFSDMParams(), axes="tyx")
+    table = join_blocks(blocks).table
     pd.testing.assert_frame_equal(table, pf.measure(labels, intensity))
-    assert len(steps) < len(rows)  # a step per task, not per object
+    assert len(steps) < len(table)  # a step per task, not per object
 
 
 def test_many_objects_go_in_tasks_of_at_most_max_task_objects(monkeypatch):
@@ -129,12 +130,11 @@ def test_many_objects_go_in_tasks_of_at_most_max_task_objects(monkeypatch):
     real_plan = parallel.plan_tasks
     monkeypatch.setattr(parallel, "plan_tasks",
                         lambda counts, n: planned.append(real_plan(counts, n)) or planned[-1])
-    rows, _ = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(), axes="tyx",
+    blocks, _ = _drain(parallel.iter_blocks(labels, intensity, params=PFSDMParams(), axes="tyx",
                                         workers=2))
     sizes = [sum(len(wanted) for _t, wanted in task) for task in planned[0]]
     assert len(sizes) == 10 and max(sizes) == 5 and sum(sizes) == 48  # ceil(48 / 5) tasks
-    table = table_from_objects([obj for obj, _ in rows], with_intensity=True,
-                               params=PFSDMParams(), axes="tyx")
+    table = join_blocks(blocks).table
     pd.testing.assert_frame_equal(table, pf.measure(labels, intensity))
 
 
@@ -143,16 +143,16 @@ def test_a_warm_pool_of_another_size_or_too_few_objects_stays_here(monkeypatch):
     parallel.shutdown_pool()
     parallel.warm_pool(2).join(timeout=120)
     monkeypatch.setattr(parallel, "plan_tasks", None)  # the pool's route would call it
-    rows, steps = _drain(parallel.iter_rows(labels, intensity, params=PFSDMParams(),
+    blocks, steps = _drain(parallel.iter_blocks(labels, intensity, params=PFSDMParams(),
                                             axes="tyx", workers=2))
-    assert len(steps) == len(rows) == 24  # one step per object: measured here
+    assert len(blocks) == 1 and len(steps) == len(blocks[0].table) == 24  # measured here
     assert not parallel.pool_ready(3)
 
 
 def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
     labels, intensity = small_movie
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
-    gen = parallel.iter_rows(labels, intensity, params=PFSDMParams(), axes="tyx", workers=2)
+    gen = parallel.iter_blocks(labels, intensity, params=PFSDMParams(), axes="tyx", workers=2)
     next(gen)
     pool = parallel._POOL["pool"]
     processes = list(pool._pool)
@@ -177,12 +177,12 @@ def test_a_script_without_a_main_guard_runs_once(tmp_path):
         "print('script body runs', flush=True)\n"
         "parallel.MIN_OBJECTS = 1\n"
         "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)\n"
-        "g = parallel.iter_rows(lab, img, params=PFSDMParams(), axes='tyx', workers=2)\n"
+        "g = parallel.iter_blocks(lab, img, params=PFSDMParams(), axes='tyx', workers=2)\n"
         "try:\n"
         "    while True:\n"
         "        next(g)\n"
         "except StopIteration as stop:\n"
-        "    print('rows', len(stop.value))\n")
+        "    print('rows', sum(len(b.table) for b in stop.value))\n")
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr

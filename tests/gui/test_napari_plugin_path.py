@@ -125,8 +125,8 @@ def test_docking_starts_the_processes_so_a_small_run_uses_them(viewer_widget, qt
     viewer, widget = viewer_widget
     qtbot.waitUntil(parallel.pool_ready, timeout=120_000)
     routes = []
-    real = parallel._iter_rows_pool
-    monkeypatch.setattr(parallel, "_iter_rows_pool",
+    real = parallel._iter_blocks_pool
+    monkeypatch.setattr(parallel, "_iter_blocks_pool",
                         lambda *a, **k: routes.append("pool") or real(*a, **k))
     out = run_and_wait(qtbot, widget)
     assert routes == ["pool"]

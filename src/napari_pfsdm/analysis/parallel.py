@@ -3,10 +3,12 @@
 The napari widget's Run (and anyone who wants ``measure``'s objects faster on one machine)
 hands the frames to a pool of worker processes; each task measures some objects of one or a
 few frames exactly as :func:`~napari_pfsdm.iter_objects` does (the same crop, the same
-options: the same private function) and sends back only what a table row needs (the
-embeddings and diagnostics, not the SDF or the map). The rows come back in frame order, then
-label order, so that :func:`~napari_pfsdm.analysis.features.table_from_objects` builds the
-table :func:`~napari_pfsdm.measure` builds (tested equal).
+options: the same private function) and sends back only what the table needs of them, as a
+block of table rows (:mod:`~napari_pfsdm.analysis.row_blocks`: a few arrays, not one Python
+object per object for the garbage collector to walk in the viewer's process). The blocks come
+back in frame order, then label order, so that
+:func:`~napari_pfsdm.analysis.row_blocks.join_blocks` gives the table
+:func:`~napari_pfsdm.measure` builds (tested equal).
 
 Processes, not threads: one object's work is many small numpy / scikit-image calls that hold
 Python's lock, so threads gain little (docs/design.md §5). The pool is started by the
@@ -15,7 +17,7 @@ the viewer's own process, with Qt and its threads, is unsafe), else ``spawn``; i
 module once and is kept for the next run (:func:`shared_pool`), because starting it costs
 about a second.
 
-Cancelling: closing :func:`iter_rows` (the widget's worker stops at a yield) terminates the
+Cancelling: closing :func:`iter_blocks` (the widget's worker stops at a yield) terminates the
 pool's processes at once; the next run starts a new pool.
 """
 
@@ -46,12 +48,13 @@ from .features import (
     iter_objects,
 )
 from .interpretation import outline_measures
+from .row_blocks import RowBlock, block_of
 
 __all__ = [
     "MAX_TASK_OBJECTS",
     "MIN_OBJECTS",
     "available_cores",
-    "iter_rows",
+    "iter_blocks",
     "plan_tasks",
     "row_of",
     "shared_pool",
@@ -283,11 +286,12 @@ atexit.register(shutdown_pool)
 
 
 # --------------------------------------------------------------------------- the rows
-def iter_rows(
+def iter_blocks(
     labels, intensity=None, *, params: PFSDMParams, axes: str, spacing=None,
     workers: int | None = None, total: int | None = None,
-) -> Generator[tuple[int, int, int, int], None, list[Row]]:
-    """The rows of every object (:func:`row_of`), on ``workers`` processes; a generator.
+) -> Generator[tuple[int, int, int, int], None, list[RowBlock]]:
+    """The rows of every object as blocks (:mod:`~napari_pfsdm.analysis.row_blocks`), on
+    ``workers`` processes; a generator.
 
     Parameters
     ----------
@@ -313,8 +317,11 @@ def iter_rows(
 
     Returns
     -------
-    list of (ObjectResult, dict or None)
-        In frame order, then label order, as :func:`~napari_pfsdm.iter_objects` yields them.
+    list of RowBlock
+        One per task (one in all when measured here), in frame order, then label order, as
+        :func:`~napari_pfsdm.iter_objects` yields the objects:
+        :func:`~napari_pfsdm.analysis.row_blocks.join_blocks` gives :func:`~napari_pfsdm.
+        measure`'s table.
     """
     workers = int(workers or available_cores())
     volume = "z" in axes
@@ -323,6 +330,7 @@ def iter_rows(
 
         total = count_objects(labels, axes)
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
+    block_kw = {"with_intensity": intensity is not None, "params": params, **where}
     pooled = total >= MIN_OBJECTS or (pool_ready(workers)
                                       and total >= workers * MIN_TASK_OBJECTS)
     if workers <= 1 or not pooled:
@@ -331,9 +339,9 @@ def iter_rows(
                                    start=1):
             rows.append(row_of(obj, volume))
             yield done, total, int(obj.frame), int(obj.label)
-        return rows
-    return (yield from _iter_rows_pool(labels, intensity, params, axes, spacing, workers,
-                                       total))
+        return [block_of(rows, **block_kw)] if rows else []
+    return (yield from _iter_blocks_pool(labels, intensity, params, axes, spacing, workers,
+                                         total, block_kw))
 
 
 def _task_args(labels, intensity, timelapse: bool, task) -> list[tuple]:
@@ -342,7 +350,7 @@ def _task_args(labels, intensity, timelapse: bool, task) -> list[tuple]:
             for t, wanted in task]
 
 
-def _iter_rows_pool(labels, intensity, params, axes, spacing, workers, total):
+def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, block_kw):
     n_frames, timelapse, axes = _validate(labels, intensity, axes)
     params.check_dimension(3 if "z" in axes else 2)
     options = params.options()
@@ -354,31 +362,35 @@ def _iter_rows_pool(labels, intensity, params, axes, spacing, workers, total):
                   -(-total // MAX_TASK_OBJECTS))
     tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse), n_tasks)
     pool = shared_pool(workers)
-    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, volume)
-                             for task in tasks)
-    results = pool.imap(_star_task, args)
-    rows: list[Row] = []
+    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, volume,
+                              block_kw) for task in tasks)
+    results = pool.imap(_block_task, args)
+    blocks: list[RowBlock] = []
+    done = 0
     finished = False
     try:
         last = (0, total, 0, 0)
         for _ in tasks:
             while True:
                 try:
-                    part = results.next(timeout=0.2)
+                    block = results.next(timeout=0.2)
                     break
                 except mp.TimeoutError:
                     yield last
-            rows.extend(part)
-            if part:
-                obj = part[-1][0]
-                last = (len(rows), total, int(obj.frame), int(obj.label))
+            blocks.append(block)
+            done += len(block.table)
+            if len(block.table):
+                end = block.table.iloc[-1]
+                last = (done, total, int(end["frame"]), int(end["label"]))
             yield last
         finished = True
     finally:
         if not finished:  # stopped early (Cancel) or failed: stop the processes now
             shutdown_pool()
-    return rows
+    return blocks
 
 
-def _star_task(args: tuple) -> list[Row]:
-    return _measure_task(*args)
+def _block_task(args: tuple) -> RowBlock:
+    """Worker process: the block of one task's objects."""
+    frames, options, volume, block_kw = args
+    return block_of(_measure_task(frames, options, volume), **block_kw)

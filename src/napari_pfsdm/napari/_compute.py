@@ -12,7 +12,7 @@ intensity disk, the SDF and the skeleton of the one object being looked at are m
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Generator
+from collections.abc import Generator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,7 +82,7 @@ class AnalysisOutput:
     options: dict
     time_lapse: bool
     n_frames: int
-    boxes: dict = field(default_factory=dict)
+    boxes: Mapping = field(default_factory=dict)
     pca: dict = field(default_factory=dict)
     params: PFSDMParams = field(default_factory=PFSDMParams)
     measures: pd.DataFrame | None = None
@@ -246,8 +246,8 @@ def run_analysis(
     Closing the generator (or the worker stopping at a yield) stops the work, and the worker
     processes, and keeps nothing.
     """
-    from ..analysis.features import table_from_objects
-    from ..analysis.parallel import iter_rows
+    from ..analysis.parallel import iter_blocks
+    from ..analysis.row_blocks import BoxLookup, join_blocks
 
     params = (options if isinstance(options, PFSDMParams)
               else PFSDMParams.from_options(dict(options or {})))
@@ -255,19 +255,15 @@ def run_analysis(
     time_lapse = axes.startswith("t")
     volume = "z" in axes
     spacing = tuple(float(v) for v in spacing) if volume and spacing is not None else None
-    where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
     total = count_objects(labels, axes)
     if not total:
         raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
                          "segmentation first.")
-    rows = yield from iter_rows(labels, intensity, params=params, axes=axes, spacing=spacing,
-                                workers=workers, total=total)
-    collected = [obj for obj, _ in rows]  # the table needs rows, not the whole results
-    boxes = {(int(obj.frame), int(obj.label)): obj.bbox for obj in collected}
-    measures = [{"frame": int(obj.frame), "label": int(obj.label), **m}
-                for obj, m in rows if m is not None]
-    table = table_from_objects(collected, with_intensity=intensity is not None, params=params,
-                               **where)
+    blocks = yield from iter_blocks(labels, intensity, params=params, axes=axes,
+                                    spacing=spacing, workers=workers, total=total)
+    joined = join_blocks(blocks)
+    table = joined.table
+    boxes = BoxLookup(table["frame"].to_numpy(), table["label"].to_numpy(), joined.boxes)
     pca = {"shape": pca_scores(table, "shape")}
     if intensity is not None:
         pca["intensity"] = pca_scores(table, "intensity")
@@ -275,8 +271,7 @@ def run_analysis(
     return AnalysisOutput(table=table, options=opts, time_lapse=time_lapse,
                           n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
                           params=params, labels=labels, intensity=intensity,
-                          measures=None if volume else pd.DataFrame(
-                              measures, columns=["frame", "label", *MEASURES]),
+                          measures=joined.measures,
                           axes=axes, spacing=spacing)
 
 
