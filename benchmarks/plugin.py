@@ -79,8 +79,10 @@ upper bounds, and they are noisy (run twice before believing a 20 ms difference)
 prints the 15 cumulative-heaviest lines of the 3 longest of them (profiled windows are
 slower; the others are not affected). ``--stacks PATTERN`` instead samples the main thread's
 stack every ~2 ms in those windows and prints, for the longest gap of each, the functions
-seen in it (a function counted once per sample, with the time it was on the stack): what
-ran during the freeze itself, not during the whole window.
+seen in it (a function counted once per sample, with the time it was on the stack) and the
+garbage collections (any thread) longer than 5 ms in it: what ran during the freeze itself,
+not during the whole window. A gap with few samples is one the GUI thread spent waiting for
+the interpreter lock (a worker thread's long C call, or a collection).
 
 Writes ``plugin.csv`` (the table), ``plugin_samples.csv`` (every window), ``plugin_run.csv``
 (the library-vs-widget table) and ``plugin.png`` to ``--out``.
@@ -364,15 +366,25 @@ class _StackSampler:
         self.every_s = every_s
         self.main = threading.main_thread().ident
         self.samples: list[tuple[float, tuple]] = []
+        self.collections: list[tuple[float, float, int]] = []  # (start, end, generation)
+        self._gc_start = 0.0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
+    def _on_gc(self, phase: str, info: dict) -> None:
+        if phase == "start":
+            self._gc_start = time.perf_counter()
+        else:
+            self.collections.append((self._gc_start, time.perf_counter(), info["generation"]))
+
     def start(self) -> None:
+        gc.callbacks.append(self._on_gc)
         self._thread.start()
 
     def stop(self) -> None:
         self._stop.set()
         self._thread.join()
+        gc.callbacks.remove(self._on_gc)
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -388,8 +400,11 @@ class _StackSampler:
     def report(self, start: float, end: float, top: int = 25) -> str:
         """The functions on the stack between ``start`` and ``end``, heaviest first."""
         inside = [(t, s) for t, s in self.samples if start <= t <= end]
+        collected = "".join(
+            f"\n  garbage collection of generation {g}: {1e3 * (b - a):.0f} ms (any thread)"
+            for a, b, g in self.collections if a < end and b > start and b - a > 0.005)
         if not inside:
-            return "  (no samples in the gap)"
+            return "  (no samples in the gap)" + collected
         dt = (end - start) / len(inside)
         seen: dict[str, float] = {}
         for _t, stack in inside:
@@ -398,7 +413,7 @@ class _StackSampler:
                 seen[name] = seen.get(name, 0.0) + dt
         rows = sorted(seen.items(), key=lambda kv: -kv[1])[:top]
         return "\n".join(f"  {1e3 * v:7.1f} ms  {k}" for k, v in rows) + (
-            f"\n  ({len(inside)} samples in {1e3 * (end - start):.0f} ms)")
+            f"\n  ({len(inside)} samples in {1e3 * (end - start):.0f} ms)") + collected
 
 
 # ------------------------------------------------------------------------ the viewer

@@ -20,7 +20,36 @@ def _fill(fig: Figure):
     return ax
 
 
-def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot):
+def test_callbacks_of_next_turn_run_one_per_turn(qtbot):
+    """Two heavy steps queued together: what the first one schedules (here a posted event)
+    runs before the second; with timers (or posted events) of their own both would run in
+    one pass and freeze the viewer as one."""
+    from qtpy.QtCore import QTimer
+
+    from napari_pfsdm.napari._alive import next_turn
+
+    order = []
+
+    def first():
+        order.append("first")
+        QTimer.singleShot(0, lambda: order.append("what else was due"))
+
+    from qtpy.QtWidgets import QWidget
+
+    gone = QWidget()
+    next_turn(first)
+    next_turn(gone.show)  # a widget deleted before its turn: skipped, as Qt would
+    next_turn(lambda: order.append("second"))
+    gone.deleteLater()
+    qtbot.waitUntil(lambda: len(order) == 3, timeout=5000)
+    assert order == ["first", "what else was due", "second"]
+
+
+def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot, monkeypatch):
+    from napari_pfsdm.napari import _canvas
+
+    queued = []  # the turns, one callback each, run by hand below
+    monkeypatch.setattr(_canvas, "next_turn", queued.append)
     fig = Figure(figsize=(4, 3), layout="constrained")
     canvas = PlotCanvas(fig)
     qtbot.addWidget(canvas)
@@ -29,7 +58,8 @@ def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot):
     qtbot.waitExposed(canvas)
     drawn = []
     canvas.mpl_connect("draw_event", lambda event: drawn.append(event))
-    qtbot.waitUntil(lambda: not canvas._idle_timer.isActive(), timeout=5000)
+    while queued:  # whatever showing it asked for
+        queued.pop(0)()
 
     fig.clear()
     fig.set_layout_engine("constrained")
@@ -41,31 +71,31 @@ def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot):
     drawn.clear()
     canvas.draw_idle()
     canvas.draw_idle()  # asked twice: still one layout and one drawing
-    assert canvas.layout_pending and canvas._idle_timer.isActive()
-    canvas._idle_timer.stop()
-    canvas._idle_step()  # step 1: the layout only
+    assert canvas.layout_pending and len(queued) == 1
+    queued.pop(0)()  # turn 1: the layout only
     assert drawn == []
     np.testing.assert_allclose(ax.get_position().bounds, ref_ax.get_position().bounds,
                                atol=1e-9)
     assert not isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)
-    assert canvas._idle_timer.isActive()  # the drawing is asked for, in the next step
-    canvas._idle_timer.stop()
-    canvas._idle_step()  # step 2: the drawing, with that layout
-    assert len(drawn) == 1
+    assert len(queued) == 1  # the drawing is asked for, in a later turn
+    queued.pop(0)()  # turn 2: the drawing, with that layout
+    assert len(drawn) == 1 and not queued
     np.testing.assert_allclose(ax.get_position().bounds, ref_ax.get_position().bounds,
                                atol=1e-9)
-    assert not canvas._idle_timer.isActive()
 
-    # drawn in place (no new figure): no layout again
+    # drawn in place (no new figure): no layout again, one turn
     canvas.draw_idle()
-    canvas._idle_timer.stop()
-    canvas._idle_step()
-    assert len(drawn) == 2
+    queued.pop(0)()
+    assert len(drawn) == 2 and not queued
 
-    # a new size: laid out again before the next drawing, through the event loop
+    # a new size: laid out again before the next drawing
     old = np.array(ax.get_position().bounds)
     canvas.resize(300, 420)
-    qtbot.waitUntil(lambda: len(drawn) == 3, timeout=5000)
+    qtbot.waitUntil(lambda: len(queued) == 1, timeout=5000)
+    queued.pop(0)()
+    assert len(drawn) == 2 and len(queued) == 1
+    queued.pop(0)()
+    assert len(drawn) == 3
     ref2 = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi, layout="constrained")
     ref2_ax = _fill(ref2)
     FigureCanvasAgg(ref2).draw()
@@ -73,3 +103,18 @@ def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot):
     assert np.abs(old - want).max() > 0.02  # the old layout does not fit the new size
     # within a pixel (laid out from the old layout, not a fresh figure: sub-pixel apart)
     np.testing.assert_allclose(ax.get_position().bounds, want, atol=1 / 420)
+
+    # a canvas closed with a step still queued: the step does nothing
+    gone = PlotCanvas(Figure())
+    gone.draw_idle()
+    gone.deleteLater()
+    qtbot.waitUntil(lambda: _deleted(gone), timeout=5000)
+    queued.pop(0)()
+
+
+def _deleted(widget) -> bool:
+    try:
+        widget.width()
+    except RuntimeError:
+        return True
+    return False

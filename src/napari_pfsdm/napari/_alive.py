@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from collections import deque
 
 
 def while_alive(method):
@@ -36,17 +37,42 @@ def offer(combo, names: list[str]) -> None:
     combo.blockSignals(False)
 
 
-#: Delay of :func:`next_turn` (ms): any timer, not a posted event.
+#: Delay of :func:`next_turn` (ms): a timer, not a posted event.
 NEXT_TURN_MS = 1
+_QUEUE: deque = deque()
+_TIMER: list = []  # the one QTimer of the queue, made on first use (in the GUI thread)
 
 
 def next_turn(callback) -> None:
-    """Call ``callback`` in a later turn of Qt's event loop, after what is due now.
+    """Call ``callback`` in a later turn of Qt's event loop, after what is due now, one
+    queued callback per turn.
 
     ``QTimer.singleShot(0, ...)`` is a posted event, which Qt delivers before the timers
-    already due (napari's, the canvas's): two heavy steps chained that way freeze the viewer
-    as one. A 1 ms timer is ordered by time with the others, so what was due runs between.
+    already due; and Qt fires every timer that is due in one pass. Either way two heavy steps
+    scheduled together freeze the viewer as one. The callbacks wait in one queue served by a
+    1 ms timer that runs one callback and is started again for the next, so that what else
+    is due (input, napari's drawing, other timers) runs between two heavy steps.
     """
     from qtpy.QtCore import QTimer
 
-    QTimer.singleShot(NEXT_TURN_MS, callback)
+    _QUEUE.append(callback)
+    if not _TIMER:
+        timer = QTimer(singleShot=True, interval=NEXT_TURN_MS)
+        timer.timeout.connect(_run_next)
+        _TIMER.append(timer)
+    if not _TIMER[0].isActive():
+        _TIMER[0].start()
+
+
+def _run_next() -> None:
+    if not _QUEUE:
+        return
+    callback = _QUEUE.popleft()
+    try:
+        callback()
+    except RuntimeError as err:  # its Qt object was deleted meanwhile (a closed dock or
+        if "has been deleted" not in str(err):  # viewer): as Qt drops a deleted receiver's
+            raise  # timer, nothing to do
+    finally:
+        if _QUEUE:
+            _TIMER[0].start()

@@ -13,9 +13,8 @@ import traceback
 
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.layout_engine import ConstrainedLayoutEngine
-from qtpy.QtCore import QTimer
 
-from ._alive import NEXT_TURN_MS
+from ._alive import next_turn
 
 
 class PlotCanvas(FigureCanvasQTAgg):
@@ -29,13 +28,13 @@ class PlotCanvas(FigureCanvasQTAgg):
 
     def __init__(self, figure) -> None:
         super().__init__(figure)
-        self._idle_timer = QTimer(self, singleShot=True, interval=NEXT_TURN_MS)
-        self._idle_timer.timeout.connect(self._idle_step)
+        self.step_queued = False  # an idle step waits in :func:`._alive.next_turn`'s queue
 
     def draw_idle(self) -> None:
         """Draw soon (once however often asked), in a turn of its own."""
-        if not self._idle_timer.isActive():
-            self._idle_timer.start()
+        if not self.step_queued:
+            self.step_queued = True
+            next_turn(self._idle_step)
 
     @property
     def layout_pending(self) -> bool:
@@ -43,13 +42,17 @@ class PlotCanvas(FigureCanvasQTAgg):
         return isinstance(self.figure.get_layout_engine(), ConstrainedLayoutEngine)
 
     def _idle_step(self) -> None:
-        if self.width() <= 0 or self.height() <= 0:
+        try:
+            self.step_queued = False
+            if self.width() <= 0 or self.height() <= 0:
+                return
+        except RuntimeError:  # the Qt widget is gone (its dock was closed)
             return
         try:
             if self.layout_pending and self.figure.axes:
                 self.figure.get_layout_engine().execute(self.figure)
                 self.figure.set_layout_engine("none")
-                self._idle_timer.start()  # the drawing in the next turn
+                self.draw_idle()  # the drawing in a later turn
                 return
             self.draw()
         except Exception:  # noqa: BLE001 - as matplotlib's own idle draw: print, go on
