@@ -336,8 +336,10 @@ class _LinkedPlot(QWidget):
         """Many points as one image (:mod:`._density`): a draw that costs the same for 5,000
         or 50,000 points."""
         extent = padded_extent(x, y)
-        ax.imshow(density_image(x, y, colors, extent), origin="lower", extent=extent,
-                  aspect="auto", interpolation="nearest", zorder=2)
+        rgba = np.rint(density_image(x, y, colors, extent) * 255).astype(np.uint8)
+        # 8 bits per channel: matplotlib resamples bytes faster than floats (~20 % of a draw)
+        ax.imshow(rgba, origin="lower", extent=extent, aspect="auto",
+                  interpolation="nearest", zorder=2)
         ax.set_xlim(extent[0], extent[1])
         ax.set_ylim(extent[2], extent[3])
 
