@@ -118,3 +118,34 @@ def _deleted(widget) -> bool:
     except RuntimeError:
         return True
     return False
+
+
+def test_a_squeezed_canvas_lays_out_without_a_warning(qtbot, monkeypatch):
+    """napari laying its window out again can squeeze a dock for a moment: matplotlib then
+    warns that the layout was not applied, which napari shows the user as a notification."""
+    import warnings
+
+    from napari_pfsdm.napari import _canvas
+
+    queued = []
+    monkeypatch.setattr(_canvas, "next_turn", queued.append)
+    fig = Figure(figsize=(4, 3), layout="constrained")
+    canvas = PlotCanvas(fig)
+    qtbot.addWidget(canvas)
+    _fill(fig)
+    canvas.resize(40, 30)
+    canvas.show()
+    qtbot.waitExposed(canvas)
+    fig.set_layout_engine("constrained")
+    canvas.draw_idle()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails the test
+        while queued:
+            queued.pop(0)()
+    # the same figure laid out by matplotlib itself does warn (what the test guards against)
+    ref = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi, layout="constrained")
+    _fill(ref)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        FigureCanvasAgg(ref).draw()
+    assert any("constrained_layout not applied" in str(w.message) for w in seen)

@@ -10,6 +10,7 @@ in one turn and draws it in the next, each after what else is due (:func:`._aliv
 from __future__ import annotations
 
 import traceback
+import warnings
 
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.layout_engine import ConstrainedLayoutEngine
@@ -50,7 +51,11 @@ class PlotCanvas(FigureCanvasQTAgg):
             return
         try:
             if self.layout_pending and self.figure.axes:
-                self.figure.get_layout_engine().execute(self.figure)
+                with warnings.catch_warnings():  # a dock squeezed for a moment (napari
+                    # laying its window out again): the last layout is kept, and the next
+                    # size is laid out again; not a warning for the user
+                    warnings.filterwarnings("ignore", "constrained_layout not applied")
+                    self.figure.get_layout_engine().execute(self.figure)
                 self.figure.set_layout_engine("none")
                 self.draw_idle()  # the drawing in a later turn
                 return
