@@ -69,10 +69,11 @@ selection of the active Labels layer, at a cost that grows with the square of th
 feature columns.
 
 Targets (issue 20): selection and slider steps < 100 ms median and < 150 ms max of the gap;
-the plugin's own stall during Run < 100 ms; Run ÷ measure ≤ 1.5; 3,000 objects: no gap
-> 150 ms. Under Xvfb the canvas is drawn by software OpenGL (llvmpipe) on the same two cores,
-shared with whatever else runs: drawing costs far more than with a GPU, so the gaps here are
-upper bounds, and they are noisy (run twice before believing a 20 ms difference).
+the plugin's own stall during Run < 100 ms; Run ÷ measure ≤ 1.5 (e, issue 23: ≤ 0.6 on two
+cores); 3,000 objects: no gap > 150 ms. Under Xvfb the canvas is drawn by software OpenGL
+(llvmpipe) on the same two cores, shared with whatever else runs: drawing costs far more than
+with a GPU, so the gaps here are upper bounds, and they are noisy (run twice before believing
+a 20 ms difference).
 
 ``--profile PATTERN`` runs cProfile on the main thread during every window whose
 "dataset · action" contains PATTERN (case-insensitive; alternatives separated by "|") and
@@ -719,8 +720,11 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
         if action == "Run" and ds in ratios:
             r = ratios[ds]
             rows.append({"dataset": ds, "action": "Run wall ÷ pf.measure wall (×, not ms)",
-                         "median ms": r, "max ms": r, "n": 1, "target": "≤ 1.5",
-                         "met": "yes" if r <= 1.5 else "NO", "notes": ""})
+                         "median ms": r, "max ms": r, "n": 1,
+                         # the movie of many objects: issue 23's target on two cores
+                         "target": "≤ 0.6" if ds.startswith("e") else "≤ 1.5",
+                         "met": "yes" if r <= (0.6 if ds.startswith("e") else 1.5) else "NO",
+                         "notes": ""})
     return pd.DataFrame(rows)
 
 
@@ -740,19 +744,24 @@ def plot(table: pd.DataFrame, path: Path, title: str) -> None:
     colors = ["#c44e52" if m == "NO" else "#55a868" if m == "yes" else "#8c8c8c"
               for m in ms["met"]]
     y = np.arange(len(ms))
-    med = np.maximum(ms["median ms"].to_numpy(float), 1.0)
+    raw = ms["median ms"].to_numpy(float)
+    med = np.maximum(raw, 1.0)
     top = np.maximum(ms["max ms"].to_numpy(float), med)
     a.barh(y, med, color=colors)
     a.hlines(y, med, top, color="k", lw=1.2)
     a.plot(top, y, "k|", ms=6)
+    for yi, v in zip(y, raw, strict=True):  # a log axis cannot show 0 or less: say it
+        if v <= 1.0:
+            a.text(1.2, yi, f"{v:.0f} ms (≤ 0: shorter than napari alone)" if v <= 0
+                   else f"{v:.1f} ms", va="center", fontsize=7)
     a.set_yticks(y, names, fontsize=7)
     a.set_xscale("log")
     for x, style in ((100, "--"), (150, ":")):
         a.axvline(x, color="k", ls=style, lw=0.8)
     a.set_xlabel("ms (log): bar = median, line to the max; dashed 100 ms, dotted 150 ms",
                  fontsize=8)
-    a.set_title(f"{title}: longest event-loop gap per action, and time until the pictures are "
-                "shown (green: target met, red: missed, grey: no target)", fontsize=9)
+    a.set_title(f"{title}: longest event-loop gap per action (green: target met, red: "
+                "missed, grey: no target)", fontsize=9)
     a.invert_yaxis()
     a.tick_params(axis="x", labelsize=7)
     if len(ratio):
@@ -761,7 +770,13 @@ def plot(table: pd.DataFrame, path: Path, title: str) -> None:
                                               for m in ratio["met"]])
         b.set_yticks(yr, ratio["dataset"], fontsize=7)
         b.axvline(1.5, color="k", ls="--", lw=0.8)
-        b.set_xlabel("Run wall ÷ pf.measure wall\n(dashed: the target, 1.5)", fontsize=8)
+        many = ratio["dataset"].str.startswith("e")
+        if many.any():  # issue 23: the movie of many objects on two cores
+            b.axvline(0.6, color="k", ls=":", lw=0.8)
+        for yi, v in zip(yr, ratio["median ms"], strict=True):
+            b.text(v, yi, f" {v:.2f}", va="center", fontsize=7)
+        b.set_xlabel("Run ÷ measure\ntargets: dashed 1.5,\ndotted 0.6 (e)" if many.any()
+                     else "Run wall ÷ pf.measure wall\n(dashed: the target, 1.5)", fontsize=8)
         b.set_title("Run ÷ measure", fontsize=9)
         b.invert_yaxis()
         b.tick_params(axis="x", labelsize=7)
