@@ -119,9 +119,9 @@ def test_a_warm_pool_measures_even_a_small_movie_in_processes(monkeypatch):
 
 
 def test_many_objects_go_in_tasks_of_at_most_max_task_objects(monkeypatch):
-    """Each task's rows come back as one pickle, unpickled holding the interpreter lock (the
-    viewer freezes meanwhile): a large movie goes in tasks of at most MAX_TASK_OBJECTS,
-    more than TASKS_PER_WORKER per worker if need be; the table is measure's."""
+    """Each task's result is unpickled in one go, holding the interpreter lock the viewer's
+    GUI thread needs: a large movie goes in tasks of at most MAX_TASK_OBJECTS, more than
+    TASKS_PER_WORKER per worker if need be; the table is measure's."""
     labels, intensity = make_timelapse_montage(8, 6, 160, seed=4)[:2]  # 48 objects
     parallel.warm_pool(2).join(timeout=120) if not parallel.pool_ready(2) else None
     monkeypatch.setattr(parallel, "MAX_TASK_OBJECTS", 5)

@@ -75,9 +75,9 @@ MIN_TASK_OBJECTS = 16
 #: of one worker is the other's idle time) and to report progress, few enough that sending
 #: frames costs little. 10,000 blobs: 8 tasks per worker 0.61x measure's time, 32 0.58x.
 TASKS_PER_WORKER = 32
-#: At most this many objects per task: a task's rows come back as one pickle, which the
-#: pool's result thread unpickles holding the interpreter lock. 50,000 objects in 64 tasks
-#: (745 per task) held it 100-220 ms per task: the viewer froze as long, 64 times per Run.
+#: At most this many objects per task: a task's result is unpickled in one go by the pool's
+#: result thread, holding the interpreter lock the viewer's GUI thread needs (745 objects,
+#: 50,000 in 64 tasks: ~22 ms; 128 objects: ~4 ms), and progress comes after each task.
 MAX_TASK_OBJECTS = 128
 
 Row = tuple[ObjectResult, "dict | None"]
