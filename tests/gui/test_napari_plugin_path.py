@@ -530,6 +530,58 @@ def test_reading_a_component_loadings_and_shape_modes(viewer_widget, qtbot):
     assert abs(np.corrcoef(merged["shape_PC1"], merged["circularity"])[0, 1]) < 1e-6
 
 
+def test_the_component_reading_last_asked_for_wins_whatever_finishes_first(
+        viewer_widget, qtbot, monkeypatch):
+    """Three readings asked for in a row, finishing out of order: the panel ends on the last
+    one, and ``worker`` is None only when none runs. (Before: the first reading's end cleared
+    ``worker`` while the second ran; the second was then never stopped and, finishing after
+    the third, replaced it: the once-seen flake of the test above.)"""
+    import threading
+
+    from napari_helpers import COMPONENTS
+    from qtpy.QtCore import QThreadPool
+
+    from napari_pfsdm.napari import _components
+
+    viewer, widget = viewer_widget
+    run_and_wait(qtbot, widget)
+    comp = dock(viewer, COMPONENTS)
+    qtbot.waitUntil(lambda: comp.worker is None and comp.result is not None, timeout=60_000)
+    gates = {k: threading.Event() for k in (2, 3, 4)}
+    real = _components.reading
+
+    def gated(output, kind, component):
+        assert gates[component].wait(60), f"PC{component} was never let through"
+        return real(output, kind, component)
+
+    monkeypatch.setattr(_components, "reading", gated)
+    pool = QThreadPool.globalInstance()
+    threads = pool.maxThreadCount()
+    pool.setMaxThreadCount(max(threads, 6))  # the held readings must not starve the others
+    try:
+        workers = {}
+        for k in (2, 3):
+            comp.component.setValue(k)
+            workers[k] = comp.worker
+        with qtbot.waitSignal(workers[2].finished, timeout=30_000):
+            gates[2].set()
+        assert comp.worker is workers[3]  # PC3 still runs
+        comp.component.setValue(4)
+        workers[4] = comp.worker
+        with qtbot.waitSignal(workers[4].finished, timeout=60_000):
+            gates[4].set()
+        with qtbot.waitSignal(workers[3].finished, timeout=60_000):
+            gates[3].set()
+        qtbot.wait(50)  # anything PC3 queued is delivered
+    finally:
+        for gate in gates.values():
+            gate.set()
+        pool.setMaxThreadCount(threads)
+    assert comp.worker is None
+    assert comp.figure.axes[0].get_title().startswith("PC4 ")
+    assert comp.result[2]["sigma"].tolist() == [-2, -1, 0, 1, 2]
+
+
 def test_trajectories_in_the_pc_space_of_another_layer_or_a_saved_reference(
         make_napari_viewer, qtbot, tmp_path):
     """Point 5 of issue 22: the plot's axes from a control layer; a saved table too; a

@@ -130,19 +130,29 @@ class ComponentsWidget(QWidget):
         kind, k = self.kind.currentText(), self.component.value()
         self.info.setText("Computing…")
         worker = _reading_worker(output, kind, k, _ignore_errors=True)
-        worker.returned.connect(lambda res: self._show(res, kind, k))
-        worker.errored.connect(lambda err: self.info.setText(f"No reading: {err}"))
-        worker.finished.connect(self._done)
+        # the last asked wins: a reading that finishes after a newer one was asked for is
+        # dropped, and it does not clear ``worker`` while the newer one runs
+        worker.returned.connect(lambda res: self._show(res, kind, k, worker))
+        worker.errored.connect(lambda err: self._failed(err, worker))
+        worker.finished.connect(lambda: self._done(worker))
         self.worker = worker
         worker.start()
         return worker
 
     @while_alive
-    def _done(self) -> None:
-        self.worker = None
+    def _done(self, worker) -> None:
+        if self.worker is worker:
+            self.worker = None
 
     @while_alive
-    def _show(self, res, kind: str, k: int) -> None:
+    def _failed(self, err, worker) -> None:
+        if self.worker is worker:
+            self.info.setText(f"No reading: {err}")
+
+    @while_alive
+    def _show(self, res, kind: str, k: int, worker=None) -> None:
+        if worker is not None and self.worker is not worker:
+            return  # a newer reading was asked for meanwhile
         space, scores, modes, outlines = res
         self.result = res
         maps = space.loadings(k)
