@@ -1,5 +1,5 @@
 """A run's rows in blocks (napari_pfsdm.analysis.row_blocks): any split joins to measure's
-table, boxes and outline measures, failed objects included."""
+table and boxes, failed objects included."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import pytest
 
 import napari_pfsdm as pf
 from napari_pfsdm.analysis.features import iter_objects
-from napari_pfsdm.analysis.interpretation import MEASURES
 from napari_pfsdm.analysis.parallel import row_of
 from napari_pfsdm.analysis.row_blocks import BoxLookup, block_of, join_blocks
 from napari_pfsdm.core.params import PFSDMParams
@@ -19,16 +18,16 @@ from napari_pfsdm.data.gastruloids import make_timelapse_montage
 def movie_rows():
     labels, intensity = make_timelapse_montage(3, 3, 128, seed=7)[:2]
     labels = labels.copy()
-    labels[1, 2, 2] = 40  # a one-pixel object: a row without features (and no measures)
+    labels[1, 2, 2] = 40  # a one-pixel object: a row without features
     labels[2, 5:7, 5:7] = 41
     params = PFSDMParams()
     objects = list(iter_objects(labels, intensity, params=params, axes="tyx"))
-    rows = [row_of(obj, False) for obj in objects]
+    rows = [row_of(obj) for obj in objects]
     return labels, intensity, params, objects, rows
 
 
 @pytest.mark.parametrize("cuts", [[], [1], "around the failed", "every row", "empty blocks"])
-def test_any_split_joins_to_measures_table_boxes_and_measures(movie_rows, cuts):
+def test_any_split_joins_to_measures_table_and_boxes(movie_rows, cuts):
     labels, intensity, params, objects, rows = movie_rows
     expected = pf.measure(labels, intensity)
     failed = [i for i, obj in enumerate(objects) if obj.result is None]
@@ -49,12 +48,6 @@ def test_any_split_joins_to_measures_table_boxes_and_measures(movie_rows, cuts):
                       joined.boxes)
     assert dict(boxes) == {(int(o.frame), int(o.label)): o.bbox for o in objects}
     assert boxes.get((1, 40)) == (slice(2, 3), slice(2, 3)) and boxes.get((0, 40)) is None
-    # the outline measures: as the rows' dicts made into one table
-    want = pd.DataFrame([{"frame": int(o.frame), "label": int(o.label), **m}
-                         for o, m in rows if m is not None],
-                        columns=["frame", "label", *MEASURES])
-    pd.testing.assert_frame_equal(joined.measures, want)
-    assert not {40, 41} & set(joined.measures["label"])
 
 
 def test_joining_nothing_is_refused():

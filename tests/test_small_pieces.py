@@ -4,6 +4,8 @@ the mutant named in the docstring passes every other test."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -119,6 +121,32 @@ def test_outline_measures_of_a_regular_polygon_are_its_closed_forms():
     flat = outline_measures(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]))  # no area
     assert all(np.isnan(v) for v in flat.values())
     assert all(np.isnan(v) for v in outline_measures(np.zeros((4, 2))).values())
+
+
+def test_table_measures_are_the_tables_regionprops_columns_and_their_axis_ratio():
+    """A 20 x 10 pixel rectangle: aspect ratio = sqrt of the ratio of its pixel variances,
+    (10² - 1) / (20² - 1) (each side's discrete uniform variance (n² - 1) / 12), solidity 1,
+    circularity 4π·area / scikit-image's perimeter; a one-pixel object has no axis: NaN, not
+    a division warning. Mutants: the ratio inverted, taken from the wrong columns, or rows
+    reordered against the table."""
+    from skimage.measure import perimeter
+
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis.interpretation import table_measures
+
+    labels = np.zeros((64, 64), np.uint16)
+    labels[10:30, 10:20] = 3
+    labels[50, 50] = 7
+    table = pf.measure(labels)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = table_measures(table)
+    assert m["label"].tolist() == table["label"].tolist() == [3, 7]
+    rect = m.iloc[0]
+    assert rect["aspect_ratio"] == pytest.approx(np.sqrt(99 / 399), rel=1e-9)
+    assert rect["solidity"] == pytest.approx(1.0)
+    assert rect["circularity"] == pytest.approx(4 * np.pi * 200 / perimeter(labels == 3) ** 2)
+    assert np.isnan(m.iloc[1]["aspect_ratio"])
 
 
 def test_a_single_pixel_skeleton_is_one_branch():

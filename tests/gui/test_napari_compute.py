@@ -109,6 +109,9 @@ def test_layer_features_are_numbers_with_pc_scores_and_status_is_short(two_frame
            and not c.startswith(raw)]
     assert "perimeter" in num and not [c for c in feats.columns if c.startswith(raw)]
     np.testing.assert_array_equal(feats[num].to_numpy(float), out.table[num].to_numpy(float))
+    # the one classic measure the table lacks: regionprops' minor / major axis, row by row
+    np.testing.assert_allclose(feats["aspect_ratio"], out.table["axis_minor_length"]
+                               / out.table["axis_major_length"], rtol=1e-12)
     line = status_line(out, 1, 7)
     assert line.startswith("frame 1 · label 7 · area ") and "PC1" in line and len(line) < 100
     assert status_line(out, 0, 7) == "label 7: not present in frame 0"

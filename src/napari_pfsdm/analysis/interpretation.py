@@ -2,8 +2,10 @@
 
 PF-SDM features are not directly readable, and their first principal component is often a
 familiar quantity: on the bundled gastruloid sample PC1 explains 96 % of the variance and
-follows circularity (r ≈ 0.98). :func:`outline_measures` gives the classic numbers of one
-outline; :func:`explain_components` says, in words, which of them each PC follows.
+follows circularity (r ≈ 0.99). :func:`table_measures` takes the classic numbers from a
+feature table's own regionprops columns (what a person sees in the table and plots, and costs
+nothing more to compute), :func:`outline_measures` computes them from one outline;
+:func:`explain_components` says, in words, which of them each PC follows.
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import ConvexHull, QhullError
 
-__all__ = ["MEASURES", "outline_measures", "component_correlations", "explain_components"]
+__all__ = ["MEASURES", "table_measures", "outline_measures", "component_correlations",
+           "explain_components"]
 
 #: Classic measures, with the words used to explain a component (higher value → ...).
 MEASURES = {
@@ -20,6 +23,34 @@ MEASURES = {
     "aspect_ratio": ("minor/major axis ratio", "less elongated"),
     "solidity": ("solidity (area / convex hull)", "less indented"),
 }
+
+
+def table_measures(table: pd.DataFrame) -> pd.DataFrame:
+    """The :data:`MEASURES` of every row of a 2-D feature table, from its classic columns
+    (:mod:`napari_pfsdm.analysis.classic`: scikit-image's regionprops of the labelled pixels).
+
+    ``circularity`` and ``solidity`` are the table's own; ``aspect_ratio`` is
+    ``axis_minor_length / axis_major_length`` (regionprops' second moments; NaN where the major
+    axis is 0, a one-pixel object). Replaces computing :func:`outline_measures` for every
+    object of a run (0.17 ms each, 8 % of the measuring; the two agree to r ≥ 0.98 on the
+    bundled sample, the same words for its PCs).
+
+    Returns
+    -------
+    DataFrame
+        ``frame``, ``label`` and the :data:`MEASURES` columns, one row per table row (``frame``
+        0 when the table has none).
+    """
+    major = table["axis_major_length"].to_numpy(float)
+    minor = table["axis_minor_length"].to_numpy(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(major > 0, minor / np.where(major > 0, major, 1.0), np.nan)
+    frames = (table["frame"].to_numpy() if "frame" in table
+              else np.zeros(len(table), np.int64))
+    return pd.DataFrame({"frame": frames, "label": table["label"].to_numpy(),
+                         "circularity": table["circularity"].to_numpy(float),
+                         "aspect_ratio": ratio,
+                         "solidity": table["solidity"].to_numpy(float)})
 
 
 def outline_measures(points: np.ndarray) -> dict[str, float]:

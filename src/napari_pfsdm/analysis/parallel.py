@@ -47,7 +47,6 @@ from .features import (
     _validate,
     iter_objects,
 )
-from .interpretation import outline_measures
 from .row_blocks import RowBlock, block_of
 
 __all__ = [
@@ -80,9 +79,6 @@ TASKS_PER_WORKER = 32
 #: 50,000 in 64 tasks: ~22 ms; 128 objects: ~4 ms), and progress comes after each task.
 MAX_TASK_OBJECTS = 128
 
-Row = tuple[ObjectResult, "dict | None"]
-
-
 def available_cores() -> int:
     """Cores this process may use (its CPU affinity where the system tells it)."""
     try:
@@ -91,20 +87,18 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def row_of(obj: ObjectResult, volume: bool) -> Row:
+def row_of(obj: ObjectResult) -> ObjectResult:
     """What a table row needs of one object: the object with a light result (embeddings and
     diagnostics only: the SDF, map and skeleton of every object are not kept for a whole
-    run) and, for 2-D outlines, the classic outline measures
-    (:func:`~napari_pfsdm.analysis.interpretation.outline_measures`)."""
+    run)."""
     res = obj.result
     if res is None:
-        return obj, None
+        return obj
     light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
                             intensity_embedding=res.intensity_embedding,
                             surface_embedding=getattr(res, "surface_embedding", None),
                             outline=getattr(res, "outline", None))
-    measures = None if volume else outline_measures(res.contour.points)
-    return replace(obj, result=light), measures
+    return replace(obj, result=light)
 
 
 # --------------------------------------------------------------------------- tasks
@@ -164,9 +158,9 @@ def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray
     return out
 
 
-def _measure_task(frames: list[tuple], options: dict, volume: bool) -> list[Row]:
+def _measure_task(frames: list[tuple], options: dict) -> list[ObjectResult]:
     """Worker process: the rows of the given (frame index, frame, image, labels)."""
-    rows: list[Row] = []
+    rows: list[ObjectResult] = []
     with _one_blas_thread():
         for t, frame, image, wanted in frames:
             if frame.dtype == bool:
@@ -177,7 +171,7 @@ def _measure_task(frames: list[tuple], options: dict, volume: bool) -> list[Row]
             for label in wanted:
                 box = boxes[int(label) - 1]
                 rows.append(row_of(_object_in_frame(frame, image, int(t), int(label), box,
-                                                    options), volume))
+                                                    options)))
     return rows
 
 
@@ -270,7 +264,7 @@ def _warm_task(_index: int) -> None:
     yy, xx = np.mgrid[:32, :32]
     frame = ((yy - 15.5) ** 2 + (xx - 15.5) ** 2 < 100).astype(np.uint8)
     args = [(0, frame, frame.astype(np.float32), np.array([1]))]
-    _measure_task(args, PFSDMParams().options(), False)
+    _measure_task(args, PFSDMParams().options())
 
 
 def shutdown_pool() -> None:
@@ -337,7 +331,7 @@ def iter_blocks(
         rows = []
         for done, obj in enumerate(iter_objects(labels, intensity, params=params, **where),
                                    start=1):
-            rows.append(row_of(obj, volume))
+            rows.append(row_of(obj))
             yield done, total, int(obj.frame), int(obj.label)
         return [block_of(rows, **block_kw)] if rows else []
     return (yield from _iter_blocks_pool(labels, intensity, params, axes, spacing, workers,
@@ -357,13 +351,12 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     voxel = _spacing(axes, spacing)
     if voxel is not None:
         options["spacing"] = voxel
-    volume = "z" in axes
     n_tasks = max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
                   -(-total // MAX_TASK_OBJECTS))
     tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse), n_tasks)
     pool = shared_pool(workers)
-    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, volume,
-                              block_kw) for task in tasks)
+    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, block_kw)
+                          for task in tasks)
     results = pool.imap(_block_task, args)
     blocks: list[RowBlock] = []
     done = 0
@@ -392,5 +385,5 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
 
 def _block_task(args: tuple) -> RowBlock:
     """Worker process: the block of one task's objects."""
-    frames, options, volume, block_kw = args
-    return block_of(_measure_task(frames, options, volume), **block_kw)
+    frames, options, block_kw = args
+    return block_of(_measure_task(frames, options), **block_kw)

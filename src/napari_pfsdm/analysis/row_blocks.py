@@ -7,8 +7,8 @@ collector walks at each full collection, holding the interpreter lock. In the vi
 froze the GUI thread as long (20,000 objects: three collections of 56, 118 and 131 ms during
 one Run, measured with ``gc.callbacks``). A :class:`RowBlock` holds the same rows as a few
 arrays: the table's rows of its objects (:func:`~napari_pfsdm.analysis.features.
-table_from_objects`, made in the worker process), their bounding boxes as integers and their
-outline measures; :func:`join_blocks` puts the blocks of a run together (tested equal to
+table_from_objects`, made in the worker process) and their bounding boxes as integers;
+:func:`join_blocks` puts the blocks of a run together (tested equal to
 :func:`~napari_pfsdm.measure`'s table).
 """
 
@@ -22,14 +22,9 @@ import pandas as pd
 
 from ..core.params import PFSDMParams
 from ..core.table_options import set_options
-from .features import table_from_objects
-from .interpretation import MEASURES
+from .features import ObjectResult, table_from_objects
 
 __all__ = ["BoxLookup", "RowBlock", "block_of", "join_blocks"]
-
-#: Columns of a block's outline measures.
-MEASURE_COLUMNS = ["frame", "label", *MEASURES]
-
 
 @dataclass(frozen=True)
 class RowBlock:
@@ -43,39 +38,29 @@ class RowBlock:
     boxes : ndarray, shape (n, 2 * ndim), int64
         Each object's bounding box in its frame: the start on each axis, then the stop
         (``-1`` where an object has none).
-    measures : DataFrame or None
-        ``frame``, ``label`` and the classic outline measures of the 2-D objects that have
-        them (:func:`~napari_pfsdm.analysis.interpretation.outline_measures`); None for
-        Z-stacks.
     """
 
     table: pd.DataFrame
     boxes: np.ndarray
-    measures: pd.DataFrame | None
 
 
-def block_of(rows: Sequence[tuple], *, with_intensity: bool, params: PFSDMParams, axes: str,
-             spacing=None) -> RowBlock:
-    """The block of ``rows`` (``(ObjectResult, outline measures or None)``, as
-    :func:`napari_pfsdm.analysis.parallel.row_of` makes them), measured with ``params`` on
-    labels of ``axes`` (and ``spacing`` for Z-stacks)."""
+def block_of(objects: Sequence[ObjectResult], *, with_intensity: bool, params: PFSDMParams,
+             axes: str, spacing=None) -> RowBlock:
+    """The block of ``objects`` (as :func:`napari_pfsdm.analysis.parallel.row_of` makes
+    them), measured with ``params`` on labels of ``axes`` (and ``spacing`` for Z-stacks)."""
     volume = "z" in axes
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
-    objects = [obj for obj, _ in rows]
     table = table_from_objects(objects, with_intensity=with_intensity, params=params, **where)
     ndim = 3 if volume else 2
     boxes = np.full((len(objects), 2 * ndim), -1, dtype=np.int64)
     for i, obj in enumerate(objects):
         if obj.bbox is not None:
             boxes[i] = [s.start for s in obj.bbox] + [s.stop for s in obj.bbox]
-    measures = None if volume else pd.DataFrame(
-        [{"frame": int(obj.frame), "label": int(obj.label), **m} for obj, m in rows
-         if m is not None], columns=MEASURE_COLUMNS)
-    return RowBlock(table, boxes, measures)
+    return RowBlock(table, boxes)
 
 
 def join_blocks(blocks: Sequence[RowBlock]) -> RowBlock:
-    """One block of all ``blocks``, in their order (a run's table, boxes and measures)."""
+    """One block of all ``blocks``, in their order (a run's table and boxes)."""
     if not blocks:
         raise ValueError("no blocks to join")
     # blocks without rows have no dtypes (object columns), which would change the table's
@@ -86,12 +71,7 @@ def join_blocks(blocks: Sequence[RowBlock]) -> RowBlock:
     table = pd.concat([b.table for b in blocks], ignore_index=True)
     if opts is not None:
         set_options(table, opts)
-    measures = None
-    if blocks[0].measures is not None:  # empty blocks would turn the columns to objects
-        parts = [b.measures for b in blocks if len(b.measures)]
-        measures = (pd.concat(parts, ignore_index=True) if parts
-                    else blocks[0].measures)
-    return RowBlock(table, np.concatenate([b.boxes for b in blocks]), measures)
+    return RowBlock(table, np.concatenate([b.boxes for b in blocks]))
 
 
 class BoxLookup(Mapping):

@@ -68,9 +68,10 @@ class AnalysisOutput:
         What :func:`apply_identity` found and did about the objects' identity through time
         ("" when there is nothing to say).
     measures
-        Classic measures of each outline (``frame``, ``label``, ``circularity``,
-        ``aspect_ratio``, ``solidity``): what the PCs are compared with
-        (:mod:`napari_pfsdm.analysis.interpretation`).
+        Classic measures of each 2-D object (``frame``, ``label``, ``circularity``,
+        ``aspect_ratio``, ``solidity``, from the table's regionprops columns:
+        :func:`napari_pfsdm.analysis.interpretation.table_measures`): what the PCs are
+        compared with.
     labels, intensity
         The arrays that were measured (references, not copies): pictures are made from them.
     axes, spacing
@@ -246,6 +247,7 @@ def run_analysis(
     Closing the generator (or the worker stopping at a yield) stops the work, and the worker
     processes, and keeps nothing.
     """
+    from ..analysis.interpretation import table_measures
     from ..analysis.parallel import iter_blocks
     from ..analysis.row_blocks import BoxLookup, join_blocks
 
@@ -271,7 +273,7 @@ def run_analysis(
     return AnalysisOutput(table=table, options=opts, time_lapse=time_lapse,
                           n_frames=labels.shape[0] if time_lapse else 1, boxes=boxes, pca=pca,
                           params=params, labels=labels, intensity=intensity,
-                          measures=joined.measures,
+                          measures=None if volume else table_measures(table),
                           axes=axes, spacing=spacing)
 
 
@@ -368,7 +370,7 @@ def objects_of(output: AnalysisOutput, scores: pd.DataFrame, channel: str) -> np
 
 def explanation(output: AnalysisOutput, channel: str = "shape") -> list[str]:
     """What PC1 and PC2 of the layer's own PCA follow, in words
-    (:func:`napari_pfsdm.analysis.interpretation.explain_components`; outline measures of
+    (:func:`napari_pfsdm.analysis.interpretation.explain_components`; classic measures of
     2-D shapes only, else ``[]``), once per table: :func:`finish_output` computes it in the
     Run's worker (50,000 rows: ~20 ms the GUI thread does not spend)."""
     key = ("explanation", channel)
