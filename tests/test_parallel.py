@@ -77,6 +77,39 @@ def test_one_large_frame_is_split_between_processes(monkeypatch):
     pd.testing.assert_frame_equal(join_blocks(blocks).table, pf.measure(frame))
 
 
+def test_a_split_frame_is_sent_as_the_crops_of_its_objects_and_gives_measures_table(
+        monkeypatch):
+    """A frame split between tasks goes to the workers as each object's crop (its box one
+    pixel wider), not as the whole frame and reporter for every task; the table (centroids,
+    objects touching the border, reporter features) and the boxes are still measure's.
+    Mutants: the whole frame sent again; a crop's centroid or box left in crop coordinates;
+    touching the border judged against the crop."""
+    from scipy import ndimage as ndi
+
+    labels, intensity = make_timelapse_montage(12, 1, 256, seed=5)[:2]
+    frame, image = labels[0].copy(), intensity[0].astype(np.float32)
+    frame[:6, :9] = 40  # touching the top-left corner
+    frame[100:110, -4:] = 41  # touching the right edge
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
+    counts = parallel._labels_per_frame(frame, 1, False)
+    tasks = parallel.plan_tasks(counts, 4)
+    sent = parallel._task_args(frame, image, False, tasks[0], counts, {})
+    assert len(tasks) > 1 and [entry[0] for entry in sent] == ["crops"]
+    boxes = ndi.find_objects(frame)
+    for label, box, big, labels_crop, crop in sent[0][3]:
+        assert box == boxes[label - 1] and labels_crop.shape == crop.shape
+        assert labels_crop.size < frame.size / 20
+    blocks, _ = _drain(parallel.iter_blocks(frame, image, params=PFSDMParams(), axes="yx",
+                                            workers=2))
+    joined = join_blocks(blocks)
+    expected = pf.measure(frame, image)
+    pd.testing.assert_frame_equal(joined.table, expected)
+    assert set(expected.loc[expected["touches_border"], "label"]) == {40, 41}
+    want = [[s.start for s in boxes[lab - 1]] + [s.stop for s in boxes[lab - 1]]
+            for lab in expected["label"]]
+    np.testing.assert_array_equal(joined.boxes, want)
+
+
 def test_few_objects_stay_in_this_process(small_movie, monkeypatch):
     labels, intensity = small_movie
     parallel.shutdown_pool()

@@ -282,17 +282,32 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
                 yield _object_in_frame(frame, image, int(t), index + 1, box, options)
 
 
+def _crop_of(box, shape) -> tuple[slice, ...]:
+    """The crop an object is measured in: its bounding box ``box`` one pixel wider on every
+    side, within a frame of ``shape``."""
+    return tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
+                 zip(box, shape, strict=True))
+
+
 def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectResult:
     """The :class:`ObjectResult` of ``label`` in one frame, 2-D or 3-D (``box``: its
     bounding box)."""
-    big = tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
-                zip(box, frame.shape, strict=True))
-    mask = frame[big] == label
+    big = _crop_of(box, frame.shape)
+    return _object_in_crop(frame[big], None if image is None else image[big], t, label, box,
+                           big, frame.shape, options)
+
+
+def _object_in_crop(labels_crop, crop, t: int, label: int, box, big, shape,
+                    options) -> ObjectResult:
+    """What :func:`_object_in_frame` computes, from the object's crop alone: ``labels_crop``
+    and ``crop`` (the reporter, or None) are the frame's and the image's pixels in ``big``
+    (:func:`_crop_of` of ``box`` in a frame of ``shape``). A worker process is sent the crops
+    of the objects of one large frame, not the frame for each task."""
+    mask = labels_crop == label
     area = int(mask.sum())
     start = [s.start for s in big]
     centroid = np.array(ndi.center_of_mass(mask)) + start
-    touches = any(s.start == 0 or s.stop == n for s, n in zip(box, frame.shape, strict=True))
-    crop = None if image is None else image[big]
+    touches = any(s.start == 0 or s.stop == n for s, n in zip(box, shape, strict=True))
     res, error, int_error = _describe(mask, crop, tuple(start), options)
     measures = classic_measures(mask, crop, spacing=options.get("spacing"))
     return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,

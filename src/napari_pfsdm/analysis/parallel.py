@@ -40,7 +40,9 @@ from scipy import ndimage as ndi
 from ..core.params import PFSDMParams
 from .features import (
     ObjectResult,
+    _crop_of,
     _frame,
+    _object_in_crop,
     _object_in_frame,
     _one_blas_thread,
     _spacing,
@@ -158,11 +160,20 @@ def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray
     return out
 
 
-def _measure_task(frames: list[tuple], options: dict) -> list[ObjectResult]:
-    """Worker process: the rows of the given (frame index, frame, image, labels)."""
+def _measure_task(entries: list[tuple], options: dict) -> list[ObjectResult]:
+    """Worker process: the rows of a task's entries (:func:`_task_args`): ``("frame", frame
+    index, frame, image, labels)`` or ``("crops", frame index, frame shape, crops)``."""
     rows: list[ObjectResult] = []
     with _one_blas_thread():
-        for t, frame, image, wanted in frames:
+        for entry in entries:
+            if entry[0] == "crops":
+                _, t, shape, crops = entry
+                for label, box, big, labels_crop, crop in crops:
+                    crop = None if crop is None else crop.astype(float)
+                    rows.append(row_of(_object_in_crop(labels_crop, crop, int(t), label, box,
+                                                       big, shape, options)))
+                continue
+            _, t, frame, image, wanted = entry
             if frame.dtype == bool:
                 frame = frame.astype(np.uint8)
             if image is not None:
@@ -263,7 +274,7 @@ def _start_warm(workers: int) -> None:
 def _warm_task(_index: int) -> None:
     yy, xx = np.mgrid[:32, :32]
     frame = ((yy - 15.5) ** 2 + (xx - 15.5) ** 2 < 100).astype(np.uint8)
-    args = [(0, frame, frame.astype(np.float32), np.array([1]))]
+    args = [("frame", 0, frame, frame.astype(np.float32), np.array([1]))]
     _measure_task(args, PFSDMParams().options())
 
 
@@ -338,10 +349,33 @@ def iter_blocks(
                                          total, block_kw))
 
 
-def _task_args(labels, intensity, timelapse: bool, task) -> list[tuple]:
-    return [(t, _frame(labels, t, timelapse),
-             None if intensity is None else _frame(intensity, t, timelapse), wanted)
-            for t, wanted in task]
+def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray],
+               boxes: dict) -> list[tuple]:
+    """What a worker process is sent for one task (:func:`_measure_task`): each whole frame
+    it measures, with the labels wanted, or, for a block of the labels of a frame split
+    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.features._crop_of`).
+    Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its reporter (29 MB,
+    64 tasks) made the Run slower than one process (11.2 s against measure's 10.0 s).
+    ``counts``: the labels of each frame; ``boxes``: the bounding boxes of the last split
+    frame, kept between its tasks."""
+    out: list[tuple] = []
+    for t, wanted in task:
+        frame = _frame(labels, t, timelapse)
+        image = None if intensity is None else _frame(intensity, t, timelapse)
+        if len(wanted) == len(counts[t]):
+            out.append(("frame", t, frame, image, wanted))
+            continue
+        if t not in boxes:
+            boxes.clear()
+            boxes[t] = ndi.find_objects(frame, max_label=int(counts[t][-1]))
+        crops = []
+        for label in wanted:
+            box = boxes[t][int(label) - 1]
+            big = _crop_of(box, frame.shape)
+            crops.append((int(label), box, big, np.array(frame[big]),
+                          None if image is None else np.array(image[big])))
+        out.append(("crops", t, frame.shape, crops))
+    return out
 
 
 def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, block_kw):
@@ -353,10 +387,12 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
         options["spacing"] = voxel
     n_tasks = max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
                   -(-total // MAX_TASK_OBJECTS))
-    tasks = plan_tasks(_labels_per_frame(labels, n_frames, timelapse), n_tasks)
+    counts = _labels_per_frame(labels, n_frames, timelapse)
+    tasks = plan_tasks(counts, n_tasks)
     pool = shared_pool(workers)
-    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task), options, block_kw)
-                          for task in tasks)
+    boxes: dict = {}
+    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task, counts, boxes),
+                              options, block_kw) for task in tasks)
     results = pool.imap(_block_task, args)
     blocks: list[RowBlock] = []
     done = 0
