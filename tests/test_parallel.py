@@ -98,6 +98,7 @@ def test_a_split_frame_is_sent_as_the_crops_of_its_objects_and_gives_measures_ta
     boxes = ndi.find_objects(frame)
     for label, box, big, labels_crop, crop in sent[0][3]:
         assert box == boxes[label - 1] and labels_crop.shape == crop.shape
+        np.testing.assert_array_equal(labels_crop, frame[big])
         assert labels_crop.size < frame.size / 20
     blocks, _ = _drain(parallel.iter_blocks(frame, image, params=PFSDMParams(), axes="yx",
                                             workers=2))

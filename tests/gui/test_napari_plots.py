@@ -157,6 +157,48 @@ def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_lay
     assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
 
+def test_one_image_is_drawn_in_a_visible_colour_without_a_ring_round_every_point(
+        make_napari_viewer, sample_layers, qtbot):
+    """A single image (or one frame): every point is "of this frame", so rings round them
+    would cover the plot (3,000 objects: one white blob); only the selected object's star.
+    Its one frame is coloured from the middle of viridis, not the darkest end (invisible on
+    napari's dark theme). The time-lapse keeps its rings round the current frame's points."""
+    import matplotlib
+
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = dock(viewer)
+
+    def rings(plot):
+        return [a for a in plot._highlight_artists if hasattr(a, "get_offsets")
+                and len(a.get_offsets()) > 1]
+
+    run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
+    plot = dock(viewer, TRAJECTORIES)
+    plot.show_layer(viewer.layers["gastruloids"])
+    plot.flush()
+    frame = _frame(viewer, viewer.layers["gastruloids"])
+    in_frame = sum(1 for f, _ in plot._keys if f == frame)
+    assert [len(r.get_offsets()) for r in rings(plot)] == [in_frame]
+    one = viewer.add_labels(np.asarray(viewer.layers["gastruloids"].data[3]), name="one frame")
+    reporter = [lay for lay in viewer.layers if lay.__class__.__name__ == "Image"
+                and lay.ndim == 3][0]
+    image = viewer.add_image(np.asarray(reporter.data[3]), name="one frame reporter")
+    run_and_wait(qtbot, widget, labels=one, image=image)
+    plot.show_layer(one)
+    plot.color_by.setCurrentText("time")  # the sample's groups are on its own layer
+    plot.flush()
+    n = len(plot._points)
+    assert n == len(one.features) > 1
+    assert rings(plot) == []
+    drawn = [c for c in plot._axes_points.collections
+             if c not in plot._highlight_artists and len(c.get_offsets()) == n]
+    drawn[0].update_scalarmappable()  # frames to colours (matplotlib does it at drawing)
+    np.testing.assert_allclose(drawn[0].get_facecolors()[0],
+                               matplotlib.colormaps["viridis"](0.5), atol=1e-6)
+
+
 def _nonblank(region: np.ndarray) -> bool:
     rgb = region[..., :3].astype(float)
     return rgb.std(axis=(0, 1)).max() > 8 and len(np.unique(rgb.reshape(-1, 3), axis=0)) > 20

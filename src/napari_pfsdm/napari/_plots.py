@@ -350,8 +350,10 @@ class _LinkedPlot(QWidget):
         import matplotlib
 
         viridis = matplotlib.colormaps["viridis"]
-        norm = matplotlib.colors.Normalize(float(frames.min()) if len(frames) else 0.0,
-                                           float(frames.max()) if len(frames) else 1.0)
+        low, high = (float(frames.min()), float(frames.max())) if len(frames) else (0.0, 1.0)
+        if low == high:  # one frame: the middle of the colour map, not its darkest end,
+            low, high = low - 1.0, high + 1.0  # which is all but invisible on a dark theme
+        norm = matplotlib.colors.Normalize(low, high)
         if len(x) > MANY_POINTS:
             self._draw_density(ax, x, y, viridis(norm(frames)))
             return matplotlib.cm.ScalarMappable(norm=norm, cmap=viridis)
@@ -605,7 +607,9 @@ class TrajectoryPlotWidget(_LinkedPlot):
         keys = self._key_array()
         c = self._theme()
         in_frame = keys[:, 0] == frame
-        if in_frame.any():  # rings round this frame's points (small when there are many)
+        # rings round this frame's points (small when there are many); none when every point
+        # is of this frame (one image, or one frame chosen): they would hide the plot
+        if in_frame.any() and not in_frame.all():
             many = len(keys) > MANY_POINTS
             self._highlight_artists.append(ax.scatter(
                 *self._points[in_frame].T, s=16 if many else 60, facecolors="none",
