@@ -81,6 +81,7 @@ TASKS_PER_WORKER = 32
 #: 50,000 in 64 tasks: ~22 ms; 128 objects: ~4 ms), and progress comes after each task.
 MAX_TASK_OBJECTS = 128
 
+
 def available_cores() -> int:
     """Cores this process may use (its CPU affinity where the system tells it)."""
     try:
