@@ -43,8 +43,8 @@ def table_measures(table: pd.DataFrame) -> pd.DataFrame:
     """
     major = table["axis_major_length"].to_numpy(float)
     minor = table["axis_minor_length"].to_numpy(float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(major > 0, minor / np.where(major > 0, major, 1.0), np.nan)
+    ratio = np.full(len(major), np.nan)
+    np.divide(minor, major, out=ratio, where=major > 0)
     frames = (table["frame"].to_numpy() if "frame" in table
               else np.zeros(len(table), np.int64))
     return pd.DataFrame({"frame": frames, "label": table["label"].to_numpy(),

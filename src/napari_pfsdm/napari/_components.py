@@ -150,8 +150,8 @@ class ComponentsWidget(QWidget):
             self.info.setText(f"No reading: {err}")
 
     @while_alive
-    def _show(self, res, kind: str, k: int, worker=None) -> None:
-        if worker is not None and self.worker is not worker:
+    def _show(self, res, kind: str, k: int, worker) -> None:
+        if self.worker is not worker:
             return  # a newer reading was asked for meanwhile
         space, scores, modes, outlines = res
         self.result = res
