@@ -332,6 +332,12 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
     order = [j for j in np.argsort(d[me], kind="stable") if j != me][:len(near)]
     np.testing.assert_allclose([v for _, v in near], d[me, order], atol=1e-7)
     assert [k for k, _ in near] == [comp._keys[j] for j in order]
+    # the bars (one collection) are as long as those distances, nearest at the top
+    bars, = [a for a in comp._ax_near.collections if a in comp._highlight_artists]
+    np.testing.assert_allclose([p.vertices[:, 0].max() for p in bars.get_paths()],
+                               d[me, order], atol=1e-7)
+    np.testing.assert_allclose([np.ptp(p.vertices[:, 1]) / 2 + p.vertices[:, 1].min()
+                                for p in bars.get_paths()], np.arange(len(near)))
     # click the third bar: the viewer goes to that object
     target = near[2][0]
     comp.canvas.draw()

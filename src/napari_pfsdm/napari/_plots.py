@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import napari
 import numpy as np
-from matplotlib.collections import LineCollection
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from napari.layers import Labels
 from napari.qt.threading import thread_worker
@@ -32,7 +32,7 @@ from qtpy.QtWidgets import (
 from ..analysis.reduction import read_groups
 from ..core.table_schema import has_channel
 from . import _layers
-from ._alive import offer
+from ._alive import next_turn, offer
 from ._canvas import PlotCanvas
 from ._compute import classical_mds, explanation, objects_of
 from ._density import density_image, padded_extent
@@ -89,7 +89,9 @@ class _LinkedPlot(QWidget):
         # scrubbing through frames does not redraw the figure at every step
         self._pending: str | None = None
         self._timer = QTimer(self, singleShot=True, interval=DEBOUNCE_MS)
-        self._timer.timeout.connect(self._flush)
+        # in a turn of its own (:func:`._alive.next_turn`), not in the pass in which Qt also
+        # serves the pictures' timers and signals: the two would freeze the viewer as one
+        self._timer.timeout.connect(lambda: next_turn(self._flush))
         self.layer_combo = QComboBox(toolTip="The analysed Labels layer whose results are shown.")
         self.figure = Figure(figsize=(3.6, 2.8), constrained_layout=True)
         self.canvas = PlotCanvas(self.figure)
@@ -1024,8 +1026,12 @@ class ShapeComparisonWidget(_LinkedPlot):
             *self._points[idx].T, s=50, facecolors="none", edgecolors=c["accent"], lw=1.2,
             zorder=3))
         near = self._ax_near
-        bars = near.barh(np.arange(len(dist)), dist, color=c["accent"], height=0.7)
-        self._highlight_artists += list(bars)
+        # the bars as one collection: ten Rectangles cost ten draws at every selection
+        bars = PolyCollection(
+            [((0.0, r - 0.35), (v, r - 0.35), (v, r + 0.35), (0.0, r + 0.35))
+             for r, v in enumerate(dist)], facecolors=c["accent"], edgecolors="none")
+        near.add_collection(bars, autolim=False)
+        self._highlight_artists.append(bars)
         for y, ((f, lb), v) in enumerate(self._nearest):
             name = f"{f}:{lb}" if self.output is not None and self.output.time_lapse \
                 else str(lb)
