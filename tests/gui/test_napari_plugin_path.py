@@ -615,3 +615,105 @@ def test_trajectories_in_the_pc_space_of_another_layer_or_a_saved_reference(
     plot.load_reference(tmp_path / "coarse.csv")
     assert plot.space.currentText() == "saved reference"
     assert "n_fourier" in plot.info.text()
+
+
+def _font_glyphs(viewer) -> dict:
+    """The characters napari has drawn in this viewer (its one font cache, private)."""
+    qt_viewer = viewer.window._qt_viewer
+    return qt_viewer._font_manager.get_font(qt_viewer.canvas.font_info().face)._glyphs
+
+
+def test_the_legends_characters_are_drawn_during_the_run_in_the_put_back_overlay(
+        make_napari_viewer, sample_layers, qtbot):
+    """napari draws each new character on the GUI thread (~6 ms each): the legend's are drawn
+    a few per turn while the Run computes, in the text overlay, which is then put back."""
+    from napari_pfsdm.napari._glyphs import LEGEND_CHARACTERS
+
+    viewer = make_napari_viewer(show=True)  # napari draws texts only on a shown canvas
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = dock(viewer)
+    overlay = viewer.canvas.overlays.text
+    before = (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel()))
+    assert not set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
+    seen = []
+    overlay.events.text.connect(lambda text: seen.append((text, overlay.visible)))
+    with qtbot.waitSignal(widget.finished, timeout=60_000):
+        widget.run()
+        assert widget._glyphs.active and overlay.visible  # while the Run's worker computes
+    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
+    assert not widget._glyphs.active
+    assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
+    widget._glyphs.start()  # the rest, when the Run was quicker than the drawing
+    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=10_000)
+    assert set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
+    # drawn in chunks of a few characters while the overlay was shown (transparent)
+    chunks = [text for text, visible in seen if visible and text]
+    assert set("".join(chunks)) == set(LEGEND_CHARACTERS) and max(map(len, chunks)) <= 8
+    assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
+    # a Run then draws no new character, and its legend uses only characters drawn ahead
+    n = len(_font_glyphs(viewer))
+    viewer.layers["gastruloids"].selected_label = 2
+    run_and_wait(qtbot, widget)
+    wait_pictures(qtbot, widget)
+    legend = viewer.layers[_layers.layer_names("gastruloids")["legend"]]
+    used = set("".join(legend.features["text"])) - set(" \n")
+    assert used <= set(LEGEND_CHARACTERS), used - set(LEGEND_CHARACTERS)
+    qtbot.wait(300)
+    assert len(_font_glyphs(viewer)) == n
+    assert (overlay.visible, overlay.text) == before[:2]
+
+
+def test_an_overlay_the_user_shows_is_left_alone(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    overlay = viewer.canvas.overlays.text
+    overlay.text = "embryo 3, 48 h"
+    overlay.visible = True
+    run_and_wait(qtbot, widget)
+    assert not widget._glyphs.active
+    assert overlay.text == "embryo 3, 48 h" and overlay.visible
+
+
+def test_a_run_that_shows_no_pictures_adds_their_layers_hidden_one_per_turn(
+        make_napari_viewer, sample_layers, qtbot):
+    """The frame shown has no object: no pictures, but their four layers are added empty and
+    hidden, one per event-loop turn, so that the first object selected only fills them."""
+    from qtpy.QtCore import QTimer
+
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers:
+        data = data.copy()
+        if kind == "labels":
+            data[0] = 0  # frame 0: no object
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = dock(viewer)
+    labels = viewer.layers["gastruloids"]
+    viewer.dims.set_point(0, 0)
+    names = _layers.layer_names("gastruloids")
+    pictures = {names[k] for k in ("sdf", "disk", "intensity_disk", "skeleton")}
+    turns = [0]
+    ticker = QTimer(interval=0)
+    ticker.timeout.connect(lambda: turns.__setitem__(0, turns[0] + 1))
+    added = []
+    viewer.layers.events.inserted.connect(
+        lambda e: added.append(turns[0]) if e.value.name in pictures else None)
+    ticker.start()
+    run_and_wait(qtbot, widget, labels=labels)
+    qtbot.waitUntil(lambda: len(added) == 4, timeout=10_000)
+    ticker.stop()
+    assert len(set(added)) == 4, added  # one turn each
+    assert widget.shown_key == (0, int(labels.selected_label))
+    assert not any(viewer.layers[n].visible for n in pictures)
+    assert "not in this frame" in viewer.layers[names["legend"]].features["text"].iloc[-2]
+    before = {n: viewer.layers[n] for n in pictures}
+    inserted = []
+    viewer.layers.events.inserted.connect(lambda e: inserted.append(e.value.name))
+    viewer.dims.set_point(0, 1)
+    label = int(widget.last_output.labels_in(1)[0])
+    labels.selected_label = label
+    shown = wait_pictures(qtbot, widget, (1, label))
+    # the same layers, now shown with the object's pictures: none added
+    assert inserted == []
+    assert all(viewer.layers[n] is before[n] and viewer.layers[n].visible for n in pictures)
+    sdf = viewer.layers[names["sdf"]].data
+    assert sdf.shape[0] == shown.sdf.shape[0] and sdf.shape[1] > shown.sdf.shape[1]

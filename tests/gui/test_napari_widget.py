@@ -135,8 +135,9 @@ def test_selection_and_frame_follow_and_are_cached(viewer_widget, qtbot):
     labels_layer.selected_label = 99
     assert not viewer.layers[names["disk"]].visible
     assert any("not in this frame" in t for t in viewer.layers[names["legend"]].features["text"])
-    labels_layer.selected_label = 4
-    assert viewer.layers[names["disk"]].visible
+    labels_layer.selected_label = 4  # shown again (cached), a hidden layer per turn
+    wait_pictures(qtbot, widget, (frame, 4))
+    assert all(viewer.layers[names[k]].visible for k in ("sdf", "disk", "skeleton"))
 
 
 def test_a_z_stack_is_measured_as_3d_objects_with_shells_and_surface(make_napari_viewer,

@@ -284,12 +284,31 @@ def picture_steps(viewer, labels_layer, pictures):
 
 
 def layers_missing(viewer, labels_layer, pictures) -> bool:
-    """True when a result layer that ``pictures`` need is not in the viewer yet (it will be
-    added: worth one event-loop slot per layer)."""
+    """True when a result layer that ``pictures`` need is not in the viewer yet, or hidden
+    (it will be added, or shown with new data: worth one event-loop slot per layer)."""
     names = layer_names(labels_layer.name)
     keys = (("shells", "surface") if hasattr(pictures, "shells")
             else ("sdf", "disk", "skeleton")) + ("legend",)
-    return any(names[k] not in viewer.layers for k in keys)
+    return any(names[k] not in viewer.layers or not viewer.layers[names[k]].visible
+               for k in keys)
+
+
+def hidden_picture_steps(viewer, labels_layer, reporter: bool):
+    """Add the 2-D picture layers that are missing, empty and hidden, one per step (a
+    generator). A Run that could show no pictures (the selected label is not in the frame)
+    adds them while nothing else happens: napari needs ~0.1 s per new layer under software
+    OpenGL, which the first object selected would otherwise wait for."""
+    names = layer_names(labels_layer.name)
+    for key in ("sdf", "disk") + (("intensity_disk",) if reporter else ()):
+        if names[key] not in viewer.layers:
+            with keep_selection(viewer):
+                viewer.add_image(np.zeros((2, 2), np.float32), name=names[key], visible=False)
+            yield
+    if names["skeleton"] not in viewer.layers:
+        with keep_selection(viewer):
+            viewer.add_vectors(np.zeros((0, 2, 2)), name=names["skeleton"], visible=False,
+                               edge_width=1.5, vector_style="line")
+        yield
 
 
 def finish(steps) -> dict:

@@ -37,6 +37,8 @@ class ResultStore:
 
     def __init__(self) -> None:
         self._outputs: dict = {}
+        #: the characters napari has drawn in this viewer's texts (:mod:`._glyphs`)
+        self.glyphs_drawn: set[str] = set()
 
     def set(self, layer, output: AnalysisOutput | None) -> None:
         if output is None:

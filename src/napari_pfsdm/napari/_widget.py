@@ -43,6 +43,7 @@ from ._compute import (
     validate_layers_data,
 )
 from ._export import export_results
+from ._glyphs import GlyphWarmer
 from ._store import same_layer, store_for
 
 NONE = "(none)"
@@ -179,6 +180,8 @@ class AnalysisWidget(QWidget):
         self._refit = False  # fit the view once the first pictures are shown
         # pictures are made ahead only once the user has paused: a job under way delays the
         # next selection's pictures by up to one job
+        # the legend's characters drawn while a Run computes, not all when it ends
+        self._glyphs = GlyphWarmer(napari_viewer, store_for(napari_viewer).glyphs_drawn, self)
         self._prefetch_timer = QTimer(self, singleShot=True, interval=PREFETCH_DELAY_MS)
         self._steps = None  # (labels, pictures, steps) of pictures being shown layer by layer
         self._step_timer = QTimer(self, singleShot=True, interval=0)
@@ -494,6 +497,7 @@ class AnalysisWidget(QWidget):
         worker.finished.connect(self._on_finished)
         self.worker = worker
         worker.start()
+        self._glyphs.start()
         return worker
 
     def cancel(self) -> None:
@@ -523,6 +527,7 @@ class AnalysisWidget(QWidget):
 
     @while_alive
     def _on_returned(self, labels: Labels, output: AnalysisOutput, weight: float) -> None:
+        self._glyphs.stop()
         output.options["intensity_weight"] = weight
         self.run_seconds = time.perf_counter() - self._t0
         if labels not in self.viewer.layers:
@@ -564,6 +569,8 @@ class AnalysisWidget(QWidget):
         # make room for the pictures beside the labels: fit the view once they are there
         self._refit = first_run
         self.request_pictures()
+        if self.shown_key is not None and output.ndim == 2:  # no pictures to show: their
+            self._add_hidden_layers(labels, output.intensity is not None)  # layers, ahead
         shown = ("its shells and surface show beside the stack" if output.ndim == 3
                  else "its SDF, disk and skeleton show beside the image")
         msg = (f"{len(output.table)} objects in {self.run_seconds:.1f} s. Select a label"
@@ -604,6 +611,7 @@ class AnalysisWidget(QWidget):
 
     @while_alive
     def _on_finished(self) -> None:
+        self._glyphs.stop()
         self.worker = None
         if not self._showing:
             self._after_run()
@@ -829,6 +837,26 @@ class AnalysisWidget(QWidget):
         else:
             while self._steps is not None:
                 self._step_pictures(again=False)
+
+    def _add_hidden_layers(self, labels: Labels, reporter: bool) -> None:
+        """The picture layers, empty and hidden, one per event-loop turn, until pictures are
+        asked for (they then add what is still missing themselves)."""
+        steps = _layers.hidden_picture_steps(self.viewer, labels, reporter)
+
+        def step():  # (a deleted widget's turn is skipped by next_turn)
+            if self._steps is not None or self._wanted is not None \
+                    or labels not in self.viewer.layers:
+                return
+            self._syncing = True  # adding a layer moves the dims: no pictures asked for
+            try:
+                next(steps)
+            except StopIteration:
+                return
+            finally:
+                self._syncing = False
+            next_turn(step)
+
+        next_turn(step)
 
     def _then_fit(self, steps):
         """The picture steps, then (the first time) fitting the view to them: a redraw of

@@ -1,0 +1,96 @@
+"""The legend's characters drawn ahead, while a Run computes.
+
+napari draws each character the first time it shows it by rendering its distance field on
+the GUI thread (``QtTextureFont._load_char``; about 6 ms a character on this machine), once
+per viewer: all the texts of a viewer share one font cache. The legend uses some sixty
+different characters, so the first Run's legend froze the viewer for about 0.4 s while
+napari drew them (``benchmarks/plugin.py --stacks "run"`` on the real movie c).
+
+While the Run's worker computes and the GUI thread waits, :class:`GlyphWarmer` has napari
+draw those characters a few per turn in the viewer's text overlay (public model: text, colour,
+visibility), in a transparent colour, then puts the overlay back as it was. A user who shows
+the overlay is left alone. It only saves time; when anything goes wrong it stops.
+"""
+
+from __future__ import annotations
+
+import string
+
+from qtpy.QtCore import QTimer
+
+from ._layers import LEGENDS
+
+#: The characters of the legend: its words, numbers, units and notes.
+LEGEND_CHARACTERS = "".join(sorted(set(
+    string.ascii_letters + string.digits + ".,:;()[]=+-−×·%/'"
+    + "".join(t for pair in LEGENDS.values() for t in pair)) - set(" \n")))
+#: Characters napari draws per turn (a few ms each) and the pause between turns (ms).
+PER_TURN = 6
+INTERVAL_MS = 40
+
+
+def text_overlay(viewer):
+    """The viewer's text overlay (``viewer.canvas.overlays.text`` from napari 0.9 on, before
+    that ``viewer.text_overlay``), or None."""
+    try:
+        return viewer.canvas.overlays.text
+    except AttributeError:
+        return getattr(viewer, "text_overlay", None)
+
+
+class GlyphWarmer:
+    """Draws :data:`LEGEND_CHARACTERS` that ``drawn`` (the viewer's set of characters drawn
+    so far) lacks, :data:`PER_TURN` per turn, in ``viewer``'s text overlay."""
+
+    def __init__(self, viewer, drawn: set, parent=None) -> None:
+        self.viewer = viewer
+        self.drawn = drawn
+        self._todo = self._shown = ""
+        self._saved: tuple | None = None
+        self._timer = QTimer(parent, interval=INTERVAL_MS)
+        self._timer.timeout.connect(self._turn)
+
+    @property
+    def active(self) -> bool:
+        return self._saved is not None
+
+    def start(self) -> None:
+        """Start drawing the characters not drawn yet (nothing when all are, or when the user
+        shows the text overlay)."""
+        self._todo = "".join(c for c in LEGEND_CHARACTERS if c not in self.drawn)
+        overlay = text_overlay(self.viewer)
+        if self.active or not self._todo or overlay is None or overlay.visible:
+            return
+        try:
+            self._saved = (overlay.text, overlay.color)
+            overlay.color = "transparent"
+            overlay.visible = True
+        except Exception:  # noqa: BLE001 - an optimisation only
+            self.stop()
+            return
+        self._timer.start()
+
+    def _turn(self) -> None:
+        self.drawn.update(self._shown)  # the canvas painted it since the last turn
+        self._shown, self._todo = self._todo[:PER_TURN], self._todo[PER_TURN:]
+        if not self._shown:
+            self.stop()
+            return
+        try:
+            text_overlay(self.viewer).text = self._shown  # drawn at the canvas' next paint
+        except Exception:  # noqa: BLE001 - an optimisation only
+            self.stop()
+
+    def stop(self) -> None:
+        """Put the overlay back as it was."""
+        self._timer.stop()
+        self._shown = ""
+        saved, self._saved = self._saved, None
+        if saved is None:
+            return
+        try:
+            overlay = text_overlay(self.viewer)
+            overlay.visible = False
+            overlay.text, overlay.color = saved
+        except Exception:  # noqa: BLE001 - e.g. the viewer closed meanwhile
+            pass
