@@ -74,3 +74,18 @@ def test_batch_parts_read_back_as_written(tmp_path):
     df = awkward()
     _write_part(df, tmp_path / "part.csv")
     pd.testing.assert_frame_equal(_read_part(tmp_path / "part.csv"), df)
+
+
+def test_a_table_written_in_small_chunks_is_the_file_pandas_writes_whole(tmp_path, monkeypatch):
+    """The CSV is formatted a few rows at a time (a worker thread then holds Python's lock
+    only briefly): the file is byte for byte what one ``to_csv`` call writes."""
+    import napari_pfsdm.io_csv as io_csv
+
+    rng = np.random.default_rng(4)
+    df = pd.DataFrame(rng.normal(size=(23, 5)), columns=list("abcde"))
+    df.insert(0, "label", np.arange(1, 24))
+    df["name"] = [f"cell {i}" for i in range(23)]
+    monkeypatch.setattr(io_csv, "CSV_CHUNK_CELLS", 15)  # two rows per chunk: 12 chunks
+    path = io_csv.write_table_csv(df, tmp_path / "t.csv", {})
+    assert path.read_text() == df.to_csv(index=False, lineterminator="\n")
+    pd.testing.assert_frame_equal(pd.read_csv(path), df)
