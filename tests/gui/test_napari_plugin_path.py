@@ -649,7 +649,7 @@ def test_the_legends_characters_are_drawn_during_the_run_in_the_put_back_overlay
     assert set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
     # drawn in chunks of a few characters while the overlay was shown (transparent)
     chunks = [text for text, visible in seen if visible and text]
-    assert set("".join(chunks)) == set(LEGEND_CHARACTERS) and max(map(len, chunks)) <= 8
+    assert set("".join(chunks)) == set(LEGEND_CHARACTERS) and max(map(len, chunks)) <= 12
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
     # a Run then draws no new character, and its legend uses only characters drawn ahead
     n = len(_font_glyphs(viewer))

@@ -814,10 +814,10 @@ class AnalysisWidget(QWidget):
         # then the other objects of this frame, nearest label first (up to the cache's size)
         others = sorted(output.labels_in(frame), key=lambda lab: abs(int(lab) - label))
         wanted += [(frame, int(lab)) for lab in others[:self.pictures.maxsize // 2]]
+        measured = output.measured()  # not the table's text column, row by row
         for f, lab in wanted:
             i = output.row_index(f, lab)
-            if i is not None and (f, lab) not in self.pictures \
-                    and not str(output.table["error"].iat[i]):
+            if i is not None and (f, lab) not in self.pictures and measured[i]:
                 return labels, f, lab
         return None
 
