@@ -623,37 +623,31 @@ def _font_glyphs(viewer) -> dict:
     return qt_viewer._font_manager.get_font(qt_viewer.canvas.font_info().face)._glyphs
 
 
-def test_the_legends_characters_are_drawn_during_the_run_in_the_put_back_overlay(
-        make_napari_viewer, sample_layers, qtbot):
+def test_the_legends_characters_are_drawn_ahead_in_the_put_back_overlay(
+        make_napari_viewer, sample_layers, qtbot, monkeypatch):
     """napari draws each new character on the GUI thread (~6 ms each): the legend's are drawn
-    a few per turn while the Run computes, in the text overlay, which is then put back."""
+    a few per turn soon after docking (and during a Run that lasts, when some are left), in
+    the text overlay, which is then put back."""
+    from napari_pfsdm.napari import _widget
     from napari_pfsdm.napari._glyphs import LEGEND_CHARACTERS
 
     viewer = make_napari_viewer(show=True)  # napari draws texts only on a shown canvas
     for data, kwargs, kind in sample_layers:
         getattr(viewer, f"add_{kind}")(data, **kwargs)
-    widget = dock(viewer)
     overlay = viewer.canvas.overlays.text
     before = (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel()))
-    assert not set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
     seen = []
     overlay.events.text.connect(lambda text: seen.append((text, overlay.visible)))
-    with qtbot.waitSignal(widget.finished, timeout=60_000):
-        widget.run()
-        assert widget._glyphs.active and overlay.visible  # while the Run's worker computes
-    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
-    assert not widget._glyphs.active
-    assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
-    widget._glyphs.start()  # the rest, when the Run was quicker than the drawing
-    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=10_000)
+    widget = dock(viewer)
+    assert not set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
+    qtbot.waitUntil(lambda: bool(seen) and not widget._glyphs.active, timeout=20_000)
     assert set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
     # drawn in chunks of a few characters while the overlay was shown (transparent)
     chunks = [text for text, visible in seen if visible and text]
-    assert set("".join(chunks)) == set(LEGEND_CHARACTERS) and max(map(len, chunks)) <= 12
+    assert "".join(chunks) == LEGEND_CHARACTERS and max(map(len, chunks)) <= 12
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
     # a Run then draws no new character, and its legend uses only characters drawn ahead
     n = len(_font_glyphs(viewer))
-    viewer.layers["gastruloids"].selected_label = 2
     run_and_wait(qtbot, widget)
     wait_pictures(qtbot, widget)
     legend = viewer.layers[_layers.layer_names("gastruloids")["legend"]]
@@ -661,7 +655,16 @@ def test_the_legends_characters_are_drawn_during_the_run_in_the_put_back_overlay
     assert used <= set(LEGEND_CHARACTERS), used - set(LEGEND_CHARACTERS)
     qtbot.wait(300)
     assert len(_font_glyphs(viewer)) == n
-    assert (overlay.visible, overlay.text) == before[:2]
+    # characters left to draw: a Run that lasts draws them while its worker computes
+    widget._glyphs.drawn.clear()
+    monkeypatch.setattr(_widget, "GLYPHS_AFTER_RUN_START_MS", 0)
+    shown = len(seen)
+    with qtbot.waitSignal(widget.finished, timeout=60_000):
+        widget.run()
+    assert any(visible and text for text, visible in seen[shown:])
+    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
+    assert not widget._glyphs.active
+    assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
 
 
 def test_an_overlay_the_user_shows_is_left_alone(viewer_widget, qtbot):

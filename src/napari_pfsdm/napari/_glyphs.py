@@ -55,10 +55,23 @@ class GlyphWarmer:
     def __init__(self, viewer, drawn: set, parent=None) -> None:
         self.viewer = viewer
         self.drawn = drawn
-        self._todo = self._shown = ""
+        self._todo = self._shown = self._written = ""
         self._saved: tuple | None = None
         self._timer = QTimer(parent, interval=INTERVAL_MS)
         self._timer.timeout.connect(self._turn)
+        self._later = QTimer(parent, singleShot=True)  # dies with its widget
+        self._later.timeout.connect(self._start_if_wanted)
+        self._wanted = None
+
+    def start_in(self, ms: int, wanted=None) -> None:
+        """:meth:`start` in ``ms`` milliseconds, if ``wanted()`` (default: always) is then
+        true."""
+        self._wanted = wanted
+        self._later.start(int(ms))
+
+    def _start_if_wanted(self) -> None:
+        if self._wanted is None or self._wanted():
+            self.start()
 
     @property
     def active(self) -> bool:
@@ -87,12 +100,13 @@ class GlyphWarmer:
             self.stop()
             return
         try:
-            text_overlay(self.viewer).text = self._shown  # drawn at the canvas' next paint
+            text_overlay(self.viewer).text = self._written = self._shown  # drawn at the next paint
         except Exception:  # noqa: BLE001 - an optimisation only
             self.stop()
 
     def stop(self) -> None:
         """Put the overlay back as it was."""
+        self._later.stop()
         self._timer.stop()
         self._shown = ""
         saved, self._saved = self._saved, None
@@ -100,6 +114,8 @@ class GlyphWarmer:
             return
         try:
             overlay = text_overlay(self.viewer)
+            if overlay.text not in ("", self._written):  # the user wrote in it meanwhile
+                return
             overlay.visible = False
             overlay.text, overlay.color = saved
         except Exception:  # noqa: BLE001 - e.g. the viewer closed meanwhile
