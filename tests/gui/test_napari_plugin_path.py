@@ -720,3 +720,28 @@ def test_a_run_that_shows_no_pictures_adds_their_layers_hidden_one_per_turn(
     assert all(viewer.layers[n] is before[n] and viewer.layers[n].visible for n in pictures)
     sdf = viewer.layers[names["sdf"]].data
     assert sdf.shape[0] == shown.sdf.shape[0] and sdf.shape[1] > shown.sdf.shape[1]
+
+
+def test_a_text_the_user_writes_while_characters_are_drawn_is_kept_in_their_colour(
+        viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    overlay = viewer.canvas.overlays.text
+    colour = overlay.color
+    widget._glyphs.drawn.clear()
+    widget._glyphs.start()
+    assert widget._glyphs.active and overlay.visible
+    overlay.text = "embryo 3, 48 h"  # the user, meanwhile
+    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=10_000)
+    assert overlay.text == "embryo 3, 48 h" and overlay.visible
+    assert overlay.color == colour
+
+
+def test_a_hidden_text_of_the_users_stays_hidden_and_comes_back(viewer_widget, qtbot):
+    viewer, widget = viewer_widget
+    overlay = viewer.canvas.overlays.text
+    overlay.text = "for later"  # written, not shown
+    widget._glyphs.drawn.clear()
+    widget._glyphs.start()
+    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=10_000)
+    assert overlay.text == "for later" and not overlay.visible
+

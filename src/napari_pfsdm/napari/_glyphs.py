@@ -1,4 +1,4 @@
-"""The legend's characters drawn ahead, while a Run computes.
+"""The legend's characters drawn ahead, soon after the panel is docked.
 
 napari draws each character the first time it shows it by rendering its distance field on
 the GUI thread (``QtTextureFont._load_char``; about 6 ms a character on this machine), once
@@ -6,10 +6,12 @@ per viewer: all the texts of a viewer share one font cache. The legend uses some
 different characters, so the first Run's legend froze the viewer for about 0.4 s while
 napari drew them (``benchmarks/plugin.py --stacks "run"`` on the real movie c).
 
-While the Run's worker computes and the GUI thread waits, :class:`GlyphWarmer` has napari
-draw those characters a few per turn in the viewer's text overlay (public model: text, colour,
-visibility), in a transparent colour, then puts the overlay back as it was. A user who shows
-the overlay is left alone. It only saves time; when anything goes wrong it stops.
+Shortly after docking, and during a Run that lasts (if any are left), :class:`GlyphWarmer`
+has napari draw those characters a few per turn in the viewer's text overlay (public model:
+text, colour, visibility), in a transparent colour, then puts the overlay back as it was. A
+user who shows the overlay is left alone. A Run that ends stops it (and its pending start):
+the legend then draws what is left, as before. It only saves time; when anything goes wrong
+it stops.
 """
 
 from __future__ import annotations
@@ -86,6 +88,8 @@ class GlyphWarmer:
             return
         try:
             self._saved = (overlay.text, overlay.color)
+            self._written = ""
+            overlay.text = ""  # a hidden text of the user's is theirs to show: put back after
             overlay.color = "transparent"
             overlay.visible = True
         except Exception:  # noqa: BLE001 - an optimisation only
@@ -94,13 +98,17 @@ class GlyphWarmer:
         self._timer.start()
 
     def _turn(self) -> None:
+        overlay = text_overlay(self.viewer)
+        if overlay is None or overlay.text not in ("", self._written):
+            self.stop()  # the user wrote in the overlay: theirs from now on
+            return
         self.drawn.update(self._shown)  # the canvas painted it since the last turn
         self._shown, self._todo = self._todo[:PER_TURN], self._todo[PER_TURN:]
         if not self._shown:
             self.stop()
             return
         try:
-            text_overlay(self.viewer).text = self._written = self._shown  # drawn at the next paint
+            overlay.text = self._written = self._shown  # drawn at the canvas' next paint
         except Exception:  # noqa: BLE001 - an optimisation only
             self.stop()
 
@@ -114,7 +122,8 @@ class GlyphWarmer:
             return
         try:
             overlay = text_overlay(self.viewer)
-            if overlay.text not in ("", self._written):  # the user wrote in it meanwhile
+            if overlay.text not in ("", self._written):  # the user wrote in it meanwhile:
+                overlay.color = saved[1]  # theirs, in their colour
                 return
             overlay.visible = False
             overlay.text, overlay.color = saved
