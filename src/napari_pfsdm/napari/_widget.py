@@ -185,7 +185,7 @@ class AnalysisWidget(QWidget):
         self._refit = False  # fit the view once the first pictures are shown
         # pictures are made ahead only once the user has paused: a job under way delays the
         # next selection's pictures by up to one job
-        # the legend's characters drawn while a Run computes, not all when it ends
+        # the legend's characters drawn ahead (after docking, or while a long Run computes)
         self._glyphs = GlyphWarmer(napari_viewer, store_for(napari_viewer).glyphs_drawn, self)
         self._prefetch_timer = QTimer(self, singleShot=True, interval=PREFETCH_DELAY_MS)
         self._steps = None  # (labels, pictures, steps) of pictures being shown layer by layer
