@@ -745,3 +745,45 @@ def test_a_hidden_text_of_the_users_stays_hidden_and_comes_back(viewer_widget, q
     qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=10_000)
     assert overlay.text == "for later" and not overlay.visible
 
+
+
+def test_pictures_of_a_new_object_update_their_layers_one_per_turn(viewer_widget, qtbot,
+                                                                   monkeypatch):
+    """Once the picture layers exist, another object's pictures still go in one layer per
+    event-loop turn: the five updates and their redraws in one go froze the viewer for
+    110-150 ms on each time-slider step (``benchmarks/plugin.py --stacks time-slider``)."""
+    from qtpy.QtCore import QTimer
+
+    viewer, widget = viewer_widget
+    labels = viewer.layers["gastruloids"]
+    run_and_wait(qtbot, widget, labels=labels)
+    first = wait_pictures(qtbot, widget)
+    names = _layers.layer_names("gastruloids")
+    keys = ("sdf", "disk", "intensity_disk", "skeleton", "legend")
+    layers = {k: viewer.layers[names[k]] for k in keys}
+    turns = [0]
+    ticker = QTimer(interval=0)
+    ticker.timeout.connect(lambda: turns.__setitem__(0, turns[0] + 1))
+    updated: list = []  # (layer name, turn) of each layer the pictures were put in
+
+    def spy_on(real):
+        def spy(*args, **kwargs):
+            out = real(*args, **kwargs)
+            layer = out[0] if isinstance(out, tuple) else out
+            updated.append((layer.name, turns[0]))
+            return out
+        return spy
+
+    for fn in ("_place_picture", "_replace_lines", "_legend"):
+        monkeypatch.setattr(_layers, fn, spy_on(getattr(_layers, fn)))
+    other = next(int(v) for v in widget.last_output.labels_in(first.frame)
+                 if int(v) != first.label)
+    ticker.start()
+    labels.selected_label = other
+    assert updated == []  # nothing in the selection's own turn: napari's drawing first
+    shown = wait_pictures(qtbot, widget, (first.frame, other))
+    ticker.stop()
+    assert [n for n, _t in updated] == [names[k] for k in keys], updated
+    assert len({t for _n, t in updated}) == len(keys), updated  # one turn each
+    assert all(viewer.layers[names[k]] is layers[k] for k in keys)  # updated in place
+    assert layers["sdf"].data.shape[0] == shown.sdf.shape[0]

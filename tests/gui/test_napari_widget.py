@@ -130,7 +130,10 @@ def test_selection_and_frame_follow_and_are_cached(viewer_widget, qtbot):
     # the neighbouring frames are made ahead of time, so going back is served from the cache
     qtbot.waitUntil(lambda: (frame + 2, 4) in widget.pictures, timeout=20_000)
     viewer.dims.set_point(0, frame)
-    assert widget.shown_key == (frame, 4)  # at once, no worker needed
+    # no worker needed: shown from the cache, a layer per event-loop turn
+    assert widget._wanted is None  # nothing waits for a worker
+    assert widget._steps is not None and widget._steps[1] is widget.pictures.get((frame, 4))
+    wait_pictures(qtbot, widget, (frame, 4), timeout=5_000)
     # a label that is not in this frame hides the pictures and says so
     labels_layer.selected_label = 99
     assert not viewer.layers[names["disk"]].visible

@@ -50,6 +50,7 @@ def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot, monke
 
     queued = []  # the turns, one callback each, run by hand below
     monkeypatch.setattr(_canvas, "next_turn", queued.append)
+    monkeypatch.setattr(_canvas, "DRAW_BUDGET_S", 10.0)  # each drawing in one turn
     fig = Figure(figsize=(4, 3), layout="constrained")
     canvas = PlotCanvas(fig)
     qtbot.addWidget(canvas)
@@ -149,3 +150,71 @@ def test_a_squeezed_canvas_lays_out_without_a_warning(qtbot, monkeypatch):
         warnings.simplefilter("always")
         FigureCanvasAgg(ref).draw()
     assert any("constrained_layout not applied" in str(w.message) for w in seen)
+
+
+def _three_panels(fig: Figure, cmap: str) -> None:
+    """Two pictures (one with a colour bar) in fixed places and a title: four artists."""
+    data = np.arange(30.0).reshape(5, 6)
+    a = fig.add_axes((0.08, 0.1, 0.35, 0.75))
+    im = a.imshow(data, cmap=cmap)  # aspect "equal": placed when drawn (apply_aspect)
+    fig.colorbar(im, cax=fig.add_axes((0.45, 0.1, 0.03, 0.75)), label="value")
+    b = fig.add_axes((0.6, 0.1, 0.35, 0.75))
+    b.imshow(data.T, cmap=cmap)
+    b.set_title("transposed")
+    fig.suptitle("three panels")
+
+
+def test_a_full_drawing_is_spread_over_turns_and_shown_only_when_complete(qtbot, monkeypatch):
+    from napari_pfsdm.napari import _canvas
+
+    queued = []
+    monkeypatch.setattr(_canvas, "next_turn", queued.append)
+    monkeypatch.setattr(_canvas, "DRAW_BUDGET_S", 0.0)  # one artist per turn
+    fig = Figure(figsize=(4.2, 3.0), dpi=100)
+    canvas = PlotCanvas(fig)
+    qtbot.addWidget(canvas)
+    canvas.resize(420, 300)
+    canvas.show()
+    qtbot.waitExposed(canvas)
+    _three_panels(fig, "viridis")
+    while queued:  # whatever showing it asked for
+        queued.pop(0)()
+    canvas.draw()  # the picture shown before: state A
+    before = np.array(canvas.buffer_rgba())
+    drawn = []
+    canvas.mpl_connect("draw_event", lambda event: drawn.append(event))
+
+    fig.clear()  # state B: other colours
+    _three_panels(fig, "magma")
+    ref = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi)
+    _three_panels(ref, "magma")
+    ref_canvas = FigureCanvasAgg(ref)
+    ref_canvas.draw()  # matplotlib's own drawing of B, in one go
+    want = np.array(ref_canvas.buffer_rgba())
+    assert not np.array_equal(want, before)
+
+    canvas.draw_idle()
+    turns = 0
+    while queued:
+        queued.pop(0)()
+        turns += 1
+        if queued:  # under way: the last full drawing is what is shown
+            assert canvas.drawing and not drawn
+            np.testing.assert_array_equal(np.array(canvas.buffer_rgba()), before)
+        if turns == 2:  # the figure changes meanwhile: the drawing starts again
+            canvas.draw_idle()
+            assert len(queued) == 1
+    n_artists = 4  # the two pictures' axes, the colour bar's, the title
+    assert turns == 2 + n_artists
+    assert len(drawn) == 1 and not canvas.drawing
+    np.testing.assert_array_equal(np.array(canvas.buffer_rgba()), want)
+
+    # a direct drawing drops one under way
+    canvas.draw_idle()
+    queued.pop(0)()
+    assert canvas.drawing
+    canvas.draw()
+    assert not canvas.drawing and len(drawn) == 2
+    while queued:
+        queued.pop(0)()
+    assert len(drawn) == 2

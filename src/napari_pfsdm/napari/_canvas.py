@@ -1,25 +1,38 @@
-"""The matplotlib canvas of the plots: a full redraw in three turns of the event loop.
+"""The matplotlib canvas of the plots: a full redraw spread over turns of the event loop.
 
 A redraw of a plot (``figure.clear()`` and new artists) is followed by matplotlib's
 constrained layout (~45 ms for two axes and a colour bar here, measured with the stack
-sampler of ``benchmarks/plugin.py``) and the drawing itself (~35-65 ms). In one turn they froze
-the viewer for longer than a person notices (100 ms); :class:`PlotCanvas` lays the figure out
-in one turn and draws it in the next, each after what else is due (:func:`._alive.next_turn`).
+sampler of ``benchmarks/plugin.py``) and the drawing itself (~35-65 ms, 110-135 ms for the
+comparison view on a slower day). In one turn they froze the viewer for longer than a person
+notices (100 ms); :class:`PlotCanvas` lays the figure out in one turn and draws it in the
+following ones, an axes (or any other artist of the figure) at a time until
+:data:`DRAW_BUDGET_S` has passed, each turn after what else is due
+(:func:`._alive.next_turn`). The drawing goes into a second, off-screen picture that replaces
+the shown one when it is complete: a repaint meanwhile shows the last full drawing, never half
+of one.
 """
 
 from __future__ import annotations
 
+import time
 import traceback
 import warnings
 
+from matplotlib.backend_bases import DrawEvent
+from matplotlib.backends.backend_agg import RendererAgg
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.layout_engine import ConstrainedLayoutEngine
 
 from ._alive import next_turn
 
+#: A full drawing goes on in the next turn of the event loop once this much time has passed
+#: in one (seconds); an artist is never split (an axes with all it holds is one).
+DRAW_BUDGET_S = 0.03
+
 
 class PlotCanvas(FigureCanvasQTAgg):
-    """:class:`FigureCanvasQTAgg` whose idle draw lays out first, then draws a turn later.
+    """:class:`FigureCanvasQTAgg` whose idle draw lays out first, then draws in the turns
+    after (:data:`DRAW_BUDGET_S` each), off screen until complete.
 
     The figure keeps the layout of its last full draw (its engine is set to ``"none"`` once
     laid out): drawing in place (new data in the same axes) costs no layout. A new figure
@@ -30,12 +43,30 @@ class PlotCanvas(FigureCanvasQTAgg):
     def __init__(self, figure) -> None:
         super().__init__(figure)
         self.step_queued = False  # an idle step waits in :func:`._alive.next_turn`'s queue
+        self._stages = None  # the full drawing under way, a generator (one step per turn)
+        self._wanted = False  # a drawing was asked for (draw_idle) and not done since
+        self._spare = None  # the picture drawn off screen, shown when complete
+
+    @property
+    def drawing(self) -> bool:
+        """True while a full drawing is under way (over several turns)."""
+        return self._stages is not None
 
     def draw_idle(self) -> None:
-        """Draw soon (once however often asked), in a turn of its own."""
+        """Draw soon (once however often asked), in turns of its own; a drawing under way
+        is of an older state of the figure: it starts again."""
+        self._stages = None
+        self._wanted = True
         if not self.step_queued:
             self.step_queued = True
             next_turn(self._idle_step)
+
+    def draw(self) -> None:
+        """Draw now, in one go (matplotlib's own drawing; a drawing under way or asked for
+        is not needed any more)."""
+        self._stages = None
+        self._wanted = False
+        super().draw()
 
     @property
     def layout_pending(self) -> bool:
@@ -45,7 +76,7 @@ class PlotCanvas(FigureCanvasQTAgg):
     def _idle_step(self) -> None:
         try:
             self.step_queued = False
-            if self.width() <= 0 or self.height() <= 0:
+            if not self._wanted or self.width() <= 0 or self.height() <= 0:
                 return
         except RuntimeError:  # the Qt widget is gone (its dock was closed)
             return
@@ -59,9 +90,51 @@ class PlotCanvas(FigureCanvasQTAgg):
                 self.figure.set_layout_engine("none")
                 self.draw_idle()  # the drawing in a later turn
                 return
-            self.draw()
+            if self._stages is None:
+                self._stages = self._draw_in_turns()
+            next(self._stages)
+        except StopIteration:
+            self._stages = None
+            self._wanted = False
+            return
         except Exception:  # noqa: BLE001 - as matplotlib's own idle draw: print, go on
+            self._stages = None
             traceback.print_exc()
+            return
+        self.step_queued = True  # more to draw, in the next turn
+        next_turn(self._idle_step)
+
+    def _draw_in_turns(self):
+        """What :meth:`FigureCanvasAgg.draw` and :meth:`Figure.draw` do, into the spare
+        picture, yielding once :data:`DRAW_BUDGET_S` has passed (a generator; the figure is
+        laid out already). Ends with the spare picture shown and matplotlib's
+        ``draw_event``."""
+        fig = self.figure
+        shown = self.get_renderer()  # the picture of this size (a new one after a resize)
+        spare = self._spare
+        if spare is None or (spare.width, spare.height, spare.dpi) != (
+                shown.width, shown.height, shown.dpi):
+            spare = RendererAgg(shown.width, shown.height, fig.dpi)
+        spare.clear()
+        artists = sorted((a for a in fig.get_children()
+                          if a is not fig.patch and not a.get_animated()),
+                         key=lambda a: a.get_zorder())
+        for ax in fig.axes:  # as Figure.draw: each axes' aspect and place first
+            locator = ax.get_axes_locator()
+            ax.apply_aspect(locator(ax, spare) if locator else None)
+        start = time.perf_counter()
+        spare.open_group("figure", gid=fig.get_gid())
+        fig.patch.draw(spare)
+        for i, artist in enumerate(artists):
+            if i and time.perf_counter() - start > DRAW_BUDGET_S:
+                yield
+                start = time.perf_counter()
+            artist.draw(spare)
+        spare.close_group("figure")
+        fig.stale = False
+        self._spare, self.renderer = shown, spare
+        self.callbacks.process("draw_event", DrawEvent("draw_event", self, spare))
+        self.update()  # Qt paints the new picture
 
     def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
         """A new size: lay the figure out again before the next draw."""

@@ -189,8 +189,7 @@ class AnalysisWidget(QWidget):
         self._glyphs = GlyphWarmer(napari_viewer, store_for(napari_viewer).glyphs_drawn, self)
         self._prefetch_timer = QTimer(self, singleShot=True, interval=PREFETCH_DELAY_MS)
         self._steps = None  # (labels, pictures, steps) of pictures being shown layer by layer
-        self._step_timer = QTimer(self, singleShot=True, interval=0)
-        self._step_timer.timeout.connect(self._step_pictures)
+        self._step_queued = False  # the next of those steps waits in next_turn's queue
         self._prefetch_timer.timeout.connect(self._prefetch)
 
         from ..core.descriptor import DEFAULTS
@@ -830,21 +829,33 @@ class AnalysisWidget(QWidget):
         return None
 
     def _show_pictures(self, labels: Labels, pics) -> None:
-        """Show ``pics``: all at once when the result layers exist (in-place updates), else
-        one new layer per event-loop slot (:func:`_layers.picture_steps`), so that the viewer
-        never freezes for all the layers napari adds at once; a newer object's pictures
-        take over the remaining steps."""
+        """Show ``pics``, one layer per turn of the event loop (:func:`_layers.picture_steps`:
+        a new layer added, or an existing one updated in place), so that the viewer never
+        freezes for all the layers at once; a newer object's pictures take over the remaining
+        steps.
+
+        Updated in place in one go, the four or five layers and the redraw they cause made
+        one stretch of 110-150 ms on a time-slider step (napari's own step included),
+        ``benchmarks/plugin.py --stacks time-slider``. The first step also waits for the
+        next turn: a layer added inside napari's own event handling (e.g. while it removes
+        layers) would start that handling again, and napari's own drawing of the new frame
+        or selection comes first.
+        """
         if self._steps is not None and self._steps[1] is pics:
             return  # these pictures are being shown already, layer by layer
         steps = self._then_fit(_layers.picture_steps(self.viewer, labels, pics))
         self._steps = (labels, pics, steps)
-        if _layers.layers_missing(self.viewer, labels, pics):
-            # from the next event-loop slot on: a layer added inside napari's own event
-            # handling (e.g. while it removes layers) would start that handling again
-            self._step_timer.start()
-        else:
-            while self._steps is not None:
-                self._step_pictures(again=False)
+        self._queue_step()
+
+    def _queue_step(self) -> None:
+        if not self._step_queued:
+            self._step_queued = True
+            next_turn(self._turn_step)
+
+    @while_alive
+    def _turn_step(self) -> None:
+        self._step_queued = False
+        self._step_pictures()
 
     def _add_hidden_layers(self, labels: Labels, reporter: bool) -> None:
         """The picture layers, empty and hidden, one per event-loop turn, until pictures are
@@ -876,7 +887,7 @@ class AnalysisWidget(QWidget):
             self._fit_view()
 
     @while_alive
-    def _step_pictures(self, again: bool = True) -> None:
+    def _step_pictures(self) -> None:
         if self._steps is None:
             return
         labels, pics, steps = self._steps
@@ -897,8 +908,7 @@ class AnalysisWidget(QWidget):
         finally:
             self._syncing = False
         if self._steps is not None:
-            if again:
-                self._step_timer.start()
+            self._queue_step()
             return
         self.shown_key = (pics.frame, pics.label)
         self._syncing = True
