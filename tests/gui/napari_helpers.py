@@ -21,10 +21,12 @@ def dock(viewer, name: str = ANALYSIS):
 
 
 def open_plots(qtbot, widget) -> list:
-    """Press "Open plots" and wait for both plots to be docked (the second docks in the next
-    turn of the event loop)."""
+    """Press "Open plots" and wait for both plots to be docked and showing the results (the
+    second docks in a later turn of the event loop, and each shows the layer in the turn
+    after its docking)."""
     widget.open_plots()
-    qtbot.waitUntil(lambda: len(widget.plots) == 2, timeout=30_000)
+    qtbot.waitUntil(lambda: len(widget.plots) == 2
+                    and all(p.output is not None for p in widget.plots), timeout=30_000)
     return widget.plots
 
 

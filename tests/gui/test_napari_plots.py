@@ -157,6 +157,22 @@ def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_lay
     assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
 
+def test_open_plots_draws_each_plot_in_a_turn_after_its_docking(viewer_widget, qtbot):
+    """napari docking a plot is one stretch of the GUI thread; the plot's first drawing
+    comes in a later turn (from the Plugins menu, a plot shows the results at once)."""
+    viewer, widget = viewer_widget
+    run_and_wait(qtbot, widget)
+    widget.open_plots()
+    traj = widget.plots[0]  # docked in this call ...
+    assert traj.output is None and not traj.figure.axes  # ... and not drawn in it
+    plots = open_plots(qtbot, widget)
+    assert [p.layer_combo.currentText() for p in plots] == ["gastruloids"] * 2
+    traj.flush()
+    assert traj.figure.axes and len(traj._keys) == len(viewer.layers["gastruloids"].features)
+    menu = dock(viewer, TRAJECTORIES)  # already docked: the same widget, still showing it
+    assert menu.output is not None
+
+
 def test_one_image_is_drawn_in_a_visible_colour_without_a_ring_round_every_point(
         make_napari_viewer, sample_layers, qtbot):
     """A single image (or one frame): every point is "of this frame", so rings round them

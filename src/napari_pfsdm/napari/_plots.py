@@ -7,6 +7,8 @@ the matching points.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import NamedTuple
 
 import napari
@@ -55,6 +57,22 @@ THIS_LAYER = "this layer"
 SAVED_REFERENCE = "saved reference"
 #: Plots follow the slider and the selection once they have been still this long (ms).
 DEBOUNCE_MS = 120
+
+#: True while the analysis panel docks a plot (Open plots): the plot shows its layer when the
+#: panel asks for it, in a later turn, not inside napari's docking (55 ms for the dock, and
+#: 60 ms for the plot with its first drawing on 3,000 objects, made one stretch of the GUI
+#: thread: ``benchmarks/plugin.py --stacks "open plots"``).
+_BINDING_LATER = [False]
+
+
+@contextmanager
+def binding_later() -> Iterator[None]:
+    """Plots made meanwhile do not show any results yet (:data:`_BINDING_LATER`)."""
+    _BINDING_LATER[0] = True
+    try:
+        yield
+    finally:
+        _BINDING_LATER[0] = False
 
 
 def read_groups_csv(path) -> dict[int, str]:
@@ -125,7 +143,8 @@ class _LinkedPlot(QWidget):
         napari_viewer.dims.events.current_step.connect(self._on_step)
         napari_viewer.events.theme.connect(self._on_theme)
         self.destroyed.connect(self._disconnect)
-        self._refresh_layers()
+        if not _BINDING_LATER[0]:  # docked from the Plugins menu: the results at once
+            self._refresh_layers()
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
         """Narrow enough to leave the canvas most of a laptop screen's width."""

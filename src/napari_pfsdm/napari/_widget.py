@@ -1010,7 +1010,7 @@ class AnalysisWidget(QWidget):
 
     @while_alive
     def _open_plot(self, i: int) -> None:
-        from ._plots import ShapeComparisonWidget, TrajectoryPlotWidget
+        from ._plots import ShapeComparisonWidget, TrajectoryPlotWidget, binding_later
 
         cls, name = ((TrajectoryPlotWidget, "PF-SDM trajectories (PCA)"),
                      (ShapeComparisonWidget, "PF-SDM shape comparison"))[i]
@@ -1019,7 +1019,9 @@ class AnalysisWidget(QWidget):
         widget = None
         try:  # through the plugin: the same dock as Plugins ▸ napari-pfsdm, never twice;
             # the two plots share one place (tabs): the window then fits a laptop screen
-            dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name, tabify=i > 0)
+            with binding_later():  # the results shown in a turn of their own, below
+                dock, widget = window.add_plugin_dock_widget("napari-pfsdm", name,
+                                                             tabify=i > 0)
             if i == 0:
                 self._plots_dock = dock
         except (KeyError, LookupError, ValueError):  # plugin not installed: dock it directly
@@ -1027,12 +1029,14 @@ class AnalysisWidget(QWidget):
             if name in docks:
                 widget = docks[name].widget() if hasattr(docks[name], "widget") else None
             else:
-                widget = cls(self.viewer)
+                with binding_later():
+                    widget = cls(self.viewer)
                 window.add_dock_widget(widget, name=name, area="right")
         if isinstance(widget, cls) and not any(isinstance(p, cls) for p in self.plots):
             self.plots.append(widget)  # once, even when the button is pressed twice quickly
-            if labels is not None:  # the layer this widget analysed last, not the first
-                widget.show_layer(labels)
+            # the layer this widget analysed last, not the first (None: the first there
+            # is); in a turn of its own (the first drawing), after napari's docking
+            next_turn(lambda: widget.show_layer(labels))
         first = getattr(self, "_plots_dock", None)
         if i == 1 and first is not None:  # the trajectories' tab in front
             next_turn(first.raise_)
