@@ -181,6 +181,7 @@ def test_a_full_drawing_is_spread_over_turns_and_shown_only_when_complete(qtbot,
         queued.pop(0)()
     canvas.draw()  # the picture shown before: state A
     before = np.array(canvas.buffer_rgba())
+    own = canvas.get_renderer()  # its measures of texts are kept (the layout made them)
     drawn = []
     canvas.mpl_connect("draw_event", lambda event: drawn.append(event))
 
@@ -208,13 +209,15 @@ def test_a_full_drawing_is_spread_over_turns_and_shown_only_when_complete(qtbot,
     assert turns == 2 + n_artists
     assert len(drawn) == 1 and not canvas.drawing
     np.testing.assert_array_equal(np.array(canvas.buffer_rgba()), want)
+    assert canvas.get_renderer() is own  # drawn into the canvas's own picture
 
     # a direct drawing drops one under way
     canvas.draw_idle()
     queued.pop(0)()
     assert canvas.drawing
     canvas.draw()
-    assert not canvas.drawing and len(drawn) == 2
+    assert not canvas.drawing and len(drawn) == 2 and canvas.get_renderer() is own
+    np.testing.assert_array_equal(np.array(canvas.buffer_rgba()), want)
     while queued:
         queued.pop(0)()
     assert len(drawn) == 2

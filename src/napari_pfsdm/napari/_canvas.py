@@ -7,9 +7,8 @@ comparison view on a slower day). In one turn they froze the viewer for longer t
 notices (100 ms); :class:`PlotCanvas` lays the figure out in one turn and draws it in the
 following ones, an axes (or any other artist of the figure) at a time until
 :data:`DRAW_BUDGET_S` has passed, each turn after what else is due
-(:func:`._alive.next_turn`). The drawing goes into a second, off-screen picture that replaces
-the shown one when it is complete: a repaint meanwhile shows the last full drawing, never half
-of one.
+(:func:`._alive.next_turn`). Meanwhile a repaint shows a copy of the last full drawing,
+never half of one.
 """
 
 from __future__ import annotations
@@ -32,7 +31,7 @@ DRAW_BUDGET_S = 0.03
 
 class PlotCanvas(FigureCanvasQTAgg):
     """:class:`FigureCanvasQTAgg` whose idle draw lays out first, then draws in the turns
-    after (:data:`DRAW_BUDGET_S` each), off screen until complete.
+    after (:data:`DRAW_BUDGET_S` each), showing the last full drawing until complete.
 
     The figure keeps the layout of its last full draw (its engine is set to ``"none"`` once
     laid out): drawing in place (new data in the same axes) costs no layout. A new figure
@@ -45,7 +44,7 @@ class PlotCanvas(FigureCanvasQTAgg):
         self.step_queued = False  # an idle step waits in :func:`._alive.next_turn`'s queue
         self._stages = None  # the full drawing under way, a generator (one step per turn)
         self._wanted = False  # a drawing was asked for (draw_idle) and not done since
-        self._spare = None  # the picture drawn off screen, shown when complete
+        self._spare = None  # a copy of the last full drawing, shown while drawing
 
     @property
     def drawing(self) -> bool:
@@ -105,35 +104,48 @@ class PlotCanvas(FigureCanvasQTAgg):
         next_turn(self._idle_step)
 
     def _draw_in_turns(self):
-        """What :meth:`FigureCanvasAgg.draw` and :meth:`Figure.draw` do, into the spare
-        picture, yielding once :data:`DRAW_BUDGET_S` has passed (a generator; the figure is
-        laid out already). Ends with the spare picture shown and matplotlib's
-        ``draw_event``."""
+        """What :meth:`FigureCanvasAgg.draw` and :meth:`Figure.draw` do, yielding once
+        :data:`DRAW_BUDGET_S` has passed (a generator; the figure is laid out already).
+
+        The drawing goes into the canvas's own picture (matplotlib keeps the sizes of texts
+        per picture: the layout measured them on this one; a second picture measured them all
+        again, 83 ms of a 3,000-point plot's drawing); a copy of the last full drawing is
+        shown meanwhile. Ends with the new picture shown and matplotlib's ``draw_event``; a
+        drawing dropped half-way (the generator closed) shows the last full one again.
+        """
         fig = self.figure
-        shown = self.get_renderer()  # the picture of this size (a new one after a resize)
+        target = self.get_renderer()  # the picture of this size (a new one after a resize)
         spare = self._spare
         if spare is None or (spare.width, spare.height, spare.dpi) != (
-                shown.width, shown.height, shown.dpi):
-            spare = RendererAgg(shown.width, shown.height, fig.dpi)
-        spare.clear()
-        artists = sorted((a for a in fig.get_children()
-                          if a is not fig.patch and not a.get_animated()),
-                         key=lambda a: a.get_zorder())
-        for ax in fig.axes:  # as Figure.draw: each axes' aspect and place first
-            locator = ax.get_axes_locator()
-            ax.apply_aspect(locator(ax, spare) if locator else None)
-        start = time.perf_counter()
-        spare.open_group("figure", gid=fig.get_gid())
-        fig.patch.draw(spare)
-        for i, artist in enumerate(artists):
-            if i and time.perf_counter() - start > DRAW_BUDGET_S:
-                yield
-                start = time.perf_counter()
-            artist.draw(spare)
-        spare.close_group("figure")
-        fig.stale = False
-        self._spare, self.renderer = shown, spare
-        self.callbacks.process("draw_event", DrawEvent("draw_event", self, spare))
+                target.width, target.height, target.dpi):
+            spare = self._spare = RendererAgg(target.width, target.height, target.dpi)
+        spare.restore_region(target.copy_from_bbox(fig.bbox))  # the last full drawing ...
+        self.renderer = spare  # ... is what a repaint shows meanwhile
+        done = False
+        try:
+            target.clear()
+            artists = sorted((a for a in fig.get_children()
+                              if a is not fig.patch and not a.get_animated()),
+                             key=lambda a: a.get_zorder())
+            for ax in fig.axes:  # as Figure.draw: each axes' aspect and place first
+                locator = ax.get_axes_locator()
+                ax.apply_aspect(locator(ax, target) if locator else None)
+            start = time.perf_counter()
+            target.open_group("figure", gid=fig.get_gid())
+            fig.patch.draw(target)
+            for i, artist in enumerate(artists):
+                if i and time.perf_counter() - start > DRAW_BUDGET_S:
+                    yield
+                    start = time.perf_counter()
+                artist.draw(target)
+            target.close_group("figure")
+            fig.stale = False
+            done = True
+        finally:
+            if not done:  # dropped: the last full drawing back where it was
+                target.restore_region(spare.copy_from_bbox(fig.bbox))
+            self.renderer = target
+        self.callbacks.process("draw_event", DrawEvent("draw_event", self, target))
         self.update()  # Qt paints the new picture
 
     def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
