@@ -157,6 +157,40 @@ def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_lay
     assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
 
+def test_plots_opened_bind_only_the_layer_analysed_last_whatever_comes_between(
+        make_napari_viewer, sample_layers, qtbot, monkeypatch):
+    """Open plots: a layer added before a plot's first turn (the plugin's own pictures, or
+    the user's) does not bind it to the first analysed layer, nor is that one drawn on the way
+    to the layer analysed last: each plot binds once, to that layer."""
+    from napari_pfsdm.napari._plots import _LinkedPlot
+    from napari_pfsdm.napari._sample_data import benchmark_shapes
+    from napari_pfsdm.napari._store import same_layer
+
+    viewer = make_napari_viewer()
+    for data, kwargs, kind in sample_layers + benchmark_shapes():
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    widget = dock(viewer)
+    run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
+    widget.labels_combo.setCurrentText("five shapes")
+    run_and_wait(qtbot, widget)
+    bound = []
+    bind = _LinkedPlot._bind
+
+    def spy(self, layer, force=False):
+        if layer is not None and not same_layer(layer, self._layer):
+            bound.append((type(self).__name__, layer.name))
+        return bind(self, layer, force)
+
+    monkeypatch.setattr(_LinkedPlot, "_bind", spy)
+    widget.open_plots()
+    viewer.add_points(np.zeros((1, 3)), name="a layer between")  # an inserted event
+    assert widget.plots[0]._layer is None
+    open_plots(qtbot, widget)
+    assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
+    assert sorted(bound) == [("ShapeComparisonWidget", "five shapes"),
+                             ("TrajectoryPlotWidget", "five shapes")]
+
+
 def test_open_plots_draws_each_plot_in_a_turn_after_its_docking(viewer_widget, qtbot):
     """napari docking a plot is one stretch of the GUI thread; the plot's first drawing
     comes in a later turn (from the Plugins menu, a plot shows the results at once)."""

@@ -129,6 +129,9 @@ class _LinkedPlot(QWidget):
         layout.addWidget(self.canvas, 1)
         layout.addWidget(self.info)
         self._layer: Labels | None = None
+        # made by Open plots: no layer until :meth:`show_layer` names the one analysed last
+        # (a layer event meanwhile only offers the layers; binding the first would draw it)
+        self._waiting = _BINDING_LATER[0]
         self._points = np.zeros((0, 2))  # data coordinates of clickable points
         self._keys: list[tuple[int, int]] = []  # (frame, label) of each clickable point
         self._axes_points = None
@@ -143,7 +146,7 @@ class _LinkedPlot(QWidget):
         napari_viewer.dims.events.current_step.connect(self._on_step)
         napari_viewer.events.theme.connect(self._on_theme)
         self.destroyed.connect(self._disconnect)
-        if not _BINDING_LATER[0]:  # docked from the Plugins menu: the results at once
+        if not self._waiting:  # docked from the Plugins menu: the results at once
             self._refresh_layers()
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
@@ -173,6 +176,7 @@ class _LinkedPlot(QWidget):
 
     def _on_results(self, layer) -> None:
         try:
+            self._waiting = False  # new results: shown at once
             self._refresh_layers()
             if layer is not None and layer.name in [self.layer_combo.itemText(i)
                                                     for i in range(self.layer_combo.count())]:
@@ -182,6 +186,8 @@ class _LinkedPlot(QWidget):
             self._disconnect()
 
     def _on_layer_choice(self, *args) -> None:
+        if self._waiting:
+            return
         name = self.layer_combo.currentText()
         layer = self.viewer.layers[name] if name in self.viewer.layers else None
         self._bind(layer)
@@ -240,11 +246,16 @@ class _LinkedPlot(QWidget):
             self._flush()
 
     def show_layer(self, layer) -> None:
-        """Show the results of ``layer`` (an analysed Labels layer)."""
-        self._refresh_layers()
-        if layer is not None and self.layer_combo.findText(layer.name) >= 0:
-            self.layer_combo.setCurrentText(layer.name)
-            self._bind(layer)
+        """Show the results of ``layer`` (an analysed Labels layer; None or one without
+        results: the first analysed layer), bound and drawn once."""
+        self._waiting = True  # the choice offered first is not drawn on its way
+        try:
+            offer(self.layer_combo, [lay.name for lay in self._analysed()])
+            if layer is not None and self.layer_combo.findText(layer.name) >= 0:
+                self.layer_combo.setCurrentText(layer.name)
+        finally:
+            self._waiting = False
+        self._on_layer_choice()
 
     def select_point(self, index: int) -> None:
         """Go to the frame and label of clickable point ``index``."""
