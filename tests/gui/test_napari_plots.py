@@ -143,7 +143,9 @@ def test_shape_comparison_follows_frame_and_click_selects(viewer_widget, qtbot):
     assert comp.output is None
 
 
-def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_layers, qtbot):
+def _two_analysed(make_napari_viewer, sample_layers, qtbot):
+    """A viewer with the sample and the five shapes, "gastruloids" analysed first, then
+    "five shapes" (the layer analysed last); (viewer, widget)."""
     from napari_pfsdm.napari._sample_data import benchmark_shapes
 
     viewer = make_napari_viewer()
@@ -153,6 +155,11 @@ def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_lay
     run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
     widget.labels_combo.setCurrentText("five shapes")
     run_and_wait(qtbot, widget)
+    return viewer, widget
+
+
+def test_open_plots_shows_the_layer_analysed_last(make_napari_viewer, sample_layers, qtbot):
+    _viewer, widget = _two_analysed(make_napari_viewer, sample_layers, qtbot)
     open_plots(qtbot, widget)
     assert [p.layer_combo.currentText() for p in widget.plots] == ["five shapes"] * 2
 
@@ -163,16 +170,9 @@ def test_plots_opened_bind_only_the_layer_analysed_last_whatever_comes_between(
     the user's) does not bind it to the first analysed layer, nor is that one drawn on the way
     to the layer analysed last: each plot binds once, to that layer."""
     from napari_pfsdm.napari._plots import _LinkedPlot
-    from napari_pfsdm.napari._sample_data import benchmark_shapes
     from napari_pfsdm.napari._store import same_layer
 
-    viewer = make_napari_viewer()
-    for data, kwargs, kind in sample_layers + benchmark_shapes():
-        getattr(viewer, f"add_{kind}")(data, **kwargs)
-    widget = dock(viewer)
-    run_and_wait(qtbot, widget, labels=viewer.layers["gastruloids"])
-    widget.labels_combo.setCurrentText("five shapes")
-    run_and_wait(qtbot, widget)
+    viewer, widget = _two_analysed(make_napari_viewer, sample_layers, qtbot)
     bound = []
     bind = _LinkedPlot._bind
 
