@@ -219,6 +219,30 @@ def test_cancel_stops_a_run_that_cannot_finish_and_keeps_nothing(make_napari_vie
     assert widget.progress.value() <= 0 and widget.progress.maximum() == 1
 
 
+def test_progress_bar_updates_grow_rarer_in_a_long_run_and_always_show_the_end(
+        viewer_widget):
+    viewer, widget = viewer_widget
+    bar = widget.progress
+
+    def update(run_seconds: float, since_last: float, done: int, total: int = 100) -> int:
+        now = time.perf_counter()
+        widget._t0, widget._last_progress = now - run_seconds, now - since_last
+        bar.setRange(0, 1)
+        bar.setValue(0)
+        widget._on_progress((done, total, 0, 1))
+        return bar.value()
+
+    # a short run shows progress every half second or so ...
+    assert update(run_seconds=3, since_last=1.0, done=40) == 40
+    assert update(run_seconds=3, since_last=0.1, done=41) == 0
+    # ... a long one every two seconds: each update repaints the window (docs/napari.md)
+    assert update(run_seconds=60, since_last=1.0, done=42) == 0
+    assert update(run_seconds=60, since_last=2.5, done=43) == 43
+    # the last object is always shown, however soon after the previous update
+    assert update(run_seconds=60, since_last=0.0, done=100) == 100
+    assert bar.maximum() == 100
+
+
 def test_bad_layer_combinations_are_refused_with_a_message(make_napari_viewer, qtbot, monkeypatch):
     from napari_pfsdm.napari import _widget
 

@@ -47,9 +47,19 @@ from ._glyphs import GlyphWarmer
 from ._store import same_layer, store_for
 
 NONE = "(none)"
-#: Seconds between two progress-bar updates during a run. Qt repaints the window while
-#: holding Python's interpreter lock, so frequent updates slow the worker thread down.
+#: Seconds between two progress-bar updates during a run's first
+#: :data:`PROGRESS_SLOW_AFTER` seconds, and after them. Each update repaints the window,
+#: which holds napari's OpenGL canvas: composed again on the CPU (llvmpipe) without a GPU,
+#: ~27 ms a time, which the Run's processes then lack (docs/napari.md, eighth session).
 PROGRESS_INTERVAL = 0.5
+PROGRESS_INTERVAL_LONG = 2.0
+PROGRESS_SLOW_AFTER = 10.0
+
+
+def progress_interval(elapsed: float) -> float:
+    """Seconds to wait between two progress-bar updates, ``elapsed`` seconds into a run:
+    frequent while a short run may still end, rarer in a long one."""
+    return PROGRESS_INTERVAL if elapsed < PROGRESS_SLOW_AFTER else PROGRESS_INTERVAL_LONG
 #: Pictures made ahead of time, in the frames on each side of the one shown ...
 PREFETCH_FRAMES = 2
 #: ... after the selection and the time slider have been still this long (ms).
@@ -520,8 +530,9 @@ class AnalysisWidget(QWidget):
     def _on_progress(self, value) -> None:
         done, total, frame, label = value
         now = time.perf_counter()
-        if done < total and now - self._last_progress < PROGRESS_INTERVAL:
-            return  # each repaint of the window holds Python's lock: few updates
+        wait = progress_interval(now - self._t0)
+        if done < total and now - self._last_progress < wait:
+            return  # each repaint of the window costs the Run's processes CPU: few updates
         self._last_progress = now
         self.progress.setRange(0, total)
         self.progress.setValue(done)
