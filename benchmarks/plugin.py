@@ -46,7 +46,9 @@ Per data set, in this order:
    and copies of them (``as_layer_data_tuple``) added back in ONE event-loop slot, with the
    layer selection held back as the plugin does (``keep_selection``); the longest gap then is
    napari's (plus whatever the docked widgets do when a layer is inserted). Run's gap minus
-   this = the plugin's own stall. And Run's wall time (press → worker done) ÷ ``pf.measure``.
+   this = the plugin's own stall. And Run's wall time (press → worker done) ÷ ``pf.measure``,
+   with the CPU seconds of ``run_analysis`` and of the Run by part (``cpu_seconds``: the
+   viewer's process, its llvmpipe threads, the worker processes) in ``plugin_run.csv``.
 3. Open plots (the trajectory and comparison docks), until the comparison's distances are
    computed and drawn (+ 1.5 s).
 4. With the plots open: select 8 labels of the frame shown (``selected_label``; 300 ms idle
@@ -209,21 +211,76 @@ def many_set(quick: bool):
 MANY = 50_000
 
 
+# ------------------------------------------------------------------- CPU accounting
+def _ticks_of(stat_path: str) -> tuple[str, int, int]:
+    """(name, parent pid, user + system clock ticks) from a ``/proc/.../stat`` file."""
+    with open(stat_path) as f:
+        text = f.read()
+    name = text[text.index("(") + 1:text.rindex(")")]
+    rest = text[text.rindex(")") + 2:].split()
+    return name, int(rest[1]), int(rest[11]) + int(rest[12])
+
+
+def cpu_seconds() -> dict[str, float]:
+    """CPU seconds used so far, Linux only (else empty): this process (``viewer``), its Mesa
+    llvmpipe threads among them (``llvmpipe``: napari's canvas drawn on the CPU), and every
+    process started from it (``pool``: the forkserver and the Run's worker processes; a
+    process that has ended is not counted, so read this while the pool is up)."""
+    hz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    if not os.path.isdir("/proc/self/task"):
+        return {}
+    own = draw = 0
+    for path in glob.glob("/proc/self/task/*/stat"):
+        try:
+            name, _ppid, ticks = _ticks_of(path)
+        except OSError:  # a thread that ended meanwhile
+            continue
+        own += ticks
+        draw += ticks if name.startswith("llvmpipe") else 0
+    parent, ticks_of = {}, {}
+    for path in glob.glob("/proc/[0-9]*/stat"):
+        try:
+            _name, ppid, ticks = _ticks_of(path)
+        except OSError:
+            continue
+        pid = int(path.split("/")[2])
+        parent[pid], ticks_of[pid] = ppid, ticks
+    me, pool = os.getpid(), 0
+    for pid in ticks_of:
+        up = parent.get(pid)
+        while up is not None and up != me and up > 1:
+            up = parent.get(up)
+        pool += ticks_of[pid] if up == me and pid != me else 0
+    return {"viewer": own / hz, "llvmpipe": draw / hz, "pool": pool / hz}
+
+
+def _cpu_text(cpu: dict[str, float]) -> str:
+    return ", ".join(f"{k} {v:.1f}" for k, v in cpu.items()) or "n/a"
+
+
+def cpu_used(before: dict[str, float]) -> dict[str, float]:
+    """CPU seconds per part since ``before`` (a :func:`cpu_seconds`)."""
+    now = cpu_seconds()
+    return {k: now[k] - before.get(k, 0.0) for k in now}
+
+
 # ------------------------------------------------------------------- library side
 def _timed_and_peak_mb(fn):
-    """(result, seconds, peak MB of tracemalloc above the start): timed in a first call
-    without tracing (tracing slows numpy down), the memory in a second one."""
+    """(result, seconds, peak MB of tracemalloc above the start, CPU seconds by part): timed
+    in a first call without tracing (tracing slows numpy down), the memory in a second one."""
     gc.collect()
+    cpu0 = cpu_seconds()
     t0 = time.perf_counter()
     out = fn()
     dt = time.perf_counter() - t0
+    cpu = cpu_used(cpu0)
     gc.collect()
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     fn()
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    return out, dt, (peak - base) / 2**20
+    return out, dt, (peak - base) / 2**20, cpu
 
 
 def _drain(gen):
@@ -534,11 +591,20 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
             bench.note("setup", "the widget chose no intensity image")
 
         # ---- Run
+        cpu_at_done: dict = {}
+
+        def run_done() -> bool:
+            done = widget.worker is None and widget.last_output is not None
+            if done and not cpu_at_done:  # the first tick that sees it: CPU of the Run
+                cpu_at_done.update(cpu_used(cpu_at_run))
+            return done
+
+        cpu_at_run = cpu_seconds()
         res = bench.window(
             f"{title} · Run", widget.run,
-            {"done": lambda: widget.worker is None and widget.last_output is not None,
-             "shown": lambda: widget.shown_key is not None},
+            {"done": run_done, "shown": lambda: widget.shown_key is not None},
             settle=1.5, timeout=900)
+        info["run_cpu"] = cpu_at_done
         if widget.last_output is None:
             raise RuntimeError(f"Run gave no results: {widget.last_error}")
         add("Run", res)
@@ -569,6 +635,10 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
         add("napari re-adds the result layers", res)
         add("plugin's own stall during Run", {"gap_ms": run_gap - res["gap_ms"]})
 
+        if args.gc_freeze:  # an experiment: no full collection walks what exists now
+            gc.collect()
+            gc.freeze()
+            info["gc.freeze() after the Run"] = f"{gc.get_freeze_count():,} objects"
         # ---- Open plots
         bench.spin(500)
         res = bench.window(
@@ -845,14 +915,17 @@ def run_one(args, name: str, make) -> dict:
     print(f"\n== {title}: labels {labels.shape} {labels.dtype}"
           f"{', with a reporter' if intensity is not None else ''} "
           f"(made in {time.perf_counter() - t0:.1f} s)", flush=True)
+    cpu_ra: dict = {}
     if args.skip_library:  # the viewer windows only (no ratio, no table comparison)
         table, t_lib, mem_lib, t_ra, mem_ra, same = None, np.nan, np.nan, np.nan, np.nan, None
     else:
-        table, t_lib, mem_lib = _timed_and_peak_mb(lambda: pf.measure(labels, intensity))
-        out, t_ra, mem_ra = _timed_and_peak_mb(lambda: _drain(run_analysis(labels, intensity)))
+        table, t_lib, mem_lib, _cpu = _timed_and_peak_mb(lambda: pf.measure(labels, intensity))
+        out, t_ra, mem_ra, cpu_ra = _timed_and_peak_mb(
+            lambda: _drain(run_analysis(labels, intensity)))
         same = _numeric_equal(table, out.table)
         print(f"  pf.measure {t_lib:.2f} s, {mem_lib:.0f} MB; run_analysis {t_ra:.2f} s, "
-              f"{mem_ra:.0f} MB; tables identical: {same}", flush=True)
+              f"{mem_ra:.0f} MB (CPU s: {_cpu_text(cpu_ra)}); tables identical: {same}",
+              flush=True)
         del out
     samples: list[dict] = []
     result = {"title": title, "samples": samples, "events": bench.events, "run_row": None,
@@ -874,9 +947,12 @@ def run_one(args, name: str, make) -> dict:
                              "pf.measure MB": mem_lib, "run_analysis s": t_ra,
                              "run_analysis MB": mem_ra, "widget Run s": info["run_s"],
                              "Run ÷ measure": ratio,
-                             "identical (run_analysis, widget)": f"{same}, {widget_same}"}
+                             "identical (run_analysis, widget)": f"{same}, {widget_same}",
+                             # where a Run's CPU goes, beside run_analysis's (docs/napari.md)
+                             "CPU s run_analysis": _cpu_text(cpu_ra),
+                             "CPU s widget Run": _cpu_text(info["run_cpu"])}
         for k, v in info.items():
-            if k != "run_s":
+            if k not in ("run_s", "run_cpu"):
                 print(f"  {k}: {v}")
     result["profile"] = []
     for gap, where, stats in sorted(bench.profiles, key=lambda p: -p[0])[:3]:
@@ -914,6 +990,9 @@ def main(argv=None) -> int:
     parser.add_argument("--readd", choices=("remove", "beside"), default="remove",
                         help="napari's own cost of the result layers: remove them and add "
                              "copies back (default), or add copies beside them")
+    parser.add_argument("--gc-freeze", action="store_true",
+                        help="after the Run, collect and gc.freeze() every object (an "
+                             "experiment: how much of the later gaps is full collections)")
     parser.add_argument("--out", default="benchmarks/out")
     parser.add_argument("--child", type=int, default=-1, help=argparse.SUPPRESS)
     parser.add_argument("--child-out", default="", help=argparse.SUPPRESS)
