@@ -47,12 +47,14 @@ from ._glyphs import GlyphWarmer
 from ._store import same_layer, store_for
 
 NONE = "(none)"
-#: Seconds between two progress-bar updates during a run's first
-#: :data:`PROGRESS_SLOW_AFTER` seconds, and after them. Each update repaints the window,
+#: Seconds between two progress-bar updates in a run's first :data:`PROGRESS_SLOW_AFTER`
+#: seconds; :data:`PROGRESS_INTERVAL_LONG` after them. Each update repaints the window,
 #: which holds napari's OpenGL canvas: composed again on the CPU (llvmpipe) without a GPU,
 #: ~27 ms a time, which the Run's processes then lack (docs/napari.md, eighth session).
 PROGRESS_INTERVAL = 0.5
+#: Seconds between two progress-bar updates once a run has lasted :data:`PROGRESS_SLOW_AFTER`.
 PROGRESS_INTERVAL_LONG = 2.0
+#: Seconds into a run after which its progress bar is updated less often.
 PROGRESS_SLOW_AFTER = 10.0
 
 
@@ -60,6 +62,8 @@ def progress_interval(elapsed: float) -> float:
     """Seconds to wait between two progress-bar updates, ``elapsed`` seconds into a run:
     frequent while a short run may still end, rarer in a long one."""
     return PROGRESS_INTERVAL if elapsed < PROGRESS_SLOW_AFTER else PROGRESS_INTERVAL_LONG
+
+
 #: Pictures made ahead of time, in the frames on each side of the one shown ...
 PREFETCH_FRAMES = 2
 #: ... after the selection and the time slider have been still this long (ms).
