@@ -31,7 +31,7 @@ DRAW_BUDGET_S = 0.03
 
 
 def _parts_drawn(artist, renderer):
-    """Draw ``artist`` onto ``renderer`` in parts, yielding before each part after the first:
+    """Draw ``artist`` on ``renderer`` in parts, yielding before each part (a pause may come there):
     an :class:`~matplotlib.axes.Axes` as its own ``draw`` does on an Agg picture (the same
     artists in the same order), one child at a time; any other artist, or an axes whose
     drawing is not the plain one (rasterised, filtered, hidden axes lines), in one part.
@@ -47,8 +47,8 @@ def _parts_drawn(artist, renderer):
              and hasattr(artist, "_unstale_viewLim")
              and hasattr(artist, "_update_title_position"))
     if not plain:
-        artist.draw(renderer)
         yield
+        artist.draw(renderer)
         return
     ax = artist
     # matplotlib 3.11's Axes.draw (the compositing of images is a plain loop on Agg, which
@@ -64,8 +64,8 @@ def _parts_drawn(artist, renderer):
     children = sorted((a for a in children if not a.get_animated()),
                       key=lambda a: a.get_zorder())
     for child in [ax.patch, *children]:
-        child.draw(renderer)
         yield
+        child.draw(renderer)
     renderer.close_group("axes")
     ax.stale = False
 
