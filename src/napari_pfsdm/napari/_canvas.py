@@ -2,13 +2,15 @@
 
 A redraw of a plot (``figure.clear()`` and new artists) is followed by matplotlib's
 constrained layout (~45 ms for two axes and a colour bar here, measured with the stack
-sampler of ``benchmarks/plugin.py``) and the drawing itself (~35-65 ms, 110-135 ms for the
-comparison view on a slower day). In one turn they froze the viewer for longer than a person
-notices (100 ms); :class:`PlotCanvas` lays the figure out in one turn and draws it in the
-following ones, an artist of an axes (or any other artist of the figure) at a time until
-:data:`DRAW_BUDGET_S` has passed, each turn after what else is due
-(:func:`._alive.next_turn`). Meanwhile a repaint shows a copy of the last full drawing,
-never half of one.
+sampler of ``benchmarks/plugin.py``; 156 ms of a 175 ms gap for the first figure of a new
+canvas at 47,700 objects, measuring its texts) and the drawing itself (~35-65 ms, 110-135 ms
+for the comparison view on a slower day). In one turn they froze the viewer for longer than
+a person notices (100 ms); :class:`PlotCanvas` lays the figure out in parts (each axes'
+decorations measured on their own, then the layout engine with those sizes) and draws it
+in the turns after, an artist of an axes (or any other artist of the figure) at a time,
+going on in the next turn once :data:`DRAW_BUDGET_S` has passed, each turn after what else
+is due (:func:`._alive.next_turn`). Meanwhile a repaint shows a copy of the last full
+drawing, never half of one.
 """
 
 from __future__ import annotations
@@ -16,17 +18,19 @@ from __future__ import annotations
 import time
 import traceback
 import warnings
+from contextlib import contextmanager
 
 from matplotlib.backend_bases import DrawEvent
 from matplotlib.backends.backend_agg import RendererAgg
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.layout_engine import ConstrainedLayoutEngine
+from matplotlib.transforms import Bbox
 
 from ._alive import next_turn
 
-#: A full drawing goes on in the next turn of the event loop once this much time has passed
-#: in one (seconds); an axes is drawn an artist of it at a time (its axes lines with their
-#: ticks and labels are one each), any other artist in one go.
+#: A layout or a full drawing goes on in the next turn of the event loop once this much time
+#: has passed in one (seconds); an axes is drawn an artist of it at a time (its axes lines
+#: with their ticks and labels are one each), any other artist in one go.
 DRAW_BUDGET_S = 0.03
 
 
@@ -70,9 +74,68 @@ def _parts_drawn(artist, renderer):
     ax.stale = False
 
 
+#: How many times the layout measures the decorations and places the axes (matplotlib's
+#: own layout: twice; tick labels change with the size of an axes).
+LAYOUT_PASSES = 2
+
+
+def _budgeted(parts):
+    """Run ``parts`` (a generator yielding before each part of some work), yielding once
+    :data:`DRAW_BUDGET_S` has passed since the last yield (never before the first part)."""
+    start = time.perf_counter()
+    first = True
+    for _part in parts:
+        if not first and time.perf_counter() - start > DRAW_BUDGET_S:
+            yield
+            start = time.perf_counter()
+        first = False
+
+
+def _place(ax, renderer):
+    """Where ``ax`` is drawn, in pixels: its place in the layout made smaller to keep its
+    aspect (:meth:`~matplotlib.axes.Axes.apply_aspect`, as its tight box does)."""
+    locator = ax.get_axes_locator()
+    ax.apply_aspect(locator(ax, renderer) if locator else None)
+    return ax.get_position(original=False).transformed(ax.get_figure(root=False).transSubfigure)
+
+
+def _margins(ax, renderer) -> tuple[float, float, float, float] | None:
+    """How far ``ax``'s decorations reach beyond where it is drawn (:func:`_place`), in
+    pixels (left, bottom, right, top), as the layout sees them; None when the layout
+    leaves it out."""
+    box = ax.get_tightbbox(renderer, for_layout_only=True)
+    if box is None:
+        return None
+    place = _place(ax, renderer)
+    return place.x0 - box.x0, place.y0 - box.y0, box.x1 - place.x1, box.y1 - place.y1
+
+
+@contextmanager
+def _decorations_as(margins: dict):
+    """Within: each axes' tight box is where it is drawn with the given margins around it
+    (measured before, :func:`_margins`), not measured again; how the layout engine asks
+    for it."""
+    def kept(ax, margin):
+        def get_tightbbox(renderer=None, *args, **kwargs):
+            place = _place(ax, renderer)
+            return Bbox.from_extents(place.x0 - margin[0], place.y0 - margin[1],
+                                     place.x1 + margin[2], place.y1 + margin[3])
+        return get_tightbbox
+
+    given = [ax for ax, margin in margins.items() if margin is not None]
+    for ax in given:
+        ax.get_tightbbox = kept(ax, margins[ax])  # on the instance, over its class's method
+    try:
+        yield
+    finally:
+        for ax in given:
+            ax.__dict__.pop("get_tightbbox", None)
+
+
 class PlotCanvas(FigureCanvasQTAgg):
     """:class:`FigureCanvasQTAgg` whose idle draw lays out first, then draws in the turns
-    after (:data:`DRAW_BUDGET_S` each), showing the last full drawing until complete.
+    after, both in turns of :data:`DRAW_BUDGET_S`, showing the last full drawing until
+    complete.
 
     The figure keeps the layout of its last full draw (its engine is set to ``"none"`` once
     laid out): drawing in place (new data in the same axes) costs no layout. A new figure
@@ -121,17 +184,8 @@ class PlotCanvas(FigureCanvasQTAgg):
         except RuntimeError:  # the Qt widget is gone (its dock was closed)
             return
         try:
-            if self.layout_pending and self.figure.axes:
-                with warnings.catch_warnings():  # a dock squeezed for a moment (napari
-                    # laying its window out again): the last layout is kept, and the next
-                    # size is laid out again; not a warning for the user
-                    warnings.filterwarnings("ignore", "constrained_layout not applied")
-                    self.figure.get_layout_engine().execute(self.figure)
-                self.figure.set_layout_engine("none")
-                self.draw_idle()  # the drawing in a later turn
-                return
             if self._stages is None:
-                self._stages = self._draw_in_turns()
+                self._stages = self._shown_in_turns()
             next(self._stages)
         except StopIteration:
             self._stages = None
@@ -143,6 +197,45 @@ class PlotCanvas(FigureCanvasQTAgg):
             return
         self.step_queued = True  # more to draw, in the next turn
         next_turn(self._idle_step)
+
+    def _shown_in_turns(self):
+        """The layout (when pending), then the drawing in the turns after (a generator)."""
+        if self.layout_pending and self.figure.axes:
+            yield from _budgeted(self._layout_parts())
+            self.figure.set_layout_engine("none")
+            yield  # the drawing in a turn of its own
+        yield from self._draw_in_turns()
+
+    def _layout_parts(self):
+        """matplotlib's constrained layout, measured a part at a time (a generator yielding
+        before each part).
+
+        Measuring each axes' decorations (tick labels, labels, title: its tight box) is what
+        the layout costs: 110-200 ms for two axes and a colour bar here, in one go. Here each
+        axes' decorations are measured in parts of their own (its x axis, its y axis, then
+        the whole: the first two keep their texts' sizes for the third), and the layout
+        engine then runs with those sizes, kept around each axes wherever it places it
+        (:func:`_decorations_as`), a few ms. Twice, as matplotlib's own layout: the second
+        time with the decorations measured where the first placed the axes (tick labels
+        change with the size), which is what matplotlib's second pass measures.
+        """
+        fig = self.figure
+        renderer = self.get_renderer()
+        for _pass in range(LAYOUT_PASSES):
+            margins = {}
+            for ax in fig.axes:
+                for axis in (ax.xaxis, ax.yaxis):
+                    yield
+                    axis.get_tightbbox(renderer)
+                yield
+                margins[ax] = _margins(ax, renderer)
+            yield
+            with _decorations_as(margins), warnings.catch_warnings():
+                # a dock squeezed for a moment (napari laying its window out again): the
+                # last layout is kept, and the next size is laid out again; not a warning
+                # for the user
+                warnings.filterwarnings("ignore", "constrained_layout not applied")
+                fig.get_layout_engine().execute(fig)
 
     def _draw_in_turns(self):
         """What :meth:`FigureCanvasAgg.draw` and :meth:`Figure.draw` do, yielding once
@@ -171,16 +264,10 @@ class PlotCanvas(FigureCanvasQTAgg):
             for ax in fig.axes:  # as Figure.draw: each axes' aspect and place first
                 locator = ax.get_axes_locator()
                 ax.apply_aspect(locator(ax, target) if locator else None)
-            start = time.perf_counter()
             target.open_group("figure", gid=fig.get_gid())
             fig.patch.draw(target)
-            first = True
-            for artist in artists:
-                for _part in _parts_drawn(artist, target):
-                    if not first and time.perf_counter() - start > DRAW_BUDGET_S:
-                        yield
-                        start = time.perf_counter()
-                    first = False
+            yield from _budgeted(part for artist in artists
+                                 for part in _parts_drawn(artist, target))
             target.close_group("figure")
             fig.stale = False
             done = True
