@@ -396,6 +396,54 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
     assert (_frame(viewer, labels_layer), labels_layer.selected_label) == target
 
 
+def test_re_ranking_the_neighbour_graph_changes_the_view_in_place(viewer_widget, qtbot,
+                                                                 monkeypatch):
+    """Ticking re-rank in the neighbour-graph view: the view shown stays while the re-ranked
+    graph is computed, then its bars and map change in the same axes (building the view
+    anew was the longest gap of re-ranking 47,700 objects)."""
+    from napari_pfsdm import nearest_neighbours
+    from napari_pfsdm.analysis.rerank import rerank_neighbours
+    from napari_pfsdm.napari import _graph, _plots
+
+    viewer, widget = viewer_widget
+    labels_layer = viewer.layers["gastruloids"]
+    out = run_and_wait(qtbot, widget)
+    monkeypatch.setattr(_plots, "GRAPH_ROWS", 20)
+    comp = dock(viewer, COMPARISON)
+    comp.frame_choice.setCurrentText("all frames")
+    wait_computed(qtbot, comp, timeout=120_000)
+    viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 3)
+    labels_layer.selected_label = 2
+    comp.flush()
+    axes, before = list(comp.figure.axes), comp.nearest_shown()
+    redraws = []
+    real = comp.redraw
+    monkeypatch.setattr(comp, "redraw", lambda: redraws.append(1) or real())
+    comp.rerank.setChecked(True)
+    assert comp.computing  # in a worker; meanwhile the view before, not a "computing" page
+    assert comp.figure.axes == axes and not comp._graph.reranked
+    assert comp.nearest_shown() == before
+    wait_computed(qtbot, comp, timeout=120_000)
+    assert redraws == [] and all(a is b for a, b in zip(comp.figure.axes, axes, strict=True))
+    # the reference: the public re-ranking of the public nearest neighbours
+    idx, dist = nearest_neighbours(out.table, k=_graph.GRAPH_K,
+                                   intensity_weight=out.options["intensity_weight"])
+    idx, dist = rerank_neighbours(idx, dist, "diffusion", k=10)[:2]
+    me = comp._keys.index((3, 2))
+    near = comp.nearest_shown()
+    assert len(near) == _plots.NEAREST_SHOWN and near != before
+    assert [k for k, _ in near] == [comp._keys[j] for j in idx[me, :len(near)]]
+    np.testing.assert_allclose([v for _, v in near], dist[me, :len(near)], atol=1e-7)
+    assert comp._ax_near.get_xlabel() == "re-ranked distance"
+    # the map: the new coordinates only, not the old map kept beside them
+    points = [c for c in comp._axes_points.collections if c not in comp._highlight_artists]
+    assert len(points) == 1 and not comp._axes_points.images
+    np.testing.assert_allclose(points[0].get_offsets(), comp._graph.xy)
+    comp.rerank.setChecked(False)  # back: the graph computed first, kept
+    assert not comp.computing and not comp._graph.reranked
+    assert comp.nearest_shown() == before and redraws == []
+
+
 def test_a_movie_beyond_the_old_3000_limit_compares_and_exports_by_neighbours(
         make_napari_viewer, qtbot, tmp_path, monkeypatch):
     """3,000+ objects (the old limit of the matrix view and export): Run measures them on
