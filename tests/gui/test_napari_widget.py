@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
+from napari.layers import Vectors
 from napari_helpers import (
     RUN_TIMEOUT_MS,
     TRAJECTORIES,
@@ -74,6 +75,10 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     # the skeleton is drawn as lines (segments), inside the object
     lines = viewer.layers[names["skeleton"]]
     assert lines.data.ndim == 3 and len(lines.data) >= len(pics.skeleton_image)
+    assert isinstance(lines, Vectors) and lines.vector_style == "line"
+    # its picture in the layer list shows lines (opaque pixels; napari 0.9.2 draws them
+    # black, whatever their colour)
+    assert (lines.thumbnail[..., 3] > 1).any()
     on_object = np.vstack(pics.skeleton_image)
     rows, cols = np.rint(on_object).astype(int).T
     assert np.mean(inside[rows, cols]) > 0.95

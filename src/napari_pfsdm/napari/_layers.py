@@ -481,6 +481,16 @@ def line_segments(lines: list, colors: list) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(segs), transform_color(cols)
 
 
+class _Lines(Vectors):
+    """napari's Vectors layer whose thumbnail (the picture in the layer list) draws at most
+    64 of its segments, not 1,024: napari draws them one by one at each new selection
+    (~8 of the ~10 ms of setting an object's ~300 segments here, more on a loaded
+    machine: 88 ms in the 205 ms longest gap of a selection at 47,700 objects,
+    benchmarks/plugin.py ``--stacks``)."""
+
+    _max_vectors_thumbnail = 64
+
+
 def _replace_lines(viewer, name: str, lines: list, colors: list):
     """Lines as a Vectors layer of segments: replacing them costs far less than rebuilding
     the shapes of a Shapes layer, so the lines follow the selection without a stall."""
@@ -488,8 +498,8 @@ def _replace_lines(viewer, name: str, lines: list, colors: list):
     layer = _existing(viewer, name, Vectors)
     if layer is None:
         with keep_selection(viewer):
-            return viewer.add_vectors(data, edge_color=colours, edge_width=1.5, name=name,
-                                      vector_style="line")
+            return viewer.add_layer(_Lines(data, edge_color=colours, edge_width=1.5,
+                                           name=name, vector_style="line"))
     if not layer.visible:
         layer.visible = True
     with layer.events.edge_color.blocker():
