@@ -71,11 +71,11 @@ selection of the active Labels layer, at a cost that grows with the square of th
 feature columns.
 
 Targets (issue 20): selection and slider steps < 100 ms median and < 150 ms max of the gap;
-the plugin's own stall during Run < 100 ms; Run ÷ measure ≤ 1.5 (e, issue 23: ≤ 0.6 on two
-cores); 3,000 objects: no gap > 150 ms. Under Xvfb the canvas is drawn by software OpenGL
-(llvmpipe) on the same two cores, shared with whatever else runs: drawing costs far more than
-with a GPU, so the gaps here are upper bounds, and they are noisy (run twice before believing
-a 20 ms difference).
+the plugin's own stall during Run < 100 ms; Run ÷ measure ≤ 1.5; 3,000 objects: no gap >
+150 ms. e (issue 23): Run ÷ measure ≤ 0.6 on two cores, every interaction's longest gap
+< 100 ms. Under Xvfb the canvas is drawn by software OpenGL (llvmpipe) on the same two
+cores, shared with whatever else runs: drawing costs far more than with a GPU, so the gaps
+here are upper bounds, and they are noisy (run twice before believing a 20 ms difference).
 
 ``--profile PATTERN`` runs cProfile on the main thread during every window whose
 "dataset · action" contains PATTERN (case-insensitive; alternatives separated by "|") and
@@ -116,6 +116,7 @@ import pandas as pd
 TICK_MS = 10
 SELECT_TARGET = "< 100 median, < 150 max"
 CROWD_TARGET = "no gap > 150"
+MANY_TARGET = "every gap < 100 (issue 23)"
 
 
 # --------------------------------------------------------------------------- data sets
@@ -769,8 +770,11 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
         if crowd and action not in ("Run", "napari re-adds the result layers",
                                     "napari adds copies beside",
                                     "plugin's own stall during Run"):
-            target = (target + "; " if target else "") + CROWD_TARGET
-            ok = (ok is not False) and g.max() <= 150
+            if ds.startswith("e"):  # the movie of many objects: issue 23's own target
+                target, ok = MANY_TARGET, g.max() < 100
+            else:
+                target = (target + "; " if target else "") + CROWD_TARGET
+                ok = (ok is not False) and g.max() <= 150
         notes = []
         if "error" in grp and (grp["error"].fillna("") != "").any():
             notes.append(f"{int((grp['error'].fillna('') != '').sum())} raised")
