@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-from napari.layers import Vectors
+from napari.layers import Layer, Vectors
 from napari_helpers import (
     RUN_TIMEOUT_MS,
     TRAJECTORIES,
@@ -75,7 +75,11 @@ def test_run_adds_exactly_the_promised_layers(viewer_widget, qtbot):
     # the skeleton is drawn as lines (segments), inside the object
     lines = viewer.layers[names["skeleton"]]
     assert lines.data.ndim == 3 and len(lines.data) >= len(pics.skeleton_image)
-    assert isinstance(lines, Vectors) and lines.vector_style == "line"
+    assert type(lines) is Vectors and lines.vector_style == "line"
+    # napari can copy and save it: its data tuple names a layer type napari reads back
+    data, meta, kind = lines.as_layer_data_tuple()
+    assert kind == "vectors"
+    np.testing.assert_array_equal(Layer.create(data, meta, kind).data, lines.data)
     # its picture in the layer list shows lines (opaque pixels; napari 0.9.2 draws them
     # black, whatever their colour)
     assert (lines.thumbnail[..., 3] > 1).any()

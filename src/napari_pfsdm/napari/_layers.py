@@ -481,14 +481,11 @@ def line_segments(lines: list, colors: list) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(segs), transform_color(cols)
 
 
-class _Lines(Vectors):
-    """napari's Vectors layer whose thumbnail (the picture in the layer list) draws at most
-    64 of its segments, not 1,024: napari draws them one by one at each new selection
-    (~8 of the ~10 ms of setting an object's ~300 segments here, more on a loaded
-    machine: 88 ms in the 205 ms longest gap of a selection at 47,700 objects,
-    benchmarks/plugin.py ``--stacks``)."""
-
-    _max_vectors_thumbnail = 64
+#: Segments of the skeleton layer drawn in its thumbnail (the picture in the layer list;
+#: napari's default, 1,024): napari draws them one by one at each new selection, ~8 of the
+#: ~10 ms of setting an object's ~300 segments here, more on a loaded machine (88 ms in the
+#: 205 ms longest gap of a selection at 47,700 objects, benchmarks/plugin.py ``--stacks``).
+THUMBNAIL_SEGMENTS = 64
 
 
 def _replace_lines(viewer, name: str, lines: list, colors: list):
@@ -498,8 +495,12 @@ def _replace_lines(viewer, name: str, lines: list, colors: list):
     layer = _existing(viewer, name, Vectors)
     if layer is None:
         with keep_selection(viewer):
-            return viewer.add_layer(_Lines(data, edge_color=colours, edge_width=1.5,
-                                           name=name, vector_style="line"))
+            layer = Vectors(data, edge_color=colours, edge_width=1.5, name=name,
+                            vector_style="line")
+            # on the layer itself: a Vectors layer still (a subclass would be saved and
+            # copied by napari as a layer type of its own, which it cannot read back)
+            layer._max_vectors_thumbnail = THUMBNAIL_SEGMENTS
+            return viewer.add_layer(layer)
     if not layer.visible:
         layer.visible = True
     with layer.events.edge_color.blocker():
