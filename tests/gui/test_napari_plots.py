@@ -371,6 +371,17 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
             if isinstance(a, AxesImage)] == [AxesImage]
     assert len(comp._keys) == len(out.table)
     assert comp._graph.xy.shape == (len(out.table), 2)
+    # drawn again (its graph kept): the figure is built over turns of the event loop, one
+    # axes after the other, and drawn only once complete
+    drawn_when_built = []
+    comp.canvas.mpl_connect("draw_event",
+                            lambda event: drawn_when_built.append(comp._building is None))
+    comp.redraw()
+    assert len(comp.figure.axes) == 1 and comp._graph is None  # the nearest-shapes panel
+    qtbot.waitUntil(lambda: comp._graph is not None, timeout=10_000)
+    assert len(comp.figure.axes) == 3  # and the map with its colour bar (frames)
+    qtbot.waitUntil(lambda: len(drawn_when_built) > 0, timeout=10_000)
+    assert all(drawn_when_built)
     viewer.dims.set_point(_layers.frame_axis(viewer, labels_layer), 3)
     labels_layer.selected_label = 2
     comp.flush()
@@ -494,7 +505,9 @@ def test_many_points_are_drawn_as_one_density_image_and_stay_clickable(viewer_wi
     run_and_wait(qtbot, widget)
     monkeypatch.setattr(_plots, "MANY_POINTS", 10)  # the sample's 72 points are "many"
     plot = dock(viewer, TRAJECTORIES)
-    plot.redraw()
+    plot.redraw()  # many points: the figure is built over turns of the event loop
+    assert plot._axes_points is None and plot._building is not None
+    plot.flush()  # (scripts and tests: built now)
     ax = plot._axes_points
     images = [a for a in ax.get_children() if isinstance(a, AxesImage)]
     assert len(images) == 1

@@ -106,6 +106,7 @@ class _LinkedPlot(QWidget):
         # redraws and highlights wait until the slider or selection has been still for a moment:
         # scrubbing through frames does not redraw the figure at every step
         self._pending: str | None = None
+        self._building = None  # the rest of a figure built over turns (a generator)
         self._timer = QTimer(self, singleShot=True, interval=DEBOUNCE_MS)
         # in a turn of its own (:func:`._alive.next_turn`), not in the pass in which Qt also
         # serves the pictures' timers and signals: the two would freeze the viewer as one
@@ -240,10 +241,13 @@ class _LinkedPlot(QWidget):
             self._disconnect()
 
     def flush(self) -> None:
-        """Do the pending redraw or highlight now (for scripts and tests)."""
+        """Do the pending redraw or highlight now, and build the rest of a figure built
+        over turns (for scripts and tests)."""
         if self._pending is not None:
             self._timer.stop()
             self._flush()
+        while self._building is not None:
+            self._build_step()
 
     def show_layer(self, layer) -> None:
         """Show the results of ``layer`` (an analysed Labels layer; None or one without
@@ -309,14 +313,45 @@ class _LinkedPlot(QWidget):
         self._points = np.zeros((0, 2))
         self._keys = []
         self._axes_points = None
+        self._building = None  # a figure built over turns before: not needed any more
         try:
-            self.draw_plot()
+            steps = self.draw_plot()
         except ValueError as err:
             self.info.setText(str(err))
+            steps = None
+        if steps is not None:  # the rest of the figure in the turns after
+            self._building = steps
+            next_turn(self._build_step)
+            return
+        self._built()
+
+    def _build_step(self) -> None:
+        """One more part of a figure built over turns (:meth:`draw_plot` returned a
+        generator); highlighted and drawn once complete."""
+        steps = self._building
+        if steps is None:  # redrawn meanwhile
+            return
+        try:
+            next(steps)
+        except StopIteration:
+            self._building = None
+            self._built()
+            return
+        except ValueError as err:
+            self._building = None
+            self.info.setText(str(err))
+            self._built()
+            return
+        next_turn(self._build_step)
+
+    def _built(self) -> None:
         self.highlight(draw=False)
         self.canvas.draw_idle()
 
-    def draw_plot(self) -> None:  # pragma: no cover - overridden
+    def draw_plot(self):  # pragma: no cover - overridden
+        """Fill the cleared figure; None, or a generator (its first part done) that builds
+        the rest of it one part per turn of the event loop (a big figure built in one turn
+        froze the viewer)."""
         raise NotImplementedError
 
     def _on_draw(self, event=None) -> None:
@@ -553,7 +588,21 @@ class TrajectoryPlotWidget(_LinkedPlot):
             return {int(k): str(v) for k, v in meta.items()}
         return {}
 
-    def draw_plot(self) -> None:
+    def draw_plot(self):
+        """The trajectories; above :data:`MANY_POINTS` points the figure is built over
+        turns (:meth:`_trajectory_parts`), below in one go."""
+        steps = self._trajectory_parts()
+        if next(steps, False):
+            return steps
+        for _part in steps:
+            pass
+        return None
+
+    def _trajectory_parts(self):
+        """Build the trajectory plot, a generator: it first yields whether there are more
+        than :data:`MANY_POINTS` points, then once between parts (the points, the colour
+        bar, the rest). Built in one turn at 47,700 objects, 168 ms of the 308 ms longest
+        gap of Open plots (benchmarks/plugin.py ``--stacks``, sampler running)."""
         output = self.output
         if output is None:
             self.info.setText("Run the PF-SDM analysis to fill this plot.")
@@ -576,6 +625,7 @@ class TrajectoryPlotWidget(_LinkedPlot):
 
         tab = matplotlib.colormaps["tab10"]
         many = len(x) > MANY_POINTS  # one density image, not 50,000 markers and lines
+        yield many
         segments, seg_colors = [], []
         order = np.lexsort((frames, objects))  # by object, then frame: one sort, not n scans
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
@@ -604,12 +654,14 @@ class TrajectoryPlotWidget(_LinkedPlot):
         else:
             sc = self._frame_points(ax, x, y, frames, 18)
             if output.time_lapse:
+                yield True
                 cb = self.figure.colorbar(sc, ax=ax, pad=0.01)
                 cb.set_label("frame", color=c["fg"])
                 cb.ax.tick_params(colors=c["fg"], labelsize=7)
         ax.set_xlabel(f"PC{i}" + _percent(ratios, i))
         ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
         ax.set_title(f"{channel} trajectories, {self.space_note}", fontsize=8)
+        yield True
         self._points = np.column_stack([x, y])
         self._set_keys(frames, labels)
         self._objects = objects
@@ -854,8 +906,9 @@ class ShapeComparisonWidget(_LinkedPlot):
         if isinstance(cached, Exception):
             raise ValueError(f"The distances could not be computed: {cached}")
         if isinstance(cached, GraphResult):
-            self._draw_graph(rows, cached, title)
-            return
+            steps = self._draw_graph(rows, cached, title)
+            next(steps)  # its first part now
+            return steps
         d, xy = cached
         c = self._theme()
         ax_m = self.figure.add_subplot(121)
@@ -909,22 +962,28 @@ class ShapeComparisonWidget(_LinkedPlot):
                          "ticks": len(keys) <= 20}
         self._set_shown(keys, xy, d, ax_p, ax_m)
 
-    def _draw_graph(self, rows: np.ndarray, graph: GraphResult, title: str) -> None:
+    def _draw_graph(self, rows: np.ndarray, graph: GraphResult, title: str):
         """More objects than a matrix shows: each object's nearest shapes (left, for the
         object selected in the viewer; click a bar to go there) and the map of the neighbour
-        graph (right; a density image above :data:`MANY_POINTS` points)."""
+        graph (right; a density image above :data:`MANY_POINTS` points).
+
+        A generator, the figure built a part per turn (:meth:`_LinkedPlot._build_step`): in
+        one turn, 69-86 ms of the longest gaps of the all-frames view and re-ranking at
+        47,700 objects (benchmarks/plugin.py ``--stacks``)."""
         c = self._theme()
         frames, labels = self._frames_labels(rows)
         self._set_keys(frames, labels)
         keys = self._keys
         ax_n = self.figure.add_subplot(121)
-        ax_p = self.figure.add_subplot(122)
-        for ax in (ax_n, ax_p):
-            self._style(ax)
+        self._style(ax_n)
         self._near_axis(ax_n, graph)
         ax_n.set_yticks([])
         ax_n.set_title("nearest shapes", fontsize=8)
+        yield
+        ax_p = self.figure.add_subplot(122)
+        self._style(ax_p)
         sc = self._frame_points(ax_p, graph.xy[:, 0], graph.xy[:, 1], frames, 6)
+        yield
         if self.output.time_lapse:
             cb = self.figure.colorbar(sc, ax=ax_p, fraction=0.046, pad=0.02)
             cb.set_label("frame", color=c["fg"], fontsize=7)
