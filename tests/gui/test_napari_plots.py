@@ -453,6 +453,12 @@ def test_re_ranking_the_neighbour_graph_changes_the_view_in_place(viewer_widget,
     comp.rerank.setChecked(False)  # back: the graph computed first, kept
     assert not comp.computing and not comp._graph.reranked
     assert comp.nearest_shown() == before and redraws == []
+    # a new Run (the same objects, new results): the view is drawn anew, not changed in place
+    axes = list(comp.figure.axes)
+    run_and_wait(qtbot, widget)
+    wait_computed(qtbot, comp, timeout=120_000)
+    assert redraws and comp._graph is not None
+    assert not any(a is b for a in comp.figure.axes for b in axes)
 
 
 def test_a_movie_beyond_the_old_3000_limit_compares_and_exports_by_neighbours(

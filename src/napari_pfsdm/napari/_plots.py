@@ -993,7 +993,8 @@ class ShapeComparisonWidget(_LinkedPlot):
         ax_p.set_xticks([])
         ax_p.set_yticks([])
         self._graph = graph
-        self._graph_source = rows
+        self._graph_output = self.output  # whose rows: changed in place for this Run only
+        self._graph_rows_shown = rows
         self._ax_near = ax_n
         self._points, self._keys, self._axes_points = graph.xy, keys, ax_p
         self._matrix_keys = keys
@@ -1080,8 +1081,9 @@ class ShapeComparisonWidget(_LinkedPlot):
         except ValueError:
             return False
         if (shown is not None or key == self._cancelled_key
-                or not np.array_equal(rows, self._graph_source)):
-            return False
+                or self._graph_output is not self.output
+                or not np.array_equal(rows, self._graph_rows_shown)):
+            return False  # other objects (or a new Run's): drawn anew
         cached = self._cache.get(key)
         if cached is None:
             self._start(key, rows, w, reranked)
