@@ -20,6 +20,19 @@ def _fill(fig: Figure):
     return ax
 
 
+def _refilled(fig: Figure, fill):
+    """``fig`` cleared and filled again by ``fill`` (to be laid out anew), and the same
+    figure as matplotlib's own constrained layout places it, drawn in one go: what ``fill``
+    returned for each."""
+    fig.clear()
+    fig.set_layout_engine("constrained")
+    shown = fill(fig)
+    ref = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi, layout="constrained")
+    want = fill(ref)
+    FigureCanvasAgg(ref).draw()
+    return shown, want
+
+
 def test_callbacks_of_next_turn_run_one_per_turn(qtbot):
     """Two heavy steps queued together: what the first one schedules (here a posted event)
     runs before the second; with timers (or posted events) of their own both would run in
@@ -62,13 +75,7 @@ def test_a_new_figure_is_laid_out_in_one_step_and_drawn_in_the_next(qtbot, monke
     while queued:  # whatever showing it asked for
         queued.pop(0)()
 
-    fig.clear()
-    fig.set_layout_engine("constrained")
-    ax = _fill(fig)
-    # what matplotlib's own constrained layout gives the same figure, drawn in one go
-    ref = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi, layout="constrained")
-    ref_ax = _fill(ref)
-    FigureCanvasAgg(ref).draw()
+    ax, ref_ax = _refilled(fig, _fill)
     drawn.clear()
     canvas.draw_idle()
     canvas.draw_idle()  # asked twice: still one layout and one drawing
@@ -148,12 +155,7 @@ def test_a_layout_is_measured_an_axes_part_at_a_time(qtbot, monkeypatch):
         b.set_ylabel("distance")
         return a, b
 
-    fig.clear()
-    fig.set_layout_engine("constrained")
-    shown = two_plots(fig)
-    ref = Figure(figsize=fig.get_size_inches(), dpi=fig.dpi, layout="constrained")
-    ref_axes = two_plots(ref)
-    FigureCanvasAgg(ref).draw()
+    shown, ref_axes = _refilled(fig, two_plots)
     canvas.draw_idle()
     turns = 0
     while isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine):
