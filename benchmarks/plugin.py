@@ -85,7 +85,9 @@ stack every ~2 ms in those windows and prints, for the longest gap of each, the 
 seen in it (a function counted once per sample, with the time it was on the stack) and the
 garbage collections (any thread) longer than 5 ms in it: what ran during the freeze itself,
 not during the whole window. A gap with few samples is one the GUI thread spent waiting for
-the interpreter lock (a worker thread's long C call, or a collection).
+the interpreter lock (a worker thread's long C call, or a collection). Every window also
+records the garbage collections in its longest gap (a callback, always on): the table's
+notes say "collector M (X) ms of it", the median and max over the window's repeats.
 
 Writes ``plugin.csv`` (the table), ``plugin_samples.csv`` (every window), ``plugin_run.csv``
 (the library-vs-widget table) and ``plugin.png`` to ``--out``.
@@ -382,13 +384,15 @@ class Bench:
 
         # what a full collection walks (before the clock starts: counting takes ~0.1 µs each)
         tracked = len(gc.get_objects()) if sampler is not None else 0
+        collections = _Collections()  # always on: a callback costs ~1 µs per collection
         timer = self.QTimer()
         timer.setTimerType(self.precise)
         timer.setInterval(TICK_MS)
         timer.timeout.connect(tick)
         timer.start()
         self.QTimer.singleShot(50, go)
-        loop.exec()
+        with collections:
+            loop.exec()
         timer.stop()
         if prof is not None:
             prof.disable()
@@ -399,6 +403,10 @@ class Bench:
         before = np.flatnonzero(ticks <= t0)
         tail = ticks[before[-1]:] if len(before) else ticks
         gap = 1e3 * float(np.diff(tail).max()) if len(tail) > 1 else float("nan")
+        gc_ms = float("nan")
+        if len(tail) > 1:
+            i = int(np.argmax(np.diff(tail)))
+            gc_ms = collections.ms_within(tail[i], tail[i + 1])
         if sampler is not None and len(tail) > 1:
             i = int(np.argmax(np.diff(tail)))
             text = sampler.report(tail[i], tail[i + 1]) + (
@@ -415,10 +423,36 @@ class Bench:
             self.note("timeout", f"not all of {sorted(set(marks) - set(hit))} within "
                                  f"{timeout:.0f} s")
         self.context = name + " (after)"
-        return {"gap_ms": gap, "timeout": state["timeout"], "result": state.get("result"),
+        return {"gap_ms": gap, "gc_ms": gc_ms, "timeout": state["timeout"],
+                "result": state.get("result"),
                 "error": state.get("action_error", ""),
                 **{f"{k}_ms": 1e3 * (v - t0) for k, v in hit.items()},
                 "window_s": float(ticks[-1] - t0) if len(ticks) else float("nan")}
+
+
+class _Collections:
+    """The garbage collections (any generation, any thread) while the context is open."""
+
+    def __init__(self) -> None:
+        self.spans: list[tuple[float, float, int]] = []  # (start, end, generation)
+        self._start = 0.0
+
+    def _on_gc(self, phase: str, info: dict) -> None:
+        if phase == "start":
+            self._start = time.perf_counter()
+        else:
+            self.spans.append((self._start, time.perf_counter(), info["generation"]))
+
+    def __enter__(self) -> _Collections:
+        gc.callbacks.append(self._on_gc)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        gc.callbacks.remove(self._on_gc)
+
+    def ms_within(self, start: float, end: float) -> float:
+        """Milliseconds of collection inside ``[start, end]``."""
+        return 1e3 * sum(max(0.0, min(b, end) - max(a, start)) for a, b, _g in self.spans)
 
 
 class _StackSampler:
@@ -776,6 +810,9 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
                 target = (target + "; " if target else "") + CROWD_TARGET
                 ok = (ok is not False) and g.max() <= 150
         notes = []
+        if "gc_ms" in grp and (grp["gc_ms"].astype(float) > 5).any():
+            c = grp["gc_ms"].astype(float)  # what the collector took of the longest gaps
+            notes.append(f"collector {c.median():.0f} ({c.max():.0f}) ms of it")
         if "error" in grp and (grp["error"].fillna("") != "").any():
             notes.append(f"{int((grp['error'].fillna('') != '').sum())} raised")
         if "timeout" in grp and grp["timeout"].fillna(False).astype(bool).any():
