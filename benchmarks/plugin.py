@@ -89,6 +89,13 @@ the interpreter lock (a worker thread's long C call, or a collection). Every win
 records the garbage collections in its longest gap (a callback, always on): the table's
 notes say "collector M (X) ms of it", the median and max over the window's repeats.
 
+Two anchors of the same run say what the machine is doing: before the plugin is docked,
+``--steps`` time-slider steps of napari alone on the same layers ("napari alone: time-slider
+step"; the table's "time-slider step ÷ napari alone" row is the plugin's step over napari's
+own, medians), and the share of the machine's CPU time the host took from this virtual
+machine meanwhile ("machine: CPU time stolen by the host", from ``/proc/stat``; also in the
+figure's title). Absolute gaps on a shared machine move with both.
+
 Writes ``plugin.csv`` (the table), ``plugin_samples.csv`` (every window), ``plugin_run.csv``
 (the library-vs-widget table) and ``plugin.png`` to ``--out``.
 """
@@ -255,6 +262,26 @@ def cpu_seconds() -> dict[str, float]:
             up = parent.get(up)
         pool += ticks_of[pid] if up == me and pid != me else 0
     return {"viewer": own / hz, "llvmpipe": draw / hz, "pool": pool / hz}
+
+
+def host_steal() -> tuple[int, int] | None:
+    """(steal, total) CPU ticks of the whole machine so far (Linux ``/proc/stat``), else
+    None. Steal is the time the host gave this virtual machine's CPUs to others: a share of
+    it slows every window, and is why runs on a shared machine differ."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(v) for v in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    return (fields[7] if len(fields) > 7 else 0), sum(fields[:8])
+
+
+def steal_percent(before: tuple[int, int] | None) -> float:
+    """Percent of the machine's CPU time stolen by the host since ``before``."""
+    now = host_steal()
+    if before is None or now is None or now[1] <= before[1]:
+        return float("nan")
+    return 100.0 * (now[0] - before[0]) / (now[1] - before[1])
 
 
 def _cpu_text(cpu: dict[str, float]) -> str:
@@ -596,6 +623,20 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
                 bench.note("active layer", name)
 
         viewer.layers.selection.events.active.connect(on_active)
+        steal_at_start = host_steal()
+        # ---- the anchor: napari's own time-slider step, the plugin not docked yet (the same
+        # layers, the same machine, minutes apart: what the plugin's steps are compared with)
+        if labels_layer.ndim == 3 and labels_layer.data.shape[0] > 1:
+            start = _current_frame(viewer, labels_layer)
+            beside = start + 1 if start + 1 < labels_layer.data.shape[0] else start - 1
+            bench.spin(1000)
+            for i in range(args.steps):  # there and back
+                bench.spin(300)
+                f = beside if i % 2 == 0 else start
+                res = bench.window(f"{title} · napari alone: time-slider step",
+                                   lambda f=f: viewer.dims.set_point(0, f), min_s=1.2)
+                add("napari alone: time-slider step", res, frame=f)
+            viewer.dims.set_point(0, start)
         _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
         info["viewer type"] = type(widget.viewer).__name__
         try:
@@ -755,6 +796,8 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
             finally:
                 shutil.rmtree(folder, ignore_errors=True)
         info["last active"] = getattr(viewer.layers.selection.active, "name", None)
+        add("machine: CPU time stolen by the host (%, not ms)",
+            {"gap_ms": steal_percent(steal_at_start)})
     finally:
         bench.context = f"{title} · closing"
         if widget is not None:
@@ -794,6 +837,13 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
     for (ds, action), grp in samples.groupby(["dataset", "action"], sort=False):
         g = grp["gap_ms"].astype(float)
         crowd = ds[0] in "de"
+        if action.startswith("machine:"):  # not a window: the host's share, for the reader
+            rows.append({"dataset": ds, "action": action, "median ms": g.median(),
+                         "max ms": g.max(), "n": len(g), "target": "(info)", "met": "",
+                         "notes": ""})
+            continue
+        if action.startswith("napari alone"):  # the anchor: napari without the plugin
+            crowd = False
         target, ok = "", None
         if action in ("select a label", "time-slider step"):
             target = SELECT_TARGET
@@ -831,6 +881,13 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
                              "median ms": s.median(), "max ms": s.max(),
                              "n": int(s.notna().sum()), "target": "(info)", "met": "",
                              "notes": ""})
+        alone = samples[(samples["dataset"] == ds)
+                        & (samples["action"] == "napari alone: " + action)]["gap_ms"]
+        if len(alone) and alone.astype(float).median() > 0:
+            r = g.median() / alone.astype(float).median()
+            rows.append({"dataset": ds, "action": f"{action} ÷ napari alone (×, medians)",
+                         "median ms": r, "max ms": g.max() / alone.astype(float).max(),
+                         "n": len(g), "target": "(info)", "met": "", "notes": ""})
         if action == "Run" and ds in ratios:
             r = ratios[ds]
             rows.append({"dataset": ds, "action": "Run wall ÷ pf.measure wall (×, not ms)",
@@ -848,8 +905,14 @@ def plot(table: pd.DataFrame, path: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ms = table[~table["action"].str.contains("÷")].reset_index(drop=True)
-    ratio = table[table["action"].str.contains("÷")].reset_index(drop=True)
+    machine = table["action"].str.startswith("machine:")
+    ms = table[~table["action"].str.contains("÷") & ~machine].reset_index(drop=True)
+    ratio = table[table["action"].str.startswith("Run wall ÷")].reset_index(drop=True)
+    stolen = table[machine]
+    if len(stolen):  # how much of the machine the host took meanwhile: a slow run says so
+        title += " (CPU stolen by the host: " + ", ".join(
+            f"{d[0]} {v:.0f} %" for d, v in zip(stolen["dataset"], stolen["median ms"],
+                                                 strict=True)) + ")"
     names = [f"{d} · {a.replace(': longest gap', '')}"
              for d, a in zip(ms["dataset"], ms["action"], strict=True)]
     h = 1.2 + 0.24 * len(ms)
