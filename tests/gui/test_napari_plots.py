@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -534,3 +535,69 @@ def test_many_points_are_drawn_as_one_density_image_and_stay_clickable(viewer_wi
     assert plot.highlighted_keys() == [(7, 5)]
     track = [a for a in plot._highlight_artists if a in ax.lines]
     assert len(track) == 1 and len(track[0].get_xdata()) > 1  # the selected object's track
+
+
+def test_saving_a_plot_keeps_the_picture_on_screen_and_saves_its_highlight(
+        make_napari_viewer, sample_layers, qtbot, tmp_path, qtlog):
+    """``figure.savefig`` (from a script or napari's console) draws the figure once more, at
+    the file's size. The screen keeps its picture (matplotlib leaves the canvas holding the
+    file's: the next repaint showed an empty plot), the highlight's kept background stays
+    the screen's (one taken from the file's drawing was blitted with a Qt repaint outside a
+    paint: "Recursive repaint detected", "QPainter::begin: Paint device returned engine ==
+    0"), and the file shows the highlight as the screen does."""
+    from PIL import Image
+
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    viewer.window._qt_window.resize(1280, 800)
+    widget = dock(viewer)
+    run_and_wait(qtbot, widget)
+    plot = open_plots(qtbot, widget)[0]
+    wait_pictures(qtbot, widget)
+    sizes: list = []
+
+    def settled() -> bool:  # the docks laid out (the same size for 1 s), the figure drawn
+        plot.flush()
+        size = plot.canvas.get_width_height(physical=True)
+        if not sizes or sizes[-1][1] != size:
+            sizes.append((time.perf_counter(), size))
+        return (time.perf_counter() - sizes[-1][0] > 1.0 and not plot.canvas.drawing
+                and plot._background is not None)
+
+    qtbot.waitUntil(settled, timeout=20_000)
+    assert plot._highlight_artists  # the selected object's trajectory is highlighted
+    kept = plot._background
+    dpi = plot.figure.dpi * 1.5
+
+    def save(name: str) -> np.ndarray:
+        path = tmp_path / name
+        plot.figure.savefig(path, dpi=dpi)
+        return np.asarray(Image.open(path).convert("RGB")).astype(int)
+
+    def on_screen(name: str) -> np.ndarray:  # what the person sees, grabbed from Qt
+        path = tmp_path / name
+        assert plot.canvas.grab().save(str(path))
+        return np.asarray(Image.open(path).convert("RGB")).astype(int)
+
+    shown = on_screen("before.png")
+    highlighted = save("highlighted.png")
+    plot.canvas.repaint()
+    qtbot.wait(200)
+    assert plot._background is kept
+    after = on_screen("after.png")
+    assert after.shape == shown.shape
+    assert (np.abs(after - shown).sum(axis=2) > 30).mean() < 0.01  # the same picture
+    # the file's size is the figure's at the file's dpi (not the screen picture's)
+    w, h = plot.figure.get_size_inches() * dpi
+    assert np.abs(np.subtract(highlighted.shape[:2], (h, w))).max() <= 1
+    # without the highlight the file differs: the highlight was drawn into it
+    for artist in plot._highlight_artists:
+        artist.set_visible(False)
+    plain = save("plain.png")
+    for artist in plot._highlight_artists:
+        artist.set_visible(True)
+    assert (np.abs(highlighted - plain).sum(axis=2) > 30).sum() > 20
+    qtbot.wait(200)
+    messages = [m.message for m in qtlog.records]
+    assert not [m for m in messages if "repaint" in m.lower() or "QPainter" in m], messages

@@ -282,6 +282,24 @@ class PlotCanvas(FigureCanvasQTAgg):
         self.callbacks.process("draw_event", DrawEvent("draw_event", self, target))
         self.update()  # Qt paints the new picture
 
+    def print_figure(self, *args, **kwargs):
+        """``figure.savefig``: the file is drawn as matplotlib draws it, and the screen's
+        picture is kept.
+
+        matplotlib leaves the canvas holding the file's picture (another size, another dpi)
+        and asks Qt's next paint for a full drawing, in one go inside the paint: the whole
+        figure drawn on the GUI thread, and the highlight's blit then repainted the widget
+        from within its own paint ("Recursive repaint detected", "QPainter::begin: Paint
+        device returned engine == 0"). The screen's picture is still right: it is kept, and
+        no drawing is asked for."""
+        kept = getattr(self, "renderer", None), getattr(self, "_lastKey", None)
+        try:
+            return super().print_figure(*args, **kwargs)
+        finally:
+            if kept[0] is not None:
+                self.renderer, self._lastKey = kept
+                self._draw_pending = False
+
     def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
         """A new size: lay the figure out again before the next draw."""
         if self.figure.get_layout_engine() is not None and not self.layout_pending:

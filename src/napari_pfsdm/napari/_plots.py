@@ -358,7 +358,14 @@ class _LinkedPlot(QWidget):
         """After each full draw: keep the figure without its highlight markers (they are
         animated artists), then draw the markers on top. A new highlight then only restores
         this picture and draws its few markers (blitting), instead of drawing the whole figure
-        on the GUI thread at each slider step."""
+        on the GUI thread at each slider step.
+
+        Not after ``figure.savefig``'s drawing (at the file's size, with the markers in it):
+        that picture is not the screen's, and blitting it repainted the widget outside a Qt
+        paint ("Recursive repaint detected", "QPainter::begin: Paint device returned engine
+        == 0")."""
+        if self.canvas.is_saving():
+            return
         if self.canvas.layout_pending:  # drawn directly (canvas.draw()): laid out now
             # the layout of a full redraw is kept: updates in place (a new frame's distances)
             # then draw without the layout engine, a third of the cost
