@@ -316,9 +316,14 @@ def test_panel_is_readable_on_a_laptop_screen_with_the_plots_open(make_napari_vi
     assert window.minimumSizeHint().height() <= size[1]
     assert window.height() <= size[1]
     widget.method_options.expand(animate=False)
-    qtbot.wait(100)
-    for part in (widget, *widget.plots):
-        assert _squeezed(part) == [], type(part).__name__
+    # once Qt has laid the docks out again (on a loaded machine that took longer than the
+    # 100 ms waited before: a combo box was once caught squeezed half-way; a control that
+    # stays squeezed fails here after 3 s)
+    def readable() -> None:  # retried until it holds (pytest-qt), its last failure raised
+        for part in (widget, *widget.plots):
+            assert _squeezed(part) == [], type(part).__name__
+
+    qtbot.waitUntil(readable, timeout=3000)
     # the pictures and their texts: scaled with the zoom, values as people write them
     legend = viewer.layers["gastruloids legend"]
     assert legend.text.scaling
