@@ -400,9 +400,30 @@ def test_all_frames_beyond_the_matrix_limit_compare_by_nearest_neighbours(viewer
                                d[me, order], atol=1e-7)
     np.testing.assert_allclose([np.ptp(p.vertices[:, 1]) / 2 + p.vertices[:, 1].min()
                                 for p in bars.get_paths()], np.arange(len(near)))
+    # a highlight shows its markers at once and the bars' ten labels in the turns after
+    # (matplotlib draws a text glyph by glyph, 4 ms a label)
+    from matplotlib.text import Text
+
+    comp.canvas.draw()
+    qtbot.waitUntil(lambda: not comp._texts_left, timeout=5000)
+    labels = [a for a in comp._highlight_artists if isinstance(a, Text)]
+    assert len(labels) == _plots.NEAREST_SHOWN
+    with_labels = np.asarray(comp.canvas.buffer_rgba()).copy()
+    drawn = []
+    real_draw = comp._ax_near.draw_artist
+    monkeypatch.setattr(comp._ax_near, "draw_artist",
+                        lambda a: drawn.append(isinstance(a, Text)) or real_draw(a))
+    comp.canvas.restore_region(comp._background)
+    comp._blit_highlight()
+    assert drawn and not any(drawn)  # the bars, not their labels, in this turn
+    assert len(comp._texts_left) == _plots.NEAREST_SHOWN
+    no_labels = np.asarray(comp.canvas.buffer_rgba()).copy()
+    assert (no_labels != with_labels).any()
+    qtbot.waitUntil(lambda: not comp._texts_left, timeout=5000)
+    assert drawn.count(True) == _plots.NEAREST_SHOWN
+    np.testing.assert_array_equal(np.asarray(comp.canvas.buffer_rgba()), with_labels)
     # click the third bar: the viewer goes to that object
     target = near[2][0]
-    comp.canvas.draw()
     x, y = comp._ax_near.transData.transform((0.5 * comp._ax_near.get_xlim()[1], 2))
     MouseEvent("button_press_event", comp.canvas, x, y, button=1)._process()
     assert (_frame(viewer, labels_layer), labels_layer.selected_label) == target

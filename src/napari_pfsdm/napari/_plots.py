@@ -7,6 +7,7 @@ the matching points.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import NamedTuple
@@ -15,6 +16,7 @@ import napari
 import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 from napari.layers import Labels
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_error
@@ -35,7 +37,7 @@ from ..analysis.reduction import read_groups
 from ..core.table_schema import has_channel
 from . import _layers
 from ._alive import next_turn, offer
-from ._canvas import PlotCanvas
+from ._canvas import DRAW_BUDGET_S, PlotCanvas
 from ._compute import classical_mds, explanation, objects_of
 from ._density import density_image, padded_extent
 from ._graph import GRAPH_ROWS
@@ -138,6 +140,8 @@ class _LinkedPlot(QWidget):
         self._axes_points = None
         self.canvas.mpl_connect("button_press_event", self._on_click)
         self._background = None  # the last full draw, without the highlight markers
+        self._texts_left: list = []  # highlight texts still to draw (in the next turns)
+        self._texts_turn = 0  # which highlight they are of
         self.canvas.mpl_connect("draw_event", self._on_draw)
         self.layer_combo.currentIndexChanged.connect(self._on_layer_choice)
         self._store = store_for(napari_viewer)
@@ -248,6 +252,8 @@ class _LinkedPlot(QWidget):
             self._flush()
         while self._building is not None:
             self._build_step()
+        if self._texts_left:
+            self._draw_texts()
 
     def show_layer(self, layer) -> None:
         """Show the results of ``layer`` (an analysed Labels layer; None or one without
@@ -307,6 +313,7 @@ class _LinkedPlot(QWidget):
         c = self._theme()
         self._background = None
         self._highlight_artists = []
+        self._texts_left, self._texts_turn = [], self._texts_turn + 1
         self.figure.clear()
         self.figure.set_layout_engine("constrained")  # laid out in a turn of its own
         self.figure.set_facecolor(c["panel"])
@@ -374,10 +381,43 @@ class _LinkedPlot(QWidget):
         self._blit_highlight()
 
     def _blit_highlight(self) -> None:
+        """Draw the highlight markers on the picture and show it; their texts (the
+        nearest shapes' names and distances) in the turns after, as many a turn as
+        :data:`._canvas.DRAW_BUDGET_S` allows: matplotlib draws a text glyph by glyph,
+        4 ms for each of the ten labels of the nearest-shapes bars (a /tmp probe), which
+        made the highlight the longest gap of re-ranking (119 ms with the sampler)."""
+        self._texts_turn += 1  # the texts of an older highlight: not drawn any more
+        texts = []
         for artist in self._highlight_artists:
             if artist.axes is not None and artist.figure is self.figure:
-                artist.axes.draw_artist(artist)
+                if isinstance(artist, Text):
+                    texts.append(artist)
+                else:
+                    artist.axes.draw_artist(artist)
         self.canvas.blit(self.figure.bbox)
+        if texts:
+            self._texts_left = texts
+            turn = self._texts_turn
+            next_turn(lambda: self._draw_texts(turn))
+
+    def _draw_texts(self, turn: int | None = None) -> None:
+        """Highlight texts left to draw (of the highlight ``turn``; None: all, now)."""
+        if turn is not None and turn != self._texts_turn:
+            return
+        try:
+            start = time.perf_counter()
+            while self._texts_left:
+                text = self._texts_left.pop(0)
+                if text.axes is not None and text.figure is self.figure:
+                    text.axes.draw_artist(text)
+                if turn is not None and time.perf_counter() - start > DRAW_BUDGET_S:
+                    break
+            self.canvas.blit(self.figure.bbox)
+        except RuntimeError:  # the Qt widget is gone (its dock was closed)
+            self._texts_left = []
+            return
+        if self._texts_left and turn is not None:
+            next_turn(lambda: self._draw_texts(turn))
 
     def _finish_highlight(self, draw: bool = True) -> None:
         """Show the highlight markers just made: blitted onto the last full draw when there is
@@ -400,6 +440,7 @@ class _LinkedPlot(QWidget):
             except (ValueError, NotImplementedError):
                 pass
         self._highlight_artists = []
+        self._texts_left, self._texts_turn = [], self._texts_turn + 1
         ax = self._axes_points
         return None if ax is None or not len(self._points) else ax
 
