@@ -792,3 +792,47 @@ def test_pictures_of_a_new_object_update_their_layers_one_per_turn(viewer_widget
     assert len({t for _n, t in updated}) == len(keys), updated  # one turn each
     assert all(viewer.layers[names[k]] is layers[k] for k in keys)  # updated in place
     assert layers["sdf"].data.shape[0] == shown.sdf.shape[0]
+
+
+_FIRST_OPEN = r"""
+import sys, time
+import napari
+from qtpy.QtCore import QTimer
+from qtpy.QtWidgets import QApplication
+
+assert "matplotlib" not in sys.modules, "imported before docking: nothing to measure"
+viewer = napari.Viewer(show=True)
+viewer.add_labels(__import__("numpy").zeros((2, 64, 64), "uint16"), name="empty")
+_dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+from napari_pfsdm.napari import _widget
+
+thread = _widget._PLOTS_IMPORT[0]
+print("thread", thread.name, thread is not __import__("threading").main_thread())
+ticks = []
+timer = QTimer(interval=10)
+timer.timeout.connect(lambda: ticks.append(time.perf_counter()))
+timer.start()
+end = time.perf_counter() + 60
+while thread.is_alive() and time.perf_counter() < end:
+    QApplication.processEvents()
+    time.sleep(0.002)
+print("imported", "matplotlib" in sys.modules, "napari_pfsdm.napari._plots" in sys.modules)
+viewer.close()
+"""
+
+
+def test_docking_imports_the_plots_in_a_background_thread(tmp_path):
+    """matplotlib's import (~0.8 s) froze the viewer at the first Open plots (850 ms gap,
+    156 ms once imported; a probe on the sample): docking the analysis widget imports the
+    plots' modules in a daemon thread, in a fresh interpreter as a person's session is."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "first_open.py"
+    script.write_text(_FIRST_OPEN)
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=300, env={**os.environ, "NAPARI_CONFIG": str(tmp_path / "settings.yaml")})
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "thread pfsdm-import-plots True" in out.stdout, out.stdout
+    assert "imported True True" in out.stdout, out.stdout

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+import threading
 import time
 from pathlib import Path
 
@@ -47,6 +49,25 @@ from ._glyphs import GlyphWarmer
 from ._store import same_layer, store_for
 
 NONE = "(none)"
+_PLOTS_IMPORT: list = []  # the thread importing the plots' modules, once per process
+
+
+def import_plots_in_background() -> threading.Thread:
+    """Import the plots' modules (:mod:`._plots`, matplotlib) in a daemon thread, once;
+    returns that thread. An import that fails is left to Open plots, which imports them
+    again and says what went wrong."""
+    if not _PLOTS_IMPORT:
+        def load() -> None:
+            try:
+                importlib.import_module("napari_pfsdm.napari._plots")
+            except Exception:  # noqa: BLE001, S110 - reported by Open plots' own import
+                pass
+
+        thread = threading.Thread(target=load, name="pfsdm-import-plots", daemon=True)
+        _PLOTS_IMPORT.append(thread)
+        thread.start()
+    return _PLOTS_IMPORT[0]
+
 #: Seconds between two progress-bar updates in a run's first :data:`PROGRESS_SLOW_AFTER`
 #: seconds; :data:`PROGRESS_INTERVAL_LONG` after them. Each update repaints the window,
 #: which holds napari's OpenGL canvas: composed again on the CPU (llvmpipe) without a GPU,
@@ -323,6 +344,9 @@ class AnalysisWidget(QWidget):
         from ..analysis.parallel import warm_pool
 
         warm_pool()
+        # the plots' modules in a thread of their own: matplotlib's import (0.8 s here, more
+        # when it first builds its font cache) froze the viewer at the first Open plots
+        import_plots_in_background()
         # and napari draws the legend's characters once they have started (:mod:`._glyphs`)
         self._glyphs.start_in(GLYPHS_AFTER_DOCK_MS)
 
