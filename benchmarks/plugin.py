@@ -637,6 +637,9 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
                                    lambda f=f: viewer.dims.set_point(0, f), min_s=1.2)
                 add("napari alone: time-slider step", res, frame=f)
             viewer.dims.set_point(0, start)
+        # a person's session has not imported matplotlib yet (its import, ~0.8 s, is what
+        # the plugin does in a background thread when docked): say whether this one had
+        info["matplotlib imported before docking"] = "matplotlib" in sys.modules
         _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
         info["viewer type"] = type(widget.viewer).__name__
         try:
