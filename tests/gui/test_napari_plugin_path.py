@@ -831,8 +831,9 @@ def test_docking_imports_the_plots_in_a_background_thread(tmp_path):
 
     script = tmp_path / "first_open.py"
     script.write_text(_FIRST_OPEN)
+    env = {**os.environ, "NAPARI_CONFIG": str(tmp_path / "settings.yaml")}
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                         timeout=300, env={**os.environ, "NAPARI_CONFIG": str(tmp_path / "settings.yaml")})
+                         timeout=300, env=env)
     assert out.returncode == 0, out.stderr[-3000:]
     assert "thread pfsdm-import-plots True" in out.stdout, out.stdout
     assert "imported True True" in out.stdout, out.stdout
