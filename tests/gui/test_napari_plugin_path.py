@@ -795,23 +795,22 @@ def test_pictures_of_a_new_object_update_their_layers_one_per_turn(viewer_widget
 
 
 _FIRST_OPEN = r"""
-import sys, time
+import sys
+import threading
+import time
+
 import napari
-from qtpy.QtCore import QTimer
+import numpy as np
 from qtpy.QtWidgets import QApplication
 
 assert "matplotlib" not in sys.modules, "imported before docking: nothing to measure"
 viewer = napari.Viewer(show=True)
-viewer.add_labels(__import__("numpy").zeros((2, 64, 64), "uint16"), name="empty")
+viewer.add_labels(np.zeros((2, 64, 64), "uint16"), name="empty")
 _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
 from napari_pfsdm.napari import _widget
 
 thread = _widget._PLOTS_IMPORT[0]
-print("thread", thread.name, thread is not __import__("threading").main_thread())
-ticks = []
-timer = QTimer(interval=10)
-timer.timeout.connect(lambda: ticks.append(time.perf_counter()))
-timer.start()
+print("thread", thread.name, thread is not threading.main_thread())
 end = time.perf_counter() + 60
 while thread.is_alive() and time.perf_counter() < end:
     QApplication.processEvents()
