@@ -489,25 +489,18 @@ class _StackSampler:
         self.every_s = every_s
         self.main = threading.main_thread().ident
         self.samples: list[tuple[float, tuple]] = []
-        self.collections: list[tuple[float, float, int]] = []  # (start, end, generation)
-        self._gc_start = 0.0
+        self.collections = _Collections()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
-    def _on_gc(self, phase: str, info: dict) -> None:
-        if phase == "start":
-            self._gc_start = time.perf_counter()
-        else:
-            self.collections.append((self._gc_start, time.perf_counter(), info["generation"]))
-
     def start(self) -> None:
-        gc.callbacks.append(self._on_gc)
+        self.collections.__enter__()
         self._thread.start()
 
     def stop(self) -> None:
         self._stop.set()
         self._thread.join()
-        gc.callbacks.remove(self._on_gc)
+        self.collections.__exit__()
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -525,7 +518,7 @@ class _StackSampler:
         inside = [(t, s) for t, s in self.samples if start <= t <= end]
         collected = "".join(
             f"\n  garbage collection of generation {g}: {1e3 * (b - a):.0f} ms (any thread)"
-            for a, b, g in self.collections if a < end and b > start and b - a > 0.005)
+            for a, b, g in self.collections.spans if a < end and b > start and b - a > 0.005)
         if not inside:
             return "  (no samples in the gap)" + collected
         dt = (end - start) / len(inside)
