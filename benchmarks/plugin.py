@@ -431,11 +431,10 @@ class Bench:
         tail = ticks[before[-1]:] if len(before) else ticks
         gap = 1e3 * float(np.diff(tail).max()) if len(tail) > 1 else float("nan")
         gc_ms = float("nan")
-        if len(tail) > 1:
+        if len(tail) > 1:  # the longest gap: from tail[i] to tail[i + 1]
             i = int(np.argmax(np.diff(tail)))
             gc_ms = collections.ms_within(tail[i], tail[i + 1])
         if sampler is not None and len(tail) > 1:
-            i = int(np.argmax(np.diff(tail)))
             text = sampler.report(tail[i], tail[i + 1]) + (
                 f"\n  objects the garbage collector tracked at the start: {tracked:,}")
             self.stacks.append((gap, name, text))

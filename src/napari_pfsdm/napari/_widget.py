@@ -49,25 +49,6 @@ from ._glyphs import GlyphWarmer
 from ._store import same_layer, store_for
 
 NONE = "(none)"
-_PLOTS_IMPORT: list = []  # the thread importing the plots' modules, once per process
-
-
-def import_plots_in_background() -> threading.Thread:
-    """Import the plots' modules (:mod:`._plots`, matplotlib) in a daemon thread, once;
-    returns that thread. An import that fails is left to Open plots, which imports them
-    again and says what went wrong."""
-    if not _PLOTS_IMPORT:
-        def load() -> None:
-            try:
-                importlib.import_module("napari_pfsdm.napari._plots")
-            except Exception:  # noqa: BLE001, S110 - reported by Open plots' own import
-                pass
-
-        thread = threading.Thread(target=load, name="pfsdm-import-plots", daemon=True)
-        _PLOTS_IMPORT.append(thread)
-        thread.start()
-    return _PLOTS_IMPORT[0]
-
 #: Seconds between two progress-bar updates in a run's first :data:`PROGRESS_SLOW_AFTER`
 #: seconds; :data:`PROGRESS_INTERVAL_LONG` after them. Each update repaints the window,
 #: which holds napari's OpenGL canvas: composed again on the CPU (llvmpipe) without a GPU,
@@ -184,6 +165,26 @@ def same_pixels(image: Image, labels: Labels) -> bool:
         return False
     first = (slice(0, 1),) if a.ndim >= 3 else ()
     return bool(np.array_equal(np.asarray(a[first]), np.asarray(b[first])))
+
+
+_PLOTS_IMPORT: list = []  # the thread importing the plots' modules, once per process
+
+
+def import_plots_in_background() -> threading.Thread:
+    """Import the plots' modules (:mod:`._plots`, matplotlib) in a daemon thread, once;
+    returns that thread. An import that fails is left to Open plots, which imports them
+    again and says what went wrong."""
+    if not _PLOTS_IMPORT:
+        def load() -> None:
+            try:
+                importlib.import_module("napari_pfsdm.napari._plots")
+            except Exception:  # noqa: BLE001, S110 - reported by Open plots' own import
+                pass
+
+        thread = threading.Thread(target=load, name="pfsdm-import-plots", daemon=True)
+        _PLOTS_IMPORT.append(thread)
+        thread.start()
+    return _PLOTS_IMPORT[0]
 
 
 class AnalysisWidget(QWidget):
