@@ -645,11 +645,13 @@ def test_the_legends_characters_are_drawn_ahead_in_the_put_back_overlay(
     overlay.events.text.connect(lambda text: seen.append((text, overlay.visible)))
     widget = dock(viewer)
     assert not set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
-    qtbot.waitUntil(lambda: bool(seen) and not widget._glyphs.active, timeout=20_000)
+    qtbot.waitUntil(lambda: bool(seen) and not widget._glyphs.active, timeout=90_000)
     assert set(LEGEND_CHARACTERS) <= set(_font_glyphs(viewer))
-    # drawn in chunks of a few characters while the overlay was shown (transparent)
+    # drawn in chunks of a few characters while the overlay was shown (transparent), two
+    # first, then as many as the repaints allow
     chunks = [text for text, visible in seen if visible and text]
     assert "".join(chunks) == LEGEND_CHARACTERS and max(map(len, chunks)) <= 12
+    assert len(chunks[0]) == 2
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
     # a Run then draws no new character, and its legend uses only characters drawn ahead
     n = len(_font_glyphs(viewer))
@@ -670,6 +672,19 @@ def test_the_legends_characters_are_drawn_ahead_in_the_put_back_overlay(
     qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
     assert not widget._glyphs.active
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
+
+
+def test_characters_per_turn_fit_the_repaints_of_the_last_turn():
+    """50 ms a turn: 4 characters repainted in 20 ms (5 ms each) leave room for 10; 12 in
+    300 ms (25 ms each) for 2; a character slower than the budget alone still goes, one per
+    turn; a repaint that cost nothing allows the most, 12."""
+    from napari_pfsdm.napari._glyphs import characters_per_turn
+
+    assert characters_per_turn(20.0, 4) == 10
+    assert characters_per_turn(300.0, 12) == 2
+    assert characters_per_turn(400.0, 1) == 1
+    assert characters_per_turn(0.0, 2) == 12
+    assert characters_per_turn(-5.0, 2) == 12  # the next turn came before its interval
 
 
 def test_an_overlay_the_user_shows_is_left_alone(viewer_widget, qtbot):
@@ -809,13 +824,14 @@ viewer.add_labels(np.zeros((2, 64, 64), "uint16"), name="empty")
 _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
 from napari_pfsdm.napari import _widget
 
-thread = _widget._PLOTS_IMPORT[0]
+thread = _widget._BACKGROUND_IMPORT[0]
 print("thread", thread.name, thread is not threading.main_thread())
 end = time.perf_counter() + 60
 while thread.is_alive() and time.perf_counter() < end:
     QApplication.processEvents()
     time.sleep(0.002)
-print("imported", "matplotlib" in sys.modules, "napari_pfsdm.napari._plots" in sys.modules)
+print("imported", "matplotlib" in sys.modules, "napari_pfsdm.napari._plots" in sys.modules,
+      "napari_pfsdm.core.descriptor" in sys.modules)
 viewer.close()
 """
 
@@ -823,7 +839,8 @@ viewer.close()
 def test_docking_imports_the_plots_in_a_background_thread(tmp_path):
     """matplotlib's import (~0.8 s) froze the viewer at the first Open plots (850 ms gap,
     156 ms once imported; a probe on the sample): docking the analysis widget imports the
-    plots' modules in a daemon thread, in a fresh interpreter as a person's session is."""
+    plots' modules, and the measuring code, in a daemon thread, in a fresh interpreter as a
+    person's session is."""
     import os
     import subprocess
     import sys
@@ -834,5 +851,30 @@ def test_docking_imports_the_plots_in_a_background_thread(tmp_path):
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                          timeout=300, env=env)
     assert out.returncode == 0, out.stderr[-3000:]
-    assert "thread pfsdm-import-plots True" in out.stdout, out.stdout
-    assert "imported True True" in out.stdout, out.stdout
+    assert "thread pfsdm-imports True" in out.stdout, out.stdout
+    assert "imported True True True" in out.stdout, out.stdout
+
+
+#: Modules of the measuring code (and what they load) that napari's docking, which imports
+#: the panel's module on the GUI thread, must not import (~0.6 s of freeze in all).
+_MEASURING = ("napari_pfsdm.core.descriptor", "napari_pfsdm.core.pushforward",
+              "napari_pfsdm.analysis.features", "napari_pfsdm.analysis.parallel",
+              "scipy.interpolate", "scipy.spatial", "skimage.morphology", "matplotlib")
+
+
+def test_the_panels_module_imports_no_measuring_code():
+    """Docking from the menu froze the viewer for 0.7 s while napari imported the panel's
+    module, which imported the measuring code (``core/__init__`` loaded the whole method;
+    ``python -X importtime``). In a fresh interpreter, importing the module napari imports
+    loads none of it, although napari has been imported."""
+    import subprocess
+    import sys
+
+    code = ("import sys, napari, napari.layers\n"
+            f"before = {{m for m in {_MEASURING!r} if m in sys.modules}}\n"
+            "import napari_pfsdm.napari._widget\n"
+            f"print(sorted({{m for m in {_MEASURING!r} if m in sys.modules}} - before))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.strip().splitlines()[-1] == "[]", out.stdout

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import ConvexHull, QhullError
 
 __all__ = ["MEASURES", "table_measures", "outline_measures", "component_correlations",
            "explain_components"]
@@ -91,6 +90,10 @@ def outline_measures(points: np.ndarray) -> dict[str, float]:
     iyy = (cr * (y * y + y * yq + yq * yq)).sum() / 12
     ixy = (cr * (x * yq + 2 * x * y + 2 * xq * yq + xq * y)).sum() / 24
     lam = np.linalg.eigvalsh(np.array([[ixx, ixy], [ixy, iyy]]) / area)
+    # imported here: the napari panel imports this module when docked, and scipy.spatial
+    # costs ~0.2 s there (docs/design.md §5, "So is the measuring code")
+    from scipy.spatial import ConvexHull, QhullError
+
     try:
         hull = ConvexHull(p).volume
     except QhullError:

@@ -26,11 +26,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from .choices import BALL_MAPS
 from .volume_sdf import SurfaceSDF
 
 __all__ = ["BALL_MAPS", "HarmonicBallMap", "RadialBallMap", "make_ball_map"]
-
-BALL_MAPS = ("radial", "harmonic")
 
 
 class RadialBallMap:

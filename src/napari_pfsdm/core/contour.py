@@ -17,14 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .choices import DEFAULT_MIN_AREA
 from .marching_squares import outer_boundary, trace_boundary
 from .pieces import fill_holes, largest_piece
 
 __all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
            "resample_closed", "signed_area"]
-
-#: Objects with fewer pixels than this are refused: their outline is mostly rasterisation.
-DEFAULT_MIN_AREA = 20
 
 
 @dataclass(frozen=True)

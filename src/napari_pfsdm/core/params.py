@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .ball import BALL_MAPS
-from .contour import DEFAULT_MIN_AREA
+from .choices import BALL_MAPS, DEFAULT_MIN_AREA, MAPPINGS, SDF_KINDS
 from .morphometric import (
     NORMALIZATIONS,
     RADII_PLACEMENTS,
@@ -25,8 +24,6 @@ from .morphometric import (
     ring_radii,
     ring_weights,
 )
-from .pushforward import MAPPINGS
-from .sdf import SDF_KINDS
 
 __all__ = ["CHOICES", "PFSDMParams", "as_params"]
 

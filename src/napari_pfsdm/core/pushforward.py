@@ -31,11 +31,10 @@ from scipy.sparse.linalg import splu
 from scipy.spatial import Delaunay, cKDTree
 
 from ..errors import InputError
+from .choices import MAPPINGS
 from .sdf import ExactSDF
 
 __all__ = ["MAPPINGS", "FourierMap", "BijectiveMap", "display_turn", "make_map", "push_to_disk"]
-
-MAPPINGS = ("harmonic", "bijective", "radial")
 
 
 def _as_complex(points: np.ndarray) -> np.ndarray:

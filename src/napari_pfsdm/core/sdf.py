@@ -30,11 +30,10 @@ from scipy.special import k1e
 from skimage.measure import points_in_poly
 
 from ..errors import InputError
+from .choices import SDF_KINDS
 from .contour import signed_area
 
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
-
-SDF_KINDS = ("exact", "viscous")
 
 
 class ExactSDF:

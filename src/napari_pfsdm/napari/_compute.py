@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..analysis.features import count_objects as _count_objects
 from ..analysis.interpretation import MEASURES
 from ..analysis.reduction import mds_coordinates
 from ..analysis.reduction import pca_scores as _pca
@@ -198,8 +197,13 @@ def validate_layers_data(labels, intensity, first_axis: str = "time") -> str:
     return axes
 
 
-#: The package's one count of (frame, label) objects (issue 21: there were two).
-count_objects = _count_objects
+def count_objects(labels, axes: str | None = None) -> int:
+    """The package's one count of (frame, label) objects (issue 21: there were two),
+    :func:`napari_pfsdm.analysis.features.count_objects`; imported when first called, so that
+    docking the panel does not load the measuring code (scipy, scikit-image)."""
+    from ..analysis.features import count_objects as count
+
+    return count(labels, axes)
 
 
 def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5) -> pd.DataFrame:

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis.features import split_failed
 from ..analysis.reduction import distance_table as layout
 from ..core.table_schema import has_channel
 from ..io_csv import check_overwrite, read_table_csv, write_table_csv
@@ -42,6 +41,7 @@ def distance_table(
     """All-pairs PF-SDM distances of the measured objects, in the command line's layout (rows
     and columns ``t<frame>/l<label>``, index ``object``), and the rows left out (``frame``,
     ``label``, ``reason``) because they have no features."""
+    from ..analysis.features import split_failed
     from ..analysis.tables import distance_matrix
 
     table = output.table

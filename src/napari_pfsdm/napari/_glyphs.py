@@ -7,7 +7,8 @@ different characters, so the first Run's legend froze the viewer for about 0.4 s
 napari drew them (``benchmarks/plugin.py --stacks "run"`` on the real movie c).
 
 Shortly after docking, and during a Run that lasts (if any are left), :class:`GlyphWarmer`
-has napari draw those characters a few per turn in the viewer's text overlay (public model:
+has napari draw those characters a few per turn (as many as the last turns' repaints say fit
+in :data:`BUDGET_MS`) in the viewer's text overlay (public model:
 text, colour, visibility), in a transparent colour, then puts the overlay back as it was. A
 user who shows the overlay is left alone. A Run that ends stops it (and its pending start):
 the legend then draws what is left, as before. It only saves time; when anything goes wrong
@@ -17,6 +18,7 @@ it stops.
 from __future__ import annotations
 
 import string
+import time
 
 from qtpy.QtCore import QTimer
 
@@ -34,11 +36,32 @@ LEGEND_CHARACTERS = _in_order(
     *(t for pair in LEGENDS.values() for t in pair), "frame · label yellow = skeleton",
     string.digits, "−.px+-e%", string.ascii_lowercase, string.ascii_uppercase,
     ".,:;()[]=+-−×·%/'")
-#: Characters napari draws per turn (~6 ms each) and the pause between turns (ms). Each turn
-#: also repaints the canvas (the overlay changed), which costs more with large layers than
-#: the characters do: few turns of several characters.
+#: At most this many characters per turn, and the pause between turns (ms). Each turn also
+#: repaints the canvas (the overlay changed), which costs more with large layers than a
+#: character does.
 PER_TURN = 12
 INTERVAL_MS = 40
+#: How long one turn's repaint may take (ms): each turn draws as many characters as the
+#: last turns' repaints say fit (at least one, at most :data:`PER_TURN`), starting with
+#: :data:`FIRST_TURN`. A character costs ~6 ms on a quiet machine, 20-60 ms while the
+#: worker processes start and the modules load after docking: twelve a turn then made ten
+#: 200-800 ms gaps in the 3 s after docking (``/tmp`` probe on the sample, eleventh session).
+BUDGET_MS = 50
+FIRST_TURN = 2
+
+
+def characters_per_turn(repaint_ms: float, shown: int) -> int:
+    """How many characters the next turn draws, from the last turn's: ``shown`` characters
+    whose repaint (and whatever else ran before the next turn) took ``repaint_ms``. All of
+    that is counted as the characters' cost, so the estimate errs on the small side.
+
+    >>> characters_per_turn(20.0, 4), characters_per_turn(300.0, 12), characters_per_turn(0, 2)
+    (10, 2, 12)
+    """
+    per_character = max(float(repaint_ms), 0.0) / max(int(shown), 1)
+    if per_character <= 0:
+        return PER_TURN
+    return int(min(PER_TURN, max(1, BUDGET_MS // per_character)))
 
 
 def text_overlay(viewer):
@@ -59,8 +82,10 @@ class GlyphWarmer:
         self.drawn = drawn
         self._todo = self._shown = self._written = ""
         self._saved: tuple | None = None
-        self._timer = QTimer(parent, interval=INTERVAL_MS)
+        self._timer = QTimer(parent, interval=INTERVAL_MS, singleShot=True)
         self._timer.timeout.connect(self._turn)
+        self._per_turn = FIRST_TURN
+        self._turn_end = None  # when the last turn ended (perf_counter), for its repaint's cost
         self._later = QTimer(parent, singleShot=True)  # dies with its widget
         self._later.timeout.connect(self._start_if_wanted)
         self._wanted = None
@@ -95,6 +120,7 @@ class GlyphWarmer:
         except Exception:  # noqa: BLE001 - an optimisation only
             self.stop()
             return
+        self._per_turn, self._turn_end = FIRST_TURN, None
         self._timer.start()
 
     def _turn(self) -> None:
@@ -103,7 +129,11 @@ class GlyphWarmer:
             self.stop()  # the user wrote in the overlay: theirs from now on
             return
         self.drawn.update(self._shown)  # the canvas painted it since the last turn
-        self._shown, self._todo = self._todo[:PER_TURN], self._todo[PER_TURN:]
+        if self._turn_end is not None and self._shown:
+            self._per_turn = characters_per_turn(
+                1e3 * (time.perf_counter() - self._turn_end) - INTERVAL_MS, len(self._shown))
+        n = self._per_turn
+        self._shown, self._todo = self._todo[:n], self._todo[n:]
         if not self._shown:
             self.stop()
             return
@@ -111,6 +141,9 @@ class GlyphWarmer:
             overlay.text = self._written = self._shown  # drawn at the canvas' next paint
         except Exception:  # noqa: BLE001 - an optimisation only
             self.stop()
+            return
+        self._turn_end = time.perf_counter()
+        self._timer.start()
 
     def stop(self) -> None:
         """Put the overlay back as it was."""

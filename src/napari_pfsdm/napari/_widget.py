@@ -167,24 +167,52 @@ def same_pixels(image: Image, labels: Labels) -> bool:
     return bool(np.array_equal(np.asarray(a[first]), np.asarray(b[first])))
 
 
-_PLOTS_IMPORT: list = []  # the thread importing the plots' modules, once per process
+#: What docking the panel imports in a background thread (after starting the worker
+#: processes, :func:`~napari_pfsdm.analysis.parallel.warm_pool`), in this order: the measuring
+#: code (scipy, scikit-image: ~0.5 s, needed by a Run and an object's pictures), then the
+#: plots' (matplotlib: ~0.8 s, more when it first builds its font cache, needed by Open
+#: plots). Imported on the GUI thread, each froze the viewer for that long: at docking
+#: (the panel's module imported them) and at the first Open plots.
+BACKGROUND_IMPORTS = (
+    "napari_pfsdm.analysis.features",
+    "scipy.spatial",
+    "napari_pfsdm.napari._plots",
+)
+
+_BACKGROUND_IMPORT: list = []  # the thread importing BACKGROUND_IMPORTS, once per process
 
 
-def import_plots_in_background() -> threading.Thread:
-    """Import the plots' modules (:mod:`._plots`, matplotlib) in a daemon thread, once;
-    returns that thread. An import that fails is left to Open plots, which imports them
-    again and says what went wrong."""
-    if not _PLOTS_IMPORT:
-        def load() -> None:
-            try:
-                importlib.import_module("napari_pfsdm.napari._plots")
-            except Exception:  # noqa: BLE001, S110 - reported by Open plots' own import
+def import_in_background() -> threading.Thread:
+    """Import :data:`BACKGROUND_IMPORTS` in a daemon thread, once per process; returns that
+    thread. An import that fails is left to the code that needs it, which imports it again
+    and says what went wrong. Called again once that thread is done, it starts the worker
+    processes again if they were stopped since (a cancelled Run stops them)."""
+    if _BACKGROUND_IMPORT and not _BACKGROUND_IMPORT[0].is_alive():
+        from ..analysis.parallel import warm_pool  # imported by then: no wait
+
+        warm_pool()
+    if not _BACKGROUND_IMPORT:
+        def warm() -> None:
+            try:  # the worker processes start in a thread of their own
+                from ..analysis.parallel import warm_pool
+
+                warm_pool()
+            except Exception:  # noqa: BLE001, S110 - a Run starts them itself
                 pass
 
-        thread = threading.Thread(target=load, name="pfsdm-import-plots", daemon=True)
-        _PLOTS_IMPORT.append(thread)
+        def load() -> None:
+            warm()
+            for name in BACKGROUND_IMPORTS:
+                try:
+                    importlib.import_module(name)
+                except Exception:  # noqa: BLE001, S112 - reported by the code that needs it
+                    continue
+            warm()  # again: stopped meanwhile (a panel docked and cancelled), they restart
+
+        thread = threading.Thread(target=load, name="pfsdm-imports", daemon=True)
+        _BACKGROUND_IMPORT.append(thread)
         thread.start()
-    return _PLOTS_IMPORT[0]
+    return _BACKGROUND_IMPORT[0]
 
 
 class AnalysisWidget(QWidget):
@@ -228,8 +256,10 @@ class AnalysisWidget(QWidget):
         self._step_queued = False  # the next of those steps waits in next_turn's queue
         self._prefetch_timer.timeout.connect(self._prefetch)
 
-        from ..core.descriptor import DEFAULTS
         from ..core.params import CHOICES
+
+        defaults = PFSDMParams()  # pfsdm's defaults (core.descriptor.DEFAULTS), without
+        # importing the measuring code here: napari docks the panel in one turn
 
         self.labels_combo = QComboBox(toolTip=TIPS["labels"])
         self.first_axis = QComboBox(toolTip=TIPS["first_axis"])
@@ -237,16 +267,16 @@ class AnalysisWidget(QWidget):
         self.identity = QComboBox(toolTip=TIPS["identity"])
         self.identity.addItems(list(IDENTITY_CHOICES))
         self.image_combo = QComboBox(toolTip=TIPS["image"])
-        self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(DEFAULTS["n_fourier"]),
+        self.n_fourier = QSpinBox(minimum=1, maximum=32, value=int(defaults.n_fourier),
                                   toolTip=TIPS["n_fourier"])
         self.mapping = QComboBox(toolTip=TIPS["mapping"])
         self.mapping.addItems(list(CHOICES["mapping"]))
-        self.mapping.setCurrentText(DEFAULTS["mapping"])
+        self.mapping.setCurrentText(defaults.mapping)
         self.sdf = QComboBox(toolTip=TIPS["sdf"])
         self.sdf.addItems(list(CHOICES["sdf"]))
-        self.sdf.setCurrentText(DEFAULTS["sdf"])
+        self.sdf.setCurrentText(defaults.sdf)
         self.viscosity = QDoubleSpinBox(minimum=0.005, maximum=0.5, singleStep=0.01, decimals=3,
-                                        value=float(DEFAULTS["viscosity"]),
+                                        value=float(defaults.viscosity),
                                         toolTip=TIPS["viscosity"])
         self.intensity_weight = QDoubleSpinBox(minimum=0.0, maximum=10.0, singleStep=0.1,
                                                value=1.0, toolTip=TIPS["intensity_weight"])
@@ -340,14 +370,10 @@ class AnalysisWidget(QWidget):
             event.connect(self._refresh_layers)
         napari_viewer.dims.events.current_step.connect(self._on_step)
         self._refresh_layers()
-        # the processes of a Run start now, in the background (about a second), while the
-        # person chooses layers: then a Run of any size measures on every core at once
-        from ..analysis.parallel import warm_pool
-
-        warm_pool()
-        # the plots' modules in a thread of their own: matplotlib's import (0.8 s here, more
-        # when it first builds its font cache) froze the viewer at the first Open plots
-        import_plots_in_background()
+        # in a thread of their own: the measuring code's and the plots' modules, and the
+        # processes of a Run (about a second), while the person chooses layers: then a Run
+        # of any size measures on every core at once
+        import_in_background()
         # and napari draws the legend's characters once they have started (:mod:`._glyphs`)
         self._glyphs.start_in(GLYPHS_AFTER_DOCK_MS)
 

@@ -1,0 +1,19 @@
+"""The names of the method's choices, and the smallest object measured: constants only.
+
+They live here, not beside the code that implements each choice, so that
+:mod:`~napari_pfsdm.core.params` (and the napari panel, which builds its controls from them)
+imports no scipy or scikit-image: those modules are loaded when an object is measured.
+"""
+
+from __future__ import annotations
+
+__all__ = ["BALL_MAPS", "DEFAULT_MIN_AREA", "MAPPINGS", "SDF_KINDS"]
+
+#: Push-forward maps of the unit disk (:func:`~napari_pfsdm.core.pushforward.make_map`).
+MAPPINGS = ("harmonic", "bijective", "radial")
+#: Maps of the unit ball in 3-D (:func:`~napari_pfsdm.core.ball.make_ball_map`).
+BALL_MAPS = ("radial", "harmonic")
+#: Signed distance functions (:func:`~napari_pfsdm.core.sdf.make_sdf`).
+SDF_KINDS = ("exact", "viscous")
+#: Objects with fewer pixels than this are refused: their outline is mostly rasterisation.
+DEFAULT_MIN_AREA = 20
