@@ -556,6 +556,14 @@ def test_many_points_are_drawn_as_one_density_image_and_stay_clickable(viewer_wi
     assert plot.highlighted_keys() == [(7, 5)]
     track = [a for a in plot._highlight_artists if a in ax.lines]
     assert len(track) == 1 and len(track[0].get_xdata()) > 1  # the selected object's track
+    # 12 frames: a short track, drawn bold; a long one (a movie of many frames) thin and
+    # translucent, over the density image
+    assert track[0].get_linewidth() == 2.2 and track[0].get_alpha() in (None, 1.0)
+    monkeypatch.setattr(_plots, "LONG_TRACK", 11)
+    plot.highlight()
+    track = [a for a in plot._highlight_artists if a in ax.lines]
+    assert len(track) == 1 and len(track[0].get_xdata()) == 12
+    assert track[0].get_linewidth() == 1.0 and track[0].get_alpha() == 0.6
 
 
 def test_saving_a_plot_keeps_the_picture_on_screen_and_saves_its_highlight(
