@@ -50,7 +50,10 @@ Per data set, in this order:
    with the CPU seconds of ``run_analysis`` and of the Run by part (``cpu_seconds``: the
    viewer's process, its llvmpipe threads, the worker processes) in ``plugin_run.csv``.
 3. Open plots (the trajectory and comparison docks), until the comparison's distances are
-   computed and drawn (+ 1.5 s).
+   computed and drawn (+ 1.5 s); before it, the anchor: napari docking two empty widgets the
+   same way (one per turn, the second as a tab), removed after. Docking the analysis widget
+   itself (from the menu, ``add_plugin_dock_widget``) is a window too, of 3 s: the worker
+   processes start then.
 4. With the plots open: select 8 labels of the frame shown (``selected_label``; 300 ms idle
    before each, a window of ≥ 1.2 s after), and 8 time-slider steps (``dims.set_point``, the
    same way). Besides the gap, how long until the widget says that object's pictures are
@@ -572,6 +575,21 @@ def _copy_add(viewer, tuples) -> None:
             selection.update(before)
 
 
+def _dock_two_empty(viewer) -> list:
+    """Dock an empty widget now and a second one, as its tab, in the next turn (what
+    ``open_plots`` asks of napari for its two plots); returns the first dock (the second is
+    appended to the list when docked)."""
+    from qtpy.QtWidgets import QWidget
+
+    from napari_pfsdm.napari._alive import next_turn
+
+    window = viewer.window
+    docks = [window.add_dock_widget(QWidget(), name="empty 1", area="right")]
+    next_turn(lambda: docks.append(window.add_dock_widget(QWidget(), name="empty 2",
+                                                          area="right", tabify=True)))
+    return docks
+
+
 def _idle(bench: Bench, widget, timeout: float = 30.0) -> None:
     """Wait until no worker of the widget or of its plots runs (before closing a viewer)."""
     t0 = time.perf_counter()
@@ -632,7 +650,12 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
         # a person's session has not imported matplotlib yet (its import, ~0.8 s, is what
         # the plugin does in a background thread when docked): say whether this one had
         info["matplotlib imported before docking"] = "matplotlib" in sys.modules
-        _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+        # docking from the menu, and the 3 s after it (the worker processes start then)
+        res = bench.window(f"{title} · dock the plugin", lambda: viewer.window.
+                           add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis"),
+                           min_s=3.0)
+        add("dock the plugin", res)
+        _dock, widget = res["result"]
         info["viewer type"] = type(widget.viewer).__name__
         try:
             if args.no_clusters_plotter:
@@ -710,6 +733,14 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
             gc.collect()
             gc.freeze()
             info["gc.freeze() after the Run"] = f"{gc.get_freeze_count():,} objects"
+        # ---- the anchor: napari docking two empty widgets as Open plots docks its two, one
+        # per turn, the second as a tab of the first (napari's own cost; removed after)
+        bench.spin(500)
+        res = bench.window(f"{title} · napari alone: Open plots",
+                           lambda: _dock_two_empty(viewer), min_s=1.5)
+        add("napari alone: Open plots", res)
+        for dock in res["result"] or []:
+            viewer.window.remove_dock_widget(dock)
         # ---- Open plots
         bench.spin(500)
         res = bench.window(
