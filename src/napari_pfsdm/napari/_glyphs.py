@@ -36,9 +36,9 @@ LEGEND_CHARACTERS = _in_order(
     *(t for pair in LEGENDS.values() for t in pair), "frame · label yellow = skeleton",
     string.digits, "−.px+-e%", string.ascii_lowercase, string.ascii_uppercase,
     ".,:;()[]=+-−×·%/'")
-#: At most this many characters per turn, and the pause between turns (ms). Each turn also
-#: repaints the canvas (the overlay changed), which costs more with large layers than a
-#: character does.
+#: At most this many characters per turn, and the shortest pause between turns (ms; as
+#: long as the last turn's repaint when that was longer). Each turn also repaints the canvas
+#: (the overlay changed), which costs more with large layers than a character does.
 PER_TURN = 12
 INTERVAL_MS = 40
 #: How long one turn's repaint may take (ms): each turn draws as many characters as the
@@ -121,7 +121,7 @@ class GlyphWarmer:
             self.stop()
             return
         self._per_turn, self._turn_end = FIRST_TURN, None
-        self._timer.start()
+        self._timer.start(INTERVAL_MS)
 
     def _turn(self) -> None:
         overlay = text_overlay(self.viewer)
@@ -129,9 +129,12 @@ class GlyphWarmer:
             self.stop()  # the user wrote in the overlay: theirs from now on
             return
         self.drawn.update(self._shown)  # the canvas painted it since the last turn
+        pause = INTERVAL_MS
         if self._turn_end is not None and self._shown:
-            self._per_turn = characters_per_turn(
-                1e3 * (time.perf_counter() - self._turn_end) - INTERVAL_MS, len(self._shown))
+            repaint = 1e3 * (time.perf_counter() - self._turn_end) - self._timer.interval()
+            self._per_turn = characters_per_turn(repaint, len(self._shown))
+            # the viewer free at least half of the time: a pause as long as the repaint
+            pause = int(min(max(INTERVAL_MS, repaint), 1000))
         n = self._per_turn
         self._shown, self._todo = self._todo[:n], self._todo[n:]
         if not self._shown:
@@ -143,7 +146,7 @@ class GlyphWarmer:
             self.stop()
             return
         self._turn_end = time.perf_counter()
-        self._timer.start()
+        self._timer.start(pause)
 
     def stop(self) -> None:
         """Put the overlay back as it was."""
