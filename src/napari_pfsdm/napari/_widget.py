@@ -182,32 +182,33 @@ BACKGROUND_IMPORTS = (
 _BACKGROUND_IMPORT: list = []  # the thread importing BACKGROUND_IMPORTS, once per process
 
 
+def _warm_pool() -> None:
+    """Start the worker processes in the background (:func:`~napari_pfsdm.analysis.parallel.
+    warm_pool`); a failure is left to the Run, which starts them itself."""
+    try:
+        from ..analysis.parallel import warm_pool
+
+        warm_pool()
+    except Exception:  # noqa: BLE001, S110 - a Run starts them itself
+        pass
+
+
 def import_in_background() -> threading.Thread:
     """Import :data:`BACKGROUND_IMPORTS` in a daemon thread, once per process; returns that
     thread. An import that fails is left to the code that needs it, which imports it again
     and says what went wrong. Called again once that thread is done, it starts the worker
     processes again if they were stopped since (a cancelled Run stops them)."""
     if _BACKGROUND_IMPORT and not _BACKGROUND_IMPORT[0].is_alive():
-        from ..analysis.parallel import warm_pool  # imported by then: no wait
-
-        warm_pool()
+        _warm_pool()  # its module imported by then: no wait
     if not _BACKGROUND_IMPORT:
-        def warm() -> None:
-            try:  # the worker processes start in a thread of their own
-                from ..analysis.parallel import warm_pool
-
-                warm_pool()
-            except Exception:  # noqa: BLE001, S110 - a Run starts them itself
-                pass
-
         def load() -> None:
-            warm()
+            _warm_pool()
             for name in BACKGROUND_IMPORTS:
                 try:
                     importlib.import_module(name)
                 except Exception:  # noqa: BLE001, S112 - reported by the code that needs it
                     continue
-            warm()  # again: stopped meanwhile (a panel docked and cancelled), they restart
+            _warm_pool()  # again: stopped meanwhile (a panel docked and cancelled), restarted
 
         thread = threading.Thread(target=load, name="pfsdm-imports", daemon=True)
         _BACKGROUND_IMPORT.append(thread)
