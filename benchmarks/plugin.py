@@ -438,10 +438,11 @@ class Bench:
         before = np.flatnonzero(ticks <= t0)
         tail = ticks[before[-1]:] if len(before) else ticks
         gap = 1e3 * float(np.diff(tail).max()) if len(tail) > 1 else float("nan")
-        gc_ms = float("nan")
+        gc_ms, gc_what = float("nan"), ""
         if len(tail) > 1:  # the longest gap: from tail[i] to tail[i + 1]
             i = int(np.argmax(np.diff(tail)))
             gc_ms = collections.ms_within(tail[i], tail[i + 1])
+            gc_what = collections.longest_within(tail[i], tail[i + 1])
         if sampler is not None and len(tail) > 1:
             text = sampler.report(tail[i], tail[i + 1]) + (
                 f"\n  objects the garbage collector tracked at the start: {tracked:,}")
@@ -457,7 +458,7 @@ class Bench:
             self.note("timeout", f"not all of {sorted(set(marks) - set(hit))} within "
                                  f"{timeout:.0f} s")
         self.context = name + " (after)"
-        return {"gap_ms": gap, "gc_ms": gc_ms, "timeout": state["timeout"],
+        return {"gap_ms": gap, "gc_ms": gc_ms, "gc_what": gc_what, "timeout": state["timeout"],
                 "result": state.get("result"),
                 "error": state.get("action_error", ""),
                 **{f"{k}_ms": 1e3 * (v - t0) for k, v in hit.items()},
@@ -468,14 +469,16 @@ class _Collections:
     """The garbage collections (any generation, any thread) while the context is open."""
 
     def __init__(self) -> None:
-        self.spans: list[tuple[float, float, int]] = []  # (start, end, generation)
+        # (start, end, generation, the thread whose allocation set the collection off)
+        self.spans: list[tuple[float, float, int, str]] = []
         self._start = 0.0
 
     def _on_gc(self, phase: str, info: dict) -> None:
         if phase == "start":
             self._start = time.perf_counter()
         else:
-            self.spans.append((self._start, time.perf_counter(), info["generation"]))
+            self.spans.append((self._start, time.perf_counter(), info["generation"],
+                               threading.current_thread().name))
 
     def __enter__(self) -> _Collections:
         gc.callbacks.append(self._on_gc)
@@ -486,7 +489,17 @@ class _Collections:
 
     def ms_within(self, start: float, end: float) -> float:
         """Milliseconds of collection inside ``[start, end]``."""
-        return 1e3 * sum(max(0.0, min(b, end) - max(a, start)) for a, b, _g in self.spans)
+        return 1e3 * sum(max(0.0, min(b, end) - max(a, start)) for a, b, _g, _t in self.spans)
+
+    def longest_within(self, start: float, end: float) -> str:
+        """"generation G in thread T" of the longest collection inside ``[start, end]``, or
+        "" when none took 5 ms."""
+        inside = [(min(b, end) - max(a, start), g, t) for a, b, g, t in self.spans
+                  if a < end and b > start]
+        if not inside or max(inside)[0] < 0.005:
+            return ""
+        _d, g, t = max(inside)
+        return f"generation {g} in thread {t}"
 
 
 class _StackSampler:
@@ -524,8 +537,9 @@ class _StackSampler:
         """The functions on the stack between ``start`` and ``end``, heaviest first."""
         inside = [(t, s) for t, s in self.samples if start <= t <= end]
         collected = "".join(
-            f"\n  garbage collection of generation {g}: {1e3 * (b - a):.0f} ms (any thread)"
-            for a, b, g in self.collections.spans if a < end and b > start and b - a > 0.005)
+            f"\n  garbage collection of generation {g}: {1e3 * (b - a):.0f} ms (set off in "
+            f"thread {t})"
+            for a, b, g, t in self.collections.spans if a < end and b > start and b - a > 0.005)
         if not inside:
             return "  (no samples in the gap)" + collected
         dt = (end - start) / len(inside)
@@ -897,7 +911,10 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
         notes = []
         if "gc_ms" in grp and (grp["gc_ms"].astype(float) > 5).any():
             c = grp["gc_ms"].astype(float)  # what the collector took of the longest gaps
-            notes.append(f"collector {c.median():.0f} ({c.max():.0f}) ms of it")
+            what = grp["gc_what"].fillna("").iloc[int(np.argmax(c.fillna(0).to_numpy()))] \
+                if "gc_what" in grp else ""
+            notes.append(f"collector {c.median():.0f} ({c.max():.0f}) ms of it"
+                         + (f" (the longest: {what})" if what else ""))
         if "error" in grp and (grp["error"].fillna("") != "").any():
             notes.append(f"{int((grp['error'].fillna('') != '').sum())} raised")
         if "timeout" in grp and grp["timeout"].fillna(False).astype(bool).any():
@@ -925,7 +942,8 @@ def summarize(samples: pd.DataFrame, ratios: dict) -> pd.DataFrame:
                          "n": len(g), "target": "(info)", "met": "", "notes": ""})
         if action == "Run" and ds in ratios:
             r = ratios[ds]
-            rows.append({"dataset": ds, "action": "Run wall ÷ pf.measure wall, mean of 2 (×, not ms)",
+            rows.append({"dataset": ds,
+                         "action": "Run wall ÷ pf.measure wall, mean of 2 (×, not ms)",
                          "median ms": r, "max ms": r, "n": 1,
                          # the movie of many objects: issue 23's target on two cores
                          "target": "≤ 0.6" if ds.startswith("e") else "≤ 1.5",
