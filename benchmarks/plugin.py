@@ -511,7 +511,9 @@ class _StackSampler:
         self.samples: list[tuple[float, tuple]] = []
         self.collections = _Collections()
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
+        # named: its own allocations (a stack every 2 ms) set collections off too, and the
+        # report names the thread that did
+        self._thread = threading.Thread(target=self._run, daemon=True, name="stack sampler")
 
     def start(self) -> None:
         self.collections.__enter__()
