@@ -203,7 +203,7 @@ def import_in_background() -> threading.Thread:
     The thread ends with a full collection of Python's garbage collector. Python runs one
     by itself whenever the objects that survived since the last one reach a quarter of the
     rest; in a napari session with the panel's modules (350,000-500,000 tracked objects)
-    each takes 200-450 ms, holding the interpreter lock, so the viewer freezes then. The
+    each takes 200-460 ms, holding the interpreter lock, so the viewer freezes then. The
     imports alone add ~55,000 objects (a /tmp probe in a viewer: 303,000 before docking,
     357,000 after): without it, the collection they lead to came later, at a moment nobody
     chose (opening the plots: 464 ms in that probe; the all-frames view, 212-422 ms, in
