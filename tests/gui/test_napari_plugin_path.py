@@ -674,6 +674,66 @@ def test_the_legends_characters_are_drawn_ahead_in_the_put_back_overlay(
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
 
 
+def test_the_characters_wait_for_the_background_imports_to_finish(
+        make_napari_viewer, sample_layers, qtbot, monkeypatch):
+    """The imports after docking end with a full garbage collection (200-460 ms): the
+    characters (the first costs ~300 ms, napari's first text) are drawn after them, not in
+    the same seconds; drawn all the same once the imports are done."""
+    import threading
+
+    from napari_pfsdm.napari import _widget
+
+    release = threading.Event()
+    importing = threading.Thread(target=release.wait, daemon=True)
+    importing.start()
+    monkeypatch.setattr(_widget, "_BACKGROUND_IMPORT", [importing])
+    monkeypatch.setattr(_widget, "GLYPHS_AFTER_DOCK_MS", 0)
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    overlay = viewer.canvas.overlays.text
+    seen = []
+    overlay.events.text.connect(lambda text: seen.append(text))
+    try:
+        widget = dock(viewer)
+        qtbot.wait(600)  # several polls (READY_POLL_MS) later
+        assert not widget._glyphs.active and not seen
+    finally:
+        release.set()
+        importing.join()
+    qtbot.waitUntil(lambda: bool(seen), timeout=5000)
+    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=90_000)
+
+
+def test_the_characters_wait_for_the_imports_only_so_long(
+        make_napari_viewer, sample_layers, qtbot, monkeypatch):
+    """Imports that never end (a hung network drive) do not keep the characters from being
+    drawn: they start READY_WAIT_MS later all the same."""
+    import threading
+
+    from napari_pfsdm.napari import _glyphs, _widget
+
+    release = threading.Event()
+    importing = threading.Thread(target=release.wait, daemon=True)
+    importing.start()
+    monkeypatch.setattr(_widget, "_BACKGROUND_IMPORT", [importing])
+    monkeypatch.setattr(_widget, "GLYPHS_AFTER_DOCK_MS", 0)
+    monkeypatch.setattr(_glyphs, "READY_WAIT_MS", 300)
+    viewer = make_napari_viewer(show=True)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    seen = []
+    viewer.canvas.overlays.text.events.text.connect(lambda text: seen.append(text))
+    try:
+        widget = dock(viewer)
+        qtbot.waitUntil(lambda: bool(seen), timeout=5000)
+        assert importing.is_alive()
+        qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=90_000)
+    finally:
+        release.set()
+        importing.join()
+
+
 def test_characters_per_turn_fit_the_repaints_of_the_last_turn():
     """50 ms a turn: 4 characters repainted in 20 ms (5 ms each) leave room for 10; 12 in
     300 ms (25 ms each) for 2; a character slower than the budget alone still goes, one per

@@ -48,6 +48,11 @@ INTERVAL_MS = 40
 #: 200-800 ms gaps in the 3 s after docking (``/tmp`` probe on the sample, eleventh session).
 BUDGET_MS = 50
 FIRST_TURN = 2
+#: A start that waits for something else to finish first (``ready`` of
+#: :meth:`GlyphWarmer.start_in`) asks again this often (ms), and starts anyway after
+#: :data:`READY_WAIT_MS` more.
+READY_POLL_MS = 100
+READY_WAIT_MS = 10_000
 
 
 def characters_per_turn(repaint_ms: float, shown: int) -> int:
@@ -88,17 +93,25 @@ class GlyphWarmer:
         self._turn_end = None  # when the last turn ended (perf_counter), for its repaint's cost
         self._later = QTimer(parent, singleShot=True)  # dies with its widget
         self._later.timeout.connect(self._start_if_wanted)
-        self._wanted = None
+        self._wanted = self._ready = None
+        self._give_up_waiting = 0.0  # when a start stops waiting for ``ready`` (perf_counter)
 
-    def start_in(self, ms: int, wanted=None) -> None:
+    def start_in(self, ms: int, wanted=None, ready=None) -> None:
         """:meth:`start` in ``ms`` milliseconds, if ``wanted()`` (default: always) is then
-        true."""
-        self._wanted = wanted
+        true; if ``ready()`` (default: always) is then false, once it is true (asked every
+        :data:`READY_POLL_MS`, for at most :data:`READY_WAIT_MS` more)."""
+        self._wanted, self._ready = wanted, ready
+        self._give_up_waiting = time.perf_counter() + (int(ms) + READY_WAIT_MS) / 1e3
         self._later.start(int(ms))
 
     def _start_if_wanted(self) -> None:
-        if self._wanted is None or self._wanted():
-            self.start()
+        if self._wanted is not None and not self._wanted():
+            return
+        if (self._ready is not None and not self._ready()
+                and time.perf_counter() < self._give_up_waiting):
+            self._later.start(READY_POLL_MS)
+            return
+        self.start()
 
     @property
     def active(self) -> bool:

@@ -395,9 +395,11 @@ class AnalysisWidget(QWidget):
         # in a thread of their own: the measuring code's and the plots' modules, and the
         # processes of a Run (about a second), while the person chooses layers: then a Run
         # of any size measures on every core at once
-        import_in_background()
-        # and napari draws the legend's characters once they have started (:mod:`._glyphs`)
-        self._glyphs.start_in(GLYPHS_AFTER_DOCK_MS)
+        imports = import_in_background()
+        # and napari draws the legend's characters once they have started and the imports
+        # (with their garbage collection, a 200-460 ms pause) are done (:mod:`._glyphs`):
+        # the first character costs ~300 ms more (napari's first text), not in that pause
+        self._glyphs.start_in(GLYPHS_AFTER_DOCK_MS, ready=lambda: not imports.is_alive())
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
         """A narrow panel: the canvas keeps most of a laptop screen's width."""
