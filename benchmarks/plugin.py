@@ -94,12 +94,15 @@ the interpreter lock (a worker thread's long C call, or a collection). Every win
 records the garbage collections in its longest gap (a callback, always on): the table's
 notes say "collector M (X) ms of it", the median and max over the window's repeats.
 
-Two anchors of the same run say what the machine is doing: before the plugin is docked,
+Anchors of the same run say what the machine is doing: before the plugin is docked,
 ``--steps`` time-slider steps of napari alone on the same layers ("napari alone: time-slider
 step"; the table's "time-slider step ÷ napari alone" row is the plugin's step over napari's
-own, medians), and the share of the machine's CPU time the host took from this virtual
-machine meanwhile ("machine: CPU time stolen by the host", from ``/proc/stat``; also in the
-figure's title). Absolute gaps on a shared machine move with both.
+own, medians), napari removing a layer (one point, added just before; napari then runs a
+full garbage collection of the session's heap, as docking's background imports end with),
+napari docking two empty widgets the way Open plots docks its two, and the share of the
+machine's CPU time the host took from this virtual machine meanwhile ("machine: CPU time
+stolen by the host", from ``/proc/stat``; also in the figure's title). Absolute gaps on a
+shared machine move with both.
 
 Writes ``plugin.csv`` (the table), ``plugin_samples.csv`` (every window), ``plugin_run.csv``
 (the library-vs-widget table) and ``plugin.png`` to ``--out``.
@@ -670,6 +673,14 @@ def measure_in_viewer(title: str, layer_specs, bench: Bench, args, samples: list
                                    lambda f=f: viewer.dims.set_point(0, f), min_s=1.2)
                 add("napari alone: time-slider step", res, frame=f)
             viewer.dims.set_point(0, start)
+        # ---- the anchor: napari removing a layer (it then runs a full garbage collection,
+        # ``_vispy/canvas.py``'s ``_remove_layer``): what one collection of this session's
+        # heap costs, before the plugin adds to it (docking's imports end with one)
+        extra = viewer.add_points(np.zeros((1, labels_layer.ndim)), name="anchor point")
+        bench.spin(800)
+        res = bench.window(f"{title} · napari alone: remove a layer",
+                           lambda: viewer.layers.remove(extra), min_s=1.0)
+        add("napari alone: remove a layer", res)
         # a person's session has not imported matplotlib yet (its import, ~0.8 s, is what
         # the plugin does in a background thread when docked): say whether this one had
         info["matplotlib imported before docking"] = "matplotlib" in sys.modules
