@@ -747,6 +747,44 @@ def test_characters_per_turn_fit_the_repaints_of_the_last_turn():
     assert characters_per_turn(-5.0, 2) == 12  # the next turn came before its interval
 
 
+def test_a_repaint_that_fits_in_the_pause_still_counts(qtbot, monkeypatch):
+    """Each turn sizes itself by the event loop's longest stall since the last turn (a 10 ms
+    clock), not by how late the turn came: a 100 ms repaint inside a 210 ms pause is 100 ms."""
+    from types import SimpleNamespace
+
+    from napari_pfsdm.napari import _glyphs
+
+    overlay = SimpleNamespace(text="", color="white", visible=False)
+    viewer = SimpleNamespace(canvas=SimpleNamespace(overlays=SimpleNamespace(text=overlay)))
+    now = [0.0]
+    monkeypatch.setattr(_glyphs.time, "perf_counter", lambda: now[0])
+    warmer = _glyphs.GlyphWarmer(viewer, set())
+
+    def ticks_then_turn(*times: float) -> None:
+        for t in times:
+            now[0] = t
+            warmer._tick()
+        warmer._turn()
+
+    warmer.start()
+    assert overlay.visible and overlay.color == "transparent"
+    ticks_then_turn()
+    assert len(warmer._shown) == 2  # the first turn: two
+    # the two characters' repaint stalls the loop 210 ms (220 between ticks, less the 10 ms
+    # clock): 105 ms each, so one a turn, and a pause as long as the stall
+    ticks_then_turn(0.01, 0.23)
+    assert len(warmer._shown) == 1 and warmer._timer.interval() == 210
+    # the next turn comes on time, 210 ms later, its character's repaint (100 ms) inside
+    # the pause: still one a turn (late by nothing, the old measure said 0 ms: twelve)
+    ticks_then_turn(0.24, 0.35, 0.36, 0.37, 0.38, 0.39, 0.40, 0.41, 0.42, 0.43, 0.44)
+    assert len(warmer._shown) == 1 and warmer._timer.interval() == 100
+    # a repaint that costs nothing: the loop ticked every 10 ms; twelve, the most
+    ticks_then_turn(0.45, 0.46, 0.47, 0.48, 0.49, 0.50, 0.51, 0.52, 0.53, 0.54)
+    assert len(warmer._shown) == 12
+    warmer.stop()
+    assert not overlay.visible and overlay.color == "white" and overlay.text == ""
+
+
 def test_an_overlay_the_user_shows_is_left_alone(viewer_widget, qtbot):
     viewer, widget = viewer_widget
     overlay = viewer.canvas.overlays.text
