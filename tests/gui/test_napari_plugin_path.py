@@ -735,13 +735,19 @@ def test_the_characters_wait_for_the_imports_only_so_long(
 
 
 def test_characters_per_turn_fit_the_repaints_of_the_last_turn():
-    """50 ms a turn: 4 characters repainted in 20 ms (5 ms each) leave room for 10; 12 in
-    300 ms (25 ms each) for 2; a character slower than the budget alone still goes, one per
-    turn; a repaint that cost nothing allows the most, 12."""
+    """70 ms a turn: 4 characters that stalled the viewer 40 ms (10 ms each, as if the whole
+    stall were theirs) leave room for 7; 12 in 300 ms (25 ms each) for 2; a turn under the
+    budget draws one more the next turn at least (2 in 60 ms: 30 ms each would say 2, but
+    the canvas' repaint does not grow with them: 3), one at the budget as many again; a
+    character slower than the budget alone still goes, one a turn; a stall that cost nothing
+    allows the most, 12."""
     from napari_pfsdm.napari._glyphs import characters_per_turn
 
-    assert characters_per_turn(20.0, 4) == 10
+    assert characters_per_turn(40.0, 4) == 7
     assert characters_per_turn(300.0, 12) == 2
+    assert characters_per_turn(60.0, 2) == 3
+    assert characters_per_turn(69.0, 1) == 2
+    assert characters_per_turn(70.0, 5) == 5
     assert characters_per_turn(400.0, 1) == 1
     assert characters_per_turn(0.0, 2) == 12
     assert characters_per_turn(-5.0, 2) == 12  # the next turn came before its interval
@@ -771,7 +777,7 @@ def test_a_repaint_that_fits_in_the_pause_still_counts(qtbot, monkeypatch):
     ticks_then_turn()
     assert len(warmer._shown) == 2  # the first turn: two
     # the two characters' repaint stalls the loop 210 ms (220 between ticks, less the 10 ms
-    # clock): 105 ms each, so one a turn, and a pause as long as the stall
+    # clock), over the 70 ms budget: one a turn, and a pause as long as the stall
     ticks_then_turn(0.01, 0.23)
     assert len(warmer._shown) == 1 and warmer._timer.interval() == 210
     # the next turn comes on time, 210 ms later, its character's repaint (100 ms) inside
