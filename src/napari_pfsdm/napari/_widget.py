@@ -72,7 +72,8 @@ PREFETCH_FRAMES = 2
 #: ... after the selection and the time slider have been still this long (ms).
 PREFETCH_DELAY_MS = 250
 #: When napari draws the legend's characters ahead (:mod:`._glyphs`): after docking, once
-#: the Run's processes have started; during a Run, once it has lasted this long (ms).
+#: the Run's processes have started (and the background imports are done); during a Run,
+#: once it has lasted this long (ms).
 #: Drawn during the sample's 0.4 s Run they made it 1.5-2× slower.
 GLYPHS_AFTER_DOCK_MS = 1500
 GLYPHS_AFTER_RUN_START_MS = 1000
