@@ -674,11 +674,11 @@ def test_the_legends_characters_are_drawn_ahead_in_the_put_back_overlay(
     assert (overlay.visible, overlay.text, tuple(np.asarray(overlay.color).ravel())) == before
 
 
-def test_the_characters_wait_for_the_background_imports_to_finish(
-        make_napari_viewer, sample_layers, qtbot, monkeypatch):
-    """The imports after docking end with a full garbage collection (200-460 ms): the
-    characters (the first costs ~300 ms, napari's first text) are drawn after them, not in
-    the same seconds; drawn all the same once the imports are done."""
+@pytest.fixture
+def imports_held_open(make_napari_viewer, sample_layers, monkeypatch):
+    """A viewer with the sample's layers, the characters due at once after docking, and
+    docking's background imports a thread that lives until ``release`` is set. Yields
+    (viewer, the overlay texts seen, release, the thread)."""
     import threading
 
     from napari_pfsdm.napari import _widget
@@ -691,47 +691,41 @@ def test_the_characters_wait_for_the_background_imports_to_finish(
     viewer = make_napari_viewer(show=True)
     for data, kwargs, kind in sample_layers:
         getattr(viewer, f"add_{kind}")(data, **kwargs)
-    overlay = viewer.canvas.overlays.text
     seen = []
-    overlay.events.text.connect(lambda text: seen.append(text))
+    viewer.canvas.overlays.text.events.text.connect(lambda text: seen.append(text))
     try:
-        widget = dock(viewer)
-        qtbot.wait(600)  # several polls (READY_POLL_MS) later
-        assert not widget._glyphs.active and not seen
+        yield viewer, seen, release, importing
     finally:
         release.set()
         importing.join()
+
+
+def test_the_characters_wait_for_the_background_imports_to_finish(imports_held_open, qtbot):
+    """The imports after docking end with a full garbage collection (200-460 ms): the
+    characters (the first cost 180-300 ms, napari's first text) are drawn after them, not in
+    the same seconds; drawn all the same once the imports are done."""
+    viewer, seen, release, importing = imports_held_open
+    widget = dock(viewer)
+    qtbot.wait(600)  # several polls (READY_POLL_MS) later
+    assert not widget._glyphs.active and not seen
+    release.set()
+    importing.join()
     qtbot.waitUntil(lambda: bool(seen), timeout=5000)
     qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=90_000)
 
 
-def test_the_characters_wait_for_the_imports_only_so_long(
-        make_napari_viewer, sample_layers, qtbot, monkeypatch):
+def test_the_characters_wait_for_the_imports_only_so_long(imports_held_open, qtbot,
+                                                          monkeypatch):
     """Imports that never end (a hung network drive) do not keep the characters from being
     drawn: they start READY_WAIT_MS later all the same."""
-    import threading
+    from napari_pfsdm.napari import _glyphs
 
-    from napari_pfsdm.napari import _glyphs, _widget
-
-    release = threading.Event()
-    importing = threading.Thread(target=release.wait, daemon=True)
-    importing.start()
-    monkeypatch.setattr(_widget, "_BACKGROUND_IMPORT", [importing])
-    monkeypatch.setattr(_widget, "GLYPHS_AFTER_DOCK_MS", 0)
     monkeypatch.setattr(_glyphs, "READY_WAIT_MS", 300)
-    viewer = make_napari_viewer(show=True)
-    for data, kwargs, kind in sample_layers:
-        getattr(viewer, f"add_{kind}")(data, **kwargs)
-    seen = []
-    viewer.canvas.overlays.text.events.text.connect(lambda text: seen.append(text))
-    try:
-        widget = dock(viewer)
-        qtbot.waitUntil(lambda: bool(seen), timeout=5000)
-        assert importing.is_alive()
-        qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=90_000)
-    finally:
-        release.set()
-        importing.join()
+    viewer, seen, _release, importing = imports_held_open
+    widget = dock(viewer)
+    qtbot.waitUntil(lambda: bool(seen), timeout=5000)
+    assert importing.is_alive()
+    qtbot.waitUntil(lambda: not widget._glyphs.active, timeout=90_000)
 
 
 def test_characters_per_turn_fit_the_repaints_of_the_last_turn():

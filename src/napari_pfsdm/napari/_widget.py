@@ -399,7 +399,7 @@ class AnalysisWidget(QWidget):
         imports = import_in_background()
         # and napari draws the legend's characters once they have started and the imports
         # (with their garbage collection, a 200-460 ms pause) are done (:mod:`._glyphs`):
-        # the first character costs ~300 ms more (napari's first text), not in that pause
+        # the first characters cost 180-300 ms more (napari's first text), not in that pause
         self._glyphs.start_in(GLYPHS_AFTER_DOCK_MS, ready=lambda: not imports.is_alive())
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
