@@ -775,7 +775,7 @@ def test_a_repaint_that_fits_in_the_pause_still_counts(qtbot, monkeypatch):
     ticks_then_turn(0.01, 0.23)
     assert len(warmer._shown) == 1 and warmer._timer.interval() == 210
     # the next turn comes on time, 210 ms later, its character's repaint (100 ms) inside
-    # the pause: still one a turn (late by nothing, the old measure said 0 ms: twelve)
+    # the pause: still one a turn (the turn's lateness, the old measure, saw almost none)
     ticks_then_turn(0.24, 0.35, 0.36, 0.37, 0.38, 0.39, 0.40, 0.41, 0.42, 0.43, 0.44)
     assert len(warmer._shown) == 1 and warmer._timer.interval() == 100
     # a repaint that costs nothing: the loop ticked every 10 ms; twelve, the most

@@ -164,7 +164,7 @@ class GlyphWarmer:
         self._stall = max(self._stall, now - self._last_tick)
         self._last_tick = now
 
-    def stall_ms(self) -> float:
+    def _stall_ms(self) -> float:
         """The event loop's longest stall since the last turn (ms): the longest time between
         two ticks of the clock (up to now), less the clock's period."""
         now = time.perf_counter()
@@ -178,10 +178,10 @@ class GlyphWarmer:
         self.drawn.update(self._shown)  # the canvas painted it since the last turn
         pause = INTERVAL_MS
         if self._shown:
-            repaint = self.stall_ms()
-            self._per_turn = characters_per_turn(repaint, len(self._shown))
-            # the viewer free at least half of the time: a pause as long as the repaint
-            pause = int(min(max(INTERVAL_MS, round(repaint)), 1000))
+            stall = self._stall_ms()
+            self._per_turn = characters_per_turn(stall, len(self._shown))
+            # the viewer free at least half of the time: a pause as long as the stall
+            pause = int(min(max(INTERVAL_MS, round(stall)), 1000))
         self._stall = 0.0
         n = self._per_turn
         self._shown, self._todo = self._todo[:n], self._todo[n:]
