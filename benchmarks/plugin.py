@@ -979,7 +979,7 @@ def plot(table: pd.DataFrame, path: Path, title: str) -> None:
     stolen = table[machine]
     if len(stolen):  # how much of the machine the host took meanwhile: a slow run says so
         title += " (CPU stolen by the host: " + ", ".join(
-            f"{d[0]} {v:.0f} %" for d, v in zip(stolen["dataset"], stolen["median ms"],
+            f"{d[0]} {v:.1f} %" for d, v in zip(stolen["dataset"], stolen["median ms"],
                                                  strict=True)) + ")"
     names = [f"{d} · {a.replace(': longest gap', '')}"
              for d, a in zip(ms["dataset"], ms["action"], strict=True)]
