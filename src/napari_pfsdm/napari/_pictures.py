@@ -1,0 +1,303 @@
+"""The selected object's pictures, as napari layers beside its Labels layer.
+
+The SDF (blue inside, red outside), the pushed-forward disk and the reporter's disk are 2-D Image
+layers to the right of the labels, each with napari's colour bar; the outline and the skeleton
+are a Shapes layer of paths; a Points layer holds the captions. A 3-D object gets its shells as
+maps and its surface (napari's 3-D view shows it). The layers are updated in place when the
+selection or the frame changes; no layer adds a slider.
+
+:class:`PictureView` makes the pictures in a worker and shows only those of the object selected
+*now*: every selection supersedes the earlier ones, cached or not.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+from napari.layers import Image, Points, Shapes, Surface
+from napari.qt.threading import thread_worker
+
+from ..analysis.pictures import ObjectPictures, VolumePictures, object_pictures
+from ._model import Analysis
+
+#: Layer-name suffixes, after the Labels layer's name.
+SUFFIXES = {"sdf": "SDF", "disk": "PF-SDF disk", "intensity_disk": "intensity disk",
+            "lines": "outline and skeleton", "captions": "captions", "shells": "PF-SDF shells",
+            "surface": "surface"}
+#: Side of a picture cell as a fraction of the labels' height, and the gap between cells.
+CELL, GAP = 0.45, 0.12
+SIZE = 128
+#: Pictures of this many objects are kept.
+CACHE = 64
+SKELETON, OUTLINE = "#ffd000", "#202020"
+
+
+def names(source: str) -> dict[str, str]:
+    """The picture layers' names for the Labels layer called ``source``."""
+    return {k: f"{source} {v}" for k, v in SUFFIXES.items()}
+
+
+def is_picture(layer) -> bool:
+    return any(layer.name.endswith(" " + s) for s in SUFFIXES.values())
+
+
+# --------------------------------------------------------------------------- where things are
+def frame_axis(viewer, layer, analysis: Analysis | None) -> int | None:
+    """The viewer's axis of the layer's frames (None without a time axis)."""
+    time = analysis.time_lapse if analysis is not None else layer.ndim == 3
+    return viewer.dims.ndim - layer.ndim if time else None
+
+
+def current_frame(viewer, layer, analysis: Analysis | None) -> int:
+    """The frame the time slider shows for ``layer``."""
+    ax = frame_axis(viewer, layer, analysis)
+    if ax is None:
+        return 0
+    t = (viewer.dims.point[ax] - layer.translate[0]) / layer.scale[0]
+    return int(np.clip(np.rint(t), 0, layer.data.shape[0] - 1))
+
+
+def go_to(viewer, layer, analysis: Analysis, frame: int, label: int) -> None:
+    """Move the time slider to ``frame`` and select ``label``."""
+    ax = frame_axis(viewer, layer, analysis)
+    if ax is not None:
+        viewer.dims.set_point(ax, layer.translate[0] + frame * layer.scale[0])
+    layer.selected_label = int(label)
+
+
+def _cells(layer) -> dict[str, tuple[float, float, float]]:
+    """World (top, left, side) of the picture cells right of the labels (last two axes)."""
+    ny, nx = layer.data.shape[-2:]
+    sy, sx = layer.scale[-2:]
+    ty, tx = layer.translate[-2:]
+    side = CELL * ny * sy
+    left, top, step = tx + nx * sx + GAP * side, ty + 0.1 * side, side * (1 + 2 * GAP)
+    return {"sdf": (top, left, side), "disk": (top, left + step, side),
+            "intensity_disk": (top + step, left, side), "shells": (top, left, side)}
+
+
+def _layer(viewer, name: str, kind, make):
+    """The viewer's layer ``name`` of class ``kind``, made by ``make()`` when missing."""
+    if name in viewer.layers and isinstance(viewer.layers[name], kind):
+        return viewer.layers[name]
+    active = viewer.layers.selection.active
+    layer = make()
+    if active is not None:  # the user's layer stays the active one
+        viewer.layers.selection.active = active
+    return layer
+
+
+def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
+    top, left, side = cell
+    data = np.nan_to_num(data, nan=nan)
+    scale = (side / data.shape[0], side / data.shape[1])
+    layer = _layer(viewer, name, Image, lambda: viewer.add_image(
+        data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
+        translate=(top, left), interpolation2d="nearest"))
+    layer.data = data
+    layer.scale, layer.translate = scale, (top, left)
+    layer.contrast_limits = limits
+    layer.colorbar.visible = True
+    layer.visible = True
+    return layer
+
+
+def _symmetric(a: np.ndarray) -> tuple[float, float]:
+    m = float(np.nanmax(np.abs(a))) if np.isfinite(a).any() else 1.0
+    return -max(m, 1e-6), max(m, 1e-6)
+
+
+def _hide(viewer, source: str, keys) -> None:
+    for key in keys:
+        name = names(source)[key]
+        if name in viewer.layers:
+            viewer.layers[name].visible = False
+
+
+def caption(viewer, layer, where: list, texts: list[str]) -> None:
+    """Texts centred on world points ``where`` (last two axes), above the pictures."""
+    name = names(layer.name)["captions"]
+    data = np.asarray(where, float).reshape(-1, 2)
+    text = {"string": "{text}", "color": "white", "size": 9, "anchor": "center"}
+    pts = _layer(viewer, name, Points, lambda: viewer.add_points(
+        data, name=name, size=0.01, face_color="transparent", border_width=0,
+        features={"text": texts}, text=text))
+    pts.data = data
+    pts.features = {"text": list(texts)}
+    pts.text = text
+    pts.visible = True
+    top = len(viewer.layers) - 1
+    if viewer.layers.index(pts) != top:  # over the pictures
+        viewer.layers.move(viewer.layers.index(pts), top + 1)
+
+
+def _above(cell) -> tuple[float, float]:
+    top, left, side = cell
+    return top - 0.07 * side, left + side / 2
+
+
+def show(viewer, layer, analysis: Analysis, pictures) -> None:
+    """Show ``pictures`` (of the selected object) beside ``layer``."""
+    if isinstance(pictures, VolumePictures):
+        _show_3d(viewer, layer, analysis, pictures)
+    else:
+        _show_2d(viewer, layer, analysis, pictures)
+
+
+def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
+    n = names(layer.name)
+    cells = _cells(layer)
+    _image(viewer, n["sdf"], p.sdf, cells["sdf"], "bwr", _symmetric(p.sdf))
+    _image(viewer, n["disk"], p.disk, cells["disk"], "bwr", _symmetric(p.disk))
+    if p.intensity_disk is not None:
+        hi = float(np.nanmax(p.intensity_disk)) if np.isfinite(p.intensity_disk).any() else 1
+        _image(viewer, n["intensity_disk"], p.intensity_disk, cells["intensity_disk"],
+               "magma", (0.0, max(hi, 1e-6)))
+    else:
+        _hide(viewer, layer.name, ["intensity_disk"])
+    scale, shift = np.asarray(layer.scale[-2:]), np.asarray(layer.translate[-2:])
+    top, left, side = cells["sdf"]
+    on_sdf = [(np.asarray(q) - p.sdf_corner) / p.sdf_step * side / SIZE + (top, left)
+              for q in [p.outline, *p.skeleton_image]]
+    top2, left2, side2 = cells["disk"]
+    on_disk = [np.asarray(q) * side2 / SIZE + (top2, left2) for q in p.skeleton_disk]
+    on_object = [np.asarray(q) * scale + shift for q in p.skeleton_image]
+    paths = on_sdf + on_disk + on_object
+    colors = [OUTLINE] + [SKELETON] * (len(paths) - 1)
+    name = n["lines"]
+    width = 0.004 * layer.data.shape[-2] * layer.scale[-2]
+    lines = _layer(viewer, name, Shapes, lambda: viewer.add_shapes(
+        name=name, ndim=2, edge_width=width, face_color="transparent"))
+    lines.data = []
+    if paths:
+        lines.add_paths(paths, edge_color=colors, edge_width=width)
+    lines.visible = True
+    where = f"frame {p.frame} · " if analysis.time_lapse else ""
+    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}"]
+    spots = [_above(cells["sdf"]), _above(cells["disk"]),
+             _above((cells["disk"][0] + side * 1.2, cells["disk"][1], side))]
+    if p.intensity_disk is not None:
+        texts.append("reporter (× mean)")
+        spots.append(_above(cells["intensity_disk"]))
+    if p.notes:
+        texts.append("; ".join(p.notes))
+        spots.append(_above((cells["intensity_disk"][0], cells["disk"][1], side)))
+    caption(viewer, layer, spots, texts)
+
+
+def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
+    n = names(layer.name)
+    cells = _cells(layer)
+    stacked = np.concatenate([s - np.nanmean(s) for s in p.shells], axis=0)
+    top, left, side = cells["shells"]
+    _image(viewer, n["shells"], stacked, (top, left, side * 2), "bwr", _symmetric(stacked))
+    verts, faces, values = p.surface
+    scale = np.asarray(layer.scale[-3:])
+    shift = np.asarray(layer.translate[-3:])
+    data = (verts * scale + shift, faces, values)
+    name = n["surface"]
+    surf = _layer(viewer, name, Surface, lambda: viewer.add_surface(
+        data, name=name, colormap="viridis"))
+    surf.data = data
+    surf.contrast_limits = (float(values.min()), float(max(values.max(), values.min() + 1e-6)))
+    surf.visible = True
+    where = f"frame {p.frame} · " if analysis.time_lapse else ""
+    caption(viewer, layer, [_above((top, left, side))],
+            [f"{where}label {p.label}: PF-SDF on 4 shells (centre at top); "
+             "surface in the 3-D view"])
+
+
+def say(viewer, layer, text: str) -> None:
+    """No pictures for the selection: hide them and say why where they would be."""
+    _hide(viewer, layer.name, ["sdf", "disk", "intensity_disk", "lines", "shells", "surface"])
+    caption(viewer, layer, [_above(_cells(layer)["sdf"])], [text])
+
+
+@thread_worker(start_thread=False)
+def _make(analysis: Analysis, frame: int, label: int):
+    t = frame if analysis.time_lapse else 0
+    return object_pictures(analysis.labels, analysis.intensity, t, label,
+                           params=analysis.params, axes=analysis.axes,
+                           spacing=analysis.spacing, box=analysis.boxes.get((t, label)),
+                           size=SIZE)
+
+
+class PictureView:
+    """Shows the pictures of the selected object of one viewer; made in a worker, kept in a
+    small cache; only the pictures of the selection made last are ever shown."""
+
+    def __init__(self, viewer) -> None:
+        self.viewer = viewer
+        self.cache: OrderedDict = OrderedDict()
+        self.wanted: tuple | None = None  # (layer, analysis, key)
+        self.shown: tuple | None = None  # key of the pictures on screen
+        self.worker = None
+
+    def want(self, layer, analysis: Analysis) -> None:
+        """Show the pictures of ``analysis.selection`` (made now or in the background)."""
+        if analysis.selection is None:
+            return
+        frame, label = analysis.selection
+        key = (analysis.key, frame, label)
+        self.wanted = (layer, analysis, key)
+        error = analysis.error_of(frame, label)
+        where = f"frame {frame}, " if analysis.time_lapse else ""
+        if error is None:
+            self._say(f"{where}label {label}: not in this frame, no pictures", key)
+        elif error:
+            self._say(f"{where}label {label} has no features: {error}", key)
+        elif key in self.cache:
+            self._show(key)
+        else:
+            caption(self.viewer, layer, [_above(_cells(layer)["sdf"])],
+                    [f"making the pictures of {where}label {label}…"])
+            if self.worker is None:
+                self._start()
+
+    def _say(self, text: str, key) -> None:
+        say(self.viewer, self.wanted[0], text)
+        self.shown = key
+
+    def _start(self) -> None:
+        layer, analysis, key = self.wanted
+        worker = _make(analysis, key[1], key[2])
+        worker.returned.connect(lambda pics, key=key: self._done(key, pics))
+        worker.errored.connect(lambda err, key=key: self._done(key, err))
+        worker.finished.connect(self._finished)
+        self.worker = worker
+        worker.start()
+
+    def _done(self, key, result) -> None:
+        self.cache[key] = result
+        while len(self.cache) > CACHE:
+            self.cache.popitem(last=False)
+        if self.wanted is not None and self.wanted[2] == key:
+            self._show(key)
+
+    def _finished(self) -> None:
+        self.worker = None
+        if self.wanted is not None and self.wanted[2] not in self.cache \
+                and self.shown != self.wanted[2]:
+            self._start()
+
+    def _show(self, key) -> None:
+        layer, analysis, _ = self.wanted
+        result = self.cache[key]
+        self.cache.move_to_end(key)
+        if layer not in self.viewer.layers:
+            return
+        if isinstance(result, Exception):
+            self._say(f"no pictures: {result}", key)
+            return
+        first = names(layer.name)["disk"] not in self.viewer.layers \
+            and names(layer.name)["shells"] not in self.viewer.layers
+        show(self.viewer, layer, analysis, result)
+        self.shown = key
+        if first:  # make room for the new pictures beside the image, once
+            self.viewer.reset_view()
+
+    def clear(self) -> None:
+        """Forget every picture (a new run)."""
+        self.cache.clear()
+        self.shown = None

