@@ -56,9 +56,22 @@ def test_headless_modules_import_no_gui_toolkit():
 def test_the_check_would_notice_a_gui_import():
     """The subprocess check itself works: importing the plugin pulls in napari and Qt."""
     pytest.importorskip("napari")  # without napari there is nothing to show (skipped, said so)
-    code = SCRIPT.format(names=["napari_pfsdm.napari._widget"], forbidden=set(FORBIDDEN))
+    code = SCRIPT.format(names=["napari_pfsdm.napari._analysis"], forbidden=set(FORBIDDEN))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert "napari" in result["bad"] and "qtpy" in result["bad"]
+
+
+def test_the_plugins_model_imports_no_gui_toolkit():
+    """The plugin's model and results (``napari._model``, ``napari._results``) are plain
+    Python: they run and are tested without Qt or napari."""
+    pytest.importorskip("psygnal")
+    code = SCRIPT.format(names=["napari_pfsdm.napari._model", "napari_pfsdm.napari._results"],
+                         forbidden=set(FORBIDDEN))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, env={"PATH": "/usr/bin:/bin", "QT_API": "pyqt6"})
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["bad"] == [], f"GUI modules imported by the model: {result['bad'][:10]}"

@@ -7,6 +7,7 @@ import pytest
 pytest.importorskip("napari")
 pytest.importorskip("pytestqt")
 
+
 @pytest.fixture
 def sample_layers():
     from napari_pfsdm.napari._sample_data import gastruloid_timelapse
@@ -15,12 +16,12 @@ def sample_layers():
 
 
 @pytest.fixture
-def viewer_widget(make_napari_viewer, sample_layers):
-    """A viewer with the gastruloid sample and the analysis widget docked from the plugin
-    menu (napari hands the widget a public-only proxy of the viewer, as for a user)."""
+def viewer_widget(make_napari_viewer_proxy, sample_layers):
+    """A public-only viewer with the gastruloid sample and the analysis dock docked from the
+    plugin menu."""
     from napari_helpers import dock
 
-    viewer = make_napari_viewer()
+    viewer = make_napari_viewer_proxy()
     for data, kwargs, kind in sample_layers:
         getattr(viewer, f"add_{kind}")(data, **kwargs)
     return viewer, dock(viewer)
@@ -28,8 +29,7 @@ def viewer_widget(make_napari_viewer, sample_layers):
 
 @pytest.fixture(autouse=True)
 def _workers_done():
-    """Let the widgets' background workers (pictures made ahead of time) finish before the
-    next test and before the interpreter exits (napari waits for them when its window closes)."""
+    """Let the docks' workers finish before the next test (napari checks for leftovers)."""
     yield
     from superqt.utils._qthreading import WorkerBase
 

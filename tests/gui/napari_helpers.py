@@ -1,57 +1,37 @@
-"""Helpers for the napari plugin tests."""
+"""Helpers for the napari plugin tests: dock as napari does, wait for what a user waits for."""
 
 from __future__ import annotations
 
 import numpy as np
 
 RUN_TIMEOUT_MS = 180_000
-#: The plugin's widgets by their menu names (napari.yaml).
-ANALYSIS = "PF-SDM analysis"
-TRAJECTORIES = "PF-SDM trajectories (PCA)"
-COMPARISON = "PF-SDM shape comparison"
-PREDICTION = "PF-SDM prediction"
-COMPONENTS = "PF-SDM components"
+ANALYSIS, PLOTS, PREDICTION = "PF-SDM analysis", "PF-SDM plots", "PF-SDM prediction"
 
 
 def dock(viewer, name: str = ANALYSIS):
-    """Dock one of the plugin's widgets as Plugins ▸ napari-pfsdm does: napari makes it and
-    hands it a public-only proxy of the viewer (not the viewer itself)."""
+    """Dock one of the plugin's widgets as Plugins ▸ PF-SDM morphometrics does (napari makes
+    it and hands it a public-only proxy of the viewer)."""
     _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", name)
     return widget
 
 
-def open_plots(qtbot, widget) -> list:
-    """Press "Open plots" and wait for both plots to be docked and showing the results (the
-    second docks in a later turn of the event loop, and each shows the layer in the turn
-    after its docking)."""
-    widget.open_plots()
-    qtbot.waitUntil(lambda: len(widget.plots) == 2
-                    and all(p.output is not None for p in widget.plots), timeout=30_000)
-    return widget.plots
+def run_and_wait(qtbot, widget):
+    """Press Run and wait until the results are shown; returns the layer's analysis."""
+    worker = widget.run()
+    assert worker is not None, widget.status.value
+    qtbot.waitUntil(lambda: widget.worker is None, timeout=RUN_TIMEOUT_MS)
+    assert widget.bound is not None, widget.status.value
+    return widget.bound[1]
 
 
-def wait_computed(qtbot, plot, timeout: int = 60_000) -> None:
-    """Flush a plot's pending redraw and wait for its distances (computed in a worker)."""
-    plot.flush()
-    qtbot.waitUntil(lambda: not getattr(plot, "computing", False), timeout=timeout)
-    plot.flush()
+def settled(widget) -> bool:
+    """True when the pictures on screen are those of the selection (nothing pending)."""
+    pics = widget.pictures
+    return pics.worker is None and pics.wanted is not None and pics.shown == pics.wanted[2]
 
 
-def run_and_wait(qtbot, widget, **kwargs):
-    """Run the analysis and wait until the results are shown."""
-    with qtbot.waitSignal(widget.finished, timeout=RUN_TIMEOUT_MS):
-        worker = widget.run(**kwargs)
-        assert worker is not None, widget.status.text()
-    qtbot.waitUntil(lambda: widget.worker is None, timeout=5000)
-    return widget.last_output
-
-
-def wait_pictures(qtbot, widget, key=None, timeout: int = 30_000):
-    """Wait until the pictures of ``key`` = (frame, label) (default: whatever is selected
-    first) are shown; return them."""
-    qtbot.waitUntil(lambda: widget.shown_key is not None
-                    and (key is None or widget.shown_key == tuple(key)), timeout=timeout)
-    return widget.pictures.get(widget.shown_key)
+def wait_pictures(qtbot, widget, timeout: int = 60_000) -> None:
+    qtbot.waitUntil(lambda: settled(widget), timeout=timeout)
 
 
 def many_objects(n_rows: int = 10, n_cols: int = 20, cell: int = 24) -> np.ndarray:
@@ -65,6 +45,6 @@ def many_objects(n_rows: int = 10, n_cols: int = 20, cell: int = 24) -> np.ndarr
         th = rng.uniform(0, np.pi)
         u = xx * np.cos(th) + yy * np.sin(th)
         v = -xx * np.sin(th) + yy * np.cos(th)
-        mask = (u / a) ** 2 + (v / b) ** 2 <= 1
-        labels[r * cell:(r + 1) * cell, c * cell:(c + 1) * cell][mask] = i + 1
+        labels[r * cell:(r + 1) * cell, c * cell:(c + 1) * cell][(u / a) ** 2 + (v / b) ** 2
+                                                                 <= 1] = i + 1
     return labels

@@ -23,11 +23,13 @@ def test_manifest_is_valid_and_its_commands_import():
     mf.validate_imports()
     assert mf.name == "napari-pfsdm"
     widgets = {w.display_name for w in mf.contributions.widgets}
-    assert widgets == {"PF-SDM analysis", "PF-SDM trajectories (PCA)", "PF-SDM shape comparison",
-                       "PF-SDM prediction", "PF-SDM components"}
+    assert widgets == {"PF-SDM analysis", "PF-SDM plots", "PF-SDM prediction"}
     assert [s.key for s in mf.contributions.sample_data] == ["gastruloids", "five_shapes"]
     menus = mf.contributions.menus
-    assert {"napari/layers/measure", "napari/layers/visualize"} <= set(menus)
+    assert {"napari/layers/measure", "napari/layers/visualize", "napari/layers/classify"} \
+        <= set(menus)
+    # prediction is a classifier: napari's Layers > Classify
+    assert [m.command for m in menus["napari/layers/classify"]] == ["napari-pfsdm.prediction"]
     # the package's copy is the same file (a symlink in the source tree)
     packaged = ROOT / "src" / "napari_pfsdm" / "napari.yaml"
     assert packaged.read_text() == MANIFEST.read_text()
@@ -37,7 +39,7 @@ def test_installed_plugin_is_discovered():
     pm = npe2.PluginManager.instance()
     pm.discover()
     mf = pm.get_manifest("napari-pfsdm")
-    assert len(mf.contributions.widgets) == 5
+    assert len(mf.contributions.widgets) == 3
 
 
 def test_sample_data_is_deterministic_and_small():

@@ -96,6 +96,7 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity):
 def _export_worker(analysis, folder, prefix):
     from ._export import export
 
+    yield "exporting"  # Cancel before this point writes nothing
     return export(analysis, folder, prefix)
 
 
@@ -178,6 +179,7 @@ class AnalysisWidget(QWidget):
         napari_viewer.dims.events.current_step.connect(self._sync_selection)
         napari_viewer.cursor.events.position.connect(self._on_hover)
         REGISTRY.updated.connect(self._on_registry)
+        self.destroyed.connect(lambda *_, cb=self._on_registry: REGISTRY.updated.disconnect(cb))
         self._refresh_choices()
         threading.Thread(target=_warm_pool, name="pfsdm-pool", daemon=True).start()
 
@@ -206,16 +208,20 @@ class AnalysisWidget(QWidget):
             self.reporter.value = self.reporter.choices[1]  # the first fitting image
         self._show_relevant_options()
 
+    def relevant(self, option) -> bool:
+        """Whether ``option`` applies to the chosen layer (2-D or 3-D objects) and choices."""
+        labels = self.labels_layer
+        three_d = labels is not None and (labels.ndim == 4 or (
+            labels.ndim == 3 and FIRST_AXIS[self.first_axis.value] == "z"))
+        if option.name == "viscosity" and self.options["sdf"].value != "viscous":
+            return False
+        return option.dims == "both" or (option.dims == "3d") == three_d
+
     def _show_relevant_options(self, *args) -> None:
         labels = self.labels_layer
         self.first_axis.visible = labels is not None and labels.ndim == 3
-        three_d = labels is not None and (labels.ndim == 4 or (
-            labels.ndim == 3 and FIRST_AXIS[self.first_axis.value] == "z"))
         for o in OPTIONS:
-            shown = o.dims == "both" or (o.dims == "3d") == three_d
-            if o.name == "viscosity":
-                shown = shown and self.options["sdf"].value == "viscous"
-            self.options[o.name].visible = shown
+            self.options[o.name].visible = self.relevant(o)
 
     @property
     def labels_layer(self) -> Labels | None:
@@ -231,7 +237,7 @@ class AnalysisWidget(QWidget):
     def params(self) -> PFSDMParams:
         """The method's options chosen in the form (those shown; the others at default)."""
         return PFSDMParams.from_options({o.name: self.options[o.name].value for o in OPTIONS
-                                         if self.options[o.name].visible
+                                         if self.relevant(o)
                                          and self.options[o.name].value != o.default})
 
     def identity_mode(self) -> tuple[str, object, str]:

@@ -330,8 +330,10 @@ class ComparisonPlot(_Plot):
         else:
             ax_p = self.axes(111)
             title = f"map of each object's {GRAPH_K} nearest shapes (spectral)"
-        colors = keys[:, 0] if key[0] is None else "tab:blue"
-        ax_p.scatter(*xy.T, c=colors, s=18, cmap="viridis", edgecolors="none")
+        if key[0] is None:  # all frames: colour = frame
+            ax_p.scatter(*xy.T, c=keys[:, 0], s=18, cmap="viridis", edgecolors="none")
+        else:
+            ax_p.scatter(*xy.T, color="tab:blue", s=18, edgecolors="none")
         if len(rows) <= 30:
             for (_f, lab), (px, py) in zip(keys, xy, strict=True):
                 ax_p.annotate(str(lab), (px, py), fontsize=7, xytext=(3, 3),
@@ -500,6 +502,7 @@ class PlotsWidget(QWidget):
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plots[i].redraw())
         REGISTRY.updated.connect(self._on_registry)
+        self.destroyed.connect(lambda *_, cb=self._on_registry: REGISTRY.updated.disconnect(cb))
         napari_viewer.layers.events.removed.connect(self._on_registry)
         self._on_registry()
 

@@ -85,6 +85,7 @@ class PredictionWidget(QWidget):
         self.cancel_button.changed.connect(self.cancel)
         self.layer_choice.changed.connect(self._show_classes)
         REGISTRY.updated.connect(self._refresh)
+        self.destroyed.connect(lambda *_, cb=self._refresh: REGISTRY.updated.disconnect(cb))
         napari_viewer.layers.events.removed.connect(self._refresh)
         self._refresh()
 

@@ -1,0 +1,248 @@
+"""The plugin as a user meets it: docked from the Plugins menu on a public-only viewer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from napari_helpers import (
+    PLOTS,
+    PREDICTION,
+    dock,
+    many_objects,
+    run_and_wait,
+    wait_pictures,
+)
+
+import napari_pfsdm as pf
+
+pytestmark = pytest.mark.gui
+
+
+def _layer(viewer, suffix):
+    return viewer.layers[f"gastruloids {suffix}"]
+
+
+def test_run_measures_what_measure_measures_and_fills_the_layer_features(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    labels, reporter = viewer.layers["gastruloids"], viewer.layers["gastruloids reporter"]
+    assert w.labels.value == "gastruloids" and w.reporter.value == "gastruloids reporter"
+    analysis = run_and_wait(qtbot, w)
+    expected = pf.measure(np.asarray(labels.data), np.asarray(reporter.data))
+    got = analysis.table.drop(columns=["track_id"])
+    pd.testing.assert_frame_equal(got.reset_index(drop=True), expected.reset_index(drop=True),
+                                  check_like=True)
+    features = labels.features
+    assert len(features) == len(expected) and features["index"].tolist() == \
+        expected["label"].tolist()
+    assert {"frame", "label", "shape_PC1", "circularity"} <= set(features.columns)
+    assert "72 objects" in w.status.value and "PC1" in w.status.value
+
+
+def test_the_pictures_are_always_the_selected_objects_after_bursts(qtbot, viewer_widget):
+    """Quick bursts of selections, frame steps and trajectory clicks: once the plugin is idle,
+    the disk shown is exactly pf.render_disk of the selected object in the current frame."""
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    labels = viewer.layers["gastruloids"]
+    data = np.asarray(labels.data)
+    rng = np.random.default_rng(1)
+    n_points = len(plots.trajectories.keys)
+    assert n_points == 72
+    for _burst in range(6):
+        for _ in range(5):
+            kind = rng.integers(3)
+            if kind == 0:
+                labels.selected_label = int(rng.integers(1, 7))
+            elif kind == 1:
+                viewer.dims.set_current_step(0, int(rng.integers(0, 12)))
+            else:
+                plots.trajectories.select(int(rng.integers(n_points)))
+            qtbot.wait(int(rng.integers(0, 30)))
+        wait_pictures(qtbot, w)
+        frame = int(viewer.dims.current_step[0])
+        label = int(labels.selected_label)
+        assert w.pictures.shown[1:] == (frame, label)
+        expected = pf.render_disk(pf.pfsdm(data[frame] == label), 128)
+        shown = _layer(viewer, "PF-SDF disk").data
+        np.testing.assert_allclose(shown, np.nan_to_num(expected), atol=1e-4)
+        assert f"label {label}" in " ".join(_layer(viewer, "captions").features["text"])
+
+
+def test_a_trajectory_click_moves_napari_to_that_frame_and_object(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    keys = plots.trajectories.keys
+    i = int(np.flatnonzero((keys[:, 0] == 7) & (keys[:, 1] == 4))[0])
+    plots.trajectories.select(i)
+    assert viewer.dims.current_step[0] == 7
+    assert viewer.layers["gastruloids"].selected_label == 4
+    assert w.bound[1].selection == (7, 4)
+    # and the plot marks it: a star on that very point
+    star = plots.trajectories.marks[-1]
+    np.testing.assert_allclose(star.get_offsets()[0], plots.trajectories.xy[i])
+
+
+def test_an_object_without_features_says_so_where_the_pictures_would_be(qtbot,
+                                                                          make_napari_viewer_proxy):
+    viewer = make_napari_viewer_proxy()
+    labels = np.zeros((64, 96), np.uint16)
+    labels[8:40, 8:40] = 1
+    labels[50:53, 60:63] = 2  # 9 px: below min_area
+    layer = viewer.add_labels(labels, name="cells")
+    w = dock(viewer)
+    run_and_wait(qtbot, w)
+    layer.selected_label = 1
+    wait_pictures(qtbot, w)
+    assert viewer.layers["cells PF-SDF disk"].visible
+    layer.selected_label = 2
+    wait_pictures(qtbot, w)
+    text = " ".join(viewer.layers["cells captions"].features["text"])
+    assert "label 2 has no features" in text and "too small" in text
+    assert not viewer.layers["cells PF-SDF disk"].visible
+
+
+def test_cancel_keeps_nothing(qtbot, make_napari_viewer_proxy):
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(np.stack([many_objects()] * 3), name="many")
+    w = dock(viewer)
+    worker = w.run()
+    w.cancel()
+    qtbot.waitUntil(lambda: w.worker is None, timeout=120_000)
+    assert worker is not None and w.bound is None
+    assert "Cancelled" in w.status.value and "frame" not in layer.features.columns
+    from napari_pfsdm.napari._model import REGISTRY
+
+    assert REGISTRY.get(layer.unique_id) is None
+
+
+def test_bad_layers_get_a_plain_message_and_no_run(qtbot, make_napari_viewer_proxy):
+    viewer = make_napari_viewer_proxy()
+    viewer.add_labels(np.zeros((32, 32), np.uint8), name="empty")
+    w = dock(viewer)
+    assert w.run() is not None  # the count happens in the worker: empty is said there
+    qtbot.waitUntil(lambda: w.worker is None, timeout=60_000)
+    assert "no objects" in w.status.value and w.bound is None
+    w.options["n_fourier"].value = 60  # more than 64 angles can carry
+    viewer.layers["empty"].data[4:20, 4:20] = 1
+    assert w.run() is None and "n_fourier" in w.status.value
+
+
+def test_export_writes_plain_csv_with_sidecars_equal_to_the_run(qtbot, viewer_widget, tmp_path):
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    worker = w.export(tmp_path)
+    with qtbot.waitSignal(worker.finished, timeout=120_000):
+        pass
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == sorted(["gastruloids_features.csv", "gastruloids_features.csv.json",
+                            "gastruloids_pca_shape.csv", "gastruloids_pca_shape.csv.json",
+                            "gastruloids_pca_intensity.csv", "gastruloids_pca_intensity.csv.json",
+                            "gastruloids_distances.csv", "gastruloids_distances.csv.json"])
+    features = pd.read_csv(tmp_path / "gastruloids_features.csv")
+    np.testing.assert_allclose(features["shape_r00_n00"], analysis.table["shape_r00_n00"])
+    d = pd.read_csv(tmp_path / "gastruloids_distances.csv", index_col=0)
+    expected = pf.distance_matrix(pf.drop_failed(analysis.table), intensity_weight=1.0)
+    np.testing.assert_allclose(d.to_numpy(), expected, rtol=1e-9)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "gastruloids_distances.csv").write_text("someone else's table\n")
+    again = w.export(other)  # a name taken by a file we did not write: nothing is written
+    with qtbot.waitSignal(again.finished, timeout=60_000):
+        pass
+    assert "Nothing was exported" in w.status.value
+    assert sorted(p.name for p in other.iterdir()) == ["gastruloids_distances.csv"]
+    assert (other / "gastruloids_distances.csv").read_text() == "someone else's table\n"
+
+
+def test_layer_for_plotters_has_one_id_per_object_and_frame(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    objects = w.add_objects_layer()
+    labels = np.asarray(viewer.layers["gastruloids"].data)
+    t, lab = analysis.table["frame"].to_numpy(), analysis.table["label"].to_numpy()
+    for row in (0, 17, 71):
+        mask = labels[t[row]] == lab[row]
+        assert set(np.unique(objects.data[t[row]][mask])) == {row + 1}
+    assert objects.features["index"].tolist() == list(range(1, 73))
+    assert objects.features["frame"].tolist() == t.tolist()
+
+
+def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    p = dock(viewer, PREDICTION)
+    assert "multi-axes: 2 objects" in p.classes.value  # the sample's groups
+    p.last.value = 3
+    worker = p.run()
+    with qtbot.waitSignal(worker.finished, timeout=180_000):
+        pass
+    assert "Balanced accuracy" in p.status.value, p.status.value
+    cols = [c for c in viewer.layers["gastruloids"].features.columns if c.startswith("p_")]
+    assert sorted(cols) == ["p_multi-axes", "p_single-axis"]
+    probs = viewer.layers["gastruloids"].features[cols].to_numpy()
+    np.testing.assert_allclose(probs.sum(axis=1), 1.0)
+
+
+def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_layers):
+    viewer = make_napari_viewer(show=True)
+    window = viewer.window._qt_window  # the test measures the window; the plugin never does
+    window.resize(1280, 800)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    w = dock(viewer)
+    run_and_wait(qtbot, w)
+    w.open_plots()
+    dock(viewer, PREDICTION)
+    wait_pictures(qtbot, w)
+    qtbot.wait(300)
+    assert window.height() <= 800
+    for button in (w.run_button, w.export_button):
+        native = button.native
+        top_left = native.mapTo(window, native.rect().topLeft())
+        assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
+    shot = viewer.screenshot(canvas_only=True)[..., :3]
+    assert shot.std() > 5  # the canvas shows the image and the pictures, not a blank
+
+
+def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
+    from napari_pfsdm.data.volumes import blob_volume
+
+    viewer = make_napari_viewer_proxy()
+    blob = blob_volume("tetrahedron", size=(24, 40, 40), radius=10)
+    labels = np.zeros((24, 40, 80), np.uint16)
+    labels[:, :, :40][blob] = 1
+    labels[6:18, 10:30, 50:70] = 2
+    layer = viewer.add_labels(labels, name="stack")
+    w = dock(viewer)
+    w.first_axis.value = "Z (slices of 3-D objects)"
+    analysis = run_and_wait(qtbot, w)
+    assert analysis.axes == "zyx" and len(analysis.table) == 2
+    layer.selected_label = 2
+    wait_pictures(qtbot, w)
+    surface = viewer.layers["stack surface"]
+    verts = surface.data[0]
+    assert verts.shape[1] == 3
+    assert 5 <= verts[:, 0].min() and verts[:, 0].max() <= 18  # on the box of label 2, in z
+    assert 49 <= verts[:, 2].min() and verts[:, 2].max() <= 70
+    assert "label 2" in viewer.layers["stack captions"].features["text"][0]
+
+
+def test_the_plots_follow_the_model(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    traj = plots.trajectories
+    assert traj.analysis is analysis and "circularity" in traj.info.value
+    analysis.set_groups({1: "a", 2: "b"})
+    traj.color_by.value = "group"
+    legend = traj.points_axes.get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == ["a", "b"]
+    plots.tabs.setCurrentIndex(1)
+    viewer.dims.set_current_step(0, 3)
+    qtbot.waitUntil(lambda: len(plots.comparison.keys) == 6, timeout=60_000)
+    sub = pf.drop_failed(analysis.table[analysis.table["frame"] == 3])
+    np.testing.assert_allclose(analysis.comparison[(3, 1.0, False)]["d"],
+                               pf.distance_matrix(sub, intensity_weight=1.0), rtol=1e-9)

@@ -1,0 +1,144 @@
+"""The plugin's model and results without Qt or napari: runs, signals, the rows behind a view."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+pytest.importorskip("psygnal")
+
+import napari_pfsdm as pf  # noqa: E402
+from napari_pfsdm.napari._model import Analysis, Registry  # noqa: E402
+from napari_pfsdm.napari._results import (  # noqa: E402
+    identify,
+    layer_features,
+    object_ids,
+    object_line,
+    run_analysis,
+)
+
+
+def _table() -> pd.DataFrame:
+    return pd.DataFrame({"frame": [0, 0, 1, 1], "label": [1, 2, 1, 2], "area": [10, 20, 11, 21],
+                         "error": ["", "too small", "", ""], "warnings": ["", "", "", "w"]})
+
+
+def _finish(gen):
+    """Run a generator to its end; return (its yields, its value)."""
+    seen = []
+    while True:
+        try:
+            seen.append(next(gen))
+        except StopIteration as stop:
+            return seen, stop.value
+
+
+def test_each_run_of_a_layer_is_numbered_and_replaces_the_last():
+    reg = Registry()
+    events = []
+    reg.updated.connect(events.append)
+    first = reg.new_run("A", _table(), options={}, axes="tyx")
+    second = reg.new_run("A", _table(), options={}, axes="tyx")
+    other = reg.new_run("B", _table(), options={}, axes="tyx")
+    assert (first.run, second.run, other.run) == (1, 2, 1)
+    assert reg.get("A") is second and first.key != second.key
+    reg.forget("A")
+    assert reg.get("A") is None and "A" not in reg and events == ["A", "A", "B", "A"]
+    assert reg.new_run("A", _table(), options={}, axes="tyx").run == 3  # never reused
+
+
+def test_one_signal_per_change_naming_what_changed():
+    a = Analysis("A", 1, _table(), {}, axes="tyx")
+    seen = []
+    a.changed.connect(seen.append)
+    a.select(1, 2)
+    a.select(1, 2)  # no change, no signal
+    a.set_groups({1: "x"})
+    a.set_comparison((0, 0.0, False), {"d": np.zeros((2, 2))})
+    assert seen == ["selection", "groups", "comparison"]
+    assert a.selection == (1, 2) and a.groups == {1: "x"}
+
+
+def test_rows_and_errors_are_looked_up_by_frame_and_label():
+    a = Analysis("A", 1, _table(), {}, axes="tyx")
+    assert a.row_of(1, 2) == 3 and a.row_of(2, 1) is None
+    assert a.error_of(0, 2) == "too small" and a.error_of(0, 1) == "" and a.error_of(5, 5) is None
+    assert a.labels_in(1).tolist() == [1, 2]
+    assert a.measured.tolist() == [True, False, True, True]
+    still = Analysis("A", 1, _table(), {}, axes="yx")  # no time axis: the frame is ignored
+    assert still.row_of(7, 2) == 1
+
+
+def test_the_line_on_an_object_says_what_its_row_holds():
+    a = Analysis("A", 1, _table(), {}, axes="tyx")
+    assert object_line(a, 0, 2) == "frame 0 · label 2 · area 20 px · no features: too small"
+    assert object_line(a, 1, 2) == "frame 1 · label 2 · area 21 px · ⚠ w"
+    assert object_line(a, 3, 1) == "frame 3 · label 1: not in this frame"
+
+
+def test_layer_features_are_numbers_keyed_by_label_with_the_failed_rows_flagged():
+    a = Analysis("A", 1, _table().assign(border=[True, False, True, False]), {}, axes="tyx")
+    f = layer_features(a)
+    assert list(f.columns[:3]) == ["index", "frame", "label"]
+    assert f["index"].tolist() == [1, 2, 1, 2]
+    assert f["failed"].tolist() == [0, 1, 0, 0]
+    assert "error" not in f and "warnings" not in f
+    assert f["border"].tolist() == [1, 0, 1, 0]  # booleans as numbers for plotters
+
+
+def test_objects_get_one_id_per_frame_and_label_in_the_table_order():
+    labels = np.array([[[0, 1, 7]], [[7, 0, 1]]])  # label 7 moves, 1 moves
+    table = pd.DataFrame({"frame": [0, 0, 1, 1], "label": [1, 7, 1, 7], "error": [""] * 4})
+    ids = object_ids(labels, Analysis("A", 1, table, {}, axes="tyx"))
+    assert ids.tolist() == [[[0, 1, 2]], [[4, 0, 3]]]
+
+
+def test_the_run_gives_the_rows_of_measure_with_progress_to_the_total():
+    labels = np.zeros((2, 64, 64), np.uint16)
+    labels[:, 8:30, 8:26] = 1
+    labels[0, 34:60, 30:50] = 2
+    labels[1, 36:58, 28:52] = 2
+    seen, fields = _finish(run_analysis(labels, workers=1))
+    assert seen[-1] == (4, 4) and all(d <= n for d, n in seen)
+    expected = pf.measure(labels)
+    pd.testing.assert_frame_equal(fields["table"].reset_index(drop=True),
+                                  expected.reset_index(drop=True), check_like=True)
+    assert fields["axes"] == "tyx" and "PC1" in fields["pca"]["shape"]
+
+
+def test_a_closed_run_stops_and_keeps_nothing():
+    labels = np.zeros((3, 64, 64), np.uint16)
+    labels[:, 8:30, 8:26] = 1
+    gen = run_analysis(labels, workers=1)
+    assert next(gen) is not None
+    gen.close()
+    with pytest.raises(StopIteration):
+        next(gen)
+
+
+def test_bad_layers_are_refused_in_words():
+    with pytest.raises(ValueError, match="no objects"):
+        _finish(run_analysis(np.zeros((8, 8), np.uint8)))
+    with pytest.raises(ValueError, match="colour picture"):
+        _finish(run_analysis(np.ones((32, 32, 3), np.uint8)))
+    with pytest.raises(ValueError, match="does not match"):
+        _finish(run_analysis(np.ones((8, 8), np.uint8), np.ones((9, 8))))
+
+
+def test_ids_that_jump_between_frames_are_linked_into_tracks():
+    # two objects far apart whose ids swap from frame to frame (a per-frame segmentation)
+    rows = []
+    for t in range(6):
+        swap = t % 2
+        rows += [{"frame": t, "label": 1 + swap, "centroid_y": 10.0, "centroid_x": 10.0 + t,
+                  "area": 100, "error": ""},
+                 {"frame": t, "label": 2 - swap, "centroid_y": 80.0, "centroid_x": 80.0 - t,
+                  "area": 100, "error": ""}]
+    table = pd.DataFrame(rows)
+    linked, message = identify(table, None, True, "auto")
+    left = linked[linked["centroid_y"] == 10.0]["track_id"]
+    assert left.nunique() == 1 and "do not follow" in message
+    trusted, warning = identify(table, None, True, "labels")
+    assert trusted["track_id"].tolist() == table["label"].tolist()
+    assert warning.startswith("Warning")
