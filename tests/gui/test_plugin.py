@@ -133,9 +133,8 @@ def test_bad_layers_get_a_plain_message_and_no_run(qtbot, make_napari_viewer_pro
 def test_export_writes_plain_csv_with_sidecars_equal_to_the_run(qtbot, viewer_widget, tmp_path):
     viewer, w = viewer_widget
     analysis = run_and_wait(qtbot, w)
-    worker = w.export(tmp_path)
-    with qtbot.waitSignal(worker.finished, timeout=120_000):
-        pass
+    assert w.export(tmp_path) is not None
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=120_000)
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == sorted(["gastruloids_features.csv", "gastruloids_features.csv.json",
                             "gastruloids_pca_shape.csv", "gastruloids_pca_shape.csv.json",
@@ -149,9 +148,8 @@ def test_export_writes_plain_csv_with_sidecars_equal_to_the_run(qtbot, viewer_wi
     other = tmp_path / "other"
     other.mkdir()
     (other / "gastruloids_distances.csv").write_text("someone else's table\n")
-    again = w.export(other)  # a name taken by a file we did not write: nothing is written
-    with qtbot.waitSignal(again.finished, timeout=60_000):
-        pass
+    assert w.export(other) is not None  # a name taken by a file we did not write
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=60_000)
     assert "Nothing was exported" in w.status.value
     assert sorted(p.name for p in other.iterdir()) == ["gastruloids_distances.csv"]
     assert (other / "gastruloids_distances.csv").read_text() == "someone else's table\n"
@@ -176,9 +174,8 @@ def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_w
     p = dock(viewer, PREDICTION)
     assert "multi-axes: 2 objects" in p.classes.value  # the sample's groups
     p.last.value = 3
-    worker = p.run()
-    with qtbot.waitSignal(worker.finished, timeout=180_000):
-        pass
+    assert p.run() is not None
+    qtbot.waitUntil(lambda: p.worker is None, timeout=180_000)
     assert "Balanced accuracy" in p.status.value, p.status.value
     cols = [c for c in viewer.layers["gastruloids"].features.columns if c.startswith("p_")]
     assert sorted(cols) == ["p_multi-axes", "p_single-axis"]

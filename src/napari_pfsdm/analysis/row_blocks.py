@@ -77,7 +77,7 @@ def join_blocks(blocks: Sequence[RowBlock]) -> RowBlock:
 class BoxLookup(Mapping):
     """``(frame, label)`` → bounding box (a tuple of slices), from a block's integer boxes.
 
-    What :attr:`napari_pfsdm.napari._compute.AnalysisOutput.boxes` holds: the slices are made
+    What the napari plugin keeps as each object's box (``Analysis.boxes``): the slices are made
     when an object's box is asked for, not kept for every object of a run.
     """
 

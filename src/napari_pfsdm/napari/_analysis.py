@@ -19,7 +19,7 @@ from napari.qt.threading import thread_worker
 from napari.utils import progress
 from napari.utils.notifications import show_error, show_info, show_warning
 from qtpy.QtCore import QSize, Qt
-from qtpy.QtWidgets import QFileDialog, QFrame, QScrollArea, QVBoxLayout, QWidget
+from qtpy.QtWidgets import QFileDialog, QFrame, QScrollArea, QSizePolicy, QVBoxLayout, QWidget
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams
@@ -162,6 +162,8 @@ class AnalysisWidget(QWidget):
         outer.addWidget(buttons.native)
         outer.addWidget(scrolled(inner), 1)
         outer.addWidget(after.native)
+        # a plots dock below gets the room this panel does not need (its form scrolls)
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
 
         self.run_button.changed.connect(self.run)
         self.cancel_button.changed.connect(self.cancel)

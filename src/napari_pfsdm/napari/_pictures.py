@@ -121,7 +121,7 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
     data = np.asarray(where, float).reshape(-1, 2)
     text = {"string": "{text}", "color": "white", "size": 9, "anchor": "center"}
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
-        data, name=name, size=0.01, face_color="transparent", border_width=0,
+        data, name=name, size=0.01, face_color="transparent", border_color="transparent",
         features={"text": texts}, text=text))
     pts.data = data
     pts.features = {"text": list(texts)}

@@ -8,6 +8,7 @@ Distances and components are computed in napari workers, with Cancel.
 
 from __future__ import annotations
 
+import matplotlib.style as mplstyle
 import numpy as np
 from magicgui.widgets import CheckBox, ComboBox, Container, Label, PushButton, SpinBox
 from matplotlib.collections import LineCollection
@@ -15,7 +16,7 @@ from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_error
 from napari_matplotlib.base import BaseNapariMPLWidget
 from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QFileDialog, QTabWidget, QVBoxLayout, QWidget
+from qtpy.QtWidgets import QFileDialog, QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 from . import _pictures
 from ._analysis import scrolled
@@ -68,7 +69,8 @@ class _Plot(BaseNapariMPLWidget):
         self.controls = Container(widgets=controls, layout="horizontal", labels=False)
         self.controls.margins = (0, 0, 0, 0)
         for w in controls:
-            w.changed.connect(self.redraw)
+            if not isinstance(w, PushButton):
+                w.changed.connect(self.redraw)
         self.layout().insertWidget(0, self.controls.native)
         self.layout().addWidget(self.info.native)
         self.canvas.setMinimumHeight(160)
@@ -86,7 +88,8 @@ class _Plot(BaseNapariMPLWidget):
             self.info.value = "Run the PF-SDM analysis to fill this plot."
         else:
             try:
-                self.draw()
+                with mplstyle.context(self.napari_theme_style_sheet):  # napari's colours
+                    self.draw()
             except ValueError as err:
                 self.figure.clear()
                 self.info.value = str(err)
@@ -96,10 +99,7 @@ class _Plot(BaseNapariMPLWidget):
         raise NotImplementedError
 
     def axes(self, *args):
-        import matplotlib.style as mplstyle
-
-        with mplstyle.context(self.napari_theme_style_sheet):
-            return self.figure.add_subplot(*args)
+        return self.figure.add_subplot(*args)
 
     def set_points(self, ax, xy: np.ndarray, keys: np.ndarray) -> None:
         self.points_axes, self.xy, self.keys = ax, np.asarray(xy, float), keys
@@ -149,8 +149,13 @@ class TrajectoryPlot(_Plot):
         self.pc_x = SpinBox(value=1, min=1, max=5, tooltip="Component on the x axis")
         self.pc_y = SpinBox(value=2, min=1, max=5, tooltip="Component on the y axis")
         self.groups_button = PushButton(text="Groups CSV…")
-        super().__init__(viewer, [self.channel, self.color_by, self.pc_x, self.pc_y])
-        self.controls.append(self.groups_button)
+        super().__init__(viewer, [self.channel, self.color_by, self.groups_button])
+        pcs = Container(widgets=[Label(value="PCs"), self.pc_x, self.pc_y], layout="horizontal",
+                        labels=False)
+        pcs.margins = (0, 0, 0, 0)
+        for w in (self.pc_x, self.pc_y):
+            w.changed.connect(self.redraw)
+        self.layout().insertWidget(1, pcs.native)
         self.groups_button.changed.connect(self._groups_dialog)
 
     def _groups_dialog(self, *args) -> None:
@@ -498,6 +503,7 @@ class PlotsWidget(QWidget):
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(scrolled(inner, 150))
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
         self.analysis: Analysis | None = None
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plots[i].redraw())
