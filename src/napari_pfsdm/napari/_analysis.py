@@ -343,8 +343,9 @@ class AnalysisWidget(QWidget):
                                                f"'{labels.name}'.")
         self.export_button.enabled = True
         self.objects_button.enabled = analysis.time_lapse
-        present = analysis.labels_in(_pictures.current_frame(self.viewer, labels, analysis))
-        if labels.selected_label not in present and len(present):
+        frame = _pictures.current_frame(self.viewer, labels, analysis)
+        present = [lab for lab in analysis.labels_in(frame) if not analysis.error_of(frame, lab)]
+        if labels.selected_label not in present and present:  # an object with pictures
             labels.selected_label = int(present[0])
         self._sync_selection()
 

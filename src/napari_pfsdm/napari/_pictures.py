@@ -91,7 +91,8 @@ def _layer(viewer, name: str, kind, make):
 def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
     top, left, side = cell
     data = np.nan_to_num(data, nan=nan)
-    scale = (side / data.shape[0], side / data.shape[1])
+    step = side / max(data.shape)  # square pixels; the longer side fills the cell
+    scale = (step, step)
     layer = _layer(viewer, name, Image, lambda: viewer.add_image(
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
         translate=(top, left), interpolation2d="nearest"))
@@ -203,9 +204,8 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
     surf.contrast_limits = (float(values.min()), float(max(values.max(), values.min() + 1e-6)))
     surf.visible = True
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    caption(viewer, layer, [_above((top, left, side))],
-            [f"{where}label {p.label}: PF-SDF on 4 shells (centre at top); "
-             "surface in the 3-D view"])
+    caption(viewer, layer, [_above((top, left, side)), _above((top + 2.25 * side, left, side))],
+            [f"{where}label {p.label}: 4 shells", "surface: 3-D view"])
 
 
 def say(viewer, layer, text: str) -> None:
@@ -245,8 +245,8 @@ class PictureView:
         where = f"frame {frame}, " if analysis.time_lapse else ""
         if error is None:
             self._say(f"{where}label {label}: not in this frame, no pictures", key)
-        elif error:
-            self._say(f"{where}label {label} has no features: {error}", key)
+        elif error:  # its first sentence: the rest is in the error column
+            self._say(f"{where}label {label} has no features: {error.split(': ')[0]}", key)
         elif key in self.cache:
             self._show(key)
         else:
