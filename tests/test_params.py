@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import json
+import re
+import shutil
 from dataclasses import fields
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +22,7 @@ from napari_pfsdm.core.descriptor3d import DEFAULTS_3D
 from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, OPTIONS, PFSDMParams, check_record, option
 from napari_pfsdm.errors import InputError
+from napari_pfsdm.io_csv import read_table_csv, sidecar_path, write_table_csv
 
 
 def labels():
@@ -199,3 +204,107 @@ def test_wrong_types_are_refused_in_plain_words_not_as_internal_errors():
     # numbers that are whole are whole numbers, numpy's too
     assert PFSDMParams(n_fourier=6.0, n_radii=np.int64(8), viscosity=np.float32(0.5)) \
         == PFSDMParams(n_fourier=6, n_radii=8, viscosity=0.5)
+
+
+# ------------------------------------------------------------------ a table's record on disk
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("sidecar") / "features.csv"
+    write_table_csv(P.measure(labels()), path)
+    return path
+
+
+def _nan_weight(o):
+    o["weights"][3] = float("nan")
+
+
+def _inf_weight(o):
+    o["weights"][0] = float("inf")
+
+
+def _negative_weight(o):
+    o["weights"][5] = -o["weights"][5]
+
+
+def _four_weights(o):
+    o["weights"] = o["weights"][:4]
+
+
+def _nan_mode_weight(o):
+    o["mode_weights"][2] = float("nan")
+
+
+def _three_mode_weights(o):
+    o["mode_weights"] = o["mode_weights"][:3]
+
+
+def _huge_n_fourier(o):
+    o["n_fourier"] = 10**12
+
+
+def _text_n_fourier(o):
+    o["n_fourier"] = "ten"
+
+
+def _text_weights(o):
+    o["weights"] = "1, 2, 3"
+
+
+@pytest.mark.parametrize("damage, words", [
+    (_nan_weight, "weights must be 16 numbers of at least 0, one per ring (not all 0); got "),
+    (_inf_weight, "weights must be 16 numbers of at least 0"),
+    (_negative_weight, "weights must be 16 numbers of at least 0"),
+    (_four_weights, "weights has 4 numbers but the table has 16 rings"),
+    (_nan_mode_weight, "mode_weights must be 11 numbers of at least 0, one per Fourier index"),
+    (_three_mode_weights, "mode_weights has 3 numbers but the table has 11 Fourier indices"),
+    (_huge_n_fourier, option("n_fourier").message(10**12)),
+    (_text_n_fourier, option("n_fourier").message("ten")),
+    (_text_weights, "weights must be 16 numbers of at least 0"),
+])
+def test_a_damaged_record_is_refused_before_any_work(written, tmp_path, capsys, damage, words):
+    """NaN, inf or negative weights once gave an all-NaN distance matrix with exit status 0,
+    4 weights instead of 16 silently other distances, n_fourier 10**12 gigabytes."""
+    path = tmp_path / "features.csv"
+    shutil.copy(written, path)
+    side = json.loads(sidecar_path(written).read_text())
+    damage(side["options"])
+    sidecar_path(path).write_text(json.dumps(side))
+    with pytest.raises(InputError) as info:
+        read_table_csv(path)
+    assert words in str(info.value) and str(path) in str(info.value)
+    assert main(["compare", str(path), "-o", str(tmp_path / "d.csv"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pfsdm: error: the options of ") and words in err
+    assert not (tmp_path / "d.csv").exists()
+    # the same record carried in memory is refused by the distances too
+    table = read_table_csv(written)
+    damage(table.attrs["pfsdm"])
+    with pytest.raises(InputError, match=re.escape(words)):
+        P.distance_matrix(table)
+
+
+def test_a_record_that_belongs_to_another_table_is_refused(written, tmp_path):
+    """Without n_radii and radii to count against, 4 weights on a 16-ring table would use the
+    first 4 rings only: the extra feature columns give it away."""
+    table = read_table_csv(written)
+    for key in ("n_radii", "radii"):
+        del table.attrs["pfsdm"][key]
+    table.attrs["pfsdm"]["weights"] = table.attrs["pfsdm"]["weights"][:4]
+    with pytest.raises(InputError, match="has 132 shape feature columns more than its options "
+                                         "account for"):
+        P.distance_matrix(table)
+    side = json.loads(sidecar_path(written).read_text())
+    side["options"] = ["not", "a", "record"]
+    path = tmp_path / "features.csv"
+    shutil.copy(written, path)
+    sidecar_path(path).write_text(json.dumps(side))
+    with pytest.raises(InputError, match="are not a set of named options"):
+        read_table_csv(path)
+
+
+def test_a_good_record_reads_as_written(written):
+    table = read_table_csv(written)
+    check_record(table.attrs["pfsdm"])
+    assert PFSDMParams.from_options(table.attrs["pfsdm"]).options()["n_fourier"] == 10
+    assert np.isfinite(P.distance_matrix(table)).all()

@@ -22,6 +22,7 @@ Pure Python: no pandas import (the table is anything with ``columns`` and ``attr
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -191,10 +192,15 @@ def check_feature_table(
     Raises
     ------
     ValueError
-        The options are missing (no ``attrs["pfsdm"]`` with ``weights`` and ``n_fourier``), or
-        feature columns are missing; the message names them and says what to do.
+        The options are missing (no ``attrs["pfsdm"]`` with ``weights`` and ``n_fourier``) or
+        wrong (:func:`~napari_pfsdm.core.params.check_record`: out of range, NaN or negative
+        weights, a wrong number of them), or feature columns are missing or more than the
+        options account for; the message names them and says what to do.
     """
+    from .params import check_record
+
     opts = getattr(table, "attrs", {}).get("pfsdm") or {}
+    check_record(opts, f"the options of {where}")
     needed = ("weights", "sh_degree", "surface_weight") if table_ndim(opts) == 3 else \
         ("weights", "n_fourier")
     missing_opts = [k for k in needed if opts.get(k) is None]
@@ -227,5 +233,13 @@ def check_feature_table(
                 f"{where} misses {len(missing)} of its {len(expected)} {channel} feature "
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"
+            )
+        extra = sorted(c for c in columns - set(expected)
+                       if re.fullmatch(rf"{channel}_r\d+_[nl]\d+", c))
+        if extra:
+            raise InputError(
+                f"{where} has {len(extra)} {channel} feature columns more than its options "
+                f"account for ({_span(extra)}): its options (the .json file beside it) belong "
+                "to another table. Use the table with its own .json file, or measure again"
             )
     return opts, n_radii, n_modes
