@@ -105,18 +105,20 @@ def _words(text: str) -> str:
 
 
 def test_every_door_shows_the_records_default_help_and_choices(capsys):
-    """pfsdm(), DEFAULTS, the transformer, PFSDMParams and the command line are generated from
-    OPTIONS: for every option each shows OPTIONS' default, help and choices."""
+    """pfsdm(), measure(), DEFAULTS, the transformer, PFSDMParams and the command line are
+    generated from OPTIONS: for every option each shows OPTIONS' default, help and choices."""
     actions = {a.dest: a for a in _measure_parser()._actions}
     transformer = PFSDMTransformer().get_params()
     signature = inspect.signature(P.pfsdm).parameters
+    for_measure = inspect.signature(P.measure).parameters
     record_fields = {f.name: f for f in fields(PFSDMParams)}
     with pytest.raises(SystemExit):
         main(["measure", "--help"])
     shown = _words(capsys.readouterr().out)
     for o in OPTIONS:
         assert (P.DEFAULTS[o.name] == transformer[o.name] == signature[o.name].default
-                == getattr(PFSDMParams(), o.name) == o.default), o.name
+                == for_measure[o.name].default == getattr(PFSDMParams(), o.name)
+                == o.default), o.name
         assert record_fields[o.name].metadata["option"] is o
         action = actions[o.name]
         assert action.option_strings == [o.flag] == ["--" + o.name.replace("_", "-")]
