@@ -5,8 +5,8 @@ type, default, allowed range or choices, a one-line help text in plain words, th
 applies to (2-D masks, 3-D volumes or both) and whether a form shows it by default (``basic``).
 Everything else is generated from it: :class:`PFSDMParams` (the record ``measure``, the batch
 and the plugin pass around), :data:`CHOICES`, the keywords of ``pfsdm()`` and of the
-scikit-learn transformer (:func:`with_option_keywords`), the command line's method options
-and the napari form. A bad value gets the same plain message from every door
+scikit-learn transformer (:func:`with_option_keywords`) and the command line's method options;
+the napari plugin builds its form from it. A bad value gets the same plain message from every door
 (:meth:`Option.check`), and a table's record read back from a file is checked the same way,
 with its ring and mode weights (:func:`check_record`), before any work.
 
@@ -227,14 +227,14 @@ class Option:
         """
         if self.kind is str:
             return self.check(text)
-        try:
-            value: Any = float(text) if self.kind is float else int(text)
-        except ValueError:
+        value: Any = text
+        for read in ((float,) if self.kind is float else (int, float)):  # int: "1e3" too
             try:
-                value = float(text)  # "1e3" for a whole number
+                value = read(text)
+                break
             except ValueError:
-                raise InputError(self.message(text)) from None
-        return self.check(value)
+                continue
+        return self.check(value)  # text that is no number: refused with the option's words
 
 
 #: Upper bounds that keep one object's memory small: rings × angles samples of the disk, and
