@@ -310,6 +310,13 @@ def test_a_record_that_belongs_to_another_table_is_refused(written, tmp_path):
         read_table_csv(path)
 
 
+def test_a_table_in_memory_with_a_damaged_dimension_is_refused_in_plain_words(written):
+    table = read_table_csv(written)
+    table.attrs["pfsdm"]["ndim"] = "abc"
+    with pytest.raises(InputError, match="ndim 'abc': it must be 2 or 3"):
+        P.distance_matrix(table)
+
+
 def test_a_good_record_reads_as_written(written):
     table = read_table_csv(written)
     check_record(table.attrs["pfsdm"])

@@ -94,7 +94,11 @@ def surface_columns(sh_degree: int) -> list[str]:
 
 def table_ndim(options: Mapping[str, Any]) -> int:
     """2 or 3: the objects' dimension a table's options record (2 when they do not say)."""
-    return int(options.get("ndim", 2) or 2)
+    value = options.get("ndim", 2) or 2
+    if isinstance(value, bool) or value not in (2, 3):
+        raise InputError(f"the table's options say ndim {value!r}: it must be 2 or 3. Use the "
+                         "table with the .json file 'pfsdm' wrote beside it, or measure again.")
+    return int(value)
 
 
 def base_columns(ndim: int = 2) -> list[str]:
