@@ -241,10 +241,6 @@ def _three_mode_weights(o):
     o["mode_weights"] = o["mode_weights"][:3]
 
 
-def _radii_disagree(o):
-    o["radii"] = o["radii"][:8]
-
-
 def _huge_n_fourier(o):
     o["n_fourier"] = 10**12
 
@@ -264,7 +260,6 @@ def _text_weights(o):
     (_four_weights, "weights has 4 numbers but the table has 16 rings"),
     (_nan_mode_weight, "mode_weights must be 11 numbers of at least 0, one per Fourier index"),
     (_three_mode_weights, "mode_weights has 3 numbers but the table has 11 Fourier indices"),
-    (_radii_disagree, "n_radii is 16 but radii lists 8 rings."),
     (_huge_n_fourier, option("n_fourier").message(10**12)),
     (_text_n_fourier, option("n_fourier").message("ten")),
     (_text_weights, "weights must be 16 numbers of at least 0"),

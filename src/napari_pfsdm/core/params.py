@@ -576,10 +576,7 @@ def _check_record(record: Mapping[str, Any]) -> None:
     if isinstance(ndim, bool) or ndim not in (2, 3):
         raise InputError(f"ndim must be 2 or 3; got {_shown(ndim)}.")
     n_rings = values.get("n_radii")
-    if isinstance(values.get("radii"), tuple):  # the rings' radii, as a record lists them
-        if n_rings is not None and n_rings != len(values["radii"]):
-            raise InputError(f"n_radii is {n_rings} but radii lists {len(values['radii'])} "
-                             "rings.")
+    if n_rings is None and isinstance(values.get("radii"), tuple):
         n_rings = len(values["radii"])
     if "weights" in record:
         _numbers("weights", record["weights"], n_rings, "ring", "rings")
