@@ -197,6 +197,14 @@ def test_a_bad_value_gets_the_same_words_at_every_door(name, value, tmp_path, ca
     assert f"argument {option(name).flag}: {words}" in capsys.readouterr().err
 
 
+def test_a_rule_between_options_is_checked_by_the_command_line_before_any_file(tmp_path,
+                                                                            capsys):
+    assert main(["measure", str(tmp_path / "none.tif"), "-o", str(tmp_path / "f.csv"),
+                 "--n-fourier", "40"]) == 2
+    assert capsys.readouterr().err == ("pfsdm: error: n_fourier=40 needs more than 80 angles; "
+                                       "raise n_angles.\n")
+
+
 def test_wrong_types_are_refused_in_plain_words_not_as_internal_errors():
     for name, value in [("n_radii", True), ("n_radii", None), ("viscosity", "0.1"),
                         ("sdf", 1), ("radii", ["a"]), ("radii", [0.5] * 513),
