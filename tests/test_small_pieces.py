@@ -252,10 +252,11 @@ def test_thousands_of_rays_in_chunks_all_meet_a_balls_surface_at_its_radius():
 
 @pytest.mark.parametrize("weight", [-1.0, float("nan"), float("inf")])
 def test_a_negative_or_missing_surface_weight_is_refused(weight):
-    """Mutant: ``or`` for ``and`` (a finite negative weight accepted)."""
+    """pfsdm3d checks its options through the record (core.params): a negative, NaN or
+    infinite weight is refused in the record's words."""
     from napari_pfsdm.core.descriptor3d import pfsdm3d
 
-    with pytest.raises(InputError, match="surface_weight must be a number >= 0"):
+    with pytest.raises(InputError, match="surface_weight must be a number of at least 0; got"):
         pfsdm3d(_ball(), n_radii=4, sh_degree=4, surface_weight=weight)
 
 

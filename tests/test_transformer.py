@@ -12,6 +12,7 @@ from sklearn.preprocessing import StandardScaler
 
 import napari_pfsdm as P
 from napari_pfsdm.analysis.transformer import PFSDMTransformer
+from napari_pfsdm.errors import InputError
 from shapes_fixture import BASE_SHAPES, raster
 
 
@@ -59,6 +60,22 @@ def test_clone_params_and_a_pipeline():
                          LogisticRegression(max_iter=2000))
     scores = cross_val_score(pipe, objs, y, cv=2)
     assert scores.mean() > 0.9  # five very different shapes
+
+
+def test_the_parameters_are_the_option_records():
+    """The signature is generated from core.params.OPTIONS: scikit-learn's get_params, repr
+    and set_params see one keyword per option, with its default."""
+    from napari_pfsdm.core.params import OPTIONS
+
+    assert PFSDMTransformer().get_params() == {**{o.name: o.default for o in OPTIONS},
+                                               "spacing": None, "weighted": False}
+    assert repr(PFSDMTransformer(n_fourier=5, weighted=True)) == \
+        "PFSDMTransformer(n_fourier=5, weighted=True)"
+    with pytest.raises(TypeError, match="unexpected keyword argument.*n_fourer"):
+        PFSDMTransformer(n_fourer=5)
+    bad = clone(PFSDMTransformer()).set_params(n_radii=0)  # stored as given, refused in fit
+    with pytest.raises(InputError, match="n_radii must be a whole number from 1 to 512"):
+        bad.fit(masks()[0])
 
 
 def test_a_bad_mask_is_named():

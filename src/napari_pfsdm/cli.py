@@ -20,7 +20,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -146,70 +146,43 @@ def _progress_printer(quiet: bool):
 
 
 def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
-    from dataclasses import fields
+    """The method options given on the command line (those left out take the defaults)."""
+    from .core.params import OPTIONS
 
-    from .core.params import PFSDMParams
+    return {o.name: getattr(args, o.name) for o in OPTIONS
+            if getattr(args, o.name, None) is not None}
 
-    names = [f.name for f in fields(PFSDMParams)]
-    return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
+
+def _option_type(opt: Any) -> Callable[[str], Any]:
+    """argparse's ``type`` of a method option: the text parsed and checked by the record, so
+    that a bad value gets the same words as from Python (``Option.message``)."""
+    def parse(text: str) -> Any:
+        try:
+            return opt.parse(text)
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = opt.name
+    return parse
 
 
 def _add_method_options(p: argparse.ArgumentParser) -> None:
-    from dataclasses import asdict
+    """One ``--name`` per option of the record (core.params.OPTIONS): its help, choices and
+    default, generated."""
+    from .core.params import OPTIONS
 
-    from .core.params import CHOICES, PFSDMParams
-
-    D = asdict(PFSDMParams())  # the help shows the core's current defaults and choices
     g = p.add_argument_group(
         "method options (the same as in the napari widget; leave them out for the defaults)"
     )
-    g.add_argument("--n-fourier", dest="n_fourier", type=int, metavar="N",
-                   help="how much outline detail is kept: Fourier modes per ring "
-                        f"(default {D['n_fourier']})")
-    g.add_argument("--n-radii", dest="n_radii", type=int, metavar="N",
-                   help="rings sampled from the object's centre to its outline "
-                        f"(default {D['n_radii']})")
-    g.add_argument("--n-angles", dest="n_angles", type=int, metavar="N",
-                   help=f"samples around each ring (default {D['n_angles']})")
-    g.add_argument("--sdf", choices=CHOICES["sdf"],
-                   help="distance to the outline: 'exact' (fast) or 'viscous' "
-                        "(the paper's smoothed version, ~25x slower); default " + D["sdf"])
-    g.add_argument("--viscosity", type=float, metavar="NU",
-                   help="smoothing of the viscous distance, in object sizes "
-                        f"(default {D['viscosity']})")
-    g.add_argument("--mapping", choices=CHOICES["mapping"],
-                   help="how the unit disk is laid onto the object: 'harmonic' (fast), "
-                        "'bijective' (never folds; for snake-like or branched objects), "
-                        "'radial' (the paper's; round, star-shaped objects only); default "
-                        + D["mapping"])
-    g.add_argument("--normalization", choices=CHOICES["normalization"],
-                   help="'ring' rescales each ring's modes to unit length as in the paper "
-                        "(unstable for near-round objects); default " + D["normalization"])
-    g.add_argument("--radii", choices=CHOICES["radii"],
-                   help="ring placement: 'uniform' or 'boundary' (packed toward the outline, "
-                        "where shapes differ most); default " + str(D["radii"]))
-    g.add_argument("--ring-weighting", dest="ring_weighting",
-                   choices=CHOICES["ring_weighting"],
-                   help="extra weight of the outer rings in distances; default "
-                        + D["ring_weighting"])
-    g.add_argument("--mode-exponent", dest="mode_exponent", type=float, metavar="A",
-                   help="distances compare (1 + n)^A |c_n|: higher A stresses fine outline "
-                        f"detail, 0 is the paper's choice; default {D['mode_exponent']}")
-    g.add_argument("--components", choices=CHOICES["components"],
-                   help="an object in several pieces: keep the 'largest' (default) or report "
-                        "an error for it ('raise')")
-    g.add_argument("--min-area", dest="min_area", type=int, metavar="PIXELS",
-                   help="objects smaller than this (pixels, or voxels in 3-D) get an error "
-                        f"instead of features (default {D['min_area']})")
-    g.add_argument("--sh-degree", dest="sh_degree", type=int, metavar="L",
-                   help="3-D only: highest spherical-harmonic degree per shell "
-                        f"(default {D['sh_degree']})")
-    g.add_argument("--surface-weight", dest="surface_weight", type=float, metavar="W",
-                   help="3-D only: weight of the outer surface's term in distances "
-                        f"(default {D['surface_weight']})")
-    g.add_argument("--ball-map", dest="ball_map", choices=CHOICES["ball_map"],
-                   help="3-D only: how the unit ball is laid onto the object; default "
-                        + D["ball_map"])
+    only = {"2d": "2-D only: ", "3d": "3-D only: ", "both": ""}
+    for opt in OPTIONS:
+        kw: dict[str, Any] = {"dest": opt.name, "type": _option_type(opt),
+                              "help": f"{only[opt.dims]}{opt.help} (default {opt.default})"}
+        if opt.choices:
+            kw["choices"] = opt.choices
+        else:
+            kw["metavar"] = "N" if opt.kind is int else "X"
+        g.add_argument(opt.flag, **kw)
 
 
 def _add_compute_options(p: argparse.ArgumentParser) -> None:

@@ -7,9 +7,12 @@ A table written by :func:`write_table_csv` is two files::
                          "options": {"n_fourier": 10, "weights": [...], ...}, ...}
 
 :func:`read_table_csv` reads the table with its sidecar's options in ``df.attrs["pfsdm"]``
-(numbers round-trip exactly). A copy of the table re-saved by pandas (``df.to_csv(path)``, even
-with its index) reads back the same, as long as the sidecar travels with it. Tables of older
-versions, which carried the options in a first ``# pfsdm: {json}`` comment line, still read.
+(numbers round-trip exactly), checked first (:func:`~napari_pfsdm.core.params.check_record`:
+an option out of its range, a NaN or negative weight, or a wrong number of weights is refused
+in plain words before the table is read). A copy of the table re-saved by pandas
+(``df.to_csv(path)``, even with its index) reads back the same, as long as the sidecar travels
+with it. Tables of older versions, which carried the options in a first ``# pfsdm: {json}``
+comment line, still read.
 
 A name ending in ``.parquet`` is written (and read) as Apache Parquet instead, with the same
 sidecar (``features.parquet.json``): the columns and their dtypes come back exactly as written,
@@ -37,6 +40,7 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
+from .core.params import check_record
 from .core.table_options import plain, set_options, table_options
 from .core.table_schema import NO_TRACK, TRACK_COLUMN
 from .errors import InputError
@@ -311,12 +315,16 @@ def write_table_csv(
 
 
 def read_options(path: str | os.PathLike) -> dict[str, Any] | None:
-    """The options a table was written with: from its sidecar, else from the comment line of
-    an older table; None when neither is there."""
+    """The options a table was written with (checked as :func:`read_table_csv` checks them):
+    from its sidecar, else from the comment line of an older table; None when neither is
+    there."""
     side = read_sidecar(path)
-    if side is not None:
-        return dict(side.get("options") or {})
-    return _legacy_options(path)
+    options = (side.get("options") or {}) if side is not None else _legacy_options(path)
+    if options is not None:
+        check_record(options, f"the options of {path}"
+                     + (" (its .json file)" if side is not None else ""))
+        options = dict(options)
+    return options
 
 
 def _legacy_options(path: str | os.PathLike) -> dict[str, Any] | None:
@@ -409,7 +417,11 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         raise InputError(f"{path} is {what}, not a CSV table")
     legacy_options = _legacy_options(path)  # the first line is read once
     side = read_sidecar(path)
-    side_options = dict(side.get("options") or {}) if side is not None else legacy_options
+    side_options = (side.get("options") or {}) if side is not None else legacy_options
+    if side_options is not None:  # before the table is read: refused in plain words
+        check_record(side_options, f"the options of {path}"
+                     + (" (its .json file)" if side is not None else ""))
+        side_options = dict(side_options)
     legacy = legacy_options is not None
     try:
         header = pd.read_csv(path, skiprows=1 if legacy else 0, nrows=0, index_col=index_col)
@@ -448,6 +460,8 @@ def _read_parquet(path: Path) -> pd.DataFrame:
     """A Parquet table with its sidecar's options: the columns and dtypes as written."""
     _pyarrow(path, "reading")
     side = read_sidecar(path)
+    if side is not None:  # before the table is read: refused in plain words
+        check_record(side.get("options") or {}, f"the options of {path} (its .json file)")
     try:
         df = pd.read_parquet(path, engine="pyarrow")
     except Exception as exc:  # pyarrow's own errors: a damaged or truncated file

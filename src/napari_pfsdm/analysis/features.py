@@ -15,7 +15,7 @@ from scipy import ndimage as ndi
 
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
-from ..core.params import PFSDMParams, as_params
+from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.table_options import carry_options, set_options
 from ..core.table_schema import (
     BASE_COLUMNS,
@@ -244,7 +244,8 @@ def iter_objects(
     params : PFSDMParams, optional
         The method's options as one record (or give them as keywords).
     **options
-        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm`, checked first by
+        The method's options (:data:`~napari_pfsdm.core.params.OPTIONS`: the signature shows
+        them with their defaults), checked first by
         :class:`~napari_pfsdm.core.params.PFSDMParams`.
 
     Yields
@@ -264,6 +265,9 @@ def iter_objects(
         opts["spacing"] = voxel
     with _one_blas_thread():
         yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, opts)
+
+
+iter_objects.__signature__ = with_option_keywords(iter_objects)  # type: ignore[attr-defined]
 
 
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
@@ -642,7 +646,10 @@ def measure(
     params : PFSDMParams, optional
         The method's options as one record (or give them as keywords).
     **options
-        Passed to :func:`~napari_pfsdm.core.descriptor.pfsdm` (``n_fourier``, ``mapping``, ...).
+        The method's options (``n_fourier``, ``mapping``, ...: one keyword per
+        :data:`~napari_pfsdm.core.params.OPTIONS` entry, shown in the signature with its
+        default), checked before any work as :func:`~napari_pfsdm.core.descriptor.pfsdm`
+        checks them.
 
     Returns
     -------
@@ -688,3 +695,6 @@ def measure(
 
     return table_from_objects(reporting(), with_intensity=intensity is not None, params=p,
                               axes=axes, spacing=voxel)
+
+
+measure.__signature__ = with_option_keywords(measure)  # type: ignore[attr-defined]

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from ..core.params import OPTIONS, SELECTION_OPTIONS
 from ..core.table_options import table_options
 from ..core.table_schema import pc_column
 from ..errors import InputError
@@ -29,11 +30,10 @@ __all__ = ["ShapePCA", "shape_modes", "HARMONIC_WORDS"]
 #: What each Fourier harmonic of a ring describes, in words (harmonic 0 … 4).
 HARMONIC_WORDS = ("thickness", "off-centre", "elongation", "triangularity", "squareness")
 
-#: The options two tables must share to live in one shape space (the method's, not the run's
-#: bookkeeping such as ``intensity_weight``).
-_METHOD_KEYS = ("n_fourier", "n_radii", "n_angles", "sdf", "viscosity", "mapping",
-                "normalization", "radii", "ring_weighting", "mode_exponent", "ndim",
-                "sh_degree", "surface_weight", "ball_map")
+#: The options two tables must share to live in one shape space: the method's (core.params,
+#: without those that only choose which objects are measured) and the objects' dimension, not
+#: the run's bookkeeping such as ``intensity_weight``.
+_METHOD_KEYS = tuple(o.name for o in OPTIONS if o.name not in SELECTION_OPTIONS) + ("ndim",)
 
 
 def _method_options(table: pd.DataFrame) -> dict:

@@ -11,13 +11,13 @@ ktch does for elliptic Fourier analysis, so that PF-SDM drops into a
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 
-from ..core.contour import DEFAULT_MIN_AREA
-from ..core.descriptor import DEFAULTS, pfsdm
-from ..core.params import PFSDMParams
+from ..core.descriptor import pfsdm
+from ..core.params import OPTIONS, PFSDMParams, with_option_keywords
 from ..core.table_schema import table_feature_columns
 from ..errors import InputError
 
@@ -32,7 +32,9 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
     ----------
     n_fourier, n_radii, n_angles, sdf, viscosity, mapping, normalization, radii,
     ring_weighting, mode_exponent, components, min_area, sh_degree, surface_weight, ball_map
-        As :func:`napari_pfsdm.pfsdm` (same defaults).
+        As :func:`napari_pfsdm.pfsdm`: one keyword per
+        :data:`~napari_pfsdm.core.params.OPTIONS` entry, with its default (the signature is
+        generated from it). Stored as given; ``fit`` checks them.
     spacing : 3 floats, optional
         Voxel size (Z, Y, X) of 3-D masks. 3-D masks give the columns ``shape_rXX_lYY`` and
         ``surface_lYY`` (``fit`` sees whether the masks are 2-D or 3-D).
@@ -54,51 +56,24 @@ class PFSDMTransformer(TransformerMixin, BaseEstimator):
     ['shape_r00_n00', 'shape_r00_n01']
     """
 
-    def __init__(
-        self,
-        *,
-        n_fourier: int = DEFAULTS["n_fourier"],
-        n_radii: int = DEFAULTS["n_radii"],
-        n_angles: int = DEFAULTS["n_angles"],
-        sdf: str = DEFAULTS["sdf"],
-        viscosity: float = DEFAULTS["viscosity"],
-        mapping: str = DEFAULTS["mapping"],
-        normalization: str = DEFAULTS["normalization"],
-        radii: str = DEFAULTS["radii"],
-        ring_weighting: str = DEFAULTS["ring_weighting"],
-        mode_exponent: float = DEFAULTS["mode_exponent"],
-        components: str = "largest",
-        min_area: int = DEFAULT_MIN_AREA,
-        sh_degree: int = DEFAULTS["sh_degree"],
-        surface_weight: float = DEFAULTS["surface_weight"],
-        ball_map: str = DEFAULTS["ball_map"],
-        spacing=None,
-        weighted: bool = False,
-    ):
-        self.n_fourier = n_fourier
-        self.n_radii = n_radii
-        self.n_angles = n_angles
-        self.sdf = sdf
-        self.viscosity = viscosity
-        self.mapping = mapping
-        self.normalization = normalization
-        self.radii = radii
-        self.ring_weighting = ring_weighting
-        self.mode_exponent = mode_exponent
-        self.components = components
-        self.min_area = min_area
-        self.sh_degree = sh_degree
-        self.surface_weight = surface_weight
-        self.ball_map = ball_map
+    def __init__(self, *, spacing=None, weighted: bool = False, **options: Any) -> None:
+        unknown = sorted(set(options) - {o.name for o in OPTIONS})
+        if unknown:
+            raise TypeError(f"PFSDMTransformer got unexpected keyword argument(s) "
+                            f"{', '.join(unknown)}; its parameters are "
+                            f"{', '.join(self._get_param_names())}")
+        for o in OPTIONS:  # stored as given (scikit-learn's rule): checked in fit
+            setattr(self, o.name, options.get(o.name, o.default))
         self.spacing = spacing
         self.weighted = weighted
 
+    # one keyword per option of the record, with its default: what get_params, set_params,
+    # clone and help() read
+    __init__.__signature__ = with_option_keywords(__init__)  # type: ignore[attr-defined]
+
     def _params(self) -> PFSDMParams:
         """The options as the core's validated record (a bad value fails in plain words)."""
-        params = self.get_params()
-        params.pop("weighted")
-        params.pop("spacing")
-        return PFSDMParams.from_options(params)
+        return PFSDMParams.from_options({o.name: getattr(self, o.name) for o in OPTIONS})
 
     def _scale(self, record: dict) -> np.ndarray:
         """√(ring weight) × mode weight per column: Euclidean = PF-SDM (magnitude) distance

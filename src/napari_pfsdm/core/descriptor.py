@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -11,25 +11,19 @@ from scipy import ndimage as ndi
 
 from ..errors import InputError
 from .boundary import normalised_modes, outline_coefficients
-from .contour import DEFAULT_MIN_AREA, Contour, MaskInfo, extract_contour, prepare_mask
+from .contour import Contour, MaskInfo, extract_contour, prepare_mask
 from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
-from .params import PFSDMParams
+from .params import OPTIONS, params_of, with_option_keywords
 from .pushforward import BijectiveMap, FourierMap, display_turn, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
 __all__ = ["PFSDMResult", "pfsdm", "render_disk", "render_disks", "DEFAULTS"]
 
-#: Options of :func:`pfsdm` for 2-D masks only and for 3-D volumes only (core.params).
-_ONLY_2D = ("n_fourier", "n_angles", "sdf", "viscosity", "mapping", "normalization")
-_ONLY_3D = ("sh_degree", "surface_weight", "ball_map")
-
-#: Default options of :func:`pfsdm` (those of :class:`~napari_pfsdm.core.params.PFSDMParams`,
-#: chosen by ``benchmarks/synthetic.py``, see README), without ``components`` and ``min_area``.
-DEFAULTS: dict[str, Any] = {
-    k: v for k, v in asdict(PFSDMParams()).items() if k not in ("components", "min_area")
-}
+#: Default options of :func:`pfsdm`: those of :data:`~napari_pfsdm.core.params.OPTIONS`
+#: (chosen by ``benchmarks/synthetic.py``, see README).
+DEFAULTS: dict[str, Any] = {o.name: o.default for o in OPTIONS}
 
 
 @dataclass(eq=False)
@@ -95,26 +89,12 @@ def pfsdm(
     mask: np.ndarray,
     intensity: np.ndarray | None = None,
     *,
-    n_fourier: int = DEFAULTS["n_fourier"],
-    n_radii: int = DEFAULTS["n_radii"],
-    n_angles: int = DEFAULTS["n_angles"],
-    sdf: str = DEFAULTS["sdf"],
-    viscosity: float = DEFAULTS["viscosity"],
-    mapping: str = DEFAULTS["mapping"],
-    normalization: str = DEFAULTS["normalization"],
-    radii: str | np.ndarray = DEFAULTS["radii"],
-    ring_weighting: str = DEFAULTS["ring_weighting"],
-    mode_exponent: float = DEFAULTS["mode_exponent"],
-    components: str = "largest",
-    min_area: int = DEFAULT_MIN_AREA,
     smooth: float = 1.0,
     degree: int = 16,
     grid: int = 48,
     offset: tuple[float, ...] = (0.0, 0.0),
     spacing=None,
-    sh_degree: int = DEFAULTS["sh_degree"],
-    surface_weight: float = DEFAULTS["surface_weight"],
-    ball_map: str = DEFAULTS["ball_map"],
+    **options: Any,
 ):
     """Push-Forward Signed Distance Morphometric of one 2-D object or one 3-D volume.
 
@@ -125,6 +105,11 @@ def pfsdm(
     ``offset``. The 2-D-only options (``n_fourier``, ``n_angles``, ``sdf``, ``viscosity``,
     ``mapping``, ``normalization``) must stay at their defaults for a volume, and the 3-D-only
     ones for a 2-D mask: a changed value is refused, never ignored.
+
+    The method's options are the keywords of :data:`~napari_pfsdm.core.params.OPTIONS` (the
+    signature is generated from it, with the same defaults, ranges and choices); a bad value
+    raises :class:`~napari_pfsdm.errors.InputError` in the same words as from ``measure``, the
+    command line or a table's record.
 
     Parameters
     ----------
@@ -188,7 +173,7 @@ def pfsdm(
     ------
     ValueError
         Not a 2-D mask, an empty or too small object, a mismatched or NaN intensity, an unknown
-        option.
+        option or a value out of its range (:class:`~napari_pfsdm.errors.InputError`).
 
     Examples
     --------
@@ -203,19 +188,19 @@ def pfsdm(
     True
     """
     mask = np.asarray(mask)
-    given = {"n_fourier": n_fourier, "n_angles": n_angles, "sdf": sdf, "viscosity": viscosity,
-             "mapping": mapping, "normalization": normalization, "sh_degree": sh_degree,
-             "surface_weight": surface_weight, "ball_map": ball_map}
+    p = params_of(options)  # a bad or unknown option fails here, in plain words
+    if mask.ndim in (2, 3):
+        p.check_dimension(mask.ndim)
+    radii = np.asarray(p.radii) if isinstance(p.radii, tuple) else p.radii
     if mask.ndim == 3:
-        _refuse_other(given, _ONLY_2D, 3)
         from .descriptor3d import pfsdm3d
 
-        return pfsdm3d(mask, intensity, spacing=spacing, n_radii=n_radii, radii=radii,
-                       ring_weighting=ring_weighting, mode_exponent=mode_exponent,
-                       sh_degree=sh_degree, ball_map=ball_map, surface_weight=surface_weight,
-                       components=components, min_volume=min_area, smooth=smooth,
+        return pfsdm3d(mask, intensity, spacing=spacing, n_radii=p.n_radii, radii=radii,
+                       ring_weighting=p.ring_weighting, mode_exponent=p.mode_exponent,
+                       sh_degree=p.sh_degree, ball_map=p.ball_map,
+                       surface_weight=p.surface_weight, components=p.components,
+                       min_volume=p.min_area, smooth=smooth,
                        offset=(0.0, 0.0, 0.0) if not any(offset) else offset)
-    _refuse_other(given, _ONLY_3D, 2)
     if spacing is not None:
         sp = np.asarray(spacing, float).ravel()
         if mask.ndim == 2 and (sp.size not in (1, 2) or not np.all(sp == sp[0])):
@@ -224,19 +209,18 @@ def pfsdm(
                 "square pixels only (the descriptor does not depend on their size). For a 3-D "
                 "volume pass the (Z, Y, X) mask itself."
             )
-    info = prepare_mask(mask, components=components, min_area=min_area)
+    info = prepare_mask(mask, components=p.components, min_area=p.min_area)
     if intensity is not None:
         intensity = _check_intensity(intensity, mask.shape)
-    if n_angles < 8 or n_angles % 2:
-        raise InputError(f"n_angles must be an even number of at least 8, got {n_angles}.")
+    n_angles, n_fourier = p.n_angles, p.n_fourier
     n_points = n_angles * int(np.ceil(256 / n_angles))
     contour = extract_contour(info, n_points=n_points, smooth=smooth)
     nodes = contour.normalized
-    phi = make_sdf(sdf, nodes, viscosity=viscosity)
+    phi = make_sdf(p.sdf, nodes, viscosity=p.viscosity)
     exact = phi.exact if isinstance(phi, ViscousSDF) else phi
-    pmap = make_map(mapping, nodes, exact, degree=degree, grid=grid)
+    pmap = make_map(p.mapping, nodes, exact, degree=degree, grid=grid)
 
-    r = ring_radii(n_radii, radii)
+    r = ring_radii(p.n_radii, radii)
     theta = 2 * np.pi * np.arange(n_angles) / n_angles
     if isinstance(pmap, FourierMap):
         samples, jacobian = pmap.polar_and_jacobian(r, n_angles)
@@ -247,7 +231,7 @@ def pfsdm(
     if jacobian is not None:
         folded |= jacobian <= 0
     spec = spectrum(disk)
-    emb = magnitude_embedding(spec, n_fourier, normalization)
+    emb = magnitude_embedding(spec, n_fourier, p.normalization)
 
     diagnostics = {
         "area": info.area,
@@ -257,37 +241,31 @@ def pfsdm(
         "folded_fraction": float(folded.mean()),
         "scale": contour.scale,
     }
-    options = {
-        "n_fourier": n_fourier, "n_radii": len(r), "n_angles": n_angles, "sdf": sdf,
-        "viscosity": viscosity, "mapping": mapping, "normalization": normalization,
-        "radii": r.tolist(), "ring_weighting": ring_weighting,
-        "mode_exponent": mode_exponent, "smooth": smooth,
+    result_options = {
+        "n_fourier": n_fourier, "n_radii": len(r), "n_angles": n_angles, "sdf": p.sdf,
+        "viscosity": p.viscosity, "mapping": p.mapping, "normalization": p.normalization,
+        "radii": r.tolist(), "ring_weighting": p.ring_weighting,
+        "mode_exponent": p.mode_exponent, "smooth": smooth,
     }
     result = PFSDMResult(
         contour=contour, sdf=phi, mapping=pmap, radii=r, angles=theta,
-        weights=ring_weights(r, ring_weighting),
-        mode_weights=mode_weights(n_fourier, mode_exponent), samples=samples, disk=disk,
-        spectrum=spec, embedding=emb, diagnostics=diagnostics, options=options, mask_info=info,
+        weights=ring_weights(r, p.ring_weighting),
+        mode_weights=mode_weights(n_fourier, p.mode_exponent), samples=samples, disk=disk,
+        spectrum=spec, embedding=emb, diagnostics=diagnostics, options=result_options,
+        mask_info=info,
     )
     if intensity is not None:
         result.intensity_image = _intensity_crop(intensity, info)
         result.intensity_disk = sample_intensity(result, samples)
         result.intensity_spectrum = spectrum(result.intensity_disk)
         result.intensity_embedding = magnitude_embedding(
-            result.intensity_spectrum, n_fourier, normalization)
+            result.intensity_spectrum, n_fourier, p.normalization)
     if any(offset):
         _shift(result, np.asarray(offset, float))
     return result
 
 
-def _refuse_other(given: dict[str, Any], names: tuple[str, ...], ndim: int) -> None:
-    """Refuse options of the other dimension set away from their defaults."""
-    changed = [n for n in names if given[n] != DEFAULTS[n]]
-    if changed:
-        what = ("are for 2-D masks (a 3-D volume has sh_degree, surface_weight and ball_map)"
-                if ndim == 3 else "are for 3-D volumes only")
-        raise InputError(f"The mask is {ndim}-D but {', '.join(changed)} was set: these options "
-                         f"{what}. Leave {'it' if len(changed) == 1 else 'them'} at the default.")
+pfsdm.__signature__ = with_option_keywords(pfsdm)  # type: ignore[attr-defined]
 
 
 def _shift(result: PFSDMResult, offset: np.ndarray) -> None:

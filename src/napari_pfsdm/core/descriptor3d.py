@@ -20,18 +20,17 @@ from ..errors import InputError
 from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
 from .intensity import intensity_crop
 from .morphometric import mode_weights, ring_radii, ring_weights
-from .params import PFSDMParams
+from .params import OPTIONS, params_of
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
 from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
 
 __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3D"]
 
-#: The method's defaults, declared once (core.params.PFSDMParams).
-_P = PFSDMParams()
+#: Defaults of the 3-D-only options (from core.params.OPTIONS, like all of pfsdm3d's method
+#: options).
+DEFAULTS_3D: dict[str, Any] = {o.name: o.default for o in OPTIONS if o.dims == "3d"}
 
-#: Defaults of the 3-D-only options (PFSDMParams', like all of pfsdm3d's method options).
-DEFAULTS_3D: dict[str, Any] = {k: getattr(_P, k) for k in ("sh_degree", "ball_map",
-                                                          "surface_weight")}
+_DEFAULT: dict[str, Any] = {o.name: o.default for o in OPTIONS}
 
 
 @dataclass(eq=False)
@@ -124,14 +123,14 @@ def pfsdm3d(
     intensity: np.ndarray | None = None,
     *,
     spacing=None,
-    n_radii: int = _P.n_radii,
-    radii: str | np.ndarray = _P.radii,
-    ring_weighting: str = _P.ring_weighting,
-    mode_exponent: float = _P.mode_exponent,
-    sh_degree: int = _P.sh_degree,
-    ball_map: str = _P.ball_map,
-    surface_weight: float = _P.surface_weight,
-    components: str = _P.components,
+    n_radii: int = _DEFAULT["n_radii"],
+    radii: str | np.ndarray = _DEFAULT["radii"],
+    ring_weighting: str = _DEFAULT["ring_weighting"],
+    mode_exponent: float = _DEFAULT["mode_exponent"],
+    sh_degree: int = _DEFAULT["sh_degree"],
+    ball_map: str = _DEFAULT["ball_map"],
+    surface_weight: float = _DEFAULT["surface_weight"],
+    components: str = _DEFAULT["components"],
     min_volume: int = DEFAULT_MIN_VOLUME,
     smooth: float = 1.0,
     offset=(0.0, 0.0, 0.0),
@@ -185,6 +184,11 @@ def pfsdm3d(
     True
     """
     mask = np.asarray(mask)
+    # the options checked as from any other door (core.params; same messages)
+    p = params_of({"n_radii": n_radii, "radii": radii, "ring_weighting": ring_weighting,
+                   "mode_exponent": mode_exponent, "sh_degree": sh_degree,
+                   "ball_map": ball_map, "surface_weight": surface_weight,
+                   "components": components, "min_area": min_volume})
     info = prepare_volume(mask, spacing, components=components, min_volume=min_volume)
     if intensity is not None:
         intensity = np.asarray(intensity)
@@ -193,11 +197,7 @@ def pfsdm3d(
                              f"has shape {mask.shape}: they must cover the same voxels.")
         if not np.issubdtype(intensity.dtype, np.number) or np.iscomplexobj(intensity):
             raise InputError(f"The intensity must be real numbers, got dtype {intensity.dtype}.")
-    sh_degree = int(sh_degree)
-    if sh_degree < 1:
-        raise InputError(f"sh_degree must be a whole number >= 1, got {sh_degree}.")
-    if not (np.isfinite(surface_weight) and surface_weight >= 0):
-        raise InputError(f"surface_weight must be a number >= 0, got {surface_weight!r}.")
+    sh_degree, surface_weight = p.sh_degree, p.surface_weight
     surface = SurfaceSDF(info, smooth=smooth)
     if not surface.volume > 0:
         raise InputError("The object has no inside after smoothing (it is thinner than a voxel "

@@ -22,6 +22,7 @@ Pure Python: no pandas import (the table is anything with ``columns`` and ``attr
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -93,7 +94,11 @@ def surface_columns(sh_degree: int) -> list[str]:
 
 def table_ndim(options: Mapping[str, Any]) -> int:
     """2 or 3: the objects' dimension a table's options record (2 when they do not say)."""
-    return int(options.get("ndim", 2) or 2)
+    value = options.get("ndim", 2) or 2
+    if isinstance(value, bool) or value not in (2, 3):
+        raise InputError(f"the table's options say ndim {value!r}: it must be 2 or 3. Use the "
+                         "table with the .json file 'pfsdm' wrote beside it, or measure again.")
+    return int(value)
 
 
 def base_columns(ndim: int = 2) -> list[str]:
@@ -191,10 +196,15 @@ def check_feature_table(
     Raises
     ------
     ValueError
-        The options are missing (no ``attrs["pfsdm"]`` with ``weights`` and ``n_fourier``), or
-        feature columns are missing; the message names them and says what to do.
+        The options are missing (no ``attrs["pfsdm"]`` with ``weights`` and ``n_fourier``) or
+        wrong (:func:`~napari_pfsdm.core.params.check_record`: out of range, NaN or negative
+        weights, a wrong number of them), or feature columns are missing or more than the
+        options account for; the message names them and says what to do.
     """
+    from .params import check_record
+
     opts = getattr(table, "attrs", {}).get("pfsdm") or {}
+    check_record(opts, f"the options of {where}")
     needed = ("weights", "sh_degree", "surface_weight") if table_ndim(opts) == 3 else \
         ("weights", "n_fourier")
     missing_opts = [k for k in needed if opts.get(k) is None]
@@ -227,5 +237,13 @@ def check_feature_table(
                 f"{where} misses {len(missing)} of its {len(expected)} {channel} feature "
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"
+            )
+        extra = sorted(c for c in columns - set(expected)
+                       if re.fullmatch(rf"{channel}_r\d+_[nl]\d+", c))
+        if extra:
+            raise InputError(
+                f"{where} has {len(extra)} {channel} feature columns more than its options "
+                f"account for ({_span(extra)}): its options (the .json file beside it) belong "
+                "to another table. Use the table with its own .json file, or measure again"
             )
     return opts, n_radii, n_modes
