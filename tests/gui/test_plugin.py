@@ -243,3 +243,26 @@ def test_the_plots_follow_the_model(qtbot, viewer_widget):
     sub = pf.drop_failed(analysis.table[analysis.table["frame"] == 3])
     np.testing.assert_allclose(analysis.comparison[(3, 1.0, False)]["d"],
                                pf.distance_matrix(sub, intensity_weight=1.0), rtol=1e-9)
+
+
+def test_the_form_is_the_option_record(qtbot, viewer_widget):
+    """Every method option has a control with the record's default, range, choices and
+    words; what the form gives reaches the run as PFSDMParams."""
+    from napari_pfsdm.core.params import OPTIONS, PFSDMParams
+
+    _viewer, w = viewer_widget
+    for o in OPTIONS:
+        control = w.options[o.name]
+        assert control.value == o.default and control.tooltip == o.help
+        if o.choices:
+            assert tuple(control.choices) == tuple(o.choices)
+        elif o.high is not None:
+            assert control.max == o.high
+    assert w.params() == PFSDMParams()
+    w.options["n_fourier"].value = 6
+    w.options["mapping"].value = "bijective"
+    w.options["sh_degree"].value = 12  # a 3-D option: not for this 2-D time-lapse
+    assert w.params() == PFSDMParams(n_fourier=6, mapping="bijective")
+    w.options["n_fourier"].value = 40  # more than 64 angles carry: the record's own words
+    assert w.run() is None
+    assert "n_fourier=40 needs more than 80 angles" in w.status.value

@@ -75,7 +75,8 @@ def option_widget(option) -> object:
     if option.kind is int:
         return SpinBox(value=option.default, min=int(option.low or 0),
                        max=int(option.high if option.high is not None else 10**6), **kw)
-    return FloatSpinBox(value=option.default, min=float(option.low or 0.0), step=0.01,
+    low = float(option.low or 0.0) + (0.0 if option.low_inclusive else 0.001)
+    return FloatSpinBox(value=option.default, min=low, step=0.01,
                         max=float(option.high if option.high is not None else 1e6), **kw)
 
 
