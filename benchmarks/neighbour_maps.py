@@ -217,7 +217,7 @@ def main(argv=None) -> int:
     try:
         import umap  # noqa: F401
     except ImportError:
-        print('umap-learn is not installed: UMAP left out (pip install "napari-pfsdm[umap]")')
+        print('umap-learn is not installed: UMAP left out (pip install -e ".[umap]")')
     else:
         methods["UMAP"] = embed("umap")
     table = []
