@@ -1,4 +1,4 @@
-"""Writing and reading a large feature table: CSV against Parquet (issue 23, point 5).
+"""Writing and reading a large feature table: CSV against Parquet.
 
 Run from the repository root (needs pyarrow: ``pip install -e ".[parquet]"``)::
 

@@ -1,4 +1,4 @@
-"""Parquet tables (issue 23, point 5): a name ending in .parquet is written as Parquet with the
+"""Parquet tables: a name ending in .parquet is written as Parquet with the
 same sidecar, read back identically (columns and dtypes), by every command that reads a feature
 table; a plain message when pyarrow is missing; nothing half-written on failure."""
 

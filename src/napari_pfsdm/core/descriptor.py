@@ -26,7 +26,7 @@ _ONLY_2D = ("n_fourier", "n_angles", "sdf", "viscosity", "mapping", "normalizati
 _ONLY_3D = ("sh_degree", "surface_weight", "ball_map")
 
 #: Default options of :func:`pfsdm` (those of :class:`~napari_pfsdm.core.params.PFSDMParams`,
-#: chosen by ``benchmarks/synthetic.py``, see README), without ``components`` and ``min_area``.
+#: chosen on the benchmarks, see docs/method.md), without ``components`` and ``min_area``.
 DEFAULTS: dict[str, Any] = {
     k: v for k, v in asdict(PFSDMParams()).items() if k not in ("components", "min_area")
 }
