@@ -83,7 +83,7 @@ class Mutant:
 
 
 #: Curated mutants that once survived, as (path, exact old text, new text, what it is). Each
-#: must be killed now; a mismatch (the line was edited) is reported, not skipped silently.
+#: must be killed; a mismatch (the line was edited) is reported, not skipped silently.
 CURATED = [
     ("core/morphometric.py", "w = w / (1.0 - r) ** 2", "w = w / (1.0 - r)",
      "depth ring weight without its square"),
