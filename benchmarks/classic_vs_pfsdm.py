@@ -1,4 +1,4 @@
-"""Classic measures against PF-SDM, and both together (issue 22, point 2).
+"""Classic measures against PF-SDM, and both together.
 
 Run from the repository root::
 

@@ -12,7 +12,7 @@ Scored per method, over all seeds of a scenario:
 * ``false``: links the method makes between two different objects (identity switches), and
   their fraction of its links;
 * ``agree``: fraction of rows whose track and true object are each other's majority (the
-  issue's target: ≥ 95 % with ids shuffled every frame);
+  target: ≥ 95 % with ids shuffled every frame);
 * ``s/movie``: linking time per movie (the table's centroids are measured beforehand).
 
 The second table checks :func:`napari_pfsdm.analysis.tracking.check_tracking` on tracked,

@@ -7,8 +7,8 @@ Run from the repository root (2 processes by default)::
     .venv/bin/python benchmarks/mpeg7.py --variants default "radii=boundary,invariance=align"
     .venv/bin/python benchmarks/mpeg7.py --variants default --subset 0 --rerank   # + re-ranking
 
-With ``default`` among the variants, the table also shows the default before the boundary term
-(``invariance=combined, boundary_weight=0``: the SDF term alone) and the boundary term alone
+With ``default`` among the variants, the table also shows the SDF term alone
+(``invariance=combined, boundary_weight=0``) and the boundary term alone
 ("outline Procrustes").
 
 The images are read from ``../shared/data/mpeg7`` (relative to the repository root) or the
@@ -451,7 +451,7 @@ def _pfsdm_one_slim(mask):
     return _slim(res)
 
 
-#: Rows added next to "default": the default before the boundary term (SDF only).
+#: Rows added next to "default": the SDF term alone (no boundary term).
 OLD_DEFAULT = "invariance=combined,boundary_weight=0"
 OUTLINE_ROW = "outline Procrustes (the boundary term alone)"
 

@@ -7,7 +7,7 @@ preprocessed, padded boolean masks of ``mpeg7.py`` (the object does not touch th
 * EFA: elliptic Fourier analysis (Kuhl & Giardina 1982) with ``pyefd``, 10 harmonics,
   ``normalize=True`` (rotation, scale and start-point normalised), the three constant
   coefficients dropped, Euclidean distance: plain pyefd, as a user would run it (the figure
-  quoted in issue 7). The outline is the marching-squares contour
+  usually quoted for it). The outline is the marching-squares contour
   (``skimage.measure.find_contours`` at 0.5), the same kind of contour PF-SDM uses.
 * mirror-aware EFA: the same, with the distance the minimum over the second outline and its
   mirror image (EFA is not reflection invariant; MPEG-7 classes hold mirrored members).

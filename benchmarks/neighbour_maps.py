@@ -1,7 +1,7 @@
-"""2-D maps drawn from a neighbour graph, and re-ranking on it, scored on MPEG-7 (issue 23).
+"""2-D maps drawn from a neighbour graph, and re-ranking on it, scored on MPEG-7.
 
-Above :data:`napari_pfsdm.cli.FULL_MATRIX_LIMIT` objects ``pfsdm compare --mds`` no longer
-computes the n x n matrix: it draws its map from the k-nearest-neighbour graph. Which embedding
+Above :data:`napari_pfsdm.cli.FULL_MATRIX_LIMIT` objects ``pfsdm compare --mds`` does not
+compute the n x n matrix: it draws its map from the k-nearest-neighbour graph. Which embedding
 of that graph keeps the kinds of shapes apart best? Run from the repository root::
 
     .venv/bin/python benchmarks/neighbour_maps.py              # MPEG-7 at ../shared/data/mpeg7
@@ -217,7 +217,7 @@ def main(argv=None) -> int:
     try:
         import umap  # noqa: F401
     except ImportError:
-        print('umap-learn is not installed: UMAP left out (pip install "napari-pfsdm[umap]")')
+        print('umap-learn is not installed: UMAP left out (pip install -e ".[umap]")')
     else:
         methods["UMAP"] = embed("umap")
     table = []

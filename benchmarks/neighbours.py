@@ -1,7 +1,7 @@
-"""Nearest neighbours of many objects (issue 23): ``nearest_neighbours`` against ``measure``.
+"""Nearest neighbours of many objects: ``nearest_neighbours`` against ``measure``.
 
 For each size n (default 3,000, 10,000 and 50,000 objects) a moving-blobs movie (1024², 250
-deforming blobs of radius 10–16 px per frame, as in issue 23) is made and measured with
+deforming blobs of radius 10–16 px per frame) is made and measured with
 ``napari_pfsdm.measure`` (one core, BLAS on one thread); then, in a fresh subprocess (so that its
 peak memory is its own), ``napari_pfsdm.nearest_neighbours(table, k=10)`` runs with one thread
 and with ``--jobs`` threads. Reported per size:

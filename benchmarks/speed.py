@@ -21,14 +21,14 @@ frames, one object of the five-shape set per 256 × 256 quadrant), in objects pe
 fastest of up to three runs).
 
 Distances: all pairs of ``--n-distance`` objects (perturbed five shapes, 128 × 128) with the
-default distance (SDF magnitudes + boundary term) and with the SDF's combined distance (the
-default before the boundary term), in the same run, wall seconds.
+default distance (SDF magnitudes + boundary term) and with the SDF's combined distance (no
+boundary term), in the same run, wall seconds.
 
 Single-threaded BLAS/FFT (``*_NUM_THREADS=1``) so that the numbers are per core (the distances
-too, unless ``--threads``). Writes ``speed.csv`` to ``--out``. Targets (issue 2): default
-``pfsdm`` ≤ 3× EFA per object, ``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s;
-(issue 13) default ``pfsdm`` with the boundary term's outline coefficients ≤ 2× EFA, all
-1,400² default distances < 20 s.
+too, unless ``--threads``). Writes ``speed.csv`` to ``--out``. Targets: default ``pfsdm``
+≤ 3× EFA per object, ``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s; default
+``pfsdm`` with the boundary term's outline coefficients ≤ 2× EFA, all 1,400² default distances
+< 20 s.
 """
 
 from __future__ import annotations
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         r.outline  # noqa: B018  (part of the descriptor's cost, timed above)
     dist_s = {}
     for label, kw in (("default (SDF magnitudes + boundary term)", {}),
-                      ("SDF combined, no boundary term (the default before)",
+                      ("SDF combined, no boundary term",
                        {"invariance": "combined", "boundary_weight": 0})):
         start = time.perf_counter()
         P.distance_matrix(results, **kw)

@@ -1,6 +1,6 @@
-"""Writing and reading a large feature table: CSV against Parquet (issue 23, point 5).
+"""Writing and reading a large feature table: CSV against Parquet.
 
-Run from the repository root (needs pyarrow: ``pip install "napari-pfsdm[parquet]"``)::
+Run from the repository root (needs pyarrow: ``pip install -e ".[parquet]"``)::
 
     .venv/bin/python benchmarks/table_io.py                 # 50,000 rows x 350 columns
     .venv/bin/python benchmarks/table_io.py --rows 5000

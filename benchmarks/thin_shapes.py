@@ -1,4 +1,4 @@
-"""Thin and fine shapes (issue 13, point 5): exterior SDF, multi-scale viscosity, bijective map
+"""Thin and fine shapes: exterior SDF, multi-scale viscosity, bijective map
 for folded objects only — prototyped against the default distance in the same run.
 
 Run from the repository root (one process; heavy: ~20 min the first time, seconds once the
@@ -48,8 +48,9 @@ default result's own pieces: its contour, exact SDF, harmonic map samples, weigh
     ``diagnostics["folded_fraction"]`` exceeds τ, the harmonic map for the rest; same d_B.
 
 Outputs in ``benchmarks/out/``: ``thin_shapes.csv`` (one row per variant and shape set, the
-per-class bull's-eye of the classes named in the issue as columns), ``thin_shapes.md`` (the
-table with the command line) and ``thin_shapes.png`` (per-class bars and score against cost).
+per-class bull's-eye of the thin and finely detailed classes, :data:`NAMED`, as columns),
+``thin_shapes.md`` (the table with the command line) and ``thin_shapes.png`` (per-class bars
+and score against cost).
 """
 
 from __future__ import annotations
@@ -518,7 +519,7 @@ def plot(path: Path, rows: list[dict], classes: tuple[str, ...], shown: list[str
     ax.set_xlabel("bull's-eye per class (%)")
     ax.grid(axis="x", alpha=0.3)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
-    ax.set_title("MPEG-7: classes named in issue 13 and the default's worst", fontsize=9)
+    ax.set_title("MPEG-7: thin and finely detailed classes and the default's worst", fontsize=9)
     for k, r in enumerate(rows):
         if r["shapes"] != "MPEG-7" or "alone" in r["variant"]:
             continue

@@ -1,4 +1,4 @@
-"""3-D benchmark (issue 14): PF-SDM on the unit ball against moment and surface baselines.
+"""3-D benchmark: PF-SDM on the unit ball against moment and surface baselines.
 
 Run from the repository root::
 

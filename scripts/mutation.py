@@ -7,8 +7,8 @@
 
 Each mutant is one plausible slip on one line of the package: an operator swapped (``+``/``-``,
 ``*``/``/``, ``<``/``<=``, ``==``/``!=``, ``and``/``or``), a range or slice one off, a
-number changed, a negation or a minus sign dropped, a wrong exponent; plus the mutants that
-issue 21 found surviving (:data:`CURATED`). They are drawn from core, analysis, batch/io.py,
+number changed, a negation or a minus sign dropped, a wrong exponent; plus curated mutants
+that once survived the suite (:data:`CURATED`). They are drawn from core, analysis, batch/io.py,
 io_csv.py and cli.py (the napari plugin is tested under Qt, not here). Code that only builds
 messages (``raise``, f-strings, ``help=``) is not mutated.
 
@@ -82,8 +82,8 @@ class Mutant:
         return f"{self.path}:{self.line}:{self.kind}"
 
 
-#: The survivors issue 21 reported, as (path, exact old text, new text, what it is). Each
-#: must be killed now; a mismatch (the line was edited) is reported, not skipped silently.
+#: Curated mutants that once survived, as (path, exact old text, new text, what it is). Each
+#: must be killed; a mismatch (the line was edited) is reported, not skipped silently.
 CURATED = [
     ("core/morphometric.py", "w = w / (1.0 - r) ** 2", "w = w / (1.0 - r)",
      "depth ring weight without its square"),
@@ -464,7 +464,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="mutants drawn from each module (default 3)")
     ap.add_argument("--seed", type=int, default=21, help="of the draw (default 21)")
     ap.add_argument("--modules", nargs="*", help="only these (e.g. core/sdf.py io_csv.py)")
-    ap.add_argument("--no-curated", action="store_true", help="leave out issue 21's mutants")
+    ap.add_argument("--no-curated", action="store_true", help="leave out the curated mutants")
     ap.add_argument("--timeout", type=float, default=300,
                     help="seconds per mutant before it counts as killed (default 300)")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")

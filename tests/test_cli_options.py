@@ -1,5 +1,5 @@
-"""Every ``pfsdm`` option changes what its help says it changes (issue 21: ``compare
---boundary-weight`` was ignored and no test saw it). Expected values come from the method's
+"""Every ``pfsdm`` option changes what its help says it changes (e.g. ``compare
+--boundary-weight`` is not ignored). Expected values come from the method's
 formulas (D = d_SDF + λ d_B with d_SDF² = d_shape² + w_I d_intensity², docs/design.md §2.6),
 not from the code under test."""
 

@@ -1,4 +1,4 @@
-"""Issue 11, case by case: what a new user ran into on a fresh clone, and what they get now.
+"""What a new user meets on a fresh clone, case by case, and what they get.
 
 Real input: ``skimage.data.coins()`` segmented with Otsu (coins touch the border, some specks
 are too small to describe). Every command runs in-process through ``pfsdm``'s ``main``.

@@ -124,7 +124,7 @@ def test_no_import_circle_in_core():
             if isinstance(node, ast.ImportFrom) and node.level == 1:
                 if node.module:  # from .sdf import ...
                     deps.add(node.module.split(".")[0])
-                else:  # from . import distances3d (issue 21: the circle hid in this form)
+                else:  # from . import distances3d (an import cycle can hide in this form)
                     deps.update(alias.name for alias in node.names)
         graph[path.stem] = deps
 
@@ -162,7 +162,7 @@ def _attrs_writes(text: str) -> list[int]:
 
 def test_table_options_travel_through_one_helper():
     """Options ride in ``DataFrame.attrs``, which merge and concat drop: every producer goes
-    through core/table_options.py instead of restoring them by hand (issue 21: 17 sites)."""
+    through core/table_options.py instead of restoring them by hand (17 sites)."""
     found = {}
     for path in MODULES:
         rel = path.relative_to(SRC).parts

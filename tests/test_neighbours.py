@@ -1,4 +1,4 @@
-"""nearest_neighbours (issue 23): the k nearest objects under the default distance, checked
+"""nearest_neighbours: the k nearest objects under the default distance, checked
 against an independent reference, ``np.argsort`` of ``distance_matrix``'s rows."""
 
 import time

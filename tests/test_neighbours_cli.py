@@ -1,4 +1,4 @@
-"""``pfsdm compare --neighbours K`` (issue 23): the edge list, its round trip through a plain
+"""``pfsdm compare --neighbours K``: the edge list, its round trip through a plain
 ``pandas.read_csv``, re-ranking on the graph, and the map drawn from the graph above
 ``FULL_MATRIX_LIMIT``. Expected neighbours come from ``np.argsort`` of the full matrix."""
 

@@ -1,9 +1,10 @@
-"""Parquet tables (issue 23, point 5): a name ending in .parquet is written as Parquet with the
+"""Parquet tables: a name ending in .parquet is written as Parquet with the
 same sidecar, read back identically (columns and dtypes), by every command that reads a feature
 table; a plain message when pyarrow is missing; nothing half-written on failure."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import sys
 
@@ -18,7 +19,10 @@ from napari_pfsdm.core.table_options import plain
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
 from test_cli_options import three_objects
 
-pytest.importorskip("pyarrow")
+#: Writing and reading Parquet needs pyarrow (the [parquet] extra); the message given without
+#: it is tested either way.
+needs_pyarrow = pytest.mark.skipif(importlib.util.find_spec("pyarrow") is None,
+                                   reason="pyarrow is not installed (the [parquet] extra)")
 
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
 
@@ -28,6 +32,7 @@ def _movie(n_frames=3):
     return three_objects(n_frames)[0]  # the CLI tests' movie (tests/test_cli_options.py)
 
 
+@needs_pyarrow
 def test_a_measured_table_reads_back_identically(tmp_path):
     table = P.measure(_movie(), n_fourier=6, n_radii=8)
     table["movie"] = "001"  # text that a CSV reader could take for a number
@@ -45,6 +50,7 @@ def test_a_measured_table_reads_back_identically(tmp_path):
         assert handle.read(4) == b"PAR1"
 
 
+@needs_pyarrow
 def test_odd_columns_round_trip(tmp_path):
     df = pd.DataFrame({
         "frame": np.array([0, 1, 2], np.int64), "label": np.array([1, 2, 3], np.int32),
@@ -58,6 +64,7 @@ def test_odd_columns_round_trip(tmp_path):
     pd.testing.assert_frame_equal(plain(read_table_csv(p, index_col=0)), d)
 
 
+@needs_pyarrow
 def test_measure_writes_parquet_that_every_reader_takes(tmp_path):
     tifffile.imwrite(tmp_path / "m.tif", _movie(), photometric="minisblack")
     for name in ("f.csv", "f.parquet"):
@@ -92,6 +99,7 @@ def test_without_pyarrow_a_plain_message_and_no_file(tmp_path, monkeypatch, caps
     assert not (tmp_path / "f.parquet").exists()
 
 
+@needs_pyarrow
 def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     df = pd.DataFrame({"frame": [0, 1], "label": [1, 1]})
     write_table_csv(df, tmp_path / "t.parquet", {"v": 1})

@@ -71,7 +71,7 @@ def test_distance_properties():
     assert np.all((bnd >= 0) & (bnd <= 1))
     assert P.distance(shapes[0], shapes[1], invariance="magnitude", boundary_weight=0) \
         == pytest.approx(mag[0, 1])
-    # the default: SDF magnitudes + 1 x the boundary term; the old default still available
+    # the default: SDF magnitudes + 1 x the boundary term; the SDF term alone still available
     assert P.distance(shapes[0], shapes[1]) == pytest.approx(mag[0, 1] + bnd[0, 1])
     assert P.distance(shapes[0], shapes[1], boundary_weight=2.5) \
         == pytest.approx(mag[0, 1] + 2.5 * bnd[0, 1])

@@ -1,5 +1,5 @@
 """Every ```python block of README.md runs as written, from a folder that is not the
-repository (issue 11: the README's script once used undefined names)."""
+repository, and writes nothing there."""
 
 from __future__ import annotations
 

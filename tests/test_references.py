@@ -1,7 +1,7 @@
 """Numbers held to references computed independently of the package: scikit-learn's PCA,
 classical MDS of a known configuration, scikit-image's regionprops, closed forms of the ring
-weights (issue 21: each of these replaced a test that read its expected value from the code
-under test, or killed a mutant that no test saw)."""
+weights (none reads its expected value from the code under test; several kill a mutant that
+no other test sees)."""
 
 from __future__ import annotations
 

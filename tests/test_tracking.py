@@ -76,7 +76,7 @@ def test_check_tracking_flags_renumbered_labels(movie, how, tracked):
         assert "do not follow objects" in check.message and "Link" in check.message
     if how == "scan_order":  # most ids stay put; those that move land on another object
         assert check.median_jump_radii < 0.5 and check.switched > 0.1
-    if how == "shuffled":  # the issue's figure: the median label jumps across the field
+    if how == "shuffled":  # the median label jumps across the field
         assert check.median_jump > 40 and check.median_jump_radii > 3
         assert "px" in check.message and "object radii" in check.message
     if how == "new_ids":
@@ -148,8 +148,8 @@ def _linked(method: str, labels: np.ndarray, table: pd.DataFrame, max_gap: int) 
 
 @pytest.mark.parametrize("method", LINKERS)
 def test_every_linker_closes_a_gap_over_an_empty_frame(method):
-    # the object is in frames 0 and 2; frame 1 holds no object at all (issue 21: centroid
-    # linking, the default, gave [1, 2] here while overlap linking gave [1, 1])
+    # the object is in frames 0 and 2; frame 1 holds no object at all (centroid
+    # linking, the default, must give [1, 1] as overlap linking does, not [1, 2])
     labels, table = _blinking(3, [0, 2])
     assert _linked(method, labels, table, max_gap=1) == [1, 1]
     assert _linked(method, labels, table, max_gap=0) == [1, 2]  # no gap closing asked

@@ -1,4 +1,4 @@
-"""3-D PF-SDM against truth (issue 14): spherical harmonics, the SDF of a sphere and of an
+"""3-D PF-SDM against truth: spherical harmonics, the SDF of a sphere and of an
 ellipsoid against closed form, invariance to 90° rotations, mirrors and arbitrary rotations,
 a sphere's spectrum, anisotropic voxels, bad input, display helpers.
 

@@ -800,6 +800,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     # own outputs there, plots of older versions (written without pfsdm's PNG mark) included
     own_folder = written_by_pfsdm(out / "features.csv")
     _check_output(out / "features.csv")
+    _check_output(out / "mds.png", force=own_folder)  # drawn by the demo itself, below
     failed = []
 
     def synthetic_five_shapes() -> Any:
@@ -847,19 +848,61 @@ def cmd_demo(args: argparse.Namespace) -> int:
     _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
          f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
     common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
-    rc = main(["measure", str(out / "montage_labels.tif"),
-               "--intensity", str(out / "montage_intensity.tif"),
-               "-o", str(out / "features.csv"), "--scheduler", args.scheduler, *common])
-    last = int(labels.shape[0] - 1)
-    rc = rc or main(["trajectories", str(out / "features.csv"), "-o", str(out / "pca.csv"),
-                     "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"),
-                     *common])
+    # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
+    # bar that counts objects as their frames are measured (every frame holds all objects)
+    from .batch.io import Movie
+    from .batch.run import run_batch
+
+    n_frames, per_frame = int(labels.shape[0]), len(groups)
+    _say(f"measuring {out / 'montage_labels.tif'} with its reporter -> {out / 'features.csv'}",
+         args.quiet)
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_frames * per_frame, desc="measuring", unit="object",
+                   file=sys.stderr, dynamic_ncols=True)
+
+    def objects_done(name: str, done: int, total: int) -> None:
+        if bar is not None:
+            bar.update(done * per_frame - bar.n)
+            if done >= total:
+                bar.close()  # before the messages about the finished movie
+
+    t0 = time.perf_counter()
+    try:
+        table = run_batch([Movie("montage", out / "montage_labels.tif",
+                                 out / "montage_intensity.tif")], out / "features.csv",
+                          scheduler=args.scheduler, frames_per_task=2, progress=objects_done,
+                          log=lambda m: _say("  " + m, args.quiet), link="auto")
+    finally:
+        if bar is not None:
+            bar.close()
+    _say(f"wrote {out / 'features.csv'} (options in features.csv.json): {len(table)} objects "
+         f"in {time.perf_counter() - t0:.1f} s", args.quiet)
+    last = n_frames - 1
+    rc = main(["trajectories", str(out / "features.csv"), "-o", str(out / "pca.csv"),
+               "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"),
+               *common])
     rc = rc or main(["compare", str(out / "features.csv"), "-o", str(out / "distances.csv"),
-                     "--frames", str(last), "--mds", str(out / "mds.png"),
-                     "--groups", str(out / "groups.csv"), "--intensity-weight", "0.5",
-                     *common])
+                     "--frames", str(last), "--groups", str(out / "groups.csv"),
+                     "--intensity-weight", "0.5", *common])
     if rc:
         return rc
+    # the map of the last frame, titled with what it shows
+    from .analysis.features import drop_failed
+    from .analysis.reduction import attach_groups, mds_coordinates, read_groups
+    from .analysis.tables import distance_matrix
+    from .batch.reports import load_features, plot_mds
+
+    table = load_features(out / "features.csv")
+    shown = attach_groups(drop_failed(table[table["frame"] == last]).reset_index(drop=True),
+                          read_groups(out / "groups.csv"))
+    plot_mds(mds_coordinates(distance_matrix(shown, intensity_weight=0.5)), shown,
+             out / "mds.png",
+             title=f"PF-SDM distances (shape + 0.5 × intensity), 2-D MDS\n"
+                   f"frame {last} (the last) of the time-lapse, {len(shown)} objects")
+    _say(f"wrote {out / 'mds.png'} (classical MDS of frame {last}'s distances)", args.quiet)
     files = sorted(p.name for p in out.iterdir() if p.is_file())
     _say(f"demo done: {out} holds {', '.join(files)}")
     _ = np  # numpy imported for symmetry with the other commands

@@ -435,7 +435,14 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
     One label movie pairs with one intensity movie whatever their names. Otherwise movies
     pair by name, ignoring words such as ``labels``, ``mask``, ``seg``, ``intensity``,
     ``image`` (``gastruloid01_labels.tif`` ↔ ``gastruloid01_reporter.tif``).
+
+    A file that is among the intensity movies is not a label movie, so that a folder holding
+    both (``movies/`` with ``movies/*_reporter.tif``) can be given as the labels.
     """
+    if intensity:
+        given = {Path(q).resolve() for q in intensity}
+        kept = [p for p in labels if Path(p).resolve() not in given]
+        labels = kept or labels  # the same single file as both: leave it to the checks
     names = [movie_name(p) for p in labels]
     if len(set(names)) != len(names):
         # keep names unique (e.g. same file name in two folders)

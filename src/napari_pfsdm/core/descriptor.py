@@ -22,7 +22,7 @@ from .sdf import ExactSDF, ViscousSDF, make_sdf
 __all__ = ["PFSDMResult", "pfsdm", "render_disk", "render_disks", "DEFAULTS"]
 
 #: Default options of :func:`pfsdm`: those of :data:`~napari_pfsdm.core.params.OPTIONS`
-#: (chosen by ``benchmarks/synthetic.py``, see README).
+#: (chosen on the benchmarks, see docs/method.md).
 DEFAULTS: dict[str, Any] = {o.name: o.default for o in OPTIONS}
 
 

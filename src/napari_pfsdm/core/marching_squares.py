@@ -6,8 +6,8 @@
 (measured on the five shapes' 256 px crops): on a binary mask every vertex sits at the
 midpoint of a pixel edge between the object and the background, so the segments of all 2 × 2
 cells come from one table lookup, and only the walk along the chosen loop is a Python loop.
-skimage assembles the segments in pure Python, which was a tenth of the descriptor's time
-(issue 13, point 4).
+skimage assembles the segments in pure Python, which would be a tenth of the descriptor's
+time.
 
 Conventions are skimage's defaults: the background is fully connected (``fully_connected="low"``),
 so object pixels that touch only at a corner are separate loops; coordinates are

@@ -90,7 +90,7 @@ def mode_weights(n_fourier: int, exponent: float = 0.0) -> np.ndarray:
 
     A positive exponent brings out the higher modes, which carry the fine outline that tells
     compact shapes apart (the harmonic extension damps them by r^n); 0 compares the magnitudes
-    as they are (the paper). The benchmarks' numbers for 0, 0.25 and 0.5 are in the README.
+    as they are (the paper). The benchmarks' numbers for 0, 0.25 and 0.5 are in docs/method.md.
     """
     if not np.isfinite(exponent) or exponent < 0:
         raise InputError(f"mode_exponent must be a number >= 0, got {exponent!r}.")

@@ -1,4 +1,4 @@
-"""Synthetic 3-D objects that volume, inertia and sphericity cannot tell apart (issue 14).
+"""Synthetic 3-D objects that volume, inertia and sphericity cannot tell apart.
 
 Twelve classes of blobs in normalised units (the equal-volume radius is about 1), each copy
 with a random rotation, an optional mirror image, a random scale and a smooth random surface

@@ -80,7 +80,9 @@ FUSED_FEATURES = ("shape alone", "intensity alone", "classic alone", "fused")
 #: How the fused row is labelled in the table.
 FUSED_LABEL = "fused (shape+intensity+classic)"
 
-_CLASS_COLORS = {False: "tab:blue", True: "tab:orange"}
+#: Colours of the two groups, as every plot of the package colours groups (sorted names in
+#: tab10 order: "multi-axes" blue, "single-axis" orange, as in ``pfsdm trajectories``' pca.png).
+_CLASS_COLORS = {True: "tab:blue", False: "tab:orange"}
 
 
 def _summary_rows(method: str, summary: pd.DataFrame, seconds: float, note: str) -> list[dict]:
@@ -183,11 +185,12 @@ def plot_pca(
     path: str | Path,
     marks: Sequence[int] | None = None,
 ) -> None:
-    """PCA trajectories (PC1, PC2) of intensity (left) and shape (right) features over time.
+    """PCA trajectories (PC1, PC2) of shape (left) and intensity (right) features over time.
 
     PCA over all (object, frame) rows of standardised features; one line per object through
-    time, blue single-axis, orange multi-axes; circle, triangle, square mark an early, an
-    intermediate and the last frame (as the paper's Fig. 2B).
+    time, blue multi-axes, orange single-axis (the colours of ``pfsdm trajectories``); circle,
+    triangle, square mark an early, an intermediate and the last frame (as the paper's
+    Fig. 2B).
     """
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -197,9 +200,9 @@ def plot_pca(
     frames = sorted(table["frame"].unique())
     if marks is None:
         marks = [frames[0], frames[len(frames) // 2], frames[-1]]
-    fig = Figure(figsize=(11, 5))
+    fig = Figure(figsize=(11, 5.3))
     axes = fig.subplots(1, 2)
-    for ax, kind in zip(axes, ("intensity", "shape"), strict=True):
+    for ax, kind in zip(axes, ("shape", "intensity"), strict=True):
         cols = [c for c in table.columns if c.startswith(f"{kind}_")]
         ok = table[cols].notna().all(axis=1)
         sub = carry_options(table, table[ok].sort_values(["object", "frame"]))
@@ -217,17 +220,20 @@ def plot_pca(
                 if k.size:
                     ax.plot(pcs[sel][k, 0], pcs[sel][k, 1], marker, color=color, ms=4,
                             mec="black", mew=0.4, zorder=4)
-        ax.set_xlabel(f"PC1 ({100 * ev[0]:.0f} %)")
-        ax.set_ylabel(f"PC2 ({100 * ev[1]:.0f} %)")
-        ax.set_title(f"PF-SDM {kind} features")
+        ax.set_xlabel(f"PC1 ({100 * ev[0]:.0f} % of variance)")
+        ax.set_ylabel(f"PC2 ({100 * ev[1]:.0f} % of variance)")
+        ax.set_title(f"{kind} features")
     handles = [
-        Line2D([], [], color=_CLASS_COLORS[False], label="single-axis"),
         Line2D([], [], color=_CLASS_COLORS[True], label="multi-axes"),
+        Line2D([], [], color=_CLASS_COLORS[False], label="single-axis"),
     ] + [
         Line2D([], [], ls="", marker=m, color="gray", label=f"frame {f}")
         for f, m in zip(marks, ("o", "^", "s"), strict=False)
     ]
-    axes[1].legend(handles=handles, fontsize=8)
+    axes[0].legend(handles=handles, fontsize=8, title="group", title_fontsize=8)
+    n_multi = int(np.sum([bool(multi_axis[o]) for o in table["object"].unique()]))
+    fig.suptitle(f"PF-SDM trajectories of {table['object'].nunique()} synthetic gastruloids "
+                 f"({n_multi} multi-axes), frames {frames[0]}–{frames[-1]}")
     fig.tight_layout()
     save_figure(fig, path, dpi=120)
 

@@ -196,10 +196,10 @@ def _pfsdm_matrix(results: list, invariance: str, **more) -> np.ndarray:
     return dist
 
 
-#: Rows shown next to the default: the default before the boundary term (the SDF term alone)
+#: Rows shown next to the default: the SDF term alone (``invariance="combined"``, no boundary term)
 #: and the boundary term alone, as (label, invariance, keyword arguments of distance_matrix).
 REFERENCE_ROWS = (
-    ("PF-SDM SDF only (combined; the default before the boundary term)", "combined",
+    ("PF-SDM SDF only (combined, no boundary term)", "combined",
      {"boundary_weight": 0.0}),
     ("outline Procrustes (the boundary term alone)", "none", {}),
 )
