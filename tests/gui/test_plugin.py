@@ -192,10 +192,31 @@ def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_
     w = dock(viewer)
     run_and_wait(qtbot, w)
     w.open_plots()
-    dock(viewer, PREDICTION)
+    prediction = dock(viewer, PREDICTION)
     wait_pictures(qtbot, w)
     qtbot.wait(300)
     assert window.height() <= 800
+    from qtpy.QtWidgets import QAbstractButton, QAbstractSpinBox, QComboBox
+
+    plots = dock(viewer, PLOTS)
+    # napari's style sheet draws spin boxes 18-20 px high (its own layer controls too): a
+    # squashed control is one below that, e.g. a combo box given 0 of its 24 px
+    from superqt import QCollapsible
+
+    def squashed():
+        folded = [c for c in w.findChildren(QCollapsible) if not c.isExpanded()]
+        return [(type(c).__name__, c.toolTip()[:30], c.height())
+                for panel in (w, plots, prediction)
+                for kind in (QAbstractButton, QAbstractSpinBox, QComboBox)
+                for c in panel.findChildren(kind)
+                if c.isVisible() and c.height() < min(c.minimumSizeHint().height(), 18)
+                and not any(f.isAncestorOf(c) for f in folded)]
+
+    assert squashed() == []  # every control keeps its natural height (the docks scroll)
+    for more in w.findChildren(QCollapsible):  # unfolding "More options" scrolls too
+        more.expand(animate=False)
+    qtbot.wait(200)
+    assert squashed() == [] and window.height() <= 800
     for button in (w.run_button, w.export_button):
         native = button.native
         top_left = native.mapTo(window, native.rect().topLeft())

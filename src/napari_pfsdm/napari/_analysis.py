@@ -19,7 +19,15 @@ from napari.qt.threading import thread_worker
 from napari.utils import progress
 from napari.utils.notifications import show_error, show_info, show_warning
 from qtpy.QtCore import QSize, Qt
-from qtpy.QtWidgets import QFileDialog, QFrame, QScrollArea, QSizePolicy, QVBoxLayout, QWidget
+from qtpy.QtWidgets import (
+    QFileDialog,
+    QFrame,
+    QLayout,
+    QScrollArea,
+    QSizePolicy,
+    QVBoxLayout,
+    QWidget,
+)
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams
@@ -56,6 +64,8 @@ TIPS = {
 def scrolled(inner: QWidget, minimum: int = 90) -> QScrollArea:
     """``inner`` in a scroll area: its controls keep their natural height and scroll when the
     dock is short, so that a dock never makes napari's window taller than the screen."""
+    if inner.layout() is not None:  # the scroll area then never squeezes a control
+        inner.layout().setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)
     scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
     scroll.setWidget(inner)
     scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
