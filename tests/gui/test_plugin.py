@@ -287,3 +287,35 @@ def test_the_form_is_the_option_record(qtbot, viewer_widget):
     w.options["n_fourier"].value = 40  # more than 64 angles carry: the record's own words
     assert w.run() is None
     assert "n_fourier=40 needs more than 80 angles" in w.status.value
+
+
+def test_clusters_plotter_selects_exactly_the_rows_of_each_frame(qtbot, viewer_widget):
+    """napari-clusters-plotter, docked beside the plugin, reads the objects layer's features:
+    a selection in its plot marks exactly the selected rows' objects, frame by frame."""
+    pytest.importorskip("napari_clusters_plotter")
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    objects = w.add_objects_layer()
+    _dock, plotter = viewer.window.add_plugin_dock_widget("napari-clusters-plotter",
+                                                          "Plot & select features")
+    viewer.layers.selection.active = objects
+    qtbot.wait(200)
+    plotter.x_axis, plotter.y_axis = "shape_PC1", "area"
+    pc1 = objects.features["shape_PC1"].to_numpy()
+    frames = objects.features["frame"].to_numpy()
+    chosen = np.zeros(len(pc1), int)
+    for f in np.unique(frames):  # the right half of shape_PC1 within each frame
+        rows = np.flatnonzero(frames == f)
+        chosen[rows] = pc1[rows] > np.median(pc1[rows])
+    plotter.plotting_widget.show_color_overlay = True  # as drawing a selection does
+    selector = next(iter(plotter.plotting_widget.selectors.values()))
+    selector.selection_applied_signal.emit(chosen)
+    qtbot.wait(300)
+    table = analysis.table
+    for f in (0, int(table["frame"].max())):
+        rows = np.flatnonzero(table["frame"].to_numpy() == f)
+        colours = {int(r): tuple(np.round(objects.colormap.map(np.array([r + 1]))[0], 3))
+                   for r in rows}
+        picked = {colours[r] for r in rows if chosen[r]}
+        others = {colours[r] for r in rows if not chosen[r]}
+        assert picked and others and not (picked & others), f
