@@ -1,17 +1,19 @@
-"""The screenshots in docs/: the plugin as a user sees it after a run, plots open, an object
+"""The screenshots in docs/: the plugin as a user sees it after a run, every dock open, an object
 selected, at the window sizes of a laptop (1280 × 800) and of a desktop (1600 × 1000).
 
 A fresh ``napari.Viewer`` (with napari's settings in a temporary file, so that no window or
 dock geometry saved by an earlier session changes the layout), the gastruloid sample, the
-widgets docked through the Plugins menu's route (``add_plugin_dock_widget``), Run, Open plots,
-frame 9 and label 5. Run from the repository root on a (virtual) X screen at least as large::
+analysis and prediction docks opened the way the Plugins menu does
+(``add_plugin_dock_widget``), Run, the plots through the analysis dock's Open plots, a
+prediction from frames 0–5 on the sample's groups, then frame 9 and label 5. Run from the
+repository root on a (virtual) X screen at least as large::
 
     xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python benchmarks/screenshots.py
 
-Writes ``docs/screenshot.png`` (1600 × 1000), ``docs/screenshot_1280x800.png`` and, with the
-components and prediction docks open after a prediction on the sample's groups,
-``docs/screenshot_components.png`` and ``docs/screenshot_prediction.png`` (1280 × 800).
-Look at them before committing.
+Writes ``docs/screenshot.png`` (1600 × 1000) and, at 1280 × 800, ``docs/screenshot_1280x800.png``
+(the plots' Trajectories tab), ``docs/screenshot_components.png`` (Components tab) and
+``docs/screenshot_prediction.png`` (Comparison tab; the prediction dock shows its result in
+every picture). Look at them before committing.
 """
 
 from __future__ import annotations
@@ -21,17 +23,23 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
-SIZES = {(1600, 1000): "screenshot.png", (1280, 800): "screenshot_1280x800.png"}
-#: The reading and prediction docks (issue 22), at a laptop's size.
-PANELS = "screenshot_components.png"  # and screenshot_prediction.png
+TABS = ("trajectories", "comparison", "components")
+#: (width, height, plots tab) → file in docs/
+JOBS = {(1600, 1000, "trajectories"): "screenshot.png",
+        (1280, 800, "trajectories"): "screenshot_1280x800.png",
+        (1280, 800, "components"): "screenshot_components.png",
+        (1280, 800, "comparison"): "screenshot_prediction.png"}
+FRAME, LABEL = 9, 5
 
 
-def shoot(width: int, height: int, out: Path, panels: bool = False) -> None:
+def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None:
     """One screenshot in this process (napari's settings must be set before import)."""
     import napari
+    from imageio.v3 import imwrite  # napari's own dependency
     from qtpy.QtCore import QEventLoop, QTimer
 
     from napari_pfsdm.napari._sample_data import gastruloid_timelapse
@@ -41,74 +49,66 @@ def shoot(width: int, height: int, out: Path, panels: bool = False) -> None:
         QTimer.singleShot(ms, loop.quit)
         loop.exec()
 
+    def wait(done, what: str, timeout: float = 300.0) -> None:
+        t0 = time.perf_counter()
+        while not done():
+            if time.perf_counter() - t0 > timeout:
+                raise TimeoutError(f"{what}: not done after {timeout:.0f} s")
+            spin(50)
+
     viewer = napari.Viewer(show=True)
-    viewer.window._qt_window.resize(width, height)
+    viewer.window.resize(width, height)
     for data, kwargs, kind in gastruloid_timelapse():
         getattr(viewer, f"add_{kind}")(data, **kwargs)
-    _dock, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
-    widget.run()
-    while widget.worker is not None or widget.last_output is None:
-        spin(50)
     labels = viewer.layers["gastruloids"]
-    if panels:  # the components' reading and the prediction, side by side
-        window = viewer.window
-        comp_dock, comp = window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM components")
-        _d, pred = window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM prediction",
-                                                 tabify=True)
-        pred.classes = {}
-        frame0 = widget.last_output.table.sort_values("frame").drop_duplicates("track_id")
-        groups = labels.metadata["groups"]
-        pred.classes = {int(t): groups[int(lab)] for t, lab in
-                        zip(frame0["track_id"], frame0["label"], strict=True)}
-        pred.source.setCurrentText("groups CSV")
-        pred._show_classes()
-        pred.last.setValue(5)
-        pred.run()
-        while pred.worker is not None or comp.worker is not None:
-            spin(100)
-        comp_dock.raise_()
-    else:
-        widget.open_plots()
+    window = viewer.window
+    _d, widget = window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    _d, predictor = window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM prediction")
+    if widget.run() is None:
+        raise RuntimeError(f"Run refused: {widget.status.value}")
+    wait(lambda: widget.worker is None, "Run")
+    if widget.bound is None:
+        raise RuntimeError(f"the Run gave no results: {widget.status.value}")
+    widget.open_plots()
+    _d, plots = window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM plots")  # the one docked
+    predictor.layer_choice.value = labels.name
+    predictor.last.value = 5
+    predictor.run()
+    wait(lambda: predictor.worker is None, "prediction")
     viewer.layers["gastruloids reporter"].visible = False
-    viewer.dims.set_point(0, 9)
-    labels.selected_label = 5
-    spin(3000)
-    for plot in getattr(widget, "plots", []):
-        plot.flush()
-    spin(2000)
-    from imageio.v3 import imwrite  # napari's own dependency
+    viewer.dims.set_current_step(0, FRAME)
+    labels.selected_label = LABEL
+    plots.tabs.setCurrentIndex(TABS.index(tab))
 
+    def shown() -> bool:
+        key = widget.pictures.shown
+        return (key is not None and key[1:] == (FRAME, LABEL) and widget.pictures.worker is None
+                and plots.comparison.worker is None and plots.components.worker is None)
+
+    wait(shown, "pictures and plots")
+    spin(2000)
     img = viewer.screenshot(canvas_only=False, flash=False)
     imwrite(out, img[..., :3])
     print(f"wrote {out} ({img.shape[1]} × {img.shape[0]})")
-    if panels:  # and the prediction's tab
-        _d.raise_()
-        spin(1500)
-        img = viewer.screenshot(canvas_only=False, flash=False)
-        second = out.with_name(out.stem.replace("components", "prediction") + out.suffix)
-        imwrite(second, img[..., :3])
-        print(f"wrote {second} ({img.shape[1]} × {img.shape[0]})")
     viewer.close()
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", nargs=2, type=int, help="one size only (width height)")
+    parser.add_argument("--tab", choices=TABS, default="trajectories",
+                        help="the plots' tab shown (with --size)")
     parser.add_argument("--out", type=Path, help="file to write (with --size)")
-    parser.add_argument("--panels", action="store_true",
-                        help="the components and prediction docks instead of the plots")
     args = parser.parse_args(argv)
     if args.size:
-        shoot(*args.size, args.out or DOCS / SIZES.get(tuple(args.size), "screenshot_x.png"),
-              panels=args.panels)
+        name = JOBS.get((*args.size, args.tab), "screenshot_x.png")
+        shoot(*args.size, args.out or DOCS / name, tab=args.tab)
         return 0
-    jobs = [((w, h), name, []) for (w, h), name in SIZES.items()]
-    jobs.append(((1280, 800), PANELS, ["--panels"]))
-    for (width, height), name, extra in jobs:  # one process each: a fresh napari
+    for (width, height, tab), name in JOBS.items():  # one process each: a fresh napari
         with tempfile.TemporaryDirectory() as tmp:
             env = dict(os.environ, NAPARI_CONFIG=str(Path(tmp) / "settings.yaml"))
             subprocess.run([sys.executable, __file__, "--size", str(width), str(height),
-                            "--out", str(DOCS / name), *extra], env=env, check=True)
+                            "--tab", tab, "--out", str(DOCS / name)], env=env, check=True)
     return 0
 
 
