@@ -100,7 +100,11 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity):
     except ValueError as err:  # e.g. the Tracks layer does not fit: trust the ids
         fields["table"], _ = identify(fields["table"], labels, True, "labels")
         fields["tracking_message"] = f"{err} The label ids were used."
-    return fields
+    # what the GUI thread shows first, made here (the viewer stays free meanwhile)
+    shown = Analysis("", 0, **fields)
+    words = explanation(shown)
+    fields["derived"] = shown.derived
+    return fields, layer_features(shown), words
 
 
 @thread_worker(start_thread=False)
@@ -294,8 +298,8 @@ class AnalysisWidget(QWidget):
             bar.total = total
             bar.update(done - bar.n)
 
-        def on_result(fields):
-            self._show_results(labels, fields, weight, time.perf_counter() - start)
+        def on_result(result):
+            self._show_results(labels, *result, weight, time.perf_counter() - start)
 
         def on_error(err):
             self.say(f"The analysis stopped: {err}", error=True)
@@ -323,7 +327,8 @@ class AnalysisWidget(QWidget):
             if worker is not None:
                 worker.quit()
 
-    def _show_results(self, labels: Labels, fields: dict, weight: float, seconds: float):
+    def _show_results(self, labels: Labels, fields: dict, features, words: list[str],
+                      weight: float, seconds: float):
         from ..analysis.features import warnings_summary
 
         if labels not in self.viewer.layers:
@@ -331,7 +336,7 @@ class AnalysisWidget(QWidget):
             return
         fields["options"]["intensity_weight"] = weight
         analysis = REGISTRY.new_run(labels.unique_id, **fields)
-        labels.features = layer_features(analysis)
+        labels.features = features
         self.pictures.clear()
         self._bind(labels, analysis)
         n = len(analysis.table)
@@ -340,7 +345,7 @@ class AnalysisWidget(QWidget):
                + ": its pictures show beside the image."]
         if analysis.tracking_message:
             msg.insert(0, analysis.tracking_message)
-        msg += [f"{w}." for w in explanation(analysis)[:1]]
+        msg += [f"{w}." for w in words[:1]]
         summary = warnings_summary(analysis.table)
         if summary:
             msg.append(f"{summary[0].upper()}{summary[1:]}.")

@@ -75,6 +75,9 @@ class Analysis:
         Distances computed by the comparison view, by what was compared.
     prediction : object or None
         The last prediction (:func:`napari_pfsdm.analysis.prediction.predict_outcome`).
+    derived : dict
+        What views derive from the table and keep (e.g. the sentences on the PCs); emptied
+        when the table changes.
     """
 
     changed = Signal(str)
@@ -96,6 +99,7 @@ class Analysis:
     selection: tuple[int, int] | None = None
     comparison: dict = field(default_factory=dict, repr=False)
     prediction: Any = field(default=None, repr=False)
+    derived: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self._index()
@@ -168,6 +172,7 @@ class Analysis:
         self.table = table
         if what == "identity":
             self.tracking_message = message
+        self.derived.clear()
         self._index()
         self.changed.emit(what)
 
@@ -186,6 +191,7 @@ class Analysis:
         self.prediction = prediction
         if table is not None:
             self.table = table
+            self.derived.clear()
             self._index()
         self.changed.emit("prediction")
 

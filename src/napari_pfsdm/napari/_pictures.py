@@ -88,6 +88,14 @@ def _layer(viewer, name: str, kind, make):
     return layer
 
 
+def _set(obj, **values) -> None:
+    """Set the attributes that differ: each napari setter refreshes its layer."""
+    for key, value in values.items():
+        old = getattr(obj, key)
+        if not np.array_equal(np.asarray(old, dtype=object), np.asarray(value, dtype=object)):
+            setattr(obj, key, value)
+
+
 def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
     top, left, side = cell
     data = np.nan_to_num(data, nan=nan)
@@ -97,10 +105,8 @@ def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
         translate=(top, left), interpolation2d="nearest"))
     layer.data = data
-    layer.scale, layer.translate = scale, (top, left)
-    layer.contrast_limits = limits
-    layer.colorbar.visible = True
-    layer.visible = True
+    _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True)
+    _set(layer.colorbar, visible=True)
     return layer
 
 
@@ -113,7 +119,7 @@ def _hide(viewer, source: str, keys) -> None:
     for key in keys:
         name = names(source)[key]
         if name in viewer.layers:
-            viewer.layers[name].visible = False
+            _set(viewer.layers[name], visible=False)
 
 
 def caption(viewer, layer, where: list, texts: list[str]) -> None:
@@ -124,10 +130,11 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
         data, name=name, size=0.01, face_color="transparent", border_color="transparent",
         features={"text": texts}, text=text))
-    pts.data = data
-    pts.features = {"text": list(texts)}
-    pts.text = text
-    pts.visible = True
+    if list(pts.features["text"]) != list(texts) or not np.array_equal(pts.data, data):
+        pts.data = data
+        pts.features = {"text": list(texts)}
+        pts.text = text
+    _set(pts, visible=True)
     top = len(viewer.layers) - 1
     if viewer.layers.index(pts) != top:  # over the pictures
         viewer.layers.move(viewer.layers.index(pts), top + 1)
@@ -173,7 +180,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     lines.data = []
     if paths:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
-    lines.visible = True
+    _set(lines, visible=True)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}"]
     spots = [_above(cells["sdf"]), _above(cells["disk"]),
@@ -201,8 +208,8 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
     surf = _layer(viewer, name, Surface, lambda: viewer.add_surface(
         data, name=name, colormap="viridis"))
     surf.data = data
-    surf.contrast_limits = (float(values.min()), float(max(values.max(), values.min() + 1e-6)))
-    surf.visible = True
+    _set(surf, contrast_limits=(float(values.min()),
+                                float(max(values.max(), values.min() + 1e-6))), visible=True)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
     caption(viewer, layer, [_above((top, left, side)), _above((top + 2.25 * side, left, side))],
             [f"{where}label {p.label}: 4 shells", "surface: 3-D view"])

@@ -75,12 +75,15 @@ class _Plot(BaseNapariMPLWidget):
         self.layout().addWidget(self.info.native)
         self.canvas.setMinimumHeight(160)
         self.canvas.mpl_connect("button_press_event", self._on_click)
+        self.canvas.mpl_connect("resize_event", self.lay_out)
 
     def bind(self, layer, analysis: Analysis | None) -> None:
         self.layer, self.analysis = layer, analysis
         self.redraw()
 
     def redraw(self, *args) -> None:
+        """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
+        self.figure.set_layout_engine("constrained")
         self.figure.clear()
         self.marks, self.points_axes = [], None
         self.keys = np.zeros((0, 2), np.int64)
@@ -93,7 +96,16 @@ class _Plot(BaseNapariMPLWidget):
             except ValueError as err:
                 self.figure.clear()
                 self.info.value = str(err)
+        self.lay_out()
         self.highlight()
+
+    def lay_out(self, *args) -> None:
+        """Place the axes once (constrained layout), then keep them there: the highlight's
+        redraws need no layout (a resize lays them out again)."""
+        self.figure.set_layout_engine("constrained")
+        if self.figure.axes:
+            self.figure.get_layout_engine().execute(self.figure)
+        self.figure.set_layout_engine("none")
 
     def draw(self) -> None:  # pragma: no cover - each plot draws its own
         raise NotImplementedError
@@ -545,5 +557,6 @@ class PlotsWidget(QWidget):
         plot = self.plots[self.tabs.currentIndex()]
         if what == "selection":
             plot.highlight()
-        else:
-            plot.redraw()
+        elif what in ("groups", "identity") or (what == "comparison"
+                                                and plot is self.comparison):
+            plot.redraw()  # a prediction changes no plot here

@@ -8,6 +8,7 @@ numeric table for ``layer.features``; :func:`object_line` says in one line what 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Generator
 
 import numpy as np
@@ -17,6 +18,8 @@ from ..core.params import PFSDMParams
 from ..core.table_options import carry_options
 from ._model import Analysis
 
+#: Seconds between two progress reports of a Run (and its last one).
+PROGRESS_EVERY = 0.1
 #: The meanings of the first axis of a 3-D Labels layer.
 FIRST_AXIS = ("time", "z")
 #: How objects keep their identity through time: link when the ids jump, trust the ids, always
@@ -119,10 +122,14 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
                          "segmentation first.")
     steps = iter_blocks(labels, intensity, params=params, axes=axes, spacing=spacing,
                         workers=workers, total=total)
+    said = 0.0
     try:
         while True:
             done, n, _frame, _label = next(steps)
-            yield done, n
+            now = time.perf_counter()
+            if now - said >= PROGRESS_EVERY or done == n:  # a bar people can read
+                said = now
+                yield done, n
     except StopIteration as stop:
         blocks = stop.value
     finally:
@@ -182,14 +189,18 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
 
 
 def explanation(analysis: Analysis, channel: str = "shape") -> list[str]:
-    """What PC1 and PC2 follow, in words (2-D shapes only; else ``[]``)."""
+    """What PC1 and PC2 follow, in words (2-D shapes only; else ``[]``), kept in
+    ``analysis.derived``."""
     from ..analysis.interpretation import explain_components
 
-    scores = analysis.pca.get(channel)
-    if analysis.measures is None or channel != "shape" or scores is None or "PC1" not in scores:
-        return []
-    return explain_components(scores, analysis.measures,
-                              scores.attrs.get("explained_variance_ratio", []), n=2)
+    key = ("explanation", channel)
+    if key not in analysis.derived:
+        scores = analysis.pca.get(channel)
+        analysis.derived[key] = [] if (analysis.measures is None or channel != "shape"
+                                       or scores is None or "PC1" not in scores) else \
+            explain_components(scores, analysis.measures,
+                               scores.attrs.get("explained_variance_ratio", []), n=2)
+    return analysis.derived[key]
 
 
 def layer_features(analysis: Analysis) -> pd.DataFrame:
