@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from importlib import import_module
 
 import numpy as np
 from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
@@ -523,10 +524,12 @@ def _same_pixels(image, labels) -> bool:
 
 
 def _warm_pool() -> None:
-    """Start the Run's worker processes while the person chooses layers."""
+    """Start the Run's worker processes while the person chooses layers, then load the
+    plots' code (matplotlib: about half a second that Open plots would otherwise wait)."""
     try:
         from ..analysis.parallel import warm_pool
 
         warm_pool()
-    except Exception:  # noqa: BLE001, S110 - a Run starts them itself
+        import_module("napari_pfsdm.napari._plots")
+    except Exception:  # noqa: BLE001, S110 - a Run and Open plots load them themselves
         pass

@@ -75,7 +75,7 @@ class _Plot(BaseNapariMPLWidget):
         self.layout().addWidget(self.info.native)
         self.canvas.setMinimumHeight(160)
         self.canvas.mpl_connect("button_press_event", self._on_click)
-        self.canvas.mpl_connect("resize_event", self.lay_out)
+        self.canvas.mpl_connect("resize_event", self._on_resize)
 
     def bind(self, layer, analysis: Analysis | None) -> None:
         self.layer, self.analysis = layer, analysis
@@ -96,8 +96,13 @@ class _Plot(BaseNapariMPLWidget):
             except ValueError as err:
                 self.figure.clear()
                 self.info.value = str(err)
-        self.lay_out()
+        if self.isVisible():  # else when it is shown (its first resize)
+            self.lay_out()
         self.highlight()
+
+    def _on_resize(self, event=None) -> None:
+        if self.isVisible():  # a hidden tab is laid out when it is shown
+            self.lay_out()
 
     def lay_out(self, *args) -> None:
         """Place the axes once (constrained layout), then keep them there: the highlight's
@@ -499,14 +504,11 @@ class PlotsWidget(QWidget):
         self.viewer = napari_viewer
         self.layer_choice = ComboBox(label="Layer", choices=self._choices,
                                      tooltip="The analysed Labels layer shown.")
-        self.trajectories = TrajectoryPlot(napari_viewer)
-        self.comparison = ComparisonPlot(napari_viewer)
-        self.components = ComponentsPlot(napari_viewer)
-        self.plots = (self.trajectories, self.comparison, self.components)
+        self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
+        self.made: list = [TrajectoryPlot(napari_viewer), None, None]  # the others when shown
         self.tabs = QTabWidget()
-        for plot, name in zip(self.plots, ("Trajectories", "Comparison", "Components"),
-                              strict=True):
-            self.tabs.addTab(plot, name)
+        for i, name in enumerate(("Trajectories", "Comparison", "Components")):
+            self.tabs.addTab(self.made[i] or QWidget(), name)
         inner = QWidget()
         lay = QVBoxLayout(inner)
         lay.setContentsMargins(0, 0, 0, 0)
@@ -518,7 +520,7 @@ class PlotsWidget(QWidget):
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
         self.analysis: Analysis | None = None
         self.layer_choice.changed.connect(self._bind)
-        self.tabs.currentChanged.connect(lambda i: self.plots[i].redraw())
+        self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())
         REGISTRY.updated.connect(self._on_registry)
         self.destroyed.connect(lambda *_, cb=self._on_registry: REGISTRY.updated.disconnect(cb))
         napari_viewer.layers.events.removed.connect(self._on_registry)
@@ -549,14 +551,46 @@ class PlotsWidget(QWidget):
             meta = layer.metadata.get("groups") or {}
             if not analysis.groups and meta:
                 analysis.groups = {int(k): str(v) for k, v in meta.items()}
-        for plot in self.plots:
-            plot.layer, plot.analysis = layer, analysis
-        self.plots[self.tabs.currentIndex()].redraw()
+        for plot in self.made:
+            if plot is not None:
+                plot.layer, plot.analysis = layer, analysis
+        self.plot(self.tabs.currentIndex()).redraw()
+
+    def plot(self, i: int) -> _Plot:
+        """The plot of tab ``i``, made when first asked for."""
+        if self.made[i] is None:
+            plot = self.made[i] = self.kinds[i](self.viewer)
+            plot.layer = self.viewer.layers[self.layer_choice.value] \
+                if self.analysis is not None else None
+            plot.analysis = self.analysis
+            current = self.tabs.currentIndex()
+            self.tabs.blockSignals(True)
+            self.tabs.removeTab(i)
+            self.tabs.insertTab(i, plot, ("Trajectories", "Comparison", "Components")[i])
+            self.tabs.setCurrentIndex(current)
+            self.tabs.blockSignals(False)
+        return self.made[i]
+
+    @property
+    def trajectories(self) -> TrajectoryPlot:
+        return self.plot(0)
+
+    @property
+    def comparison(self) -> ComparisonPlot:
+        return self.plot(1)
+
+    @property
+    def components(self) -> ComponentsPlot:
+        return self.plot(2)
+
+    @property
+    def plots(self) -> tuple:
+        return tuple(self.plot(i) for i in range(3))
 
     def _on_change(self, what: str) -> None:
-        plot = self.plots[self.tabs.currentIndex()]
+        plot = self.plot(self.tabs.currentIndex())
         if what == "selection":
             plot.highlight()
         elif what in ("groups", "identity") or (what == "comparison"
-                                                and plot is self.comparison):
+                                                and isinstance(plot, ComparisonPlot)):
             plot.redraw()  # a prediction changes no plot here
