@@ -102,3 +102,37 @@ def test_the_command_line_writes_each_objects_probabilities(two_sizes, tmp_path,
     rc = main(["predict", str(tmp_path / "features.csv"), "--groups", str(tmp_path / "one.csv"),
                "-o", str(tmp_path / "pred2.csv")])
     assert rc == 2 and "exactly two groups" in capsys.readouterr().err
+
+
+def _same(got, want, where: str = "") -> None:
+    """``got`` equals the recorded ``want``: floats to 1e-10 (accuracies and weights, on
+    grids far coarser, so exactly), NaN where NaN, everything else exactly."""
+    if isinstance(want, dict):
+        assert sorted(got) == sorted(want), where
+        for k in want:
+            _same(got[k], want[k], f"{where}/{k}")
+    elif isinstance(want, list):
+        assert isinstance(got, list) and len(got) == len(want), where
+        for i, (g, w) in enumerate(zip(got, want, strict=True)):
+            _same(g, w, f"{where}[{i}]")
+    elif isinstance(want, float) or isinstance(got, float):
+        if np.isnan(want):
+            assert np.isnan(got), where
+        else:
+            assert abs(got - want) <= 1e-10, f"{where}: {got!r} != {want!r}"
+    else:
+        assert got == want, f"{where}: {got!r} != {want!r}"
+
+
+@pytest.mark.parametrize("part", ["evaluate", "predict"])
+def test_the_fusion_protocol_gives_the_recorded_results(part):
+    """``classification.evaluate`` (inner CV and hold-out, three seeds) and ``predict_outcome``
+    (the default call, another seed, two channels, objects without a group, the montage):
+    every split's accuracies and weights, the summaries, the curves and the probabilities
+    recorded in tests/data (tests/recorded.py)."""
+    import json
+
+    from recorded import FUSION_FILE, fusion_runs
+
+    want = json.loads(FUSION_FILE.read_text(encoding="utf-8"))[part]
+    _same(fusion_runs(part), want, part)
