@@ -56,15 +56,19 @@ def test_fit_transform_is_scikit_learns_pca_of_the_weighted_features(tables):
     assert space.transform(other)["frame"].tolist() == [0, 1, 2]
 
 
-def test_same_signs_as_pca_scores_on_the_reference(tables):
-    from napari_pfsdm.analysis.reduction import pca_scores
+def test_a_shape_space_is_a_scikit_learn_estimator(tables):
+    from sklearn.base import clone
 
-    reference, _ = tables
-    scores, ratios = pca_scores(reference, n_components=3)
-    ours = ShapePCA(n_components=3).fit_transform(reference)
-    np.testing.assert_allclose(ours[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
-                               scores[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
-                               atol=1e-12)
+    reference, other = tables
+    space = ShapePCA(n_components=2, regress_out=["area"])
+    assert clone(space).get_params() == space.get_params()  # parameters stored as given
+    assert space.set_params(n_components=3).n_components == 3
+    space.fit(reference)
+    assert space.get_feature_names_out().tolist() == ["shape_PC1", "shape_PC2", "shape_PC3"]
+    with pytest.raises(InputError, match="at least two measured"):
+        ShapePCA().fit(reference.iloc[:1])
+    with pytest.raises(InputError, match="fit the shape space"):
+        ShapePCA().transform(other)
 
 
 def test_a_table_measured_with_other_options_is_refused_in_words(tables):
