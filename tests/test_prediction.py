@@ -136,3 +136,21 @@ def test_the_fusion_protocol_gives_the_recorded_results(part):
 
     want = json.loads(FUSION_FILE.read_text(encoding="utf-8"))[part]
     _same(fusion_runs(part), want, part)
+
+
+def test_fusion_weights_search_the_simplex_and_ties_go_to_equal_weights():
+    from napari_pfsdm.analysis.prediction import best_weights, fuse, weight_grid
+
+    grid = weight_grid(3)
+    assert len(grid) == 15 and grid[0] == (0.0, 0.0, 1.0)
+    assert all(abs(sum(w) - 1) < 1e-12 and min(w) >= 0 for w in grid)
+    y = np.array([0, 0, 1, 1])
+    good = np.array([0.1, 0.2, 0.9, 0.8])
+    bad = 1 - good
+    # only channel 0 is right: every weight giving it more than half is perfect; of those,
+    # (0.75, 0.25, 0) and (0.75, 0, 0.25) are nearest equal weights, the first in the grid wins
+    assert best_weights([good, bad, bad], y, grid) == (0.75, 0.0, 0.25)
+    # all three alike: all weights tie, equal-ish weights win
+    assert best_weights([good, good, good], y, grid) == (0.25, 0.25, 0.5)
+    np.testing.assert_allclose(fuse([good, bad, bad], (0.5, 0.25, 0.25)),
+                               0.5 * good + 0.5 * bad)
