@@ -247,3 +247,19 @@ def test_shape_pca_is_scikit_learns_pca_of_the_weighted_matrix(channel):
     np.testing.assert_allclose(got, ref.transform(z) * _signed(ref), rtol=0, atol=1e-10)
     np.testing.assert_allclose(space.explained_variance_ratio_, ref.explained_variance_ratio_,
                                rtol=1e-10)
+
+
+def test_the_transformer_then_scikit_learns_pca_is_the_shape_space(tables):
+    """Masks through ``PFSDMTransformer(weighted=True)`` and scikit-learn's PCA give the
+    scores ShapePCA gives on the table measured from the same masks (signs aside)."""
+    from sklearn.pipeline import make_pipeline
+
+    from napari_pfsdm import PFSDMTransformer
+
+    reference, _ = tables
+    masks = _ellipses(np.linspace(1.0, 3.0, 9)).astype(bool)
+    pipe = make_pipeline(PFSDMTransformer(weighted=True), PCA(n_components=3))
+    theirs = pipe.fit_transform(list(masks))
+    ours = ShapePCA(n_components=3).fit_transform(reference)[
+        ["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy()
+    np.testing.assert_allclose(ours, _aligned(ours, theirs), atol=1e-8)
