@@ -173,3 +173,24 @@ def test_table_options_travel_through_one_helper():
             found["/".join(rel)] = lines
     assert not found, f"hand-written DataFrame.attrs (use core.table_options): {found}"
     assert _attrs_writes("t.attrs = {}\nt.attrs['pfsdm'] = o\nx = t.attrs\n") == [1, 2]
+
+
+@pytest.mark.parametrize("package", ["napari_pfsdm", "napari_pfsdm.core"])
+def test_every_public_name_resolves_and_type_checkers_see_the_same(package):
+    """The lazy names (core/_lazy.py) give the objects the ``TYPE_CHECKING`` imports name."""
+    import importlib
+
+    mod = importlib.import_module(package)
+    tree = ast.parse(Path(mod.__file__).read_text(encoding="utf-8"))
+    block = next(node for node in tree.body if isinstance(node, ast.If)
+                 and getattr(node.test, "id", "") == "TYPE_CHECKING")
+    static = {}
+    for node in block.body:
+        source = importlib.import_module("." + node.module, package)
+        for alias in node.names:
+            static[alias.asname or alias.name] = getattr(source, alias.name)
+    public = [name for name in mod.__all__ if name != "__version__"]
+    assert {name: getattr(mod, name) for name in public} == static
+    assert set(mod.__all__) <= set(dir(mod))
+    with pytest.raises(AttributeError, match="no attribute 'nothing_of_that_name'"):
+        mod.nothing_of_that_name  # noqa: B018

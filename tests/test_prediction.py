@@ -102,3 +102,55 @@ def test_the_command_line_writes_each_objects_probabilities(two_sizes, tmp_path,
     rc = main(["predict", str(tmp_path / "features.csv"), "--groups", str(tmp_path / "one.csv"),
                "-o", str(tmp_path / "pred2.csv")])
     assert rc == 2 and "exactly two groups" in capsys.readouterr().err
+
+
+def _same(got, want, where: str = "") -> None:
+    """``got`` equals the recorded ``want``: floats to 1e-10 (accuracies and weights, on
+    grids far coarser, so exactly), NaN where NaN, everything else exactly."""
+    if isinstance(want, dict):
+        assert sorted(got) == sorted(want), where
+        for k in want:
+            _same(got[k], want[k], f"{where}/{k}")
+    elif isinstance(want, list):
+        assert isinstance(got, list) and len(got) == len(want), where
+        for i, (g, w) in enumerate(zip(got, want, strict=True)):
+            _same(g, w, f"{where}[{i}]")
+    elif isinstance(want, float) or isinstance(got, float):
+        if np.isnan(want):
+            assert np.isnan(got), where
+        else:
+            assert abs(got - want) <= 1e-10, f"{where}: {got!r} != {want!r}"
+    else:
+        assert got == want, f"{where}: {got!r} != {want!r}"
+
+
+@pytest.mark.parametrize("part", ["evaluate", "predict"])
+def test_the_fusion_protocol_gives_the_recorded_results(part):
+    """``classification.evaluate`` (inner CV and hold-out, three seeds) and ``predict_outcome``
+    (the default call, another seed, two channels, objects without a group, the montage):
+    every split's accuracies and weights, the summaries, the curves and the probabilities
+    recorded in tests/data (tests/recorded.py)."""
+    import json
+
+    from recorded import FUSION_FILE, fusion_runs
+
+    want = json.loads(FUSION_FILE.read_text(encoding="utf-8"))[part]
+    _same(fusion_runs(part), want, part)
+
+
+def test_fusion_weights_search_the_simplex_and_ties_go_to_equal_weights():
+    from napari_pfsdm.analysis.prediction import best_weights, fuse, weight_grid
+
+    grid = weight_grid(3)
+    assert len(grid) == 15 and grid[0] == (0.0, 0.0, 1.0)
+    assert all(abs(sum(w) - 1) < 1e-12 and min(w) >= 0 for w in grid)
+    y = np.array([0, 0, 1, 1])
+    good = np.array([0.1, 0.2, 0.9, 0.8])
+    bad = 1 - good
+    # only channel 0 is right: every weight giving it more than half is perfect; of those,
+    # (0.75, 0.25, 0) and (0.75, 0, 0.25) are nearest equal weights, the first in the grid wins
+    assert best_weights([good, bad, bad], y, grid) == (0.75, 0.0, 0.25)
+    # all three alike: all weights tie, equal-ish weights win
+    assert best_weights([good, good, good], y, grid) == (0.25, 0.25, 0.5)
+    np.testing.assert_allclose(fuse([good, bad, bad], (0.5, 0.25, 0.25)),
+                               0.5 * good + 0.5 * bad)

@@ -56,15 +56,19 @@ def test_fit_transform_is_scikit_learns_pca_of_the_weighted_features(tables):
     assert space.transform(other)["frame"].tolist() == [0, 1, 2]
 
 
-def test_same_signs_as_pca_scores_on_the_reference(tables):
-    from napari_pfsdm.analysis.reduction import pca_scores
+def test_a_shape_space_is_a_scikit_learn_estimator(tables):
+    from sklearn.base import clone
 
-    reference, _ = tables
-    scores, ratios = pca_scores(reference, n_components=3)
-    ours = ShapePCA(n_components=3).fit_transform(reference)
-    np.testing.assert_allclose(ours[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
-                               scores[["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy(),
-                               atol=1e-12)
+    reference, other = tables
+    space = ShapePCA(n_components=2, regress_out=["area"])
+    assert clone(space).get_params() == space.get_params()  # parameters stored as given
+    assert space.set_params(n_components=3).n_components == 3
+    space.fit(reference)
+    assert space.get_feature_names_out().tolist() == ["shape_PC1", "shape_PC2", "shape_PC3"]
+    with pytest.raises(InputError, match="at least two measured"):
+        ShapePCA().fit(reference.iloc[:1])
+    with pytest.raises(InputError, match="fit the shape space"):
+        ShapePCA().transform(other)
 
 
 def test_a_table_measured_with_other_options_is_refused_in_words(tables):
@@ -141,3 +145,121 @@ def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, caps
     assert rc == 2
     assert "n_fourier" in capsys.readouterr().err
     assert not (tmp_path / "pca2.csv").exists()
+
+
+# ------------------------------------------------------------ recorded and independent numbers
+def _montage():
+    from recorded import montage_table
+
+    return montage_table()
+
+
+@pytest.mark.parametrize("case", ["shape", "intensity", "shape_standardized",
+                                  "intensity_standardized"])
+def test_the_pca_of_the_recorded_montage_gives_the_recorded_numbers(case):
+    """``pca_scores`` and ``ShapePCA`` on ``pf.measure`` of the montage (seed 0): the scores
+    and explained-variance ratios recorded in tests/data (tests/recorded.py)."""
+    from napari_pfsdm.analysis.reduction import pca_scores
+    from napari_pfsdm.core.table_schema import pc_columns
+    from recorded import PCA_CASES, PCA_FILE
+
+    want = np.load(PCA_FILE)
+    kw = PCA_CASES[case]
+    table = _montage()
+    scores, ratio = pca_scores(table, kw["channel"], kw["n_components"],
+                               standardize=kw.get("standardize", False))
+    got = scores[pc_columns(scores.columns, kw["channel"])].to_numpy()
+    np.testing.assert_allclose(got, want[f"{case}_scores"], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ratio, want[f"{case}_ratio"], rtol=0, atol=1e-10)
+    assert scores[["frame", "label"]].values.tolist() == table[["frame", "label"]].values.tolist()
+    space = ShapePCA(**kw)
+    got = space.fit_transform(table)[pc_columns(scores.columns, kw["channel"])].to_numpy()
+    np.testing.assert_allclose(got, want[f"{case}_scores"], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(space.explained_variance_ratio_, want[f"{case}_ratio"],
+                               rtol=0, atol=1e-10)
+
+
+def test_regressed_out_pca_of_the_recorded_montage_gives_the_recorded_numbers():
+    from recorded import PCA_FILE, REGRESSED
+
+    want = np.load(PCA_FILE)
+    table = _montage()
+    space = ShapePCA(n_components=4, regress_out=REGRESSED).fit(table)
+    got = space.transform(table)[[f"shape_PC{k}" for k in range(1, 5)]].to_numpy()
+    np.testing.assert_allclose(got, want["beyond_scores"], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(space.explained_variance_ratio_, want["beyond_ratio"],
+                               rtol=0, atol=1e-10)
+
+
+def test_the_plugins_pca_gives_the_recorded_numbers():
+    pytest.importorskip("psygnal")
+    from napari_pfsdm.napari._results import pca_scores as plugin_pca
+    from recorded import PCA_FILE
+
+    want = np.load(PCA_FILE)
+    out = plugin_pca(_montage(), "shape")
+    assert list(out.columns) == ["frame", "label", "PC1", "PC2", "PC3", "PC4", "PC5"]
+    np.testing.assert_allclose(out[["PC1", "PC2", "PC3", "PC4", "PC5"]].to_numpy(),
+                               want["shape_scores"], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(out.attrs["explained_variance_ratio"], want["shape_ratio"],
+                               rtol=0, atol=1e-10)
+
+
+def _by_hand(table: pd.DataFrame, channel: str) -> tuple[np.ndarray, np.ndarray]:
+    """The raw features and their weights, √(ring weight) × mode weight, from the options the
+    table carries."""
+    opts = table.attrs["pfsdm"]
+    n_r, n_m = opts["n_radii"], opts["n_fourier"] + 1
+    cols = [f"{channel}_r{r:02d}_n{m:02d}" for r in range(n_r) for m in range(n_m)]
+    w = np.sqrt(np.asarray(opts["weights"]))[:, None] * np.asarray(opts["mode_weights"])[None]
+    return table[cols].to_numpy(float), w.ravel()
+
+
+def _signed(pca: PCA) -> np.ndarray:
+    """+1/-1 per component: its largest loading (in absolute value) made positive."""
+    c = pca.components_
+    return np.sign(c[np.arange(len(c)), np.abs(c).argmax(axis=1)])
+
+
+@pytest.mark.parametrize("channel", ["shape", "intensity"])
+def test_shape_pca_is_scikit_learns_pca_of_the_weighted_matrix(channel):
+    """On the montage's table: scores, components and ratios of scikit-learn's PCA of the
+    weighted matrix built here, each component signed so that its largest loading is
+    positive; standardised: scikit-learn's PCA of StandardScaler's output."""
+    from sklearn.preprocessing import StandardScaler
+
+    table = _montage()
+    raw, w = _by_hand(table, channel)
+    x = raw * w
+    ref = PCA(n_components=5, svd_solver="full").fit(x)
+    signs = _signed(ref)
+    space = ShapePCA(n_components=5, channel=channel).fit(table)
+    got = space.transform(table)[[f"{channel}_PC{k}" for k in range(1, 6)]].to_numpy()
+    np.testing.assert_allclose(got, ref.transform(x) * signs, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(space.components_, ref.components_ * signs[:, None],
+                               rtol=0, atol=1e-10)
+    np.testing.assert_allclose(space.explained_variance_ratio_, ref.explained_variance_ratio_,
+                               rtol=1e-10)
+    z = StandardScaler().fit_transform(raw)
+    ref = PCA(n_components=3, svd_solver="full").fit(z)
+    space = ShapePCA(n_components=3, channel=channel, standardize=True).fit(table)
+    got = space.transform(table)[[f"{channel}_PC{k}" for k in range(1, 4)]].to_numpy()
+    np.testing.assert_allclose(got, ref.transform(z) * _signed(ref), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(space.explained_variance_ratio_, ref.explained_variance_ratio_,
+                               rtol=1e-10)
+
+
+def test_the_transformer_then_scikit_learns_pca_is_the_shape_space(tables):
+    """Masks through ``PFSDMTransformer(weighted=True)`` and scikit-learn's PCA give the
+    scores ShapePCA gives on the table measured from the same masks (signs aside)."""
+    from sklearn.pipeline import make_pipeline
+
+    from napari_pfsdm import PFSDMTransformer
+
+    reference, _ = tables
+    masks = _ellipses(np.linspace(1.0, 3.0, 9)).astype(bool)
+    pipe = make_pipeline(PFSDMTransformer(weighted=True), PCA(n_components=3))
+    theirs = pipe.fit_transform(list(masks))
+    ours = ShapePCA(n_components=3).fit_transform(reference)[
+        ["shape_PC1", "shape_PC2", "shape_PC3"]].to_numpy()
+    np.testing.assert_allclose(ours, _aligned(ours, theirs), atol=1e-8)

@@ -519,7 +519,8 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
 def cmd_trajectories(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .analysis.reduction import attach_groups, pca_scores, read_groups
+    from .analysis.reduction import attach_groups, read_groups
+    from .analysis.shape_space import ShapePCA
     from .batch.reports import load_features, plot_trajectories
     from .core.table_options import table_options
     from .core.table_schema import has_channel, pc_columns
@@ -549,13 +550,9 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     what = f" in the space of {args.reference}" if args.reference else ""
     with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)}){what}", args.quiet):
         for ch in channels:
-            if reference is not None:
-                from .analysis.shape_space import ShapePCA
-
-                space = ShapePCA(n_components=args.components, channel=ch).fit(reference)
-                s, ev = space.transform(table), space.explained_variance_ratio_
-            else:
-                s, ev = pca_scores(table, ch, n_components=args.components)
+            space = ShapePCA(n_components=args.components, channel=ch).fit(
+                table if reference is None else reference)
+            s, ev = space.transform(table), space.explained_variance_ratio_
             explained[ch] = ev
             scores = s if scores is None else pd.concat(
                 [scores, s[pc_columns(s.columns, ch)]], axis=1)

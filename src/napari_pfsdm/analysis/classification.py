@@ -1,24 +1,22 @@
-"""Predict a per-object outcome from feature trajectories (the paper's classification).
-
-The protocol of the paper, with one correction:
+"""The paper's classification: one outcome per object from two channels of feature
+trajectories, on the late-fusion protocol of :mod:`napari_pfsdm.analysis.prediction`.
 
 * one feature vector per object: the concatenation of its features at the chosen frames, for
   the shape (columns ``shape_*`` of a :func:`napari_pfsdm.measure` table) and for the intensity
   (columns ``intensity_*``) separately (:func:`feature_matrix`);
-* standardised features, logistic regression with balanced class weights, one classifier per
-  channel (:func:`logistic_model`);
-* late fusion ``p = alpha * p_shape + (1 - alpha) * p_intensity`` (:func:`fuse`);
-* repeated stratified shuffle splits, 5 x 20 % test by default (:func:`make_splits`), accuracy
-  and balanced accuracy, mean and standard deviation over the splits (:func:`summarize`).
+* the protocol's per-channel classifiers (:func:`logistic_model`), late fusion
+  ``p = alpha * p_shape + (1 - alpha) * p_intensity`` (:func:`fuse`) with ``alpha`` searched on
+  :data:`ALPHAS`, repeated stratified shuffle splits (:func:`make_splits`);
+* accuracy and balanced accuracy, mean and standard deviation over the splits
+  (:func:`evaluate`, :func:`summarize`).
 
 The paper chose ``alpha`` to maximise the balanced accuracy *on the test split*, which is
-optimistic. :func:`evaluate` reports both: ``fusion (nested)`` chooses ``alpha`` from
-out-of-fold predictions inside the training split only (it never sees a test label), and
-``fusion (optimistic)`` repeats the paper's choice on the test split, labelled as such.
+optimistic. :func:`evaluate` reports both: ``fusion (nested)`` is the protocol's (``alpha`` from
+the training split only: it never sees a test label), and ``fusion (optimistic)`` repeats the
+paper's choice on the test split, labelled as such.
 
-The evaluation is model-agnostic: a model is any callable ``fit_predict(train_idx, predict_idx)
--> (p_shape, p_intensity)`` that trains on the objects ``train_idx`` (and may read their labels
-only) and returns class-1 probabilities for ``predict_idx``. The pixel baselines in
+A model is the protocol's ``fit_predict(train_idx, predict_idx) -> (p_shape, p_intensity)``
+(:data:`~napari_pfsdm.analysis.prediction.FitPredict`); the pixel baselines in
 :mod:`napari_pfsdm.experiments.pixel_baseline` plug into the same splits.
 """
 
@@ -28,19 +26,25 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
-from sklearn.linear_model import LogisticRegression
 from sklearn.metrics import accuracy_score, balanced_accuracy_score
-from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
-from sklearn.pipeline import Pipeline, make_pipeline
-from sklearn.preprocessing import StandardScaler
 
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import concat_tables
 from ..errors import InputError
+from .prediction import (
+    C_FEATURES,
+    FitPredict,
+    best_weights,
+    channel_model,
+    cross_validate,
+    logistic_pipeline,
+    make_splits,
+)
 
 __all__ = [
     "ALPHAS",
     "FEATURE_SETS",
+    "FitPredict",
     "best_alpha",
     "evaluate",
     "feature_matrix",
@@ -59,8 +63,6 @@ __all__ = [
 ALPHAS = np.round(np.linspace(0.0, 1.0, 21), 10)
 #: Rows of the result tables, in display order.
 FEATURE_SETS = ("shape", "intensity", "fusion (nested)", "fusion (optimistic, test-tuned)")
-
-FitPredict = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def parse_frames(
@@ -212,87 +214,18 @@ def feature_matrix(
     return x.transpose(0, 2, 1).reshape(len(wide), -1), wide.index.to_numpy()
 
 
-def make_splits(
-    y: np.ndarray,
-    n_splits: int = 5,
-    test_size: float = 0.2,
-    n_repeats: int = 3,
-    seed: int = 0,
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Repeated stratified shuffle splits of the objects.
-
-    Parameters
-    ----------
-    y : ndarray, (n_objects,)
-        Class of each object (binary).
-    n_splits, test_size : int, float
-        As :class:`sklearn.model_selection.StratifiedShuffleSplit` (the paper: 5, 0.2).
-    n_repeats : int
-        Independent repeats (seeds ``seed``, ``seed + 1``, ...).
-    seed : int
-        Seed of the first repeat.
-
-    Returns
-    -------
-    list of (train_idx, test_idx)
-        ``n_splits * n_repeats`` pairs of disjoint index arrays into ``y``.
-    """
-    y = np.asarray(y)
-    classes, counts = np.unique(y, return_counts=True)
-    if len(classes) != 2:
-        raise InputError(f"need exactly two classes to classify, got {len(classes)}.")
-    if counts.min() < 2:
-        raise InputError(
-            f"the smaller class has {counts.min()} object(s); stratified splits need at least 2."
-        )
-    out = []
-    for r in range(n_repeats):
-        sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=test_size, random_state=seed + r)
-        out.extend((tr, te) for tr, te in sss.split(np.zeros(len(y)), y))
-    return out
-
-
-def logistic_pipeline(C: float = 0.01) -> Pipeline:
-    """The paper's per-channel classifier as a scikit-learn :class:`~sklearn.pipeline.Pipeline`:
-    standardised features, L2 logistic regression with balanced class weights (liblinear,
-    deterministic). Put :class:`napari_pfsdm.PFSDMTransformer` in front of it to classify masks.
-
-    Examples
-    --------
-    >>> list(logistic_pipeline().named_steps)
-    ['standardscaler', 'logisticregression']
-    """
-    return make_pipeline(
-        StandardScaler(),
-        LogisticRegression(
-            C=C, class_weight="balanced", solver="liblinear", max_iter=1000, random_state=0
-        ),
-    )
-
-
 def logistic_model(
-    x_shape: np.ndarray, x_intensity: np.ndarray, y: np.ndarray, C: float = 0.01
+    x_shape: np.ndarray, x_intensity: np.ndarray, y: np.ndarray, C: float = C_FEATURES
 ) -> FitPredict:
-    """The paper's per-channel classifiers as a ``fit_predict`` for :func:`evaluate`.
+    """The protocol's per-channel classifiers for the shape and the intensity as a
+    ``fit_predict`` for :func:`evaluate` (:func:`napari_pfsdm.analysis.prediction.channel_model`
+    of the two): standardised features and L2 logistic regression with balanced class weights,
+    fitted for each channel separately. Only ``y[train_idx]`` is ever read."""
+    return channel_model([x_shape, x_intensity], y, C)
 
-    Standardised features and L2 logistic regression with balanced class weights, fitted for
-    the shape and the intensity separately. Only ``y[train_idx]`` is ever read.
 
-    The solver is liblinear with a fixed ``random_state`` (deterministic; about 7x faster than
-    lbfgs here); ``C = 0.01`` was chosen on a development seed of the synthetic gastruloids
-    (1760 features per channel for ~60 training objects needs strong regularisation).
-    """
-    y = np.asarray(y).astype(int)
-
-    def _fit(x: np.ndarray, tr: np.ndarray, pr: np.ndarray) -> np.ndarray:
-        clf = logistic_pipeline(C)
-        clf.fit(x[tr], y[tr])
-        return clf.predict_proba(x[pr])[:, 1]
-
-    def fit_predict(train_idx: np.ndarray, predict_idx: np.ndarray):
-        return _fit(x_shape, train_idx, predict_idx), _fit(x_intensity, train_idx, predict_idx)
-
-    return fit_predict
+def _alpha_grid(alphas: np.ndarray) -> list[tuple[float, float]]:
+    return [(a, 1.0 - a) for a in np.asarray(alphas, dtype=float)]
 
 
 def fuse(p_shape: np.ndarray, p_intensity: np.ndarray, alpha: float) -> np.ndarray:
@@ -303,34 +236,9 @@ def fuse(p_shape: np.ndarray, p_intensity: np.ndarray, alpha: float) -> np.ndarr
 def best_alpha(
     p_shape: np.ndarray, p_intensity: np.ndarray, y: np.ndarray, alphas: np.ndarray = ALPHAS
 ) -> float:
-    """The alpha of ``alphas`` with the best balanced accuracy on ``y`` (ties: nearest 0.5)."""
-    y = np.asarray(y).astype(int)
-    scores = np.array(
-        [balanced_accuracy_score(y, fuse(p_shape, p_intensity, a) >= 0.5) for a in alphas]
-    )
-    best = np.flatnonzero(np.isclose(scores, scores.max()))
-    return float(alphas[best[np.argmin(np.abs(alphas[best] - 0.5))]])
-
-
-def _inner_alpha(
-    fit_predict: FitPredict,
-    y: np.ndarray,
-    train: np.ndarray,
-    inner_folds: int,
-    seed: int,
-    alphas: np.ndarray,
-) -> float:
-    """alpha from out-of-fold predictions inside ``train`` (the test split is never touched)."""
-    y_tr = y[train]
-    n_folds = min(inner_folds, int(np.bincount(y_tr).min()))
-    if n_folds < 2:
-        return 0.5
-    ps = np.empty(len(train))
-    pi = np.empty(len(train))
-    skf = StratifiedKFold(n_splits=n_folds, shuffle=True, random_state=seed)
-    for itr, iva in skf.split(np.zeros(len(train)), y_tr):
-        ps[iva], pi[iva] = fit_predict(train[itr], train[iva])
-    return best_alpha(ps, pi, y_tr, alphas)
+    """The alpha of ``alphas`` with the best balanced accuracy on ``y`` (ties: nearest 0.5,
+    then the smaller: :func:`napari_pfsdm.analysis.prediction.best_weights`)."""
+    return float(best_weights((p_shape, p_intensity), y, _alpha_grid(alphas))[0])
 
 
 def evaluate(
@@ -376,45 +284,31 @@ def evaluate(
         One row per split and feature set: ``split``, ``features`` (see ``FEATURE_SETS``),
         ``accuracy``, ``balanced_accuracy``, ``alpha`` (NaN for single channels).
     """
-    if inner not in ("cv", "holdout"):
-        raise InputError(f"inner must be 'cv' or 'holdout', got {inner!r}.")
     y = np.asarray(y).astype(int)
     rows = []
-    for k, (train, test) in enumerate(splits):
-        train, test = np.asarray(train), np.asarray(test)
-        if np.intersect1d(train, test).size:
-            raise InputError(f"split {k}: an object is in both the training and the test set.")
-        if inner == "cv":
-            a_nested = _inner_alpha(fit_predict, y, train, inner_folds, seed + k, alphas)
-            ps, pi = fit_predict(train, test)
-        else:
-            sss = StratifiedShuffleSplit(n_splits=1, test_size=0.25, random_state=seed + k)
-            itr, iva = next(sss.split(np.zeros(len(train)), y[train]))
-            ps_all, pi_all = fit_predict(train[itr], np.concatenate([train[iva], test]))
-            nv = len(iva)
-            a_nested = best_alpha(ps_all[:nv], pi_all[:nv], y[train[iva]], alphas)
-            ps, pi = ps_all[nv:], pi_all[nv:]
-        y_te = y[test]
+    for fold in cross_validate(fit_predict, y, splits, grid=_alpha_grid(alphas), inner=inner,
+                               inner_folds=inner_folds, seed=seed, progress=progress):
+        ps, pi = fold.probas
+        a_nested = float(fold.weights[0])
+        y_te = y[fold.test]
         a_opt = best_alpha(ps, pi, y_te, alphas)  # the paper's choice: tuned on the test split
         preds = {
             "shape": (ps, np.nan),
             "intensity": (pi, np.nan),
-            "fusion (nested)": (fuse(ps, pi, a_nested), a_nested),
+            "fusion (nested)": (fold.fused(), a_nested),
             "fusion (optimistic, test-tuned)": (fuse(ps, pi, a_opt), a_opt),
         }
         for name, (p, a) in preds.items():
             yhat = (p >= 0.5).astype(int)
             rows.append(
                 {
-                    "split": k,
+                    "split": fold.split,
                     "features": name,
                     "accuracy": accuracy_score(y_te, yhat),
                     "balanced_accuracy": balanced_accuracy_score(y_te, yhat),
                     "alpha": a,
                 }
             )
-        if progress is not None:
-            progress(k + 1, len(splits))
     return pd.DataFrame(rows)
 
 

@@ -2,9 +2,9 @@
 distance-table layout, row and object ids, and the groups file.
 
 One implementation each, so that the CLI's and the widget's maps of the same table are the same
-numbers (docs/design.md §2.8). Plain numpy for the PCA and the MDS: an SVD or an eigen-
-decomposition of a few thousand rows takes well under a second, and scikit-learn's import alone
-would block the viewer for seconds.
+numbers (docs/design.md §2.8). The PCA is :class:`~napari_pfsdm.analysis.shape_space.ShapePCA`
+(scikit-learn's), imported when a PCA is asked for, so that this module loads without
+scikit-learn; the classical MDS is an eigendecomposition in plain numpy.
 """
 
 from __future__ import annotations
@@ -15,10 +15,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..core.table_options import carry_options, plain
-from ..core.table_schema import NO_TRACK, TRACK_COLUMN, pc_column
+from ..core.table_options import carry_options
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
-from .tables import embeddings_from_table, weighted_features
 
 __all__ = [
     "KEY_COLUMNS",
@@ -81,14 +80,13 @@ def pca_scores(
     *,
     standardize: bool = False,
 ) -> tuple[pd.DataFrame, np.ndarray]:
-    """PCA of all (movie, frame, label) rows of a feature table.
+    """PCA of all (movie, frame, label) rows of a feature table: :class:`ShapePCA`'s
+    ``fit_transform`` on it, and the fraction of the variance each component explains.
 
-    By default each ring is scaled by the square root of its quadrature weight and each Fourier
-    index by its mode weight, so that Euclidean distances in this space are the PF-SDM
-    (magnitude) distances (docs/design.md §2.6); ``standardize=True`` instead gives every
-    feature unit variance (as in the paper's trajectory plots). Rows with an ``error`` or
-    non-finite features are left out. Components are signed so that the largest loading of
-    each is positive (scikit-learn's convention), which makes the result reproducible.
+    Weighted as the PF-SDM distance by default, each feature standardised with
+    ``standardize=True``; rows with an ``error`` or non-finite features are left out; each
+    component signed so that its largest loading is positive
+    (:class:`~napari_pfsdm.analysis.shape_space.ShapePCA`).
 
     Parameters
     ----------
@@ -124,31 +122,10 @@ def pca_scores(
     >>> list(scores.columns), bool(explained[0] > 0.9)
     (['frame', 'label', 'shape_PC1', 'shape_PC2'], True)
     """
-    ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
-          if "error" in table.columns else np.ones(len(table), bool))
-    if standardize:  # the raw magnitudes; standardised below
-        x = embeddings_from_table(table, channel)[0].reshape(len(table), -1)
-    else:
-        x = weighted_features(table, channel=channel)
-    ok &= np.isfinite(x).all(axis=1)
-    x = x[ok]
-    if len(x) < 2:
-        raise InputError("PCA needs at least two measured objects (rows without error)")
-    x = x - x.mean(axis=0)
-    if standardize:
-        sd = x.std(axis=0)
-        x = x / np.where(sd > 0, sd, 1.0)
-    u, s, vt = np.linalg.svd(x, full_matrices=False)
-    signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
-    signs[signs == 0] = 1
-    k = int(min(n_components, x.shape[0], x.shape[1]))
-    z = (u * s * signs)[:, :k]
-    var = s**2
-    keys = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "group") if c in table.columns]
-    scores = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
-    for i in range(k):
-        scores[pc_column(channel, i + 1)] = z[:, i]
-    return scores, var[:k] / max(float(var.sum()), 1e-300)
+    from .shape_space import ShapePCA
+
+    space = ShapePCA(n_components, channel, standardize=standardize)
+    return space.fit_transform(table), space.explained_variance_ratio_
 
 
 def mds_coordinates(d: np.ndarray, n_components: int = 2) -> np.ndarray:

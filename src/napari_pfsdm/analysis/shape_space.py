@@ -1,15 +1,17 @@
-"""A shape space as a fitted model: the PCA of one collection, applied to others.
+"""The one PCA of PF-SDM feature tables: a shape space as a fitted model.
 
-:func:`napari_pfsdm.analysis.reduction.pca_scores` computes the PCA of one table. Comparing
-movies needs the same axes for all of them: :class:`ShapePCA` is fitted on a reference (a
-control movie, a saved table) and projects any other table into that space (``transform``),
-with scikit-learn's ``fit`` / ``transform`` and the same components and signs as
-``pca_scores`` on the reference. Its loadings read as a ring × harmonic map
-(:meth:`ShapePCA.loadings`), and :func:`shape_modes` picks the real objects that sit at
--2σ … +2σ along a component (the "shape modes" of VAMPIRE, Momocs' morphospace).
+:class:`ShapePCA` is scikit-learn's :class:`~sklearn.decomposition.PCA` (full SVD) over the
+measured rows of a feature table, fitted on one table and applied to any other measured with
+the same options (``transform``), so that movies can be compared in the same axes. It is the
+PCA of the tables (:func:`napari_pfsdm.analysis.reduction.pca_scores` is ``fit_transform`` on
+one table), of ``pfsdm trajectories`` and of the napari plugin. Each component is signed so that
+its largest loading is positive, which makes the scores reproducible.
 
-The features can first have the classic measures regressed out (``regress_out``): the first
-component of what is left is a shape difference those numbers do not already give.
+Its loadings read as a ring × harmonic map (:meth:`ShapePCA.loadings`), and :func:`shape_modes`
+picks the real objects that sit at -2σ … +2σ along a component (the "shape modes" of VAMPIRE,
+Momocs' morphospace). The features can first have the classic measures regressed out
+(``regress_out``): the first component of what is left is a shape difference those numbers do
+not already give.
 """
 
 from __future__ import annotations
@@ -18,10 +20,12 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.decomposition import PCA
 
 from ..core.params import OPTIONS, SELECTION_OPTIONS
-from ..core.table_options import table_options
-from ..core.table_schema import pc_column
+from ..core.table_options import plain, table_options
+from ..core.table_schema import TRACK_COLUMN, pc_column
 from ..errors import InputError
 from .tables import embeddings_from_table, weighted_features
 
@@ -29,6 +33,9 @@ __all__ = ["ShapePCA", "shape_modes", "HARMONIC_WORDS"]
 
 #: What each Fourier harmonic of a ring describes, in words (harmonic 0 … 4).
 HARMONIC_WORDS = ("thickness", "off-centre", "elongation", "triangularity", "squareness")
+
+#: The columns of a table that the scores keep, when it has them.
+_SCORE_KEYS = ("movie", "frame", "label", TRACK_COLUMN, "group")
 
 #: The options two tables must share to live in one shape space: the method's (core.params,
 #: without those that only choose which objects are measured) and the objects' dimension, not
@@ -41,8 +48,13 @@ def _method_options(table: pd.DataFrame) -> dict:
     return {k: opts[k] for k in _METHOD_KEYS if k in opts}
 
 
-class ShapePCA:
+class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
     """PCA of PF-SDM features as a model fitted on one table and applied to others.
+
+    A scikit-learn estimator over feature tables (``get_params``, ``clone``, pipelines): the
+    features of the measured rows (rows with an ``error`` or non-finite features are left out)
+    go to :class:`sklearn.decomposition.PCA` (``svd_solver="full"``), weighted as the PF-SDM
+    distance by default.
 
     Parameters
     ----------
@@ -51,7 +63,9 @@ class ShapePCA:
     channel : {"shape", "intensity"}
     standardize : bool
         Give every feature unit variance (the paper's plots) instead of the PF-SDM weights
-        (Euclidean distances in the weighted space are the magnitude distances).
+        (each ring scaled by the square root of its quadrature weight, each Fourier index by
+        its mode weight, so that Euclidean distances are the magnitude distances,
+        docs/design.md §2.6).
     regress_out : sequence of str, optional
         Columns of the table (e.g. ``("area", "circularity")``) whose linear effect is removed
         from every feature before the PCA, with the coefficients of the reference: the PCA of
@@ -65,6 +79,8 @@ class ShapePCA:
         Fraction of the reference's total variance along each component.
     mean_, scale_ : ndarray
         What is subtracted from and divides each feature (scale 1 unless standardised).
+    pca_ : sklearn.decomposition.PCA
+        The fitted PCA of the centred (and scaled) features, with scikit-learn's signs.
     options_ : dict
         The method's options of the reference table: another table must have the same.
 
@@ -82,12 +98,16 @@ class ShapePCA:
 
     def __init__(self, n_components: int = 5, channel: str = "shape", *,
                  standardize: bool = False, regress_out: Sequence[str] | None = None) -> None:
+        # stored as given (scikit-learn's rule, which clone checks)
         self.n_components = n_components
         self.channel = channel
         self.standardize = standardize
-        self.regress_out = tuple(regress_out or ())
+        self.regress_out = regress_out
 
     # ------------------------------------------------------------------ features
+    def _regressors(self) -> list[str]:
+        return list(self.regress_out or ())
+
     def _features(self, table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
         """(features of the measured rows, mask of those rows in the table)."""
         ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
@@ -97,50 +117,62 @@ class ShapePCA:
         else:
             x = weighted_features(table, channel=self.channel)
         ok &= np.isfinite(x).all(axis=1)
-        if self.regress_out:
-            missing = [c for c in self.regress_out if c not in table.columns]
+        covariates = self._regressors()
+        if covariates:
+            missing = [c for c in covariates if c not in table.columns]
             if missing:
                 raise InputError(f"the table has no {', '.join(missing)} column(s) to regress "
                                  "out; measure it again with this version of napari-pfsdm")
-            ok &= np.isfinite(table[list(self.regress_out)].to_numpy(float)).all(axis=1)
+            ok &= np.isfinite(table[covariates].to_numpy(float)).all(axis=1)
         return x[ok], ok
 
-    def _covariates(self, table: pd.DataFrame, ok: np.ndarray) -> np.ndarray:
-        c = table.loc[ok, list(self.regress_out)].to_numpy(float)
+    def _design(self, table: pd.DataFrame, ok: np.ndarray) -> np.ndarray:
+        c = table.loc[ok, self._regressors()].to_numpy(float)
         return np.column_stack([np.ones(len(c)), (c - self.covariate_mean_)
                                 / self.covariate_scale_])
 
+    def _centred(self, table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+        """(the measured rows' features as the PCA sees them, mask of those rows)."""
+        x, ok = self._features(table)
+        if self._regressors():
+            x = x - self._design(table, ok) @ self.coef_
+        return (x - self.mean_) / self.scale_, ok
+
     # ---------------------------------------------------------------------- fit
     def fit(self, table: pd.DataFrame, y=None) -> ShapePCA:
-        """Fit the components on ``table`` (its rows without features are left out)."""
+        """Fit the components on ``table`` (its rows without features are left out).
+
+        Raises
+        ------
+        InputError
+            Fewer than two measured rows; a column of ``regress_out`` missing.
+        """
         x, ok = self._features(table)
         if len(x) < 2:
-            raise InputError("a shape space needs at least two measured objects")
+            raise InputError("PCA needs at least two measured objects (rows without error)")
         self.options_ = _method_options(table)
-        if self.regress_out:
-            c = table.loc[ok, list(self.regress_out)].to_numpy(float)
+        if self._regressors():
+            c = table.loc[ok, self._regressors()].to_numpy(float)
             self.covariate_mean_ = c.mean(axis=0)
             sd = c.std(axis=0)
             self.covariate_scale_ = np.where(sd > 0, sd, 1.0)
-            design = self._covariates(table, ok)
+            design = self._design(table, ok)
             self.coef_ = np.linalg.lstsq(design, x, rcond=None)[0]
             x = x - design @ self.coef_
         self.mean_ = x.mean(axis=0)
-        xc = x - self.mean_
-        if self.standardize:
-            sd = xc.std(axis=0)
-            self.scale_ = np.where(sd > 0, sd, 1.0)
-        else:
-            self.scale_ = np.ones(x.shape[1])
-        xc = xc / self.scale_
-        _u, s, vt = np.linalg.svd(xc, full_matrices=False)
-        signs = np.sign(vt[np.arange(len(vt)), np.abs(vt).argmax(axis=1)])
-        signs[signs == 0] = 1
-        k = int(min(self.n_components, xc.shape[0], xc.shape[1]))
-        self.components_ = (vt * signs[:, None])[:k]
-        var = s**2
-        self.explained_variance_ratio_ = var[:k] / max(float(var.sum()), 1e-300)
-        self.n_features_ = x.shape[1]
+        sd = (x - self.mean_).std(axis=0) if self.standardize else np.ones(x.shape[1])
+        self.scale_ = np.where(sd > 0, sd, 1.0)
+        z = (x - self.mean_) / self.scale_
+        k = int(min(self.n_components, z.shape[0], z.shape[1]))
+        with np.errstate(invalid="ignore", divide="ignore"):  # all rows alike: no variance
+            self.pca_ = PCA(n_components=k, svd_solver="full").fit(z)
+        loadings = self.pca_.components_
+        signs = np.sign(loadings[np.arange(k), np.abs(loadings).argmax(axis=1)])
+        self.signs_ = np.where(signs == 0, 1.0, signs)
+        self.components_ = loadings * self.signs_[:, None]
+        ratio = self.pca_.explained_variance_ratio_
+        self.explained_variance_ratio_ = np.where(np.isfinite(ratio), ratio, 0.0)
+        self.n_features_ = z.shape[1]
         self._shape = embeddings_from_table(table.iloc[:1], self.channel)[0].shape[1:]
         return self
 
@@ -162,23 +194,19 @@ class ShapePCA:
         (``movie``, ``frame``, ``label``, ``track_id``, ``group`` when present) and
         ``{channel}_PC1`` …, in table order."""
         self._check(table)
-        x, ok = self._features(table)
-        if self.regress_out:
-            x = x - self._covariates(table, ok) @ self.coef_
-        z = ((x - self.mean_) / self.scale_) @ self.components_.T
-        keys = [c for c in ("movie", "frame", "label", "track_id", "group")
-                if c in table.columns]
-        scores = pd.DataFrame(table.loc[ok, keys].to_numpy(), columns=keys)
-        for col in keys:
-            scores[col] = scores[col].astype(table[col].dtype)
-        for i in range(z.shape[1]):
-            scores[pc_column(self.channel, i + 1)] = z[:, i]
-        return scores
-
-    def fit_transform(self, table: pd.DataFrame, y=None) -> pd.DataFrame:
-        return self.fit(table).transform(table)
+        z, ok = self._centred(table)
+        scores = self.pca_.transform(z) * self.signs_ if len(z) else np.zeros(
+            (0, len(self.components_)))
+        keys = [c for c in _SCORE_KEYS if c in table.columns]
+        out = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
+        for i in range(scores.shape[1]):
+            out[pc_column(self.channel, i + 1)] = scores[:, i]
+        return out
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
+        """``{channel}_PC1`` …, as an object array."""
+        if not hasattr(self, "components_"):
+            raise InputError("fit the shape space first")
         return np.array([pc_column(self.channel, i + 1) for i in range(len(self.components_))],
                         dtype=object)
 
@@ -201,7 +229,7 @@ def shape_modes(scores: pd.DataFrame, component: int = 1, channel: str = "shape"
     Parameters
     ----------
     scores : DataFrame
-        Scores with ``{channel}_PC{component}`` (:meth:`ShapePCA.transform`, ``pca_scores``).
+        Scores with ``{channel}_PC{component}`` (:meth:`ShapePCA.transform`).
 
     Returns
     -------

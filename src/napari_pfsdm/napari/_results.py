@@ -75,25 +75,26 @@ def check_layers(labels, intensity, first_axis: str = "time") -> str:
 
 def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5
                ) -> pd.DataFrame:
-    """The package's PCA (:func:`napari_pfsdm.analysis.reduction.pca_scores`) with columns
-    ``frame``, ``label``, ``PC1`` … and ``attrs["explained_variance_ratio"]``; empty (no PC
-    columns) without that channel or with fewer than two measured rows."""
-    from ..analysis.reduction import pca_scores as pca
-    from ..core.table_schema import has_channel
+    """The package's PCA (:class:`napari_pfsdm.analysis.shape_space.ShapePCA`, weighted as the
+    PF-SDM distance) with columns ``frame``, ``label``, ``PC1`` … and
+    ``attrs["explained_variance_ratio"]``; empty (no PC columns) without that channel or with
+    fewer than two measured rows."""
+    from ..analysis.shape_space import ShapePCA
+    from ..core.table_schema import has_channel, pc_columns
 
     empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
     empty.attrs["explained_variance_ratio"] = []
     if not has_channel(table.columns, channel):
         return empty
+    space = ShapePCA(n_components, channel)
     try:
-        scores, ratios = pca(table, channel, n_components)
+        scores = space.fit_transform(table)
     except ValueError:
         return empty
     out = scores[["frame", "label"]].copy()
-    for col in scores.columns:
-        if col.startswith(f"{channel}_PC"):
-            out[col[len(channel) + 1:]] = scores[col].to_numpy()
-    out.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
+    for col in pc_columns(scores.columns, channel):
+        out[col[len(channel) + 1:]] = scores[col].to_numpy()
+    out.attrs["explained_variance_ratio"] = [float(r) for r in space.explained_variance_ratio_]
     return out
 
 
