@@ -245,7 +245,12 @@ def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
     assert verts.shape[1] == 3
     assert 5 <= verts[:, 0].min() and verts[:, 0].max() <= 18  # on the box of label 2, in z
     assert 49 <= verts[:, 2].min() and verts[:, 2].max() <= 70
-    assert "label 2" in viewer.layers["stack captions"].features["text"][0]
+    captions = viewer.layers["stack captions"]
+    assert "label 2" in captions.features["text"][0]
+    # 3-D captions: in napari's 3-D view the last one floats just above the surface
+    assert captions.ndim == 3
+    z, y, x = captions.data[-1]
+    assert 49 <= x <= 70 and y < verts[:, 1].min() and 6 <= z <= 18
 
 
 def test_the_plots_follow_the_model(qtbot, viewer_widget):

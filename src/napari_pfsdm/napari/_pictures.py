@@ -123,10 +123,14 @@ def _hide(viewer, source: str, keys) -> None:
 
 
 def caption(viewer, layer, where: list, texts: list[str]) -> None:
-    """Texts centred on world points ``where`` (last two axes), above the pictures."""
+    """Texts centred on world points ``where``: (y, x) beside a 2-D object's pictures,
+    (z, y, x) for a 3-D object's (so that napari's 3-D view shows them in space)."""
     name = names(layer.name)["captions"]
-    data = np.asarray(where, float).reshape(-1, 2)
+    data = np.asarray(where, float)
+    data = data.reshape(-1, data.shape[-1])
     text = {"string": "{text}", "color": "white", "size": 9, "anchor": "center"}
+    if name in viewer.layers and viewer.layers[name].ndim != data.shape[1]:
+        viewer.layers.remove(name)  # the layer was analysed with another first axis
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
         data, name=name, size=0.01, face_color="transparent", border_color="transparent",
         features={"text": texts}, text=text))
@@ -211,14 +215,22 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
     _set(surf, contrast_limits=(float(values.min()),
                                 float(max(values.max(), values.min() + 1e-6))), visible=True)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    caption(viewer, layer, [_above((top, left, side)), _above((top + 2.25 * side, left, side))],
-            [f"{where}label {p.label}: 4 shells", "surface: 3-D view"])
+    z = float(shift[0] + scale[0] * (layer.data.shape[-3] - 1) / 2)  # mid-stack
+    above = data[0][np.argmin(data[0][:, 1])] - (0, 0.08 * side, 0)  # over the surface
+    caption(viewer, layer, [(z, *_above((top, left, side))),
+                            (z, *_above((top + 2.25 * side, left, side))), above],
+            [f"{where}label {p.label}: 4 shells", "surface: 3-D view",
+             f"{where}label {p.label}"])
 
 
-def say(viewer, layer, text: str) -> None:
+def say(viewer, layer, text: str, analysis: Analysis | None = None) -> None:
     """No pictures for the selection: hide them and say why where they would be."""
     _hide(viewer, layer.name, ["sdf", "disk", "intensity_disk", "lines", "shells", "surface"])
-    caption(viewer, layer, [_above(_cells(layer)["sdf"])], [text])
+    spot = _above(_cells(layer)["sdf"])
+    if analysis is not None and analysis.ndim == 3:
+        spot = (float(layer.translate[-3] + layer.scale[-3] * (layer.data.shape[-3] - 1) / 2),
+                *spot)
+    caption(viewer, layer, [spot], [text])
 
 
 @thread_worker(start_thread=False)
@@ -257,13 +269,12 @@ class PictureView:
         elif key in self.cache:
             self._show(key)
         else:
-            caption(self.viewer, layer, [_above(_cells(layer)["sdf"])],
-                    [f"making the pictures of {where}label {label}…"])
+            say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis)
             if self.worker is None:
                 self._start()
 
     def _say(self, text: str, key) -> None:
-        say(self.viewer, self.wanted[0], text)
+        say(self.viewer, self.wanted[0], text, self.wanted[1])
         self.shown = key
 
     def _start(self) -> None:

@@ -202,7 +202,7 @@ class TrajectoryPlot(_Plot):
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         keys = scores[["frame", "label"]].to_numpy().astype(np.int64)
         rows = np.array([a.row_of(f, lab) for f, lab in keys])
-        objects = a.objects()[rows]
+        objects = self.point_objects = a.objects()[rows]
         groups = a.group_of_rows()[rows]
         ax = self.axes(111)
         order = np.lexsort((keys[:, 0], objects))
@@ -235,14 +235,11 @@ class TrajectoryPlot(_Plot):
                                     "Click a point to go to that object and frame."]).strip()
 
     def mark(self, ax, frame: int, label: int) -> list:
-        a = self.analysis
         out = []
         here = (self.keys[:, 0] == frame) & (self.keys[:, 1] == label)
-        rows = [a.row_of(f, lab) for f, lab in self.keys[here]]
-        if rows:
-            obj = a.objects()[rows[0]]
-            track = np.array([a.objects()[a.row_of(f, lab)] == obj for f, lab in self.keys]) \
-                if obj >= 0 else here
+        if here.any():
+            obj = self.point_objects[np.flatnonzero(here)[0]]
+            track = (self.point_objects == obj) if obj >= 0 else here
             order = np.argsort(self.keys[track, 0])
             out += ax.plot(*self.xy[track][order].T, "-", color="#ff3c3c", lw=1.6, zorder=4)
         in_frame = self.keys[:, 0] == frame
