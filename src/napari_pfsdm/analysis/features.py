@@ -33,6 +33,8 @@ from .tables import failed_rows
 __all__ = [
     "AXES",
     "ObjectResult",
+    "looks_like_colour",
+    "refuse_colour",
     "resolve_axes",
     "FOLDED_WARNING",
     "count_objects",
@@ -97,6 +99,7 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
     """
     ndim = len(shape)
     if axes is None:
+        refuse_colour(shape)
         if ndim == 2:
             return "yx"
         if ndim == 3:
@@ -118,6 +121,34 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
         raise InputError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
                          f"dimensions {tuple(shape)}.")
     return axes
+
+
+def looks_like_colour(shape: tuple[int, ...]) -> bool:
+    """Whether an array of ``shape`` looks like a colour image: 3 or 4 samples (RGB, RGBA) on
+    its last axis, after an axis of at least 8 pixels (``(Y, X, 3)``, ``(T, Y, X, 4)``).
+
+    Judged by the axes, never by the number of frames: a ``(3, Y, X)`` time-lapse is not one.
+
+    Examples
+    --------
+    >>> looks_like_colour((64, 64, 3)), looks_like_colour((3, 64, 64))
+    (True, False)
+    """
+    return len(shape) in (3, 4) and shape[-1] in (3, 4) and shape[-2] >= 8
+
+
+def refuse_colour(shape: tuple[int, ...], what: str = "The labels") -> None:
+    """Raise, in plain words, for labels (or a reporter) that look like a colour image
+    (:func:`looks_like_colour`) when no ``axes`` were given: the command line refuses them
+    too. Saying ``axes`` (e.g. ``"tyx"``) takes the array as it is."""
+    if looks_like_colour(tuple(shape)):
+        raise InputError(
+            f"{what} have shape {tuple(shape)}: {shape[-1]} values per pixel on the last axis, "
+            "which looks like a colour (RGB/RGBA) image, not a label image. Give the "
+            "segmentation with one whole number per object (0 = background), or one channel "
+            "(e.g. image[..., 0]); if the last axis really is the image's width, say "
+            f"axes='{'tyx' if len(shape) == 3 else 'tzyx'}'."
+        )
 
 
 def _spacing(axes: str, spacing) -> np.ndarray | None:
@@ -181,6 +212,8 @@ def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, st
             f"{dtype}. Convert a segmentation with skimage.measure.label first."
         )
     if intensity is not None and tuple(intensity.shape) != shape:
+        if tuple(intensity.shape[:-1]) == shape and intensity.shape[-1] in (3, 4):
+            refuse_colour(tuple(intensity.shape), "The intensity image and its labels")
         raise InputError(
             f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
             f"{shape}: they must cover the same frames and pixels."

@@ -321,10 +321,11 @@ def _open_tiff(path: Path, keep_z: bool = False) -> _TiffFrames:
     except Exception as exc:
         raise InputError(f"cannot read {path} as TIFF: {exc}") from exc
     # tifffile names a plain stack of pages "q" / "i"; treat it as time. A (3 or 4, Y, X)
-    # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"):
-    # for a label movie these planes are frames too.
+    # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"): these
+    # planes are frames too, of labels and of a reporter (integer or float) alike. A colour
+    # image is judged by its last axis (interleaved samples, "yxs"), never by its frames.
     axes = ["t" if a in ("q", "i") else a for a in axes]
-    if axes[0] == "s" and "t" not in axes and np.issubdtype(np.dtype(dtype), np.integer):
+    if axes[0] == "s" and "t" not in axes:
         axes[0] = "t"
     drop = _drop_axes(shape, axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)

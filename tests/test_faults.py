@@ -1,0 +1,126 @@
+"""The fault battery (issue 43): what the user gets when data, files, the cluster or the machine
+misbehave, and that nothing good is lost or clobbered on the way.
+
+Each test reproduces one fault as a user meets it (a missing Zarr chunk, a re-segmented store,
+a planted symlink, a full disk, a killed worker, ...) and asserts the plain words, the exit
+status and the files left behind. Expected values are computed here, independently of the code
+under test (counts of objects from numpy, sizes and checksums from the bytes on disk).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import tifffile
+
+import napari_pfsdm as pf
+from napari_pfsdm.cli import main
+from napari_pfsdm.core.table_schema import table_feature_columns
+
+zarr = pytest.importorskip("zarr")
+
+FAST = {"n_fourier": 4, "n_radii": 4}
+CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "none", "-q"]
+
+
+def ellipse_labels(shape=(64, 64), centre=(32, 30), axes=(20, 12), label=1) -> np.ndarray:
+    """One elliptic object of id ``label`` in a frame of ``shape`` (uint8 when it fits)."""
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    inside = ((yy - centre[0]) / axes[0]) ** 2 + ((xx - centre[1]) / axes[1]) ** 2 < 1
+    dtype = np.uint8 if label < 256 else np.uint64
+    out = np.zeros(shape, dtype)
+    out[inside] = label
+    return out
+
+
+def ramp(shape=(64, 64)) -> np.ndarray:
+    """A positive reporter that grows to the right: every object has a finite, positive mean."""
+    return np.broadcast_to(1.0 + np.arange(shape[1]) / shape[1], shape).copy()
+
+
+def intensity_columns(table) -> list[str]:
+    return table_feature_columns(table.attrs["pfsdm"], "intensity")
+
+
+# --------------------------------------------------------------------------------------------
+# 3. non-finite reporter values, RGB labels, reporters of 3 or 4 frames
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, np.nan])
+def test_a_non_finite_reporter_pixel_gives_nan_features_and_a_warning(bad):
+    labels = np.stack([ellipse_labels(), ellipse_labels()])
+    image = np.stack([ramp(), ramp()])
+    image[1, 32, 30] = bad  # inside the object of frame 1 only
+    table = pf.measure(labels, image, **FAST)
+    cols = intensity_columns(table)
+    assert len(cols) == 4 * 5
+    good, spoilt = table.iloc[0], table.iloc[1]
+    assert np.isfinite(good[cols].to_numpy(float)).all() and good["warnings"] == ""
+    assert np.isnan(spoilt[cols].to_numpy(float)).all()  # never zeros
+    assert "intensity features left empty" in spoilt["warnings"]
+    word = {np.inf: "+inf", -np.inf: "-inf"}.get(bad, "NaN")
+    assert word in spoilt["warnings"]
+    # the shape features do not depend on the reporter
+    shape = table_feature_columns(table.attrs["pfsdm"], "shape")
+    np.testing.assert_array_equal(good[shape].to_numpy(float), spoilt[shape].to_numpy(float))
+
+
+def test_a_non_finite_pixel_outside_the_object_does_not_spoil_it():
+    labels = ellipse_labels()
+    image = ramp()
+    clean = pf.measure(labels, image, **FAST)
+    cols = intensity_columns(clean)
+    far, near = image.copy(), image.copy()
+    far[0, 0] = np.inf  # outside the object's box: never read
+    np.testing.assert_array_equal(pf.measure(labels, far, **FAST)[cols].to_numpy(float),
+                                  clean[cols].to_numpy(float))
+    from scipy import ndimage as ndi
+
+    rim = ndi.binary_dilation(labels > 0) & (labels == 0)
+    near[rim] = np.inf  # every pixel touching the outline from outside: 0, not 1.8e308
+    got = pf.measure(labels, near, **FAST)
+    assert got["warnings"][0] == ""
+    np.testing.assert_allclose(got[cols].to_numpy(float), clean[cols].to_numpy(float),
+                               atol=0.1)
+
+
+@pytest.mark.parametrize("channels", [3, 4])
+def test_measure_refuses_rgb_labels_as_the_command_line_does(channels):
+    rgb = np.zeros((64, 64, channels), np.uint8)
+    rgb[10:30, 10:30] = 1
+    with pytest.raises(ValueError, match="colour .RGB"):
+        pf.measure(rgb)
+    with pytest.raises(ValueError, match="colour .RGB"):
+        pf.measure(np.stack([rgb, rgb]))  # an RGB time-lapse (T, Y, X, C)
+    # saying the axes is an explicit choice: 64 frames of 64 x 3 pixels
+    assert len(pf.measure(np.moveaxis(rgb, 2, 0)[:, :, :], axes="tyx", **FAST)) == channels
+
+
+def test_an_rgb_reporter_is_named_as_such():
+    labels = ellipse_labels()
+    with pytest.raises(ValueError, match="colour .RGB"):
+        pf.measure(labels, np.stack([ramp()] * 3, axis=-1))
+
+
+@pytest.mark.parametrize("n_frames", [3, 4])
+def test_a_float_reporter_of_three_or_four_frames_is_a_time_lapse(tmp_path, n_frames):
+    labels = np.stack([ellipse_labels()] * n_frames)
+    image = np.stack([ramp() * (t + 1) for t in range(n_frames)]).astype(np.float32)
+    tifffile.imwrite(tmp_path / "l.tif", labels)
+    tifffile.imwrite(tmp_path / "i.tif", image)  # tifffile stores 3 or 4 planes as planar RGB
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(tmp_path / "l.tif"), "-i", str(tmp_path / "i.tif"),
+                 "-o", str(out), "--scheduler", "sync", *CLI_FAST]) == 0
+    table = pf.read_table(out)
+    assert table["frame"].tolist() == list(range(n_frames))
+    assert (table["warnings"] == "").all()
+
+
+def test_the_command_line_still_refuses_an_rgb_tiff(tmp_path, capsys):
+    rgb = np.zeros((64, 64, 3), np.uint8)
+    rgb[10:30, 10:30] = 1
+    tifffile.imwrite(tmp_path / "rgb.tif", rgb, photometric="rgb")
+    assert main(["measure", str(tmp_path / "rgb.tif"), "-o", str(tmp_path / "f.csv"),
+                 "--scheduler", "sync", *CLI_FAST]) == 2
+    assert "colour (RGB)" in capsys.readouterr().err
+    assert not (tmp_path / "f.csv").exists()
