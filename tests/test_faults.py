@@ -14,6 +14,7 @@ import pytest
 import tifffile
 
 import napari_pfsdm as pf
+from napari_pfsdm.analysis.features import count_objects
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_schema import table_feature_columns
 
@@ -124,3 +125,94 @@ def test_the_command_line_still_refuses_an_rgb_tiff(tmp_path, capsys):
                  "--scheduler", "sync", *CLI_FAST]) == 2
     assert "colour (RGB)" in capsys.readouterr().err
     assert not (tmp_path / "f.csv").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# 7. any label ids; empty and zero-size arrays
+# --------------------------------------------------------------------------------------------
+
+BIG_IDS = [(np.uint32, 4_000_000_000), (np.uint64, 2**63 - 1), (np.uint64, 2**40 + 7),
+           (np.int64, 2**62)]
+
+
+def two_objects(dtype, big: int) -> np.ndarray:
+    """Two frames, the same two objects (ids 5 and ``big``) moving right by 2 pixels."""
+    out = np.zeros((2, 64, 64), dtype)
+    for t in range(2):
+        out[t] = ellipse_labels(centre=(20, 20 + 2 * t), axes=(10, 7)).astype(bool) * 5
+        out[t][ellipse_labels(centre=(45, 40 + 2 * t), axes=(8, 14)).astype(bool)] = big
+    return out
+
+
+@pytest.mark.parametrize(("dtype", "big"), BIG_IDS)
+def test_huge_label_ids_are_measured_as_any_others(dtype, big):
+    labels = two_objects(dtype, big)
+    table = pf.measure(labels, **FAST)
+    assert table["label"].tolist() == [5, big, 5, big]
+    small = pf.measure(np.where(labels == big, 9, labels).astype(np.uint8), **FAST)
+    shape = table_feature_columns(table.attrs["pfsdm"], "shape")
+    np.testing.assert_array_equal(table[shape].to_numpy(float), small[shape].to_numpy(float))
+    assert count_objects(labels) == 4
+
+
+def test_one_object_of_id_1e8_is_fast_and_small():
+    import time
+    import tracemalloc
+
+    labels = np.zeros((64, 64), np.uint32)
+    labels[20:40, 15:45] = 100_000_000
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    try:
+        table = pf.measure(labels, **FAST)
+        n = count_objects(labels)
+        seconds = time.perf_counter() - t0
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert table["label"].tolist() == [100_000_000] and n == 1
+    assert seconds < 5.0  # was 30 s
+    assert peak < 64 * 2**20  # was 4 GB
+
+
+@pytest.mark.parametrize("link", ["overlap", "centroid"])
+def test_huge_ids_link_over_time(tmp_path, link):
+    labels = two_objects(np.uint64, 2**63 - 1)
+    tifffile.imwrite(tmp_path / "l.tif", labels, photometric="minisblack")
+    out = tmp_path / "f.csv"
+    cli = [a for a in CLI_FAST if a not in ("--link", "none")]
+    assert main(["measure", str(tmp_path / "l.tif"), "-o", str(out), "--scheduler", "sync",
+                 "--link", link, *cli]) == 0
+    table = pf.read_table(out)
+    assert table["label"].tolist() == [5, 2**63 - 1, 5, 2**63 - 1]
+    if "track_id" in table.columns:  # the same object keeps its track
+        assert table["track_id"].iloc[0] == table["track_id"].iloc[2]
+        assert table["track_id"].iloc[1] == table["track_id"].iloc[3]
+
+
+def test_the_parallel_run_takes_huge_ids():
+    from napari_pfsdm.analysis.parallel import _labels_per_frame, _task_args, plan_tasks
+
+    labels = two_objects(np.uint64, 2**63 - 1)
+    counts = _labels_per_frame(labels, 2, True)
+    assert [c.tolist() for c in counts] == [[5, 2**63 - 1]] * 2
+    tasks = plan_tasks(counts, 4)  # one object per task: a frame split between tasks, crops
+    sent = [_task_args(labels, None, True, task, counts, {}) for task in tasks]
+    crops = [c for entries in sent for e in entries if e[0] == "crops" for c in e[3]]
+    assert {c[0] for c in crops} <= {5, 2**63 - 1} and crops
+
+
+@pytest.mark.parametrize("shape", [(0, 16, 16), (3, 0, 16), (0, 0), (16, 0)])
+def test_zero_size_labels_are_refused_in_plain_words(shape):
+    with pytest.raises(ValueError, match="no pixels"):
+        pf.measure(np.zeros(shape, np.uint8))
+
+
+def test_a_zero_frame_tiff_is_refused_in_plain_words(tmp_path, capsys):
+    tifffile.imwrite(tmp_path / "empty.tif", np.zeros((0, 16, 16), np.uint8))
+    code = main(["measure", str(tmp_path / "empty.tif"), "-o", str(tmp_path / "f.csv"),
+                 "--scheduler", "sync", *CLI_FAST])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "no pixels" in err or "no frames" in err or "cannot read" in err
+    assert "internal error" not in err and not (tmp_path / "f.csv").exists()

@@ -488,6 +488,9 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
             f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
             "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
+    from ..analysis.features import refuse_zero_size
+
+    refuse_zero_size(tuple(labels.shape), where)
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
         raise InputError(
             f"labels and intensity have different shapes {tuple(labels.shape)} and "
