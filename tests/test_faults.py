@@ -216,3 +216,135 @@ def test_a_zero_frame_tiff_is_refused_in_plain_words(tmp_path, capsys):
     assert code == 2, err
     assert "no pixels" in err or "no frames" in err or "cannot read" in err
     assert "internal error" not in err and not (tmp_path / "f.csv").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# 8. errors in the right drawer: the environment's faults are plain words and exit 2
+# --------------------------------------------------------------------------------------------
+
+def write_tiff_movie(path, n_frames: int = 2, label: int = 1):
+    labels = np.stack([ellipse_labels(centre=(32, 26 + 2 * t), label=label)
+                       for t in range(n_frames)])
+    tifffile.imwrite(path, labels, photometric="minisblack")
+    return labels
+
+
+def not_measured(monkeypatch) -> list:
+    """Replace the batch's measuring with a recorder: it must not be reached."""
+    from napari_pfsdm.batch import run as run_module
+
+    calls: list = []
+    monkeypatch.setattr(run_module, "measure_dask", lambda *a, **k: calls.append(a))
+    return calls
+
+
+def plain_error(capsys, *words: str) -> str:
+    err = capsys.readouterr().err
+    assert "internal error" not in err and "Traceback" not in err, err
+    for word in words:
+        assert word in err, err
+    return err
+
+
+def test_missing_pyarrow_is_found_before_measuring(tmp_path, monkeypatch, capsys):
+    import sys
+
+    write_tiff_movie(tmp_path / "m.tif")
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow -> ImportError
+    calls = not_measured(monkeypatch)
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.parquet"),
+                 "--scheduler", "sync", *CLI_FAST]) == 2
+    plain_error(capsys, 'pip install "napari-pfsdm[parquet]"')
+    assert calls == [] and not (tmp_path / "f.parquet").exists()
+    with pytest.raises(ValueError, match="pyarrow"):  # the library checks first too
+        from napari_pfsdm.batch import run_batch
+        from napari_pfsdm.batch.io import Movie
+
+        run_batch([Movie("m", tmp_path / "m.tif")], tmp_path / "g.parquet", scheduler="sync")
+    assert calls == []
+
+
+def broken_pool(*args, **kwargs):
+    from concurrent.futures.process import BrokenProcessPool
+
+    raise BrokenProcessPool("A process in the process pool was terminated abruptly")
+
+
+def test_a_killed_worker_is_a_plain_message_and_finished_movies_stay(tmp_path, monkeypatch,
+                                                                       capsys):
+    from napari_pfsdm.batch import run as run_module
+
+    for name in ("a", "b"):
+        write_tiff_movie(tmp_path / f"{name}.tif")
+    out = tmp_path / "f.csv"
+    real = run_module._run_local
+    seen: list = []
+
+    def dies_on_b(*args, **kwargs):
+        seen.append(1)
+        return real(*args, **kwargs) if len(seen) == 1 else broken_pool()
+
+    monkeypatch.setattr(run_module, "_run_local", dies_on_b)
+    assert main(["measure", str(tmp_path / "a.tif"), str(tmp_path / "b.tif"), "-o", str(out),
+                 "--scheduler", "sync", *CLI_FAST]) == 2
+    err = plain_error(capsys, "worker process", "run the same command again")
+    assert "memory" in err
+    parts = sorted(p.name for p in (tmp_path / "f.csv.parts").iterdir())
+    assert [p[:2] for p in parts if not p.endswith(".json")] == ["a-"]  # a is kept
+    assert not out.exists()
+    monkeypatch.setattr(run_module, "_run_local", real)  # the re-run resumes
+    assert main(["measure", str(tmp_path / "a.tif"), str(tmp_path / "b.tif"), "-o", str(out),
+                 "--scheduler", "sync", *CLI_FAST]) == 0
+    assert pf.read_table(out)["movie"].tolist() == ["a", "a", "b", "b"]
+
+
+class _DiesInWorker:
+    """A (2, 64, 64) label movie whose pixels kill the process that reads them, unless it is
+    the process that made it: a worker killed by the system (e.g. out of memory)."""
+
+    shape, dtype, ndim = (2, 64, 64), np.dtype(np.uint8), 3
+
+    def __init__(self):
+        import os
+
+        self.parent = os.getpid()
+
+    def __getitem__(self, key):
+        return self
+
+    def __array__(self, dtype=None, copy=None):
+        import os
+        import signal
+
+        if os.getpid() != self.parent:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return np.zeros(self.shape, np.uint8)
+
+
+def test_a_worker_killed_by_the_system_is_a_plain_message():
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from napari_pfsdm.batch import measure_dask
+
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+    with pool, pytest.raises(ValueError, match="worker process .* stopped") as info:
+        measure_dask(_DiesInWorker(), scheduler="processes", num_workers=1, pool=pool, **FAST)
+    assert pf.errors.InputError in type(info.value).__mro__
+
+
+@pytest.mark.parametrize("fault", ["KilledWorker", "CommClosedError", "FutureCancelledError"])
+def test_a_lost_cluster_is_a_plain_message(fault):
+    import distributed
+    from distributed.client import FutureCancelledError
+    from distributed.comm.core import CommClosedError
+
+    from napari_pfsdm.batch.run import environment_fault
+
+    exc = {"KilledWorker": distributed.KilledWorker("pfsdm-chunk-0", None, 3),
+           "CommClosedError": CommClosedError("in <TCP (closed)>: Stream is closed"),
+           "FutureCancelledError": FutureCancelledError("pfsdm-chunk-0", reason="lost")}[fault]
+    got = environment_fault(exc, "tcp://10.0.0.5:8786")
+    assert got is not None and isinstance(got, ValueError)
+    assert "tcp://10.0.0.5:8786" in str(got) and "run the same command again" in str(got)
+    assert environment_fault(ZeroDivisionError("a bug"), "tcp://10.0.0.5:8786") is None

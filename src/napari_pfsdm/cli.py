@@ -93,6 +93,10 @@ def _check_output(
         if Path(q).exists() and p.exists() and os.path.samefile(p, q):
             raise UserError(f"the {what} {p} is also an input; choose another output name")
     check_overwrite(p, force=force, what=what)
+    if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
+        from .io_csv import _pyarrow
+
+        _pyarrow(p, "writing")
     return p
 
 

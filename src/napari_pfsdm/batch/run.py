@@ -31,11 +31,18 @@ from ..analysis.schedulers import _client_for, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
-from ..errors import InputError
-from ..io_csv import _to_jsonable, atomic_write, read_table_csv, write_table_csv
+from ..errors import InputError, RunFault
+from ..io_csv import (
+    _pyarrow,
+    _to_jsonable,
+    atomic_write,
+    is_parquet,
+    read_table_csv,
+    write_table_csv,
+)
 from .io import Movie, check_labels, file_identity, open_movie
 
-__all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
+__all__ = ["environment_fault", "measure_dask", "run_batch", "resolve_scheduler"]
 
 
 
@@ -180,6 +187,38 @@ def measure_dask(
         axes = "t" + axes
     n_frames = int(labels.shape[0])
 
+    where = _where(kind, obj)
+    try:
+        tables = _measure_spans(labels, intensity, kind, obj, p, axes, spacing, n_frames,
+                                frames_per_task, num_workers, progress, pool)
+    except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
+        fault = environment_fault(exc, where)
+        if fault is None:
+            raise
+        raise fault from exc
+    if tables:
+        table = concat_tables(tables, ignore_index=True)
+    else:  # pragma: no cover - no frames at all
+        table = pd.DataFrame()
+    return table
+
+
+def _where(kind: str, obj: Any) -> str:
+    """Where a run's work goes, for messages: this machine or the scheduler's address."""
+    if kind == "local":
+        return "this machine"
+    if kind == "address":
+        return str(obj)
+    address = getattr(getattr(obj, "scheduler", None), "address", None)
+    return str(address) if address else "the dask cluster"
+
+
+def _measure_spans(
+    labels: Any, intensity: Any, kind: str, obj: Any, p: PFSDMParams, axes: str,
+    spacing: Any, n_frames: int, frames_per_task: int | None, num_workers: int | None,
+    progress: Callable[[int, int], None] | None, pool: Any,
+) -> list[pd.DataFrame]:
+    """The tables of a movie's spans of frames, measured where ``kind``/``obj`` say."""
     with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
         kind = "local" if kind == "local" else "distributed"
         fpt = frames_per_task or default_frames_per_task(
@@ -198,15 +237,55 @@ def measure_dask(
         ]
         sizes = [e - s for s, e in spans]
         if kind == "local":
-            tables = _run_local(args, sizes, handle, num_workers, progress, pool)
-        else:
-            tables = _run_distributed(args, sizes, handle, progress)
+            return _run_local(args, sizes, handle, num_workers, progress, pool)
+        return _run_distributed(args, sizes, handle, progress)
 
-    if tables:
-        table = concat_tables(tables, ignore_index=True)
-    else:  # pragma: no cover - no frames at all
-        table = pd.DataFrame()
-    return table
+
+#: What to do after an environment's fault: a batch resumes where it stopped.
+_AGAIN = "then run the same command again (movies already finished are kept and skipped)"
+
+
+def environment_fault(exc: BaseException, where: str) -> RunFault | None:
+    """The plain-words :class:`~napari_pfsdm.errors.RunFault` for an exception that the
+    machine or the cluster caused, or None when ``exc`` is not one (an input error, a bug).
+
+    Parameters
+    ----------
+    exc : BaseException
+        What the scheduler raised.
+    where : str
+        ``"this machine"`` or the scheduler's address, for the message.
+
+    Examples
+    --------
+    >>> from concurrent.futures.process import BrokenProcessPool
+    >>> str(environment_fault(BrokenProcessPool("terminated"), "this machine"))[:40]
+    'a worker process on this machine stopped'
+    >>> environment_fault(ZeroDivisionError(), "this machine") is None
+    True
+    """
+    from concurrent.futures import BrokenExecutor, CancelledError
+
+    if isinstance(exc, InputError):
+        return None
+    name = type(exc).__name__
+    if isinstance(exc, BrokenExecutor):
+        return RunFault(
+            f"a worker process on {where} stopped while measuring (killed from outside, or by "
+            "the system when memory ran out); if memory is short, use fewer --workers or a "
+            f"smaller --frames-per-task, {_AGAIN}")
+    if name == "KilledWorker":
+        return RunFault(
+            f"the dask cluster at {where} lost its workers while measuring (a task killed "
+            "workers several times, often at their memory limit); look at the workers' logs, "
+            f"give them more memory or use a smaller --frames-per-task, {_AGAIN}")
+    if where != "this machine" and (
+            isinstance(exc, CancelledError | TimeoutError) or name in (
+                "CommClosedError", "FuturesCancelledError", "ClosedClientError")):
+        return RunFault(
+            f"lost the connection to the dask scheduler at {where} while measuring (the "
+            f"scheduler stopped or the network failed); check that it is running, {_AGAIN}")
+    return None
 
 
 def _run_local(
@@ -426,6 +505,8 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    if is_parquet(output) and output.suffix.lower() == ".parquet":
+        _pyarrow(output, "writing")  # a missing package fails here, not after measuring
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
     suffix = ".parquet" if _have_parquet() else ".csv"
