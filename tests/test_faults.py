@@ -348,3 +348,95 @@ def test_a_lost_cluster_is_a_plain_message(fault):
     assert got is not None and isinstance(got, ValueError)
     assert "tcp://10.0.0.5:8786" in str(got) and "run the same command again" in str(got)
     assert environment_fault(ZeroDivisionError("a bug"), "tcp://10.0.0.5:8786") is None
+
+
+# --------------------------------------------------------------------------------------------
+# 1. missing data is never silent: empty frames named, missing Zarr chunks refused
+# --------------------------------------------------------------------------------------------
+
+def three_objects_per_frame(n_frames: int = 3) -> np.ndarray:
+    """``n_frames`` frames of three objects (ids 1, 2, 3) each."""
+    out = np.zeros((n_frames, 64, 64), np.uint16)
+    for t in range(n_frames):
+        out[t][ellipse_labels(centre=(16, 16 + t), axes=(8, 6)) > 0] = 1
+        out[t][ellipse_labels(centre=(44, 20), axes=(9, 12)) > 0] = 2
+        out[t][ellipse_labels(centre=(30, 48), axes=(12, 7)) > 0] = 3
+    return out
+
+
+def zarr_movie(path, data, zarr_format: int = 3):
+    z = zarr.create_array(str(path), shape=data.shape, dtype=data.dtype,
+                          chunks=(1, *data.shape[1:]), zarr_format=zarr_format)
+    z[:] = data
+    return z
+
+
+def chunk_file(path, zarr_format: int, frame: int):
+    """The chunk file of ``frame`` in a store of one chunk per frame (computed here from the
+    Zarr specifications: v3 'c/t/0/0', v2 't.0.0')."""
+    return path / ("c" if zarr_format == 3 else "") / (
+        f"{frame}/0/0" if zarr_format == 3 else f"{frame}.0.0")
+
+
+def sidecar(path) -> dict:
+    import json
+
+    return json.loads(path.with_name(path.name + ".json").read_text())
+
+
+@pytest.mark.parametrize("zarr_format", [2, 3])
+def test_a_zarr_store_missing_a_chunk_is_refused_in_plain_words(tmp_path, capsys, zarr_format):
+    store = tmp_path / "m.zarr"
+    zarr_movie(store, three_objects_per_frame(3), zarr_format)
+    chunk = chunk_file(store, zarr_format, 1)
+    assert chunk.is_file()
+    chunk.unlink()  # lost in a copy
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(store), "-o", str(out), "--scheduler", "sync", *CLI_FAST]) == 2
+    err = plain_error(capsys, "missing", "frame 1", "--allow-missing-chunks")
+    assert "m.zarr" in err and not out.exists()
+    # read as it is only when the user says so, and then warned per frame and recorded
+    assert main(["measure", str(store), "-o", str(out), "--scheduler", "sync",
+                 "--allow-missing-chunks", *CLI_FAST[:-1]]) == 0
+    said = capsys.readouterr()
+    assert "frame 1" in said.out + said.err and "missing" in said.out + said.err
+    table = pf.read_table(out)
+    assert table["frame"].tolist() == [0, 0, 0, 2, 2, 2]
+    assert sidecar(out)["missing_chunks"] == {"m": {"1": 1}}
+
+
+def test_measure_dask_refuses_missing_chunks_unless_allowed(tmp_path):
+    from napari_pfsdm.batch import measure_dask, open_movie
+
+    store = tmp_path / "m.zarr"
+    zarr_movie(store, three_objects_per_frame(3))
+    chunk_file(store, 3, 2).unlink()
+    with pytest.raises(ValueError, match="frame 2"):
+        measure_dask(open_movie(store), scheduler="sync", **FAST)
+    with pytest.warns(UserWarning, match="frame 2"):
+        table = measure_dask(open_movie(store), scheduler="sync", allow_missing_chunks=True,
+                             **FAST)
+    assert sorted(set(table["frame"])) == [0, 1]
+
+
+def test_frames_without_objects_are_named(tmp_path, capsys):
+    movie = three_objects_per_frame(5)
+    movie[1] = 0
+    movie[3] = 0
+    tifffile.imwrite(tmp_path / "m.tif", movie, photometric="minisblack")
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(out), "--scheduler", "sync",
+                 *CLI_FAST[:-1]]) == 0
+    said = capsys.readouterr().out
+    assert "no objects in frames 1, 3" in said
+    assert sidecar(out)["empty_frames"] == {"m": [1, 3]}
+    assert sorted(set(pf.read_table(out)["frame"])) == [0, 2, 4]
+
+
+def test_a_movie_without_empty_frames_says_nothing_about_them(tmp_path, capsys):
+    tifffile.imwrite(tmp_path / "m.tif", three_objects_per_frame(2), photometric="minisblack")
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(out), "--scheduler", "sync",
+                 *CLI_FAST[:-1]]) == 0
+    assert "no objects" not in capsys.readouterr().out
+    assert sidecar(out)["empty_frames"] == {}

@@ -278,6 +278,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         link=args.link,
         axes=args.axes,
         spacing=args.spacing,
+        allow_missing_chunks=args.allow_missing_chunks,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -988,6 +989,11 @@ examples:
     p.add_argument("--allow-empty", dest="allow_empty", action="store_true",
                    help="write an empty table when the labels hold no object (default: an "
                         "error, as labels with only background are usually the wrong file)")
+    p.add_argument("--allow-missing-chunks", dest="allow_missing_chunks", action="store_true",
+                   help="measure Zarr movies whose chunk files are not all on disk, reading "
+                        "the missing ones as the fill value (empty), with a warning per frame "
+                        "(default: an error, as a store that lost files in a copy looks "
+                        "just the same)")
     _add_force(p)
     p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
                    default="auto",

@@ -20,6 +20,7 @@ import hashlib
 import json
 import os
 import re
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,15 @@ from ..io_csv import (
     read_table_csv,
     write_table_csv,
 )
-from .io import Movie, check_labels, file_identity, open_movie
+from .io import (
+    Movie,
+    check_labels,
+    file_identity,
+    missing_frames,
+    missing_warning,
+    open_movie,
+    refuse_missing_chunks,
+)
 
 __all__ = ["environment_fault", "measure_dask", "run_batch", "resolve_scheduler"]
 
@@ -133,6 +142,7 @@ def measure_dask(
     params: PFSDMParams | None = None,
     axes: str | None = None,
     spacing: Any = None,
+    allow_missing_chunks: bool = False,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, frames computed in parallel with dask.
@@ -166,6 +176,10 @@ def measure_dask(
         The method's options as one record (it travels to the workers as it is).
     axes, spacing
         As :func:`napari_pfsdm.measure` (``"zyx"`` or ``"tzyx"`` for 3-D objects).
+    allow_missing_chunks : bool
+        A Zarr movie (from :func:`~napari_pfsdm.batch.io.open_movie`) whose chunk files are
+        not all on disk is refused (``InputError``), as its missing frames would read as
+        empty; True reads it as it is, with a ``UserWarning`` naming each such frame.
     **options
         Or the options as keywords (``n_fourier``, ``mapping``, ``sdf``, ...).
 
@@ -179,6 +193,7 @@ def measure_dask(
 
     p = as_params(params, options)
     check_labels(labels, intensity, axes=axes)
+    _check_chunks(labels, intensity, allow_missing_chunks)
     axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
     if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
@@ -201,6 +216,16 @@ def measure_dask(
     else:  # pragma: no cover - no frames at all
         table = pd.DataFrame()
     return table
+
+
+def _check_chunks(labels: Any, intensity: Any, allow: bool) -> None:
+    """Refuse (or, when ``allow``, warn about) Zarr movies with missing chunk files."""
+    for movie, what in ((labels, "the labels"), (intensity, "the intensity")):
+        if movie is None or not missing_frames(movie):
+            continue
+        if not allow:
+            refuse_missing_chunks(movie, what)
+        warnings.warn("; ".join(missing_warning(movie, what)), UserWarning, stacklevel=3)
 
 
 def _where(kind: str, obj: Any) -> str:
@@ -456,6 +481,7 @@ def run_batch(
     link: str = "none",
     axes: str | None = None,
     spacing: Any = None,
+    allow_missing_chunks: bool = False,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -490,13 +516,19 @@ def run_batch(
         with another ``link`` measures nothing again.
     axes, spacing
         As :func:`napari_pfsdm.measure`, for every movie (``"zyx"``/``"tzyx"``: 3-D objects).
+    allow_missing_chunks : bool
+        A Zarr movie whose chunk files are not all on disk stops the run before any work
+        (its missing frames would read as empty); True measures it as it is, ``log`` warns
+        once per such frame and the sidecar lists them (``missing_chunks``).
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
     Returns
     -------
     pandas.DataFrame
-        The concatenated table (also written to ``output``).
+        The concatenated table (also written to ``output``). Its sidecar lists, per movie,
+        the frames without any object (``empty_frames``) and those read with missing chunk
+        files (``missing_chunks``); ``log`` names them too.
     """
     output = Path(output)
     out_dir = output.parent if str(output.parent) else Path(".")
@@ -521,7 +553,11 @@ def run_batch(
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
+        for movie, path in ((lab, m.labels), (img, m.intensity)):
+            if movie is not None and not allow_missing_chunks:
+                refuse_missing_chunks(movie, str(path))
         opened.append((m, lab, img))
+    missing = _missing_chunks(opened, say)
 
     kind, obj = resolve_scheduler(scheduler, client)
     pool_cm: Any = contextlib.nullcontext(None)
@@ -538,6 +574,7 @@ def run_batch(
     tables = []
     attrs: dict = {}
     linked = False
+    empty: dict[str, list[int]] = {}
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
             part = parts / (_part_name(m, p, axes, spacing) + suffix)
@@ -558,6 +595,7 @@ def run_batch(
                     scheduler=obj if kind == "local" else None,
                     num_workers=num_workers, frames_per_task=frames_per_task,
                     progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
+                    allow_missing_chunks=True,  # checked above, with the user's word
                 )
                 attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
@@ -567,6 +605,11 @@ def run_batch(
                 atomic_write(side, lambda h, _t=text: h.write(_t))
                 _write_part(table, part)
                 say(f"measured {m.name}: {len(table)} objects")
+            empty[m.name] = _empty_frames(table, lab, axes)
+            if empty[m.name]:
+                shown = ", ".join(str(t) for t in empty[m.name])
+                say(f"{m.name}: no objects in frame{'s' if len(empty[m.name]) > 1 else ''} "
+                    f"{shown} (of {_n_frames(lab, axes)})")
             if link != "none" and len(table):
                 table, used = _link(table, lab, link, m.name, say)
                 linked = linked or bool(used)
@@ -588,5 +631,38 @@ def run_batch(
             "(labels), or pass --allow-empty to write an empty table"
         )
     set_options(result, attrs)
-    write_table_csv(result, output, attrs, table_type="features")
+    extra = {"empty_frames": {k: v for k, v in empty.items() if v},
+             "missing_chunks": missing}
+    write_table_csv(result, output, attrs, table_type="features", extra=extra)
     return result
+
+
+def _n_frames(movie: Any, axes: str | None) -> int:
+    """Frames of a movie: its first axis when that is time, else 1."""
+    from ..analysis.features import resolve_axes
+
+    timed = resolve_axes(tuple(movie.shape), axes).startswith("t")
+    return int(movie.shape[0]) if timed else 1
+
+
+def _empty_frames(table: pd.DataFrame, movie: Any, axes: str | None) -> list[int]:
+    """The frames of ``movie`` that have no row (no object at all) in its ``table``."""
+    have = set(table["frame"].astype(int).tolist()) if "frame" in table.columns else set()
+    return [t for t in range(_n_frames(movie, axes)) if t not in have]
+
+
+def _missing_chunks(opened: list[tuple], say: Callable[[str], None]) -> dict[str, dict]:
+    """Warn once per frame read with missing chunk files; ``{movie: {frame: count}}``."""
+    out: dict[str, dict] = {}
+    for m, lab, img in opened:
+        counts: dict[str, int] = {}
+        for movie in (lab, img):
+            if movie is None:
+                continue
+            for line in missing_warning(movie, m.name):
+                say(line)
+            for t, n in missing_frames(movie).items():
+                counts[str(t)] = counts.get(str(t), 0) + n
+        if counts:
+            out[m.name] = dict(sorted(counts.items(), key=lambda kv: int(kv[0])))
+    return out
