@@ -440,3 +440,142 @@ def test_a_movie_without_empty_frames_says_nothing_about_them(tmp_path, capsys):
                  *CLI_FAST[:-1]]) == 0
     assert "no objects" not in capsys.readouterr().out
     assert sidecar(out)["empty_frames"] == {}
+
+
+# --------------------------------------------------------------------------------------------
+# 5. files safe in a shared folder
+# --------------------------------------------------------------------------------------------
+
+def measure_into(tmp_path, out, *extra: str) -> int:
+    return main(["measure", str(tmp_path / "m.tif"), "-o", str(out), "--scheduler", "sync",
+                 *extra, *CLI_FAST])
+
+
+def test_a_planted_symlink_never_redirects_a_write(tmp_path):
+    from napari_pfsdm.batch import run as run_module
+    from napari_pfsdm.batch.io import Movie
+    from napari_pfsdm.core.params import PFSDMParams
+
+    write_tiff_movie(tmp_path / "m.tif")
+    victim = tmp_path / "precious.txt"
+    victim.write_text("a colleague's file\n")
+    out = tmp_path / "f.csv"
+    parts = tmp_path / "f.csv.parts"
+    parts.mkdir()
+    stem = run_module._part_name(Movie("m", tmp_path / "m.tif"), PFSDMParams(**FAST))
+    for suffix in (".parquet", ".csv", ".json"):  # the old fixed names, all planted
+        (parts / f".{stem}{suffix}.tmp").symlink_to(victim)
+    (tmp_path / ".f.csv.tmp").symlink_to(victim)
+    assert measure_into(tmp_path, out) == 0
+    assert victim.read_text() == "a colleague's file\n"
+    assert len(pf.read_table(out)) == 2
+
+
+def test_a_sidecar_from_another_write_is_refused_in_plain_words(tmp_path):
+    import shutil
+
+    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+    a, b = tmp_path / "a.csv", tmp_path / "b" / "a.csv"
+    b.parent.mkdir()
+    df = pd_frame()
+    write_table_csv(df, a, {"v": 1})
+    write_table_csv(df.assign(area=df["area"] * 2), b, {"v": 2})
+    shutil.copy(b.with_name("a.csv.json"), a.with_name("a.csv.json"))  # v2's sidecar by v1's
+    with pytest.raises(ValueError, match="do not belong together"):
+        read_table_csv(a)
+    # a copy under another name, with its sidecar beside it, is the user's own pair
+    shutil.copy(a, tmp_path / "copy.csv")
+    shutil.copy(tmp_path / "b" / "a.csv.json", tmp_path / "copy.csv.json")
+    assert read_table_csv(tmp_path / "copy.csv").attrs["pfsdm"] == {"v": 2}
+
+
+def pd_frame():
+    import pandas as pd
+
+    return pd.DataFrame({"frame": [0, 1, 2], "label": [1, 1, 2], "area": [10.5, 11.0, 9.25]})
+
+
+def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
+    import threading
+
+    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+    out = tmp_path / "t.csv"
+    base = pd_frame()
+    write_table_csv(base.assign(v=0), out, {"v": 0})
+    stop = threading.Event()
+
+    def writer() -> None:
+        v = 0
+        while not stop.is_set():
+            v += 1
+            rows = base.assign(v=v) if v % 2 else base.iloc[:2].assign(v=v)
+            write_table_csv(rows, out, {"v": v})
+
+    thread = threading.Thread(target=writer)
+    thread.start()
+    pairs = refused = 0
+    try:
+        for _ in range(60):
+            try:
+                got = read_table_csv(out)
+            except ValueError as exc:
+                assert "do not belong together" in str(exc)
+                refused += 1
+                continue
+            assert set(got["v"]) == {got.attrs["pfsdm"]["v"]}  # the table is its sidecar's
+            pairs += 1
+    finally:
+        stop.set()
+        thread.join()
+    assert pairs > 0
+
+
+def test_a_second_run_into_the_same_output_refuses(tmp_path, capsys):
+    from napari_pfsdm.io_csv import output_lock
+
+    write_tiff_movie(tmp_path / "m.tif")
+    out = tmp_path / "f.csv"
+    with output_lock(out):  # another run is writing f.csv
+        assert measure_into(tmp_path, out) == 2
+        plain_error(capsys, "another pfsdm run", "f.csv")
+        assert not out.exists()
+    assert measure_into(tmp_path, out) == 0  # free again
+    assert not list(tmp_path.glob(".*lock*"))
+
+
+def test_a_killed_run_leftovers_are_cleaned_by_the_next(tmp_path):
+    write_tiff_movie(tmp_path / "m.tif")
+    out = tmp_path / "f.csv"
+    parts = tmp_path / "f.csv.parts"
+    parts.mkdir()
+    ours = [tmp_path / ".f.csv.k2j4h5g6.tmp", tmp_path / ".f.csv.json.a_b1c2d3.tmp",
+            parts / ".m-0123456789.parquet.tmp", parts / ".m-0123456789.parquet.x1y2z3w4.tmp"]
+    others = [tmp_path / ".g.csv.k2j4h5g6.tmp", tmp_path / "notes.tmp"]
+    for f in ours + others:
+        f.write_text("half")
+    (tmp_path / ".f.csv.lock").write_text("12345 a host that died\n")  # a stale lock
+    assert measure_into(tmp_path, out) == 0
+    assert [f for f in ours if f.exists()] == []
+    assert all(f.read_text() == "half" for f in others)
+
+
+def test_a_full_disk_keeps_the_good_output(tmp_path, monkeypatch, capsys):
+    import errno
+
+    import pandas as pd
+
+    write_tiff_movie(tmp_path / "m.tif")
+    out = tmp_path / "f.csv"
+    assert measure_into(tmp_path, out) == 0
+    before = {p.name: p.read_bytes() for p in (out, out.with_name("f.csv.json"))}
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", full)
+    assert measure_into(tmp_path, out, "--n-angles", "32") == 2  # other options: measured again
+    plain_error(capsys, "No space left on device")
+    assert {p.name: p.read_bytes() for p in (out, out.with_name("f.csv.json"))} == before
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []

@@ -38,7 +38,9 @@ from ..io_csv import (
     _to_jsonable,
     atomic_write,
     is_parquet,
+    output_lock,
     read_table_csv,
+    remove_leftovers,
     write_table_csv,
 )
 from .io import (
@@ -419,15 +421,12 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
 
 
 def _write_part(table: pd.DataFrame, path: Path) -> None:
+    """Write a movie's part atomically, through a temporary file of a unique name created
+    exclusively in the parts folder (:func:`~napari_pfsdm.io_csv.atomic_write`: no planted
+    file or symbolic link is ever written through)."""
     out = plain(table)
     if path.suffix == ".parquet":
-        tmp = path.with_name(f".{path.name}.tmp")
-        try:
-            out.to_parquet(tmp, index=False)
-            os.replace(tmp, path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
+        atomic_write(path, lambda h: out.to_parquet(h, index=False), binary=True)
     else:
         atomic_write(path, lambda h: out.to_csv(h, index=False, lineterminator="\n"))
 
@@ -539,10 +538,40 @@ def run_batch(
     p = as_params(params, options)  # a bad option fails here, before any movie is read
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         _pyarrow(output, "writing")  # a missing package fails here, not after measuring
+    with output_lock(output):  # one run at a time per output; a second one refuses
+        return _run_batch_locked(
+            movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
+            frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
+            say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks)
+
+
+#: Temporary files a killed run may leave in a parts folder: those of
+#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions.
+_PART_TEMP = re.compile(r"\..+\.(?:parquet|csv|json)(?:\.[a-z0-9_]{8})?\.tmp")
+
+
+def _remove_part_leftovers(parts: Path) -> None:
+    """Remove the temporary part files of a killed run (holding the output's lock)."""
+    for entry in os.scandir(parts):
+        if _PART_TEMP.fullmatch(entry.name) and not entry.is_dir(follow_symlinks=False):
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+
+
+def _run_batch_locked(
+    movies: Sequence[Movie], output: Path, p: PFSDMParams, *, client: Any, scheduler: Any,
+    num_workers: int | None, frames_per_task: int | None,
+    parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
+    say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
+    spacing: Any, allow_missing_chunks: bool,
+) -> pd.DataFrame:
+    """:func:`run_batch`'s work, holding the output's lock."""
+    remove_leftovers(output)
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
+    _remove_part_leftovers(parts)
     suffix = ".parquet" if _have_parquet() else ".csv"
-    say = log or (lambda msg: None)
 
     # Open and check every movie first: a bad file fails the run before any long work.
     opened = []
