@@ -579,3 +579,75 @@ def test_a_full_disk_keeps_the_good_output(tmp_path, monkeypatch, capsys):
     plain_error(capsys, "No space left on device")
     assert {p.name: p.read_bytes() for p in (out, out.with_name("f.csv.json"))} == before
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+
+
+# --------------------------------------------------------------------------------------------
+# 2. a resume is never stale
+# --------------------------------------------------------------------------------------------
+
+def run_logged(store, out, **kw) -> tuple[list[str], object]:
+    from napari_pfsdm.batch import find_movies, pair_movies, run_batch
+
+    log: list[str] = []
+    table = run_batch(pair_movies(find_movies(store)), out, scheduler="sync", log=log.append,
+                      **FAST, **kw)
+    return log, table
+
+
+@pytest.mark.parametrize("zarr_format", [2, 3])
+def test_a_zarr_store_resegmented_in_place_is_measured_again(tmp_path, zarr_format):
+    store = tmp_path / "m.zarr"
+    movie = three_objects_per_frame(3)
+    zarr_movie(store, movie, zarr_format)
+    out = tmp_path / "f.csv"
+    log, first = run_logged(store, out)
+    assert log[0].startswith("measured m") and len(first) == 9
+    z = zarr.open_array(str(store), mode="r+")
+    z[1] = np.where(movie[1] == 3, 0, movie[1])  # frame 1 re-segmented: object 3 gone
+    log, second = run_logged(store, out)
+    assert log[0].startswith("measured m"), log  # not "skipped (already measured)"
+    assert len(second) == 8 and 3 not in second.loc[second["frame"] == 1, "label"].tolist()
+
+
+def test_a_chunk_rewritten_with_the_same_size_and_time_is_measured_again(tmp_path):
+    import os
+
+    store = tmp_path / "m.zarr"
+    movie = three_objects_per_frame(2)
+    z = zarr.create_array(str(store), shape=movie.shape, dtype=movie.dtype,
+                          chunks=(1, 64, 64), compressors=None)  # every chunk the same size
+    z[:] = movie
+    chunk = chunk_file(store, 3, 1)
+    out = tmp_path / "f.csv"
+    run_logged(store, out)
+    stat = chunk.stat()
+    swapped = np.where(movie[1] == 1, 2, np.where(movie[1] == 2, 1, movie[1]))
+    z[1] = swapped  # the ids of two objects swapped: same bytes count
+    os.utime(chunk, ns=(stat.st_atime_ns, stat.st_mtime_ns))  # and the same time
+    assert chunk.stat().st_size == stat.st_size
+    log, table = run_logged(store, out)
+    assert log[0].startswith("measured m"), log
+    frame1 = table[table["frame"] == 1].set_index("label")["area"]
+    assert frame1[1] == int((swapped == 1).sum()) and frame1[2] == int((swapped == 2).sum())
+
+
+@pytest.mark.parametrize("parquet", [True, False])
+def test_a_damaged_part_is_measured_again(tmp_path, monkeypatch, parquet):
+    from napari_pfsdm.batch import run as run_module
+
+    monkeypatch.setattr(run_module, "_have_parquet", lambda: parquet)
+    store = tmp_path / "m.zarr"
+    zarr_movie(store, three_objects_per_frame(2))
+    out = tmp_path / "f.csv"
+    _, good = run_logged(store, out)
+    (part,) = [p for p in (tmp_path / "f.csv.parts").iterdir() if p.suffix != ".json"]
+    data = part.read_bytes()
+    part.write_bytes(data[: len(data) // 2])  # truncated: a full disk, a killed copy
+    logs = []
+    for _ in range(2):  # measured again, and then resumed as usual
+        log, table = run_logged(store, out)
+        logs.append(log)
+        assert table["label"].tolist() == good["label"].tolist()
+    assert "is damaged" in logs[0][0] and logs[0][1].startswith("measured m")
+    assert logs[1][0].startswith("skipped m")
+    assert len(part.read_bytes()) == len(data)

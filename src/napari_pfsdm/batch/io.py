@@ -29,6 +29,7 @@ from ..errors import InputError
 
 __all__ = [
     "Movie",
+    "data_fingerprint",
     "find_movies",
     "missing_chunks",
     "missing_frames",
@@ -196,6 +197,43 @@ def store_files(folder: str | os.PathLike) -> dict[str, tuple[int, int]]:
                 continue
             out[full.relative_to(root).as_posix()] = (st.st_size, st.st_mtime_ns)
     return out
+
+
+#: Movies up to this size are fingerprinted by their content (:func:`data_fingerprint`).
+CONTENT_HASH_BYTES = 16 * 2**20
+
+
+def data_fingerprint(path: str | os.PathLike) -> str:
+    """What identifies a movie's data, for a resumed batch to know it is unchanged.
+
+    A Zarr store (a folder): every file in it, with its size and modification time, so that a
+    chunk re-written in place (a store re-segmented) changes it; a TIFF: its size,
+    modification time and inode. A movie of at most :data:`CONTENT_HASH_BYTES` is
+    fingerprinted by its bytes as well (a rewrite of the same size within the file system's
+    time resolution, or with the old time put back, is caught too).
+
+    Returns
+    -------
+    str
+        A SHA-1 hex digest; ``""`` when the path does not exist.
+    """
+    import hashlib
+
+    p = Path(path)
+    if not p.exists():
+        return ""
+    files = store_files(p) if p.is_dir() else {"": (p.stat().st_size, p.stat().st_mtime_ns)}
+    digest = hashlib.sha1(repr(sorted(files.items())).encode())
+    if not p.is_dir():
+        digest.update(repr(file_identity(p)).encode())
+    if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:
+        for rel in sorted(files):
+            full = p / rel if rel else p
+            try:
+                digest.update(full.read_bytes())
+            except OSError:  # removed meanwhile: the listing above differs already
+                continue
+    return digest.hexdigest()
 
 
 def missing_chunks(arr: Any, folder: str | os.PathLike, t_axis: int | None) -> dict[int, int]:

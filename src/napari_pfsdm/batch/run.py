@@ -36,17 +36,17 @@ from ..errors import InputError, RunFault
 from ..io_csv import (
     _pyarrow,
     _to_jsonable,
-    atomic_write,
     is_parquet,
     output_lock,
     read_table_csv,
     remove_leftovers,
+    sidecar_path,
     write_table_csv,
 )
 from .io import (
     Movie,
     check_labels,
-    file_identity,
+    data_fingerprint,
     missing_frames,
     missing_warning,
     open_movie,
@@ -402,12 +402,13 @@ def _have_parquet() -> bool:
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
                spacing: Any = None) -> str:
-    """Stable file name of a movie's part: its name plus a hash of its inputs and options."""
+    """Stable file name of a movie's part: its name plus a hash of its inputs' data
+    (:func:`~napari_pfsdm.batch.io.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
         if p is None:
             return None
         p = Path(p).resolve()
-        return [str(p), list(file_identity(p))]  # a replaced file is measured again
+        return [str(p), data_fingerprint(p)]  # a replaced or re-written movie: measured again
 
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
@@ -420,23 +421,42 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
     return f"{safe}-{digest}"
 
 
-def _write_part(table: pd.DataFrame, path: Path) -> None:
-    """Write a movie's part atomically, through a temporary file of a unique name created
-    exclusively in the parts folder (:func:`~napari_pfsdm.io_csv.atomic_write`: no planted
-    file or symbolic link is ever written through)."""
-    out = plain(table)
-    if path.suffix == ".parquet":
-        atomic_write(path, lambda h: out.to_parquet(h, index=False), binary=True)
-    else:
-        atomic_write(path, lambda h: out.to_csv(h, index=False, lineterminator="\n"))
+def _write_part(table: pd.DataFrame, path: Path, options: dict) -> None:
+    """Write a movie's part with its sidecar (the options, the part's size and SHA-256), each
+    atomically through a temporary file of a unique name created exclusively in the parts
+    folder (:func:`~napari_pfsdm.io_csv.write_table_csv`: no planted file or symbolic link is
+    written through). The sidecar comes first: the part appearing marks the movie as done."""
+    write_table_csv(table, path, options, table_type="part")
 
 
 def _read_part(path: Path) -> pd.DataFrame:
-    """A movie's part as written by :func:`_write_part`: the one CSV reader of the package
-    (:func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text columns as written)."""
-    if path.suffix == ".parquet":
-        return pd.read_parquet(path)
+    """A movie's part as written by :func:`_write_part`, checked against its sidecar (the one
+    reader of the package, :func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text
+    columns as written)."""
     return read_table_csv(path)
+
+
+def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
+    """The table of a movie measured by an earlier run, or None when it must be measured: no
+    part yet, or a damaged one (truncated, not matching its sidecar), which is removed."""
+    if not part.exists():
+        return None
+    try:
+        table = _read_part(part)
+    except Exception as exc:  # noqa: BLE001 - any reader's error: the part is not usable
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        say(f"{name}: its saved part {part.name} is damaged ({first[:160]}); measuring "
+            f"{name} again")
+        for f in (part, sidecar_path(part), part.with_suffix(".json")):
+            with contextlib.suppress(OSError):
+                f.unlink()
+        return None
+    say(f"skipped {name} (already measured: {part.name})")
+    if not table_options(table):  # a part of an earlier version: options beside it
+        old = part.with_suffix(".json")
+        if old.exists():
+            set_options(table, json.loads(old.read_text()))
+    return table
 
 
 def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
@@ -607,12 +627,9 @@ def _run_batch_locked(
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
             part = parts / (_part_name(m, p, axes, spacing) + suffix)
-            side = part.with_suffix(".json")
-            if part.exists():
-                say(f"skipped {m.name} (already measured: {part.name})")
-                table = _read_part(part)
-                if side.exists() and not attrs:
-                    attrs = json.loads(side.read_text())
+            table = _resumed(part, m.name, say)
+            if table is not None:
+                attrs = attrs or _to_jsonable(table_options(table) or {})
             else:
                 def _prog(done: int, total: int, _name: str = m.name) -> None:
                     if progress:
@@ -629,10 +646,7 @@ def _run_batch_locked(
                 attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
-                # side-car options first: the part itself appearing marks the movie as done
-                text = json.dumps(attrs)
-                atomic_write(side, lambda h, _t=text: h.write(_t))
-                _write_part(table, part)
+                _write_part(table, part, attrs)
                 say(f"measured {m.name}: {len(table)} objects")
             empty[m.name] = _empty_frames(table, lab, axes)
             if empty[m.name]:
