@@ -651,3 +651,74 @@ def test_a_damaged_part_is_measured_again(tmp_path, monkeypatch, parquet):
     assert "is damaged" in logs[0][0] and logs[0][1].startswith("measured m")
     assert logs[1][0].startswith("skipped m")
     assert len(part.read_bytes()) == len(data)
+
+
+# --------------------------------------------------------------------------------------------
+# 4. a scheduler address that is not a dask scheduler
+# --------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def silent_server():
+    """A TCP server on 127.0.0.1 that accepts connections and never says a word (as a web
+    dashboard does until it gets a request); its address."""
+    import socket
+    import threading
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)
+    held: list = []
+
+    def accept() -> None:
+        while True:
+            try:
+                held.append(srv.accept()[0])
+            except OSError:
+                return
+
+    threading.Thread(target=accept, daemon=True).start()
+    yield f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+    srv.close()
+    for conn in held:
+        conn.close()
+
+
+def test_a_port_that_is_not_a_dask_scheduler_fails_within_the_timeout(
+        tmp_path, monkeypatch, capsys, silent_server):
+    import threading
+    import time
+
+    pytest.importorskip("distributed")
+    from napari_pfsdm.analysis import schedulers
+
+    monkeypatch.setattr(schedulers, "CONNECT_TIMEOUT", 1.0)
+    write_tiff_movie(tmp_path / "m.tif")
+    result: dict = {}
+
+    def run() -> None:
+        result["code"] = main(["measure", str(tmp_path / "m.tif"), "-o",
+                               str(tmp_path / "f.csv"), "--scheduler", silent_server,
+                               *CLI_FAST])
+
+    t0 = time.perf_counter()
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(30)
+    assert not thread.is_alive(), "pfsdm hangs on a port that is not a dask scheduler"
+    assert result["code"] == 2 and time.perf_counter() - t0 < 15
+    plain_error(capsys, silent_server, "not answer as a dask scheduler")
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_a_closed_port_is_a_plain_message(tmp_path, capsys):
+    import socket
+
+    pytest.importorskip("distributed")
+    probe = socket.socket()
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()  # nothing listens there now
+    write_tiff_movie(tmp_path / "m.tif")
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
+                 "--scheduler", f"tcp://127.0.0.1:{port}", *CLI_FAST]) == 2
+    plain_error(capsys, "cannot reach the dask scheduler", f"127.0.0.1:{port}")
