@@ -722,3 +722,82 @@ def test_a_closed_port_is_a_plain_message(tmp_path, capsys):
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
                  "--scheduler", f"tcp://127.0.0.1:{port}", *CLI_FAST]) == 2
     plain_error(capsys, "cannot reach the dask scheduler", f"127.0.0.1:{port}")
+
+
+# --------------------------------------------------------------------------------------------
+# 9. more of the battery: a cluster lost for real, a full disk mid-run, a bug stays a bug
+# --------------------------------------------------------------------------------------------
+
+def test_a_scheduler_lost_during_the_run_is_a_plain_message(tmp_path, monkeypatch):
+    import threading
+    import time
+
+    distributed = pytest.importorskip("distributed")
+    from napari_pfsdm.analysis import features as features_module
+    from napari_pfsdm.batch import measure_dask
+
+    started, gone = threading.Event(), threading.Event()
+
+    def slow(*args, **kwargs):
+        started.set()
+        gone.wait(20)  # the scheduler goes away meanwhile
+        time.sleep(3)
+
+    def close() -> None:
+        started.wait(20)
+        gone.set()
+        cluster.close()
+
+    monkeypatch.setattr(features_module, "measure", slow)
+    cluster = distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
+                                       dashboard_address=None, protocol="tcp")
+    address = cluster.scheduler_address
+    threading.Thread(target=close, daemon=True).start()
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match="run the same command again") as info:
+        measure_dask(np.stack([ellipse_labels()] * 2), scheduler=address, frames_per_task=1)
+    assert isinstance(info.value, pf.errors.RunFault) and address in str(info.value)
+    assert time.perf_counter() - t0 < 25
+
+
+def test_a_full_disk_while_writing_a_part_keeps_the_finished_ones(tmp_path, monkeypatch,
+                                                                   capsys):
+    import errno
+
+    from napari_pfsdm.batch import run as run_module
+
+    for name in ("a", "b"):
+        write_tiff_movie(tmp_path / f"{name}.tif")
+    out = tmp_path / "f.csv"
+    real = run_module._write_part
+    written: list = []
+
+    def fills_up(table, path, options):
+        if written:
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        written.append(path)
+        real(table, path, options)
+
+    monkeypatch.setattr(run_module, "_write_part", fills_up)
+    args = ["measure", str(tmp_path / "a.tif"), str(tmp_path / "b.tif"), "-o", str(out),
+            "--scheduler", "sync", *CLI_FAST]
+    assert main(args) == 2
+    plain_error(capsys, "No space left on device")
+    kept = sorted(p.name for p in (tmp_path / "f.csv.parts").iterdir())
+    assert [n[:2] for n in kept] == ["a-", "a-"] and not out.exists()
+    assert [p for p in tmp_path.rglob("*.tmp")] == []
+    monkeypatch.setattr(run_module, "_write_part", real)
+    assert main(args) == 0 and len(pf.read_table(out)) == 4
+
+
+def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
+    from napari_pfsdm.analysis import features as features_module
+
+    def buggy(*args, **kwargs):
+        return 1 // 0
+
+    monkeypatch.setattr(features_module, "measure", buggy)
+    write_tiff_movie(tmp_path / "m.tif")
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
+                 "--scheduler", "sync", *CLI_FAST]) == 1
+    assert "internal error" in capsys.readouterr().err

@@ -227,7 +227,8 @@ def _check_chunks(labels: Any, intensity: Any, allow: bool) -> None:
             continue
         if not allow:
             refuse_missing_chunks(movie, what)
-        warnings.warn("; ".join(missing_warning(movie, what)), UserWarning, stacklevel=3)
+        lines = [line.removeprefix("warning: ") for line in missing_warning(movie, what)]
+        warnings.warn("; ".join(lines), UserWarning, stacklevel=3)
 
 
 def _where(kind: str, obj: Any) -> str:
@@ -635,14 +636,16 @@ def _run_batch_locked(
                     if progress:
                         progress(_name, done, total)
 
-                table = measure_dask(
-                    lab, img,
-                    client=cl if kind != "local" else None,
-                    scheduler=obj if kind == "local" else None,
-                    num_workers=num_workers, frames_per_task=frames_per_task,
-                    progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
-                    allow_missing_chunks=True,  # checked above, with the user's word
-                )
+                with warnings.catch_warnings():  # the missing chunks were said above
+                    warnings.filterwarnings("ignore", ".*chunk files? missing", UserWarning)
+                    table = measure_dask(
+                        lab, img,
+                        client=cl if kind != "local" else None,
+                        scheduler=obj if kind == "local" else None,
+                        num_workers=num_workers, frames_per_task=frames_per_task,
+                        progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
+                        allow_missing_chunks=True,  # checked above, with the user's word
+                    )
                 attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
