@@ -801,3 +801,29 @@ def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
                  "--scheduler", "sync", *CLI_FAST]) == 1
     assert "internal error" in capsys.readouterr().err
+
+
+def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
+    import os
+    import signal
+    import time
+
+    from napari_pfsdm.analysis import parallel
+    from napari_pfsdm.core.params import PFSDMParams
+
+    frames = np.stack([three_objects_per_frame(1)[0]] * 120)  # 360 objects
+    pool = parallel.shared_pool(2)
+    victims = [proc.pid for proc in pool._pool]
+    run = parallel.iter_blocks(frames, params=PFSDMParams(mapping="bijective", **FAST),
+                               axes="tyx", workers=2)
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(ValueError, match="worker process stopped") as info:
+            for step, _ in enumerate(run):
+                if step == 0:
+                    for pid in victims:  # the system's out-of-memory killer, say
+                        os.kill(pid, signal.SIGKILL)
+                assert time.perf_counter() - t0 < 60, "the run waits for a dead worker"
+        assert isinstance(info.value, pf.errors.RunFault)
+    finally:
+        parallel.shutdown_pool()

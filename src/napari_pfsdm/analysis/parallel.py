@@ -385,6 +385,7 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     counts = _labels_per_frame(labels, n_frames, timelapse)
     tasks = plan_tasks(counts, n_tasks)
     pool = shared_pool(workers)
+    started = _worker_pids(pool)
     boxes: dict = {}
     args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task, counts, boxes),
                               options, block_kw) for task in tasks)
@@ -400,6 +401,8 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
                     block = results.next(timeout=0.2)
                     break
                 except mp.TimeoutError:
+                    if not started <= _worker_pids(pool):  # one died: its task is lost
+                        raise _killed_worker() from None
                     yield last
             blocks.append(block)
             done += len(block.table)
@@ -412,6 +415,21 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
         if not finished:  # stopped early (Cancel) or failed: stop the processes now
             shutdown_pool()
     return blocks
+
+
+def _worker_pids(pool) -> set[int]:
+    """The process ids of a pool's workers (multiprocessing replaces a dead one with a new
+    process, and the task the dead one held is never finished)."""
+    return {proc.pid for proc in getattr(pool, "_pool", [])}
+
+
+def _killed_worker() -> Exception:
+    """The plain-words error for a worker process that died during a run."""
+    from ..errors import RunFault
+
+    return RunFault(
+        "a worker process stopped while measuring (killed from outside, or by the system when "
+        "memory ran out); run again, with fewer worker processes if memory is short")
 
 
 def _block_task(args: tuple) -> RowBlock:
