@@ -5,7 +5,8 @@ Errors a user can fix (a missing file, labels and intensity of different sizes, 
 given as labels, an output folder that cannot be written, an output name that would replace a
 file pfsdm did not write) print one line starting with ``pfsdm: error:`` and exit with status
 2, without a traceback (``--debug`` shows it); no partial output file is left behind. Those are
-the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong, plus the
+the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong (and its
+subclass :class:`~napari_pfsdm.errors.RunFault`: a worker killed, a cluster lost), plus the
 file system's ``OSError`` and a missing optional package; any other exception is a bug of
 napari-pfsdm: pfsdm says so, where to report it, and exits with status 1. Tables are
 plain CSV with their options in a ``.csv.json`` sidecar (Parquet for a ``.parquet`` name).
