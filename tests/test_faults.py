@@ -827,3 +827,19 @@ def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
         assert isinstance(info.value, pf.errors.RunFault)
     finally:
         parallel.shutdown_pool()
+
+
+def test_a_table_edited_in_place_is_read_with_a_warning(tmp_path):
+    import os
+
+    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+    path = tmp_path / "t.csv"
+    write_table_csv(pd_frame(), path, {"v": 1})
+    text = path.read_text().replace("10.5", "10.75")  # a cell corrected by hand
+    path.write_text(text)
+    side = path.with_name("t.csv.json").stat()
+    os.utime(path, ns=(side.st_atime_ns, side.st_mtime_ns + 10**9))  # saved after the .json
+    with pytest.warns(UserWarning, match="changed after pfsdm wrote it"):
+        back = read_table_csv(path)
+    assert back["area"].tolist() == [10.75, 11.0, 9.25] and back.attrs["pfsdm"] == {"v": 1}

@@ -27,8 +27,9 @@ program did not write (a user's image given as ``-o`` by mistake).
 A table and its sidecar are a pair: the sidecar records the table file's size and SHA-256
 (``table_bytes``, ``table_sha256``), and the reader checks them, waiting a moment for a writer
 that is replacing the two, and refuses a table whose sidecar belongs to another write in plain
-words. A copy saved under another name with the sidecar copied beside it is the user's own
-pair and reads as it is. :func:`output_lock` lets one run at a time write an output, and
+words; a table changed after its sidecar was written (edited by hand) is read with a warning.
+A copy saved under another name with the sidecar copied beside it is the user's own pair and
+reads as it is. :func:`output_lock` lets one run at a time write an output, and
 :func:`remove_leftovers` removes what a killed run left behind.
 """
 
@@ -44,6 +45,7 @@ import socket
 import tempfile
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
@@ -340,7 +342,7 @@ def _size_and_digest(path: str | os.PathLike) -> tuple[int, str]:
 
 #: How often, and how long apart, a reader re-reads a table whose sidecar does not match it
 #: (a writer replacing the two files in turn takes milliseconds).
-PAIR_TRIES, PAIR_WAIT = 20, 0.1
+PAIR_TRIES, PAIR_WAIT = 10, 0.1
 
 
 def _paired_bytes(path: Path) -> tuple[bytes, dict[str, Any] | None]:
@@ -362,6 +364,12 @@ def _paired_bytes(path: Path) -> tuple[bytes, dict[str, Any] | None]:
             return data, side
         time.sleep(PAIR_WAIT)
         side = read_sidecar(path)
+    if _changed_after(path):
+        warnings.warn(
+            f"{path} was changed after pfsdm wrote it (its size or checksum is not the one "
+            f"{sidecar_path(path).name} records: edited by hand or by another program?); it "
+            "is read with the options of that sidecar", UserWarning, stacklevel=3)
+        return data, side
     raise InputError(
         f"{path} and {sidecar_path(path).name} do not belong together: the sidecar was written "
         f"with a table of {side.get('table_bytes')} bytes (SHA-256 {str(side['table_sha256'])[:12]}"
@@ -370,6 +378,16 @@ def _paired_bytes(path: Path) -> tuple[bytes, dict[str, Any] | None]:
         "the two files, or the table was changed in place. Write the table again; to read an "
         "edited table, save it under a new name with its sidecar copied beside it"
     )
+
+
+def _changed_after(path: Path) -> bool:
+    """Whether a table was modified after its sidecar was written (an edit): the writer
+    writes the table's temporary file before the sidecar, so in the pair it wrote, and in a
+    pair where the sidecar is of a later write, the table is the older file."""
+    try:
+        return path.stat().st_mtime_ns > sidecar_path(path).stat().st_mtime_ns
+    except OSError:
+        return False
 
 
 def read_options(path: str | os.PathLike) -> dict[str, Any] | None:
