@@ -345,7 +345,7 @@ def _size_and_digest(path: str | os.PathLike) -> tuple[int, str]:
 PAIR_TRIES, PAIR_WAIT = 10, 0.1
 
 
-def _paired_bytes(path: Path) -> tuple[bytes, dict[str, Any] | None]:
+def _paired_bytes(path: Path, strict: bool = False) -> tuple[bytes, dict[str, Any] | None]:
     """The bytes of a table and its sidecar, checked to belong together.
 
     The sidecar of a table written by :func:`write_table_csv` records the table's size and
@@ -364,7 +364,7 @@ def _paired_bytes(path: Path) -> tuple[bytes, dict[str, Any] | None]:
             return data, side
         time.sleep(PAIR_WAIT)
         side = read_sidecar(path)
-    if _changed_after(path):
+    if not strict and _changed_after(path):
         warnings.warn(
             f"{path} was changed after pfsdm wrote it (its size or checksum is not the one "
             f"{sidecar_path(path).name} records: edited by hand or by another program?); it "
@@ -457,7 +457,8 @@ _NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan
              "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"]
 
 
-def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
+def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
+                   strict: bool = False) -> pd.DataFrame:
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
     A Parquet table (a ``.parquet`` name, or a file starting with Parquet's magic bytes) is read
@@ -478,17 +479,21 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         CSV file.
     index_col : int, optional
         Column to use as the index (e.g. 0 for a distance matrix written with ``index=True``).
+    strict : bool
+        A table that does not match its sidecar's size and checksum is refused (InputError)
+        when it is older than the sidecar (the sidecar is of another write); a newer one (an
+        edit) is read with a ``UserWarning``, unless ``strict``.
     """
     path = Path(path)
     if not path.exists():
         raise InputError(f"cannot read {path}: no such file")
     if path.is_file() and is_parquet(path):
-        return _read_parquet(path)
+        return _read_parquet(path, strict)
     what = _looks_binary(path)
     if what is not None:
         raise InputError(f"{path} is {what}, not a CSV table")
     legacy_options = _legacy_options(path)  # the first line is read once
-    data, side = _paired_bytes(path)  # the table's bytes, checked against its sidecar
+    data, side = _paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
     side_options = dict(side.get("options") or {}) if side is not None else legacy_options
     legacy = legacy_options is not None
     try:
@@ -525,10 +530,10 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     return df
 
 
-def _read_parquet(path: Path) -> pd.DataFrame:
+def _read_parquet(path: Path, strict: bool = False) -> pd.DataFrame:
     """A Parquet table with its sidecar's options: the columns and dtypes as written."""
     _pyarrow(path, "reading")
-    data, side = _paired_bytes(path)  # the table's bytes, checked against its sidecar
+    data, side = _paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
     try:
         df = pd.read_parquet(io.BytesIO(data), engine="pyarrow")
     except Exception as exc:  # pyarrow's own errors: a damaged or truncated file

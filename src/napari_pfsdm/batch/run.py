@@ -433,8 +433,8 @@ def _write_part(table: pd.DataFrame, path: Path, options: dict) -> None:
 def _read_part(path: Path) -> pd.DataFrame:
     """A movie's part as written by :func:`_write_part`, checked against its sidecar (the one
     reader of the package, :func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text
-    columns as written)."""
-    return read_table_csv(path)
+    columns as written); any mismatch with the sidecar is damage."""
+    return read_table_csv(path, strict=True)
 
 
 def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
