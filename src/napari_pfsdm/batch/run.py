@@ -7,10 +7,15 @@ order (so the result is the same whichever scheduler ran it). Each task reads it
 a movie larger than RAM.
 
 :func:`run_batch` measures a list of movies into one table with a ``movie`` column. It writes
-one part file per finished movie (Parquet when pyarrow is installed, else CSV) into a parts
-folder next to the output; a re-run skips movies whose part exists (for the same input files
-and options), so a killed run loses at most the movie in progress. The final CSV is written
-atomically.
+one part file per finished movie (Parquet when pyarrow is installed, else CSV, each with a
+checked sidecar) into a parts folder next to the output; a re-run skips movies whose part
+exists (for the same data, :func:`~napari_pfsdm.batch.io.data_fingerprint`, and options) and
+measures a damaged part again, so a killed run loses at most the movie in progress. The final
+CSV is written atomically, by one run at a time (:func:`~napari_pfsdm.io_csv.output_lock`).
+
+Faults of the machine or the cluster (a worker process killed, the scheduler lost) become a
+plain :class:`~napari_pfsdm.errors.RunFault` (:func:`environment_fault`); anything else that
+is not the input's fault stays what it is: a bug.
 """
 
 from __future__ import annotations
