@@ -843,3 +843,17 @@ def test_a_table_edited_in_place_is_read_with_a_warning(tmp_path):
     with pytest.warns(UserWarning, match="changed after pfsdm wrote it"):
         back = read_table_csv(path)
     assert back["area"].tolist() == [10.75, 11.0, 9.25] and back.attrs["pfsdm"] == {"v": 1}
+
+
+def test_without_flock_the_lock_is_an_exclusive_file(tmp_path, monkeypatch):
+    import sys
+
+    from napari_pfsdm.io_csv import output_lock
+
+    monkeypatch.setitem(sys.modules, "fcntl", None)  # as on Windows
+    out = tmp_path / "t.csv"
+    with output_lock(out) as lock:
+        assert lock.is_file()
+        with pytest.raises(ValueError, match="another pfsdm run .* delete"), output_lock(out):
+            pass
+    assert not lock.exists()

@@ -643,10 +643,13 @@ def output_lock(path: str | os.PathLike) -> Iterator[Path]:
     ...         print(str(exc).startswith("another pfsdm run is writing"))
     True
     """
-    import fcntl
-
     path = Path(path)
     lock = path.with_name(f".{path.name}.lock")
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: a lock file created exclusively
+        yield from _exclusive_lock(path, lock)
+        return
     while True:
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, _new_file_mode())
@@ -676,3 +679,24 @@ def output_lock(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         _unlink(lock)  # while still holding it: a waiting run sees a removed file and retries
         os.close(fd)
+
+
+def _exclusive_lock(path: Path, lock: Path) -> Iterator[Path]:  # pragma: no cover - Windows
+    """:func:`output_lock` where there is no ``flock``: the lock file created exclusively;
+    a killed run's lock stays, and the message says to delete it."""
+    try:
+        fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _new_file_mode())
+    except FileExistsError:
+        raise InputError(
+            f"another pfsdm run is writing {path} (its lock {lock} exists); wait for it to "
+            f"finish, or, if no run is going on (one was killed), delete {lock}"
+        ) from None
+    except OSError as exc:
+        raise InputError(f"cannot lock {path} for writing: {lock} ({exc.strerror})") from None
+    os.write(fd, f"{os.getpid()} {socket.gethostname()} "
+                 f"{time.strftime('%Y-%m-%dT%H:%M:%S')}\n".encode())
+    os.close(fd)
+    try:
+        yield lock
+    finally:
+        _unlink(lock)
