@@ -317,8 +317,9 @@ def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
     write_zarr(tmp_path / "a.zarr", labels)
     movies = pair_movies(find_movies(tmp_path / "a.zarr"))
     first = run_batch(movies, tmp_path / "f.csv", scheduler="sync")
-    assert [p.suffix for p in sorted((tmp_path / "f.csv.parts").iterdir())] == [".json",
-                                                                                ".parquet"]
+    # the part and its sidecar (options, the part's size and checksum)
+    assert [p.name.split(".", 1)[1] for p in sorted((tmp_path / "f.csv.parts").iterdir())] \
+        == ["parquet", "parquet.json"]
     log = []
     again = run_batch(movies, tmp_path / "f.csv", scheduler="sync", log=log.append)
     assert log[0].startswith("skipped a")

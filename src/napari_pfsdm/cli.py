@@ -5,7 +5,8 @@ Errors a user can fix (a missing file, labels and intensity of different sizes, 
 given as labels, an output folder that cannot be written, an output name that would replace a
 file pfsdm did not write) print one line starting with ``pfsdm: error:`` and exit with status
 2, without a traceback (``--debug`` shows it); no partial output file is left behind. Those are
-the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong, plus the
+the :class:`~napari_pfsdm.errors.InputError` raised where the input is wrong (and its
+subclass :class:`~napari_pfsdm.errors.RunFault`: a worker killed, a cluster lost), plus the
 file system's ``OSError`` and a missing optional package; any other exception is a bug of
 napari-pfsdm: pfsdm says so, where to report it, and exits with status 1. Tables are
 plain CSV with their options in a ``.csv.json`` sidecar (Parquet for a ``.parquet`` name).
@@ -93,6 +94,10 @@ def _check_output(
         if Path(q).exists() and p.exists() and os.path.samefile(p, q):
             raise UserError(f"the {what} {p} is also an input; choose another output name")
     check_overwrite(p, force=force, what=what)
+    if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
+        from .io_csv import _pyarrow
+
+        _pyarrow(p, "writing")
     return p
 
 
@@ -247,6 +252,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         link=args.link,
         axes=args.axes,
         spacing=args.spacing,
+        allow_missing_chunks=args.allow_missing_chunks,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -997,6 +1003,11 @@ examples:
     p.add_argument("--allow-empty", dest="allow_empty", action="store_true",
                    help="write an empty table when the labels hold no object (default: an "
                         "error, as labels with only background are usually the wrong file)")
+    p.add_argument("--allow-missing-chunks", dest="allow_missing_chunks", action="store_true",
+                   help="measure Zarr movies whose chunk files are not all on disk, reading "
+                        "the missing ones as the fill value (empty), with a warning per frame "
+                        "(default: an error, as a store that lost files in a copy looks "
+                        "just the same)")
     _add_force(p)
     p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
                    default="auto",

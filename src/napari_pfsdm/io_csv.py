@@ -20,20 +20,36 @@ and reading or writing 50,000 rows x 350 columns takes a fraction of a second wh
 seconds (docs/benchmarks.md). It needs pyarrow: ``pip install "napari-pfsdm[parquet]"``.
 A Parquet file is recognised by its first bytes too, whatever its name.
 
-Writing is atomic: each file goes to a temporary file in the same folder which then replaces
-the target in one step, so an error or a killed process never leaves a half-written file. The
-files get the permissions of any new file (``0o666`` less the umask), not the ``0o600`` of a
-temporary file. :func:`check_overwrite` refuses to replace a file that this program did not
-write (a user's image given as ``-o`` by mistake).
+Writing is atomic: each file goes to a temporary file of a unique name, created exclusively in
+the same folder (never through a file or symbolic link already there), which then replaces the
+target in one step, so an error or a killed process never leaves a half-written file under the
+final name. The files get the permissions of any new file (``0o666`` less the umask), not the
+``0o600`` of a temporary file. :func:`check_overwrite` refuses to replace a file that this
+program did not write (a user's image given as ``-o`` by mistake).
+
+A table and its sidecar are a pair: the sidecar records the table file's size and SHA-256
+(``table_bytes``, ``table_sha256``), and the reader checks them, waiting a moment for a writer
+that is replacing the two, and refuses a table whose sidecar belongs to another write in plain
+words; a table changed after its sidecar was written (edited by hand) is read with a warning.
+A copy saved under another name with the sidecar copied beside it is the user's own pair and
+reads as it is. :func:`output_lock` lets one run at a time write an output, and
+:func:`remove_leftovers` removes what a killed run left behind.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import io
 import json
 import os
+import re
+import socket
 import tempfile
 import threading
-from collections.abc import Callable, Mapping
+import time
+import warnings
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -52,9 +68,11 @@ __all__ = [
     "atomic_write",
     "check_overwrite",
     "is_parquet",
+    "output_lock",
     "read_options",
     "read_sidecar",
     "read_table_csv",
+    "remove_leftovers",
     "sidecar_path",
     "write_table_csv",
     "written_by_pfsdm",
@@ -287,14 +305,12 @@ def write_table_csv(
         "options": _to_jsonable(dict(options)),
         **_to_jsonable(dict(extra or {})),
     }
-    text = json.dumps(side, indent=1) + "\n"
     out = plain(df)  # pandas must not try to serialise attrs itself
 
     path = Path(path)
     if is_parquet(path):
         _pyarrow(path, "writing")
         side["format"] = "parquet"
-        text = json.dumps(side, indent=1) + "\n"
 
         def fill(handle: IO) -> None:
             out.to_parquet(handle, engine="pyarrow", index=index)
@@ -306,12 +322,76 @@ def write_table_csv(
         tmp = _write_temp(path, lambda h: out.to_csv(h, index=index, lineterminator="\n",
                                                      chunksize=rows))
     try:
+        side["table_bytes"], side["table_sha256"] = _size_and_digest(tmp)
+        text = json.dumps(side, indent=1) + "\n"
+        # the sidecar first: a reader in between sees a pair that does not match, and waits
         atomic_write(sidecar_path(path), lambda h: h.write(text))
         os.replace(tmp, path)
     except BaseException:
         _unlink(tmp)
         raise
     return path
+
+
+def _size_and_digest(path: str | os.PathLike) -> tuple[int, str]:
+    """A file's size in bytes and its SHA-256 (hex)."""
+    digest = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(2**20), b""):
+            digest.update(block)
+            size += len(block)
+    return size, digest.hexdigest()
+
+
+#: How often, and how long apart, a reader re-reads a table whose sidecar does not match it
+#: (a writer replacing the two files in turn takes milliseconds).
+PAIR_TRIES, PAIR_WAIT = 10, 0.1
+
+
+def _paired_bytes(path: Path, strict: bool = False) -> tuple[bytes, dict[str, Any] | None]:
+    """The bytes of a table and its sidecar, checked to belong together.
+
+    The sidecar of a table written by :func:`write_table_csv` records the table's size and
+    SHA-256; when they do not match the file, another run may be replacing the two right now:
+    both are read again, up to :data:`PAIR_TRIES` times. A sidecar without them (older
+    tables), or naming another file (a copy the user made, sidecar copied beside it), is
+    taken as it is.
+    """
+    side = read_sidecar(path)
+    for _ in range(PAIR_TRIES):
+        data = path.read_bytes()
+        if side is None or "table_sha256" not in side or side.get("csv") != path.name:
+            return data, side
+        if (len(data) == side.get("table_bytes")
+                and hashlib.sha256(data).hexdigest() == side["table_sha256"]):
+            return data, side
+        time.sleep(PAIR_WAIT)
+        side = read_sidecar(path)
+    if not strict and _changed_after(path):
+        warnings.warn(
+            f"{path} was changed after pfsdm wrote it (its size or checksum is not the one "
+            f"{sidecar_path(path).name} records: edited by hand or by another program?); it "
+            "is read with the options of that sidecar", UserWarning, stacklevel=3)
+        return data, side
+    raise InputError(
+        f"{path} and {sidecar_path(path).name} do not belong together: the sidecar was written "
+        f"with a table of {side.get('table_bytes')} bytes (SHA-256 {str(side['table_sha256'])[:12]}"
+        f"…), the file has {len(data)} bytes (SHA-256 {hashlib.sha256(data).hexdigest()[:12]}…). "
+        "Another pfsdm run may be writing it (wait for it to finish), a run was stopped between "
+        "the two files, or the table was changed in place. Write the table again; to read an "
+        "edited table, save it under a new name with its sidecar copied beside it"
+    )
+
+
+def _changed_after(path: Path) -> bool:
+    """Whether a table was modified after its sidecar was written (an edit): the writer
+    writes the table's temporary file before the sidecar, so in the pair it wrote, and in a
+    pair where the sidecar is of a later write, the table is the older file."""
+    try:
+        return path.stat().st_mtime_ns > sidecar_path(path).stat().st_mtime_ns
+    except OSError:
+        return False
 
 
 def read_options(path: str | os.PathLike) -> dict[str, Any] | None:
@@ -385,7 +465,8 @@ _NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan
              "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"]
 
 
-def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> pd.DataFrame:
+def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
+                   strict: bool = False) -> pd.DataFrame:
     """Read a table written by :func:`write_table_csv` (or by pandas from one).
 
     A Parquet table (a ``.parquet`` name, or a file starting with Parquet's magic bytes) is read
@@ -406,17 +487,21 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         CSV file.
     index_col : int, optional
         Column to use as the index (e.g. 0 for a distance matrix written with ``index=True``).
+    strict : bool
+        A table that does not match its sidecar's size and checksum is refused (InputError)
+        when it is older than the sidecar (the sidecar is of another write); a newer one (an
+        edit) is read with a ``UserWarning``, unless ``strict``.
     """
     path = Path(path)
     if not path.exists():
         raise InputError(f"cannot read {path}: no such file")
     if path.is_file() and is_parquet(path):
-        return _read_parquet(path)
+        return _read_parquet(path, strict)
     what = _looks_binary(path)
     if what is not None:
         raise InputError(f"{path} is {what}, not a CSV table")
     legacy_options = _legacy_options(path)  # the first line is read once
-    side = read_sidecar(path)
+    data, side = _paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
     side_options = (side.get("options") or {}) if side is not None else legacy_options
     if side_options is not None:  # before the table is read: refused in plain words
         check_record(side_options, f"the options of {path}"
@@ -424,12 +509,13 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
         side_options = dict(side_options)
     legacy = legacy_options is not None
     try:
-        header = pd.read_csv(path, skiprows=1 if legacy else 0, nrows=0, index_col=index_col)
+        header = pd.read_csv(io.BytesIO(data), skiprows=1 if legacy else 0, nrows=0,
+                             index_col=index_col)
         names = [c for c in [header.index.name, *header.columns] if c is not None]
         text = [c for c in TEXT_COLUMNS if c in names]
         # text columns keep every value as written ("001", "NA", "None" are movie names);
         # the other columns read pandas' usual missing-value words as NaN
-        df = pd.read_csv(path, skiprows=1 if legacy else 0, **_FLOAT_KW,
+        df = pd.read_csv(io.BytesIO(data), skiprows=1 if legacy else 0, **_FLOAT_KW,
                          index_col=index_col, dtype=dict.fromkeys(text, str),
                          keep_default_na=False,
                          na_values={c: _NA_WORDS for c in names if c not in text})
@@ -456,14 +542,14 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None) -> 
     return df
 
 
-def _read_parquet(path: Path) -> pd.DataFrame:
+def _read_parquet(path: Path, strict: bool = False) -> pd.DataFrame:
     """A Parquet table with its sidecar's options: the columns and dtypes as written."""
     _pyarrow(path, "reading")
-    side = read_sidecar(path)
+    data, side = _paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
     if side is not None:  # before the table is read: refused in plain words
         check_record(side.get("options") or {}, f"the options of {path} (its .json file)")
     try:
-        df = pd.read_parquet(path, engine="pyarrow")
+        df = pd.read_parquet(io.BytesIO(data), engine="pyarrow")
     except Exception as exc:  # pyarrow's own errors: a damaged or truncated file
         raise InputError(f"{path} is not a readable Parquet table ({exc})") from None
     df = plain(df)  # pandas restores attrs from the file's metadata: the sidecar's count
@@ -506,3 +592,125 @@ def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str =
         f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
         "nothing was changed. Choose another name, or add --force to replace it"
     )
+
+
+#: A temporary file of :func:`atomic_write` for ``name``: ``.name.XXXXXXXX.tmp`` (the eight
+#: characters of :func:`tempfile.mkstemp`).
+_TEMP_RE = r"\.{name}\.[a-z0-9_]{{8}}\.tmp"
+
+
+def remove_leftovers(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files that a killed run writing ``path`` left behind: those of
+    the table and of its sidecar (``.features.csv.XXXXXXXX.tmp``). Call it holding
+    :func:`output_lock`: no other run is then writing them.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    names = "|".join(re.escape(n) for n in (path.name, sidecar_path(path).name))
+    pattern = re.compile(_TEMP_RE.format(name=f"(?:{names})"))
+    removed = []
+    for entry in os.scandir(folder):
+        if pattern.fullmatch(entry.name) and not entry.is_dir(follow_symlinks=False):
+            _unlink(entry.path)
+            removed.append(Path(entry.path))
+    return removed
+
+
+def _lock_holder(fd: int) -> str:
+    """What the lock file says about the run holding it ("process 123 on host, since ...")."""
+    try:
+        words = os.pread(fd, 200, 0).decode("utf-8", "replace").split()
+    except OSError:
+        words = []
+    if len(words) >= 3:
+        return f" (process {words[0]} on {words[1]}, since {words[2]})"
+    return ""
+
+
+@contextlib.contextmanager
+def output_lock(path: str | os.PathLike) -> Iterator[Path]:
+    """Hold the right to write ``path``: one run at a time per output.
+
+    The lock is ``.<name>.lock`` beside the output, locked with ``flock`` (released by the
+    system when the run ends, even when it is killed: a stale lock file is taken over) and
+    removed when done. A symbolic link planted under that name is refused.
+
+    Raises
+    ------
+    InputError
+        Another run holds the lock; the message names it.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> out = os.path.join(tempfile.mkdtemp(), "t.csv")
+    >>> with output_lock(out):
+    ...     try:
+    ...         with output_lock(out):
+    ...             pass
+    ...     except ValueError as exc:
+    ...         print(str(exc).startswith("another pfsdm run is writing"))
+    True
+    """
+    path = Path(path)
+    lock = path.with_name(f".{path.name}.lock")
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: a lock file created exclusively
+        yield from _exclusive_lock(path, lock)
+        return
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, _new_file_mode())
+        except OSError as exc:
+            raise InputError(f"cannot lock {path} for writing: {lock} ({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = _lock_holder(fd)
+            os.close(fd)
+            raise InputError(
+                f"another pfsdm run is writing {path}{holder}; wait for it to finish, or "
+                "choose another output name"
+            ) from None
+        try:  # the last holder may have removed the file between our open and flock
+            same = os.stat(lock, follow_symlinks=False).st_ino == os.fstat(fd).st_ino
+        except OSError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()} {socket.gethostname()} "
+                  f"{time.strftime('%Y-%m-%dT%H:%M:%S')}\n".encode(), 0)
+    try:
+        yield lock
+    finally:
+        _unlink(lock)  # while still holding it: a waiting run sees a removed file and retries
+        os.close(fd)
+
+
+def _exclusive_lock(path: Path, lock: Path) -> Iterator[Path]:  # pragma: no cover - Windows
+    """:func:`output_lock` where there is no ``flock``: the lock file created exclusively;
+    a killed run's lock stays, and the message says to delete it."""
+    try:
+        fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, _new_file_mode())
+    except FileExistsError:
+        raise InputError(
+            f"another pfsdm run is writing {path} (its lock {lock} exists); wait for it to "
+            f"finish, or, if no run is going on (one was killed), delete {lock}"
+        ) from None
+    except OSError as exc:
+        raise InputError(f"cannot lock {path} for writing: {lock} ({exc.strerror})") from None
+    os.write(fd, f"{os.getpid()} {socket.gethostname()} "
+                 f"{time.strftime('%Y-%m-%dT%H:%M:%S')}\n".encode())
+    os.close(fd)
+    try:
+        yield lock
+    finally:
+        _unlink(lock)

@@ -33,6 +33,9 @@ from .tables import failed_rows
 __all__ = [
     "AXES",
     "ObjectResult",
+    "looks_like_colour",
+    "refuse_colour",
+    "refuse_zero_size",
     "resolve_axes",
     "FOLDED_WARNING",
     "count_objects",
@@ -41,7 +44,9 @@ __all__ = [
     "feature_columns",
     "iter_objects",
     "measure",
+    "object_boxes",
     "object_warnings",
+    "present_ids",
     "resolved_options",
     "split_failed",
     "table_from_objects",
@@ -97,6 +102,7 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
     """
     ndim = len(shape)
     if axes is None:
+        refuse_colour(shape)
         if ndim == 2:
             return "yx"
         if ndim == 3:
@@ -118,6 +124,34 @@ def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
         raise InputError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
                          f"dimensions {tuple(shape)}.")
     return axes
+
+
+def looks_like_colour(shape: tuple[int, ...]) -> bool:
+    """Whether an array of ``shape`` looks like a colour image: 3 or 4 samples (RGB, RGBA) on
+    its last axis, after an axis of at least 8 pixels (``(Y, X, 3)``, ``(T, Y, X, 4)``).
+
+    Judged by the axes, never by the number of frames: a ``(3, Y, X)`` time-lapse is not one.
+
+    Examples
+    --------
+    >>> looks_like_colour((64, 64, 3)), looks_like_colour((3, 64, 64))
+    (True, False)
+    """
+    return len(shape) in (3, 4) and shape[-1] in (3, 4) and shape[-2] >= 8
+
+
+def refuse_colour(shape: tuple[int, ...], what: str = "The labels") -> None:
+    """Raise, in plain words, for labels (or a reporter) that look like a colour image
+    (:func:`looks_like_colour`) when no ``axes`` were given: the command line refuses them
+    too. Saying ``axes`` (e.g. ``"tyx"``) takes the array as it is."""
+    if looks_like_colour(tuple(shape)):
+        raise InputError(
+            f"{what} have shape {tuple(shape)}: {shape[-1]} values per pixel on the last axis, "
+            "which looks like a colour (RGB/RGBA) image, not a label image. Give the "
+            "segmentation with one whole number per object (0 = background), or one channel "
+            "(e.g. image[..., 0]); if the last axis really is the image's width, say "
+            f"axes='{'tyx' if len(shape) == 3 else 'tzyx'}'."
+        )
 
 
 def _spacing(axes: str, spacing) -> np.ndarray | None:
@@ -171,9 +205,89 @@ class ObjectResult:
     measures: dict = field(default_factory=dict)
 
 
+def refuse_zero_size(shape: tuple[int, ...], what: str = "The labels") -> None:
+    """Raise, in plain words, for an array with no pixels (a 0-frame movie, a 0-wide image)."""
+    if any(int(n) == 0 for n in shape):
+        raise InputError(
+            f"{what} {'have' if what.startswith('The ') else 'has'} shape "
+            f"{tuple(int(n) for n in shape)}: no pixels (an axis of length "
+            "0), so there is nothing to measure. Check that the file was written completely "
+            "and holds the segmentation."
+        )
+
+
+#: Ids up to this many times a frame's pixels get their bounding boxes from a table indexed
+#: by id (:func:`scipy.ndimage.find_objects`); larger ids are renumbered first.
+_DIRECT_IDS_PER_PIXEL = 2
+
+
+def _as_counts(flat: np.ndarray) -> np.ndarray:
+    """An integer array numpy's ``bincount`` and ``find_objects`` take (bool and uint64 too)."""
+    return flat.astype(np.intp, copy=False) if flat.dtype.kind in "bu" and (
+        flat.dtype.itemsize >= np.dtype(np.intp).itemsize or flat.dtype == bool) else flat
+
+
+def _small_ids(frame: np.ndarray) -> bool:
+    """Whether the ids of ``frame`` (non-negative, not empty) are small enough for a table
+    indexed by id: memory then stays proportional to the frame, whatever the largest id."""
+    return int(frame.max()) <= _DIRECT_IDS_PER_PIXEL * frame.size + 1024
+
+
+def present_ids(frame: np.ndarray) -> np.ndarray:
+    """The object ids (> 0) in a frame, sorted; time and memory proportional to its pixels,
+    whatever the ids (up to 2**63 - 1 in int64/uint64, 2**32 - 1 in uint32).
+
+    Examples
+    --------
+    >>> present_ids(np.array([[0, 7], [10**12, 7]], np.int64)).tolist()
+    [7, 1000000000000]
+    """
+    flat = np.asarray(frame).ravel()
+    if flat.size == 0:
+        return np.zeros(0, np.int64)
+    if _small_ids(flat):
+        present = np.flatnonzero(np.bincount(_as_counts(flat)))
+    else:
+        present = np.unique(flat)
+    present = present[present > 0]
+    return present.astype(np.int64) if not len(present) or int(present[-1]) < 2**63 \
+        else present
+
+
+def object_boxes(frame: np.ndarray) -> list[tuple[int, tuple[slice, ...]]]:
+    """``(label, bounding box)`` of every object of a frame, in label order.
+
+    :func:`scipy.ndimage.find_objects` keeps one entry per possible id, from 1 to the largest:
+    one object of id 10**8 would cost 10**8 entries (seconds and gigabytes), and ids near 2**63
+    overflow. Frames whose largest id is more than a few times their number of pixels are
+    renumbered (``numpy.unique``) first, so time and memory follow the pixels and the number
+    of objects, never the ids.
+
+    Examples
+    --------
+    >>> frame = np.zeros((4, 5), np.uint64)
+    >>> frame[1:3, 2:4] = 2**63 - 1
+    >>> object_boxes(frame)
+    [(9223372036854775807, (slice(1, 3, None), slice(2, 4, None)))]
+    """
+    frame = np.asarray(frame)
+    if frame.size == 0 or not frame.any():
+        return []
+    if _small_ids(frame):
+        boxes = ndi.find_objects(_as_counts(frame))
+        return [(i + 1, box) for i, box in enumerate(boxes) if box is not None]
+    ids, inverse = np.unique(frame, return_inverse=True)
+    background = int(ids[0]) == 0
+    compact = inverse.reshape(frame.shape).astype(np.intp) + (0 if background else 1)
+    labels = ids[1:] if background else ids
+    return [(int(lab), box) for lab, box in
+            zip(labels, ndi.find_objects(compact), strict=True)]
+
+
 def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
     shape = tuple(labels.shape)
     axes = resolve_axes(shape, axes)
+    refuse_zero_size(shape)
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
         raise InputError(
@@ -181,6 +295,8 @@ def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, st
             f"{dtype}. Convert a segmentation with skimage.measure.label first."
         )
     if intensity is not None and tuple(intensity.shape) != shape:
+        if tuple(intensity.shape[:-1]) == shape and intensity.shape[-1] in (3, 4):
+            refuse_colour(tuple(intensity.shape), "The intensity image and its labels")
         raise InputError(
             f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
             f"{shape}: they must cover the same frames and pixels."
@@ -219,7 +335,7 @@ def count_objects(labels, axes: str | None = None) -> int:
         if a.size and a.min() < 0:
             raise InputError("The labels have negative values; labels must be 0 (background) "
                              "or positive whole numbers.")
-        n += int(np.count_nonzero(np.bincount(a)[1:])) if a.size else 0
+        n += len(present_ids(a))
     return n
 
 
@@ -280,10 +396,8 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
                 f"Frame {t} has negative labels; labels must be 0 (background) or positive."
             )
         image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
-        boxes = ndi.find_objects(frame)
-        for index, box in enumerate(boxes):
-            if box is not None:
-                yield _object_in_frame(frame, image, int(t), index + 1, box, options)
+        for label, box in object_boxes(frame):
+            yield _object_in_frame(frame, image, int(t), label, box, options)
 
 
 def _crop_of(box, shape) -> tuple[slice, ...]:

@@ -35,7 +35,6 @@ from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
-from scipy import ndimage as ndi
 
 from ..core.params import PFSDMParams
 from .features import (
@@ -48,6 +47,8 @@ from .features import (
     _spacing,
     _validate,
     iter_objects,
+    object_boxes,
+    present_ids,
 )
 from .row_blocks import RowBlock, block_of
 
@@ -150,14 +151,7 @@ def plan_tasks(counts: list[np.ndarray], n_tasks: int) -> list[list[tuple[int, n
 def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray]:
     out = []
     for t in range(n_frames):
-        frame = _frame(labels, t, timelapse).ravel()
-        if frame.dtype == bool:
-            frame = frame.astype(np.uint8)
-        if frame.size and int(frame.max()) < 2**24:  # a count per value: 10x np.unique
-            present = np.flatnonzero(np.bincount(frame)) if frame.size else np.zeros(0, int)
-        else:
-            present = np.unique(frame)
-        out.append(present[present > 0].astype(np.int64))
+        out.append(present_ids(_frame(labels, t, timelapse)))
     return out
 
 
@@ -179,9 +173,9 @@ def _measure_task(entries: list[tuple], options: dict) -> list[ObjectResult]:
                 frame = frame.astype(np.uint8)
             if image is not None:
                 image = image.astype(float)
-            boxes = ndi.find_objects(frame, max_label=int(wanted[-1]))
+            boxes = dict(object_boxes(frame))
             for label in wanted:
-                box = boxes[int(label) - 1]
+                box = boxes[int(label)]
                 rows.append(row_of(_object_in_frame(frame, image, int(t), int(label), box,
                                                     options)))
     return rows
@@ -368,10 +362,10 @@ def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray
             continue
         if t not in boxes:
             boxes.clear()
-            boxes[t] = ndi.find_objects(frame, max_label=int(counts[t][-1]))
+            boxes[t] = dict(object_boxes(frame))
         crops = []
         for label in wanted:
-            box = boxes[t][int(label) - 1]
+            box = boxes[t][int(label)]
             big = _crop_of(box, frame.shape)
             crops.append((int(label), box, big, np.array(frame[big]),
                           None if image is None else np.array(image[big])))
@@ -391,6 +385,7 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     counts = _labels_per_frame(labels, n_frames, timelapse)
     tasks = plan_tasks(counts, n_tasks)
     pool = shared_pool(workers)
+    started = _worker_pids(pool)
     boxes: dict = {}
     args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task, counts, boxes),
                               options, block_kw) for task in tasks)
@@ -406,6 +401,8 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
                     block = results.next(timeout=0.2)
                     break
                 except mp.TimeoutError:
+                    if not started <= _worker_pids(pool):  # one died: its task is lost
+                        raise _killed_worker() from None
                     yield last
             blocks.append(block)
             done += len(block.table)
@@ -418,6 +415,21 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
         if not finished:  # stopped early (Cancel) or failed: stop the processes now
             shutdown_pool()
     return blocks
+
+
+def _worker_pids(pool) -> set[int]:
+    """The process ids of a pool's workers (multiprocessing replaces a dead one with a new
+    process, and the task the dead one held is never finished)."""
+    return {proc.pid for proc in getattr(pool, "_pool", [])}
+
+
+def _killed_worker() -> Exception:
+    """The plain-words error for a worker process that died during a run."""
+    from ..errors import RunFault
+
+    return RunFault(
+        "a worker process stopped while measuring (killed from outside, or by the system when "
+        "memory ran out); run again, with fewer worker processes if memory is short")
 
 
 def _block_task(args: tuple) -> RowBlock:

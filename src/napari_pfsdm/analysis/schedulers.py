@@ -7,14 +7,18 @@ from __future__ import annotations
 
 import contextlib
 import re
+import socket
 from collections.abc import Iterator
 from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["LOCAL_SCHEDULERS", "resolve_scheduler"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "resolve_scheduler"]
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
+
+#: Seconds to reach a scheduler and hear it greet as a dask scheduler.
+CONNECT_TIMEOUT = 20.0
 
 
 def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, Any]:
@@ -54,8 +58,9 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
                 "pip install 'napari-pfsdm[batch]'"
             ) from exc
 
+        probe_scheduler(obj, CONNECT_TIMEOUT)
         try:
-            client = Client(obj, timeout="20s")
+            client = Client(obj, timeout=f"{CONNECT_TIMEOUT:g}s")
         except OSError as exc:
             raise InputError(f"cannot reach the dask scheduler at {obj}: {exc}") from exc
         try:
@@ -66,3 +71,50 @@ def _client_for(kind: str, obj: Any) -> Iterator[Any]:
         yield obj
 
 
+
+
+def _unreachable(address: str, why: str) -> InputError:
+    return InputError(
+        f"cannot reach the dask scheduler at {address} ({why}); check the address (the one the "
+        "scheduler prints when it starts, e.g. tcp://10.0.0.5:8786) and that it is running"
+    )
+
+
+def probe_scheduler(address: str, timeout: float) -> None:
+    """Check that a ``tcp://`` address answers as a dask scheduler, within ``timeout`` seconds.
+
+    A dask scheduler greets every new connection at once (its side of the comm handshake);
+    a port that accepts the connection and stays silent (a web dashboard's port 8787 instead
+    of the scheduler's 8786, another service) would keep ``distributed.Client`` waiting for
+    ever, past its own timeout. Other protocols (``tls://``, ``inproc://``, ...) are left to
+    ``distributed``.
+
+    Raises
+    ------
+    InputError
+        Nothing listens there, or something that is not a dask scheduler does.
+    """
+    scheme, _, rest = address.rpartition("://")
+    if (scheme or "tcp") != "tcp":
+        return
+    host, _, port = rest.rpartition(":")
+    try:
+        conn = socket.create_connection((host.strip("[]"), int(port)), timeout=timeout)
+    except (OSError, ValueError) as exc:
+        raise _unreachable(address, getattr(exc, "strerror", None) or str(exc)) from None
+    with conn:
+        conn.settimeout(timeout)
+        try:
+            greeting = conn.recv(1)
+        except TimeoutError:
+            greeting = None
+        except OSError:
+            greeting = b""
+    if not greeting:
+        raise InputError(
+            f"{address} accepts connections but does not answer as a dask scheduler "
+            f"{'within ' + format(timeout, 'g') + ' s' if greeting is None else '(it hung up)'}"
+            ": it is another service (a dask dashboard listens on 8787, the scheduler on "
+            "8786). Give the address the scheduler prints when it starts, e.g. "
+            "tcp://10.0.0.5:8786"
+        )

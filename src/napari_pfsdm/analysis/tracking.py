@@ -270,11 +270,13 @@ def _iou(a: np.ndarray, b: np.ndarray, ids_a: np.ndarray, area_a: np.ndarray,
     iou = np.zeros((len(ids_a), len(ids_b)))
     if not both.any() or not len(ids_a) or not len(ids_b):
         return iou
-    pa, pb = a[both].astype(np.int64), b[both].astype(np.int64)
-    code = pa * (int(ids_b.max()) + 1) + pb
+    # positions in ids_a / ids_b, not the ids: the code stays below len(a) * len(b) whatever
+    # the ids (up to 2**63 - 1)
+    pa = np.searchsorted(ids_a, a[both].astype(np.int64))
+    pb = np.searchsorted(ids_b, b[both].astype(np.int64))
+    code = pa * len(ids_b) + pb
     codes, inter = np.unique(code, return_counts=True)
-    ia = np.searchsorted(ids_a, codes // (int(ids_b.max()) + 1))
-    ib = np.searchsorted(ids_b, codes % (int(ids_b.max()) + 1))
+    ia, ib = codes // len(ids_b), codes % len(ids_b)
     iou[ia, ib] = inter / (area_a[ia] + area_b[ib] - inter)
     return iou
 

@@ -29,7 +29,10 @@ from ..errors import InputError
 
 __all__ = [
     "Movie",
+    "data_fingerprint",
     "find_movies",
+    "missing_chunks",
+    "missing_frames",
     "movie_name",
     "open_movie",
     "pair_movies",
@@ -180,6 +183,94 @@ def file_identity(path: str | os.PathLike, component: str = "") -> tuple:
     return ident
 
 
+def store_files(folder: str | os.PathLike) -> dict[str, tuple[int, int]]:
+    """Every file under a Zarr store's folder: ``{relative path with "/": (size, mtime_ns)}``
+    (symbolic links are not followed out of the store)."""
+    root = Path(folder)
+    out: dict[str, tuple[int, int]] = {}
+    for here, _dirs, names in os.walk(root):
+        for name in names:
+            full = Path(here) / name
+            try:
+                st = full.stat()
+            except OSError:  # removed while listing: not there
+                continue
+            out[full.relative_to(root).as_posix()] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
+#: Movies up to this size are fingerprinted by their content (:func:`data_fingerprint`).
+CONTENT_HASH_BYTES = 16 * 2**20
+
+
+def data_fingerprint(path: str | os.PathLike) -> str:
+    """What identifies a movie's data, for a resumed batch to know it is unchanged.
+
+    A Zarr store (a folder): every file in it, with its size and modification time, so that a
+    chunk re-written in place (a store re-segmented) changes it; a TIFF: its size,
+    modification time and inode. A movie of at most :data:`CONTENT_HASH_BYTES` is
+    fingerprinted by its bytes as well (a rewrite of the same size within the file system's
+    time resolution, or with the old time put back, is caught too).
+
+    Returns
+    -------
+    str
+        A SHA-1 hex digest; ``""`` when the path does not exist.
+    """
+    import hashlib
+
+    p = Path(path)
+    if not p.exists():
+        return ""
+    files = store_files(p) if p.is_dir() else {"": (p.stat().st_size, p.stat().st_mtime_ns)}
+    digest = hashlib.sha1(repr(sorted(files.items())).encode())
+    if not p.is_dir():
+        digest.update(repr(file_identity(p)).encode())
+    if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:
+        for rel in sorted(files):
+            full = p / rel if rel else p
+            try:
+                digest.update(full.read_bytes())
+            except OSError:  # removed meanwhile: the listing above differs already
+                continue
+    return digest.hexdigest()
+
+
+def missing_chunks(arr: Any, folder: str | os.PathLike, t_axis: int | None) -> dict[int, int]:
+    """Chunk (or shard) files of a Zarr array that are not on disk, counted per frame.
+
+    Zarr reads a missing chunk as the array's fill value without a word: a frame whose file
+    was lost in a copy would look empty. (Zarr also leaves out chunks that hold only the fill
+    value when it writes them, so a missing chunk may be an empty one; only the user knows.)
+
+    Parameters
+    ----------
+    arr : zarr.Array
+    folder : path
+        The array's own folder (the store's, or a group's array inside it).
+    t_axis : int or None
+        The stored axis that is time (None: one frame, frame 0).
+
+    Returns
+    -------
+    dict
+        ``{frame: number of missing chunk files}``, only frames that miss some.
+    """
+    import itertools
+
+    block = getattr(arr, "shards", None) or arr.chunks
+    grid = [-(-int(n) // int(c)) for n, c in zip(arr.shape, block, strict=True)]
+    present = store_files(folder)
+    missing: dict[int, int] = {}
+    for coords in itertools.product(*(range(g) for g in grid)):
+        if arr.metadata.encode_chunk_key(coords) not in present:
+            t0 = 0 if t_axis is None else coords[t_axis] * int(block[t_axis])
+            t1 = 1 if t_axis is None else min(t0 + int(block[t_axis]), int(arr.shape[t_axis]))
+            for t in range(t0, t1):
+                missing[t] = missing.get(t, 0) + 1
+    return missing
+
+
 class _ZarrFrames(_Frames):
     def __init__(self, path: str, component: str, shape, dtype, drop):
         self.component = component  # before __init__: part of the file's identity
@@ -305,7 +396,11 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
     drop = _drop_axes(shape, axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _ZarrFrames(str(path), component, out_shape, arr.dtype, drop)
+    timed = len(out_shape) == 4 or (len(out_shape) == 3 and not keep_z)
     frames.chunks_t = int(arr.chunks[drop.index(None)]) if len(out_shape) >= 3 else 1
+    frames.missing = missing_chunks(arr, path / component if component else path,
+                                    drop.index(None) if timed else None)
+    frames.fill_value = arr.fill_value
     return frames
 
 
@@ -321,10 +416,11 @@ def _open_tiff(path: Path, keep_z: bool = False) -> _TiffFrames:
     except Exception as exc:
         raise InputError(f"cannot read {path} as TIFF: {exc}") from exc
     # tifffile names a plain stack of pages "q" / "i"; treat it as time. A (3 or 4, Y, X)
-    # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"):
-    # for a label movie these planes are frames too.
+    # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"): these
+    # planes are frames too, of labels and of a reporter (integer or float) alike. A colour
+    # image is judged by its last axis (interleaved samples, "yxs"), never by its frames.
     axes = ["t" if a in ("q", "i") else a for a in axes]
-    if axes[0] == "s" and "t" not in axes and np.issubdtype(np.dtype(dtype), np.integer):
+    if axes[0] == "s" and "t" not in axes:
         axes[0] = "t"
     drop = _drop_axes(shape, axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
@@ -378,6 +474,38 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     # lets the batch read a task's frames in one call (see napari_pfsdm.batch.run._Slice)
     arr._pfsdm_source = frames
     return arr
+
+
+def missing_frames(movie: Any) -> dict[int, int]:
+    """``{frame: missing chunk files}`` of a movie from :func:`open_movie` (Zarr only; empty
+    for TIFF, numpy arrays and complete stores)."""
+    return dict(getattr(getattr(movie, "_pfsdm_source", None), "missing", None) or {})
+
+
+def refuse_missing_chunks(movie: Any, where: str) -> None:
+    """Raise, in plain words, when a Zarr movie lacks chunk files (:func:`missing_chunks`)."""
+    missing = missing_frames(movie)
+    if not missing:
+        return
+    frames = sorted(missing)
+    shown = ", ".join(str(t) for t in frames[:10]) + (" …" if len(frames) > 10 else "")
+    n = sum(missing.values())
+    raise InputError(
+        f"{where} misses {n} chunk file{'s' if n > 1 else ''} "
+        f"(frame{'s' if len(frames) > 1 else ''} {shown}): Zarr would read "
+        f"{'them' if len(frames) > 1 else 'it'} as the fill value, "
+        "i.e. as empty, and the objects there would be lost without a word. Copy the store "
+        "again completely; if those chunks were left out on purpose (Zarr does not write "
+        "chunks that hold only background), pass --allow-missing-chunks "
+        "(allow_missing_chunks=True) to read them as they are"
+    )
+
+
+def missing_warning(movie: Any, name: str) -> list[str]:
+    """One warning line per frame of a movie read with missing chunk files."""
+    fill = getattr(getattr(movie, "_pfsdm_source", None), "fill_value", 0)
+    return [f"warning: {name}: frame {t}: {n} chunk file{'s' if n > 1 else ''} missing, read "
+            f"as the fill value ({fill})" for t, n in sorted(missing_frames(movie).items())]
 
 
 def find_movies(spec: str | os.PathLike | list) -> list[Path]:
@@ -494,6 +622,9 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
             f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
             "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
+    from ..analysis.features import refuse_zero_size
+
+    refuse_zero_size(tuple(labels.shape), where)
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
         raise InputError(
             f"labels and intensity have different shapes {tuple(labels.shape)} and "

@@ -7,10 +7,15 @@ order (so the result is the same whichever scheduler ran it). Each task reads it
 a movie larger than RAM.
 
 :func:`run_batch` measures a list of movies into one table with a ``movie`` column. It writes
-one part file per finished movie (Parquet when pyarrow is installed, else CSV) into a parts
-folder next to the output; a re-run skips movies whose part exists (for the same input files
-and options), so a killed run loses at most the movie in progress. The final CSV is written
-atomically.
+one part file per finished movie (Parquet when pyarrow is installed, else CSV, each with a
+checked sidecar) into a parts folder next to the output; a re-run skips movies whose part
+exists (for the same data, :func:`~napari_pfsdm.batch.io.data_fingerprint`, and options) and
+measures a damaged part again, so a killed run loses at most the movie in progress. The final
+CSV is written atomically, by one run at a time (:func:`~napari_pfsdm.io_csv.output_lock`).
+
+Faults of the machine or the cluster (a worker process killed, the scheduler lost) become a
+plain :class:`~napari_pfsdm.errors.RunFault` (:func:`environment_fault`); anything else that
+is not the input's fault stays what it is: a bug.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import hashlib
 import json
 import os
 import re
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -31,11 +37,28 @@ from ..analysis.schedulers import _client_for, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
-from ..errors import InputError
-from ..io_csv import _to_jsonable, atomic_write, read_table_csv, write_table_csv
-from .io import Movie, check_labels, file_identity, open_movie
+from ..errors import InputError, RunFault
+from ..io_csv import (
+    _pyarrow,
+    _to_jsonable,
+    is_parquet,
+    output_lock,
+    read_table_csv,
+    remove_leftovers,
+    sidecar_path,
+    write_table_csv,
+)
+from .io import (
+    Movie,
+    check_labels,
+    data_fingerprint,
+    missing_frames,
+    missing_warning,
+    open_movie,
+    refuse_missing_chunks,
+)
 
-__all__ = ["measure_dask", "run_batch", "resolve_scheduler"]
+__all__ = ["environment_fault", "measure_dask", "run_batch", "resolve_scheduler"]
 
 
 
@@ -126,6 +149,7 @@ def measure_dask(
     params: PFSDMParams | None = None,
     axes: str | None = None,
     spacing: Any = None,
+    allow_missing_chunks: bool = False,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, frames computed in parallel with dask.
@@ -159,6 +183,10 @@ def measure_dask(
         The method's options as one record (it travels to the workers as it is).
     axes, spacing
         As :func:`napari_pfsdm.measure` (``"zyx"`` or ``"tzyx"`` for 3-D objects).
+    allow_missing_chunks : bool
+        A Zarr movie (from :func:`~napari_pfsdm.batch.io.open_movie`) whose chunk files are
+        not all on disk is refused (``InputError``), as its missing frames would read as
+        empty; True reads it as it is, with a ``UserWarning`` naming each such frame.
     **options
         Or the options as keywords (``n_fourier``, ``mapping``, ``sdf``, ...).
 
@@ -172,6 +200,7 @@ def measure_dask(
 
     p = as_params(params, options)
     check_labels(labels, intensity, axes=axes)
+    _check_chunks(labels, intensity, allow_missing_chunks)
     axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
     if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
@@ -180,6 +209,49 @@ def measure_dask(
         axes = "t" + axes
     n_frames = int(labels.shape[0])
 
+    where = _where(kind, obj)
+    try:
+        tables = _measure_spans(labels, intensity, kind, obj, p, axes, spacing, n_frames,
+                                frames_per_task, num_workers, progress, pool)
+    except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
+        fault = environment_fault(exc, where)
+        if fault is None:
+            raise
+        raise fault from exc
+    if tables:
+        table = concat_tables(tables, ignore_index=True)
+    else:  # pragma: no cover - no frames at all
+        table = pd.DataFrame()
+    return table
+
+
+def _check_chunks(labels: Any, intensity: Any, allow: bool) -> None:
+    """Refuse (or, when ``allow``, warn about) Zarr movies with missing chunk files."""
+    for movie, what in ((labels, "the labels"), (intensity, "the intensity")):
+        if movie is None or not missing_frames(movie):
+            continue
+        if not allow:
+            refuse_missing_chunks(movie, what)
+        lines = [line.removeprefix("warning: ") for line in missing_warning(movie, what)]
+        warnings.warn("; ".join(lines), UserWarning, stacklevel=3)
+
+
+def _where(kind: str, obj: Any) -> str:
+    """Where a run's work goes, for messages: this machine or the scheduler's address."""
+    if kind == "local":
+        return "this machine"
+    if kind == "address":
+        return str(obj)
+    address = getattr(getattr(obj, "scheduler", None), "address", None)
+    return str(address) if address else "the dask cluster"
+
+
+def _measure_spans(
+    labels: Any, intensity: Any, kind: str, obj: Any, p: PFSDMParams, axes: str,
+    spacing: Any, n_frames: int, frames_per_task: int | None, num_workers: int | None,
+    progress: Callable[[int, int], None] | None, pool: Any,
+) -> list[pd.DataFrame]:
+    """The tables of a movie's spans of frames, measured where ``kind``/``obj`` say."""
     with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
         kind = "local" if kind == "local" else "distributed"
         fpt = frames_per_task or default_frames_per_task(
@@ -198,15 +270,55 @@ def measure_dask(
         ]
         sizes = [e - s for s, e in spans]
         if kind == "local":
-            tables = _run_local(args, sizes, handle, num_workers, progress, pool)
-        else:
-            tables = _run_distributed(args, sizes, handle, progress)
+            return _run_local(args, sizes, handle, num_workers, progress, pool)
+        return _run_distributed(args, sizes, handle, progress)
 
-    if tables:
-        table = concat_tables(tables, ignore_index=True)
-    else:  # pragma: no cover - no frames at all
-        table = pd.DataFrame()
-    return table
+
+#: What to do after an environment's fault: a batch resumes where it stopped.
+_AGAIN = "then run the same command again (movies already finished are kept and skipped)"
+
+
+def environment_fault(exc: BaseException, where: str) -> RunFault | None:
+    """The plain-words :class:`~napari_pfsdm.errors.RunFault` for an exception that the
+    machine or the cluster caused, or None when ``exc`` is not one (an input error, a bug).
+
+    Parameters
+    ----------
+    exc : BaseException
+        What the scheduler raised.
+    where : str
+        ``"this machine"`` or the scheduler's address, for the message.
+
+    Examples
+    --------
+    >>> from concurrent.futures.process import BrokenProcessPool
+    >>> str(environment_fault(BrokenProcessPool("terminated"), "this machine"))[:40]
+    'a worker process on this machine stopped'
+    >>> environment_fault(ZeroDivisionError(), "this machine") is None
+    True
+    """
+    from concurrent.futures import BrokenExecutor, CancelledError
+
+    if isinstance(exc, InputError):
+        return None
+    name = type(exc).__name__
+    if isinstance(exc, BrokenExecutor):
+        return RunFault(
+            f"a worker process on {where} stopped while measuring (killed from outside, or by "
+            "the system when memory ran out); if memory is short, use fewer --workers or a "
+            f"smaller --frames-per-task, {_AGAIN}")
+    if name == "KilledWorker":
+        return RunFault(
+            f"the dask cluster at {where} lost its workers while measuring (a task killed "
+            "workers several times, often at their memory limit); look at the workers' logs, "
+            f"give them more memory or use a smaller --frames-per-task, {_AGAIN}")
+    if where != "this machine" and (
+            isinstance(exc, CancelledError | TimeoutError) or name in (
+                "CommClosedError", "FuturesCancelledError", "ClosedClientError")):
+        return RunFault(
+            f"lost the connection to the dask scheduler at {where} while measuring (the "
+            f"scheduler stopped or the network failed); check that it is running, {_AGAIN}")
+    return None
 
 
 def _run_local(
@@ -296,12 +408,13 @@ def _have_parquet() -> bool:
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
                spacing: Any = None) -> str:
-    """Stable file name of a movie's part: its name plus a hash of its inputs and options."""
+    """Stable file name of a movie's part: its name plus a hash of its inputs' data
+    (:func:`~napari_pfsdm.batch.io.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
         if p is None:
             return None
         p = Path(p).resolve()
-        return [str(p), list(file_identity(p))]  # a replaced file is measured again
+        return [str(p), data_fingerprint(p)]  # a replaced or re-written movie: measured again
 
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
@@ -314,26 +427,42 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
     return f"{safe}-{digest}"
 
 
-def _write_part(table: pd.DataFrame, path: Path) -> None:
-    out = plain(table)
-    if path.suffix == ".parquet":
-        tmp = path.with_name(f".{path.name}.tmp")
-        try:
-            out.to_parquet(tmp, index=False)
-            os.replace(tmp, path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-    else:
-        atomic_write(path, lambda h: out.to_csv(h, index=False, lineterminator="\n"))
+def _write_part(table: pd.DataFrame, path: Path, options: dict) -> None:
+    """Write a movie's part with its sidecar (the options, the part's size and SHA-256), each
+    atomically through a temporary file of a unique name created exclusively in the parts
+    folder (:func:`~napari_pfsdm.io_csv.write_table_csv`: no planted file or symbolic link is
+    written through). The sidecar comes first: the part appearing marks the movie as done."""
+    write_table_csv(table, path, options, table_type="part")
 
 
 def _read_part(path: Path) -> pd.DataFrame:
-    """A movie's part as written by :func:`_write_part`: the one CSV reader of the package
-    (:func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text columns as written)."""
-    if path.suffix == ".parquet":
-        return pd.read_parquet(path)
-    return read_table_csv(path)
+    """A movie's part as written by :func:`_write_part`, checked against its sidecar (the one
+    reader of the package, :func:`napari_pfsdm.io_csv.read_table_csv`: exact floats, text
+    columns as written); any mismatch with the sidecar is damage."""
+    return read_table_csv(path, strict=True)
+
+
+def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
+    """The table of a movie measured by an earlier run, or None when it must be measured: no
+    part yet, or a damaged one (truncated, not matching its sidecar), which is removed."""
+    if not part.exists():
+        return None
+    try:
+        table = _read_part(part)
+    except Exception as exc:  # noqa: BLE001 - any reader's error: the part is not usable
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        say(f"{name}: its saved part {part.name} is damaged ({first[:160]}); measuring "
+            f"{name} again")
+        for f in (part, sidecar_path(part), part.with_suffix(".json")):
+            with contextlib.suppress(OSError):
+                f.unlink()
+        return None
+    say(f"skipped {name} (already measured: {part.name})")
+    if not table_options(table):  # a part of an earlier version: options beside it
+        old = part.with_suffix(".json")
+        if old.exists():
+            set_options(table, json.loads(old.read_text()))
+    return table
 
 
 def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
@@ -377,6 +506,7 @@ def run_batch(
     link: str = "none",
     axes: str | None = None,
     spacing: Any = None,
+    allow_missing_chunks: bool = False,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -411,13 +541,19 @@ def run_batch(
         with another ``link`` measures nothing again.
     axes, spacing
         As :func:`napari_pfsdm.measure`, for every movie (``"zyx"``/``"tzyx"``: 3-D objects).
+    allow_missing_chunks : bool
+        A Zarr movie whose chunk files are not all on disk stops the run before any work
+        (its missing frames would read as empty); True measures it as it is, ``log`` warns
+        once per such frame and the sidecar lists them (``missing_chunks``).
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
     Returns
     -------
     pandas.DataFrame
-        The concatenated table (also written to ``output``).
+        The concatenated table (also written to ``output``). Its sidecar lists, per movie,
+        the frames without any object (``empty_frames``) and those read with missing chunk
+        files (``missing_chunks``); ``log`` names them too.
     """
     output = Path(output)
     out_dir = output.parent if str(output.parent) else Path(".")
@@ -426,10 +562,42 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    if is_parquet(output) and output.suffix.lower() == ".parquet":
+        _pyarrow(output, "writing")  # a missing package fails here, not after measuring
+    with output_lock(output):  # one run at a time per output; a second one refuses
+        return _run_batch_locked(
+            movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
+            frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
+            say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks)
+
+
+#: Temporary files a killed run may leave in a parts folder: those of
+#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions.
+_PART_TEMP = re.compile(r"\..+\.(?:parquet|csv|json)(?:\.[a-z0-9_]{8})?\.tmp")
+
+
+def _remove_part_leftovers(parts: Path) -> None:
+    """Remove the temporary part files of a killed run (holding the output's lock)."""
+    for entry in os.scandir(parts):
+        if _PART_TEMP.fullmatch(entry.name) and not entry.is_dir(follow_symlinks=False):
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+
+
+def _run_batch_locked(
+    movies: Sequence[Movie], output: Path, p: PFSDMParams, *, client: Any, scheduler: Any,
+    num_workers: int | None, frames_per_task: int | None,
+    parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
+    say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
+    spacing: Any, allow_missing_chunks: bool,
+) -> pd.DataFrame:
+    """:func:`run_batch`'s work, holding the output's lock."""
+    remove_leftovers(output)
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
+    _remove_part_leftovers(parts)
     suffix = ".parquet" if _have_parquet() else ".csv"
-    say = log or (lambda msg: None)
 
     # Open and check every movie first: a bad file fails the run before any long work.
     opened = []
@@ -440,7 +608,11 @@ def run_batch(
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
+        for movie, path in ((lab, m.labels), (img, m.intensity)):
+            if movie is not None and not allow_missing_chunks:
+                refuse_missing_chunks(movie, str(path))
         opened.append((m, lab, img))
+    missing = _missing_chunks(opened, say)
 
     kind, obj = resolve_scheduler(scheduler, client)
     pool_cm: Any = contextlib.nullcontext(None)
@@ -457,35 +629,38 @@ def run_batch(
     tables = []
     attrs: dict = {}
     linked = False
+    empty: dict[str, list[int]] = {}
     with pool_cm as pool, _client_for(kind, obj) as cl:
         for m, lab, img in opened:
             part = parts / (_part_name(m, p, axes, spacing) + suffix)
-            side = part.with_suffix(".json")
-            if part.exists():
-                say(f"skipped {m.name} (already measured: {part.name})")
-                table = _read_part(part)
-                if side.exists() and not attrs:
-                    attrs = json.loads(side.read_text())
+            table = _resumed(part, m.name, say)
+            if table is not None:
+                attrs = attrs or _to_jsonable(table_options(table) or {})
             else:
                 def _prog(done: int, total: int, _name: str = m.name) -> None:
                     if progress:
                         progress(_name, done, total)
 
-                table = measure_dask(
-                    lab, img,
-                    client=cl if kind != "local" else None,
-                    scheduler=obj if kind == "local" else None,
-                    num_workers=num_workers, frames_per_task=frames_per_task,
-                    progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
-                )
+                with warnings.catch_warnings():  # the missing chunks were said above
+                    warnings.filterwarnings("ignore", ".*chunk files? missing", UserWarning)
+                    table = measure_dask(
+                        lab, img,
+                        client=cl if kind != "local" else None,
+                        scheduler=obj if kind == "local" else None,
+                        num_workers=num_workers, frames_per_task=frames_per_task,
+                        progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
+                        allow_missing_chunks=True,  # checked above, with the user's word
+                    )
                 attrs = _to_jsonable(table_options(table) or attrs)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
-                # side-car options first: the part itself appearing marks the movie as done
-                text = json.dumps(attrs)
-                atomic_write(side, lambda h, _t=text: h.write(_t))
-                _write_part(table, part)
+                _write_part(table, part, attrs)
                 say(f"measured {m.name}: {len(table)} objects")
+            empty[m.name] = _empty_frames(table, lab, axes)
+            if empty[m.name]:
+                shown = ", ".join(str(t) for t in empty[m.name])
+                say(f"{m.name}: no objects in frame{'s' if len(empty[m.name]) > 1 else ''} "
+                    f"{shown} (of {_n_frames(lab, axes)})")
             if link != "none" and len(table):
                 table, used = _link(table, lab, link, m.name, say)
                 linked = linked or bool(used)
@@ -507,5 +682,38 @@ def run_batch(
             "(labels), or pass --allow-empty to write an empty table"
         )
     set_options(result, attrs)
-    write_table_csv(result, output, attrs, table_type="features")
+    extra = {"empty_frames": {k: v for k, v in empty.items() if v},
+             "missing_chunks": missing}
+    write_table_csv(result, output, attrs, table_type="features", extra=extra)
     return result
+
+
+def _n_frames(movie: Any, axes: str | None) -> int:
+    """Frames of a movie: its first axis when that is time, else 1."""
+    from ..analysis.features import resolve_axes
+
+    timed = resolve_axes(tuple(movie.shape), axes).startswith("t")
+    return int(movie.shape[0]) if timed else 1
+
+
+def _empty_frames(table: pd.DataFrame, movie: Any, axes: str | None) -> list[int]:
+    """The frames of ``movie`` that have no row (no object at all) in its ``table``."""
+    have = set(table["frame"].astype(int).tolist()) if "frame" in table.columns else set()
+    return [t for t in range(_n_frames(movie, axes)) if t not in have]
+
+
+def _missing_chunks(opened: list[tuple], say: Callable[[str], None]) -> dict[str, dict]:
+    """Warn once per frame read with missing chunk files; ``{movie: {frame: count}}``."""
+    out: dict[str, dict] = {}
+    for m, lab, img in opened:
+        counts: dict[str, int] = {}
+        for movie in (lab, img):
+            if movie is None:
+                continue
+            for line in missing_warning(movie, m.name):
+                say(line)
+            for t, n in missing_frames(movie).items():
+                counts[str(t)] = counts.get(str(t), 0) + n
+        if counts:
+            out[m.name] = dict(sorted(counts.items(), key=lambda kv: int(kv[0])))
+    return out

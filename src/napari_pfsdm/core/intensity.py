@@ -25,7 +25,8 @@ def intensity_crop(intensity: np.ndarray, offset: np.ndarray, mask: np.ndarray) 
     Raises
     ------
     ValueError
-        NaN inside the object, or a mean intensity that is not positive (plain words).
+        NaN or ±inf inside the object, or a mean intensity that is not positive (plain
+        words). Non-finite pixels around the object, in its box, count as 0.
     """
     intensity = np.asarray(intensity)
     lo = np.asarray(offset).astype(int)
@@ -36,18 +37,33 @@ def intensity_crop(intensity: np.ndarray, offset: np.ndarray, mask: np.ndarray) 
     crop = np.pad(crop, [(int(i - j), int(k - m)) for i, j, k, m in zip(a, lo, hi, b,
                                                                          strict=True)],
                   mode="edge")
-    values = crop[mask]
-    n_nan = int(np.isnan(values).sum())
-    if n_nan:
-        what, unit = ("volume", "voxel") if mask.ndim == 3 else ("image", "pixel")
-        raise InputError(
-            f"The intensity {what} has {n_nan} NaN {unit}(s) inside the object. Replace them "
-            "(for example with numpy.nan_to_num or an interpolation) before measuring."
-        )
-    mean = float(values.mean())
+    _refuse_non_finite(crop[mask], mask.ndim)
+    mean = float(crop[mask].mean())
     if not mean > 0:
         raise InputError(
             f"The object's mean intensity is {mean:.3g}; the intensity descriptor is "
             "normalised by it and needs a positive signal (subtract less background)."
         )
-    return np.nan_to_num(crop / mean)
+    # pixels around the object (its box, reached by the interpolation at the outline) that
+    # are not finite count as no signal
+    return np.where(np.isfinite(crop), crop / mean, 0.0)
+
+
+def _refuse_non_finite(values: np.ndarray, ndim: int) -> None:
+    """Raise, in plain words, when the intensity under an object holds NaN or ±inf pixels.
+
+    Such an object's intensity features would be meaningless (a mean of inf makes every
+    relative intensity 0 or NaN): the caller leaves them empty (NaN) and says why in the
+    row's ``warnings``; the shape features do not depend on the reporter and are kept.
+    """
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return
+    kinds = [(int(np.isnan(values).sum()), "NaN"), (int(np.isposinf(values).sum()), "+inf"),
+             (int(np.isneginf(values).sum()), "-inf")]
+    counts = ", ".join(f"{n} {word}" for n, word in kinds if n)
+    what, unit = ("volume", "voxel") if ndim == 3 else ("image", "pixel")
+    raise InputError(
+        f"The intensity {what} has non-finite {unit}s inside the object ({counts}). Replace "
+        "them (for example with numpy.nan_to_num or an interpolation) before measuring."
+    )
