@@ -147,7 +147,8 @@ def prepare_mask(
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     touches = bool(r0 == 0 or c0 == 0 or r1 == mask.shape[0] or c1 == mask.shape[1])
-    crop = np.pad(mask[r0:r1, c0:c1], pad)
+    crop = np.zeros((r1 - r0 + 2 * pad, c1 - c0 + 2 * pad), bool)
+    crop[pad:pad + r1 - r0, pad:pad + c1 - c0] = mask[r0:r1, c0:c1]
     trace = trace_boundary(crop)
     if trace.single_loop and not trace.n_saddles:
         # one piece without holes, with 4- and 8-connectivity alike: nothing to label or fill

@@ -24,6 +24,8 @@ skeleton), or to reproduce the paper.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import k1e
@@ -34,6 +36,22 @@ from .choices import SDF_KINDS
 from .contour import signed_area
 
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
+
+
+#: Points per block of the brute-force nearest-vertex search: a block's distances
+#: (256 points × at most 512 vertices, float32) fit one preallocated buffer of 512 KB.
+_BLOCK = 256
+_SCRATCH = threading.local()
+
+
+def _scratch(size: int) -> np.ndarray:
+    """A float32 buffer of at least ``size`` values, kept per thread: a fresh block-sized
+    temporary costs more (allocation and page faults) than the arithmetic done in it."""
+    buf = getattr(_SCRATCH, "buf", None)
+    if buf is None or buf.size < size:
+        buf = _SCRATCH.buf = np.empty(max(size, _BLOCK * ExactSDF.BRUTE_FORCE_VERTICES),
+                                      np.float32)
+    return buf
 
 
 class ExactSDF:
@@ -64,13 +82,20 @@ class ExactSDF:
         m = len(p)
         self._next = np.concatenate([np.arange(1, m), [0]])
         self._prev = np.concatenate([[m - 1], np.arange(m - 1)])
-        edge = self._edge = p[self._next] - p
-        self._edge_sq = edge[:, 0] ** 2 + edge[:, 1] ** 2
-        normal = np.column_stack([edge[:, 1], -edge[:, 0]])  # outward for counter-clockwise
-        self._edge_normal = normal / np.sqrt(self._edge_sq)[:, None]
-        vertex = self._edge_normal + self._edge_normal[self._prev]
-        self._vertex_normal = vertex / np.maximum(
-            np.sqrt(vertex[:, 0] ** 2 + vertex[:, 1] ** 2), 1e-12)[:, None]
+        # per-vertex values as contiguous columns (x = first axis, y = second): the start of
+        # edge i (vertex i), the edge vector to vertex i + 1 and its squared length
+        x, y = self._x, self._y = p[:, 0].copy(), p[:, 1].copy()
+        ex, ey = x[self._next] - x, y[self._next] - y
+        self._ex, self._ey = ex, ey
+        self._edge_sq = ex * ex + ey * ey
+        length = np.sqrt(self._edge_sq)
+        nx, ny = ey / length, -ex / length  # outward for counter-clockwise
+        # the pseudo-normals: rows 0 … M-1 the edges', M … 2M-1 the vertices' (the bisector of
+        # the normals of the two edges at the vertex)
+        vx, vy = nx + nx[self._prev], ny + ny[self._prev]
+        vn = np.maximum(np.sqrt(vx * vx + vy * vy), 1e-12)
+        self._nx = np.concatenate([nx, vx / vn])
+        self._ny = np.concatenate([ny, vy / vn])
         self._orientation = np.sign(signed_area(p)) or 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
             # relative to the polygon's mean, so that single precision holds in any units
@@ -81,6 +106,20 @@ class ExactSDF:
             self._tree = None
         else:
             self._tree = cKDTree(p)
+
+    @property
+    def _edge(self) -> np.ndarray:
+        return np.column_stack([self._ex, self._ey])
+
+    @property
+    def _edge_normal(self) -> np.ndarray:
+        m = len(self.polygon)
+        return np.column_stack([self._nx[:m], self._ny[:m]])
+
+    @property
+    def _vertex_normal(self) -> np.ndarray:
+        m = len(self.polygon)
+        return np.column_stack([self._nx[m:], self._ny[m:]])
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest boundary point of each query point.
@@ -93,53 +132,61 @@ class ExactSDF:
         arc : ndarray, shape (K,)
             Position of the closest point along the polygon, in vertex units (0 … M).
         """
-        return self._closest(np.asarray(points, dtype=float).reshape(-1, 2))[:3]
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        c, d, _, edge, t = self._closest(pts)
+        return c, d, np.mod(edge + t, len(self.polygon))
 
     def _nearest_vertex(self, pts: np.ndarray) -> np.ndarray:
         """Index of each point's nearest polygon vertex."""
         if self._tree is not None:
             return self._tree.query(pts)[1]
-        k = np.empty(len(pts), np.intp)
-        # blocks of at most 2^17 point-vertex pairs: OpenBLAS runs such small products on one
-        # thread (threads would burn twice the CPU time for nothing, measured)
-        chunk = max(1, 2**17 // len(self.polygon))
+        n = len(pts)
+        m = len(self.polygon)
+        k = np.empty(n, np.intp)
+        # blocks of 256 points: OpenBLAS runs such small products on one thread (threads would
+        # burn twice the CPU time for nothing, measured), in one reused buffer
+        buf = _scratch(_BLOCK * m)
         p32 = (pts - self._origin).astype(np.float32)
-        for i in range(0, len(pts), chunk):
+        for i in range(0, n, _BLOCK):
+            block = p32[i:i + _BLOCK]
+            d = buf[:len(block) * m].reshape(len(block), m)
             # |p − q|² − |p|²: the same order of vertices for each point
-            k[i:i + chunk] = np.argmin(self._sq32 - p32[i:i + chunk] @ self._twice32, axis=1)
+            np.matmul(block, self._twice32, out=d)
+            np.subtract(self._sq32, d, out=d)
+            np.argmin(d, axis=1, out=k[i:i + len(block)])
         return k
 
     def _closest(self, pts: np.ndarray):
-        """Closest points, distances, arc positions and the outward pseudo-normals there."""
+        """Closest points (K, 2), unsigned distances, the signs (−1 inside), and the edge and
+        the position t ∈ [0, 1] along it of each closest point."""
         k = self._nearest_vertex(pts)
-        # the two edges at the nearest vertex: (prev → k) and (k → next)
-        found = []
-        for a in (self._prev[k], k):
-            pa, e = self.polygon[a], self._edge[a]
-            rel = pts - pa
-            t = np.clip((rel[:, 0] * e[:, 0] + rel[:, 1] * e[:, 1]) / self._edge_sq[a], 0, 1)
-            c = pa + t[:, None] * e
-            gap = pts - c
-            found.append((a, t, c, np.sqrt(gap[:, 0] ** 2 + gap[:, 1] ** 2)))
-        (a0, t0, c0, d0), (a1, t1, c1, d1) = found
+        x, y = pts[:, 0], pts[:, 1]
+        # the two edges at the nearest vertex, (prev → k) and (k → next), as rows 0 and 1
+        a = np.stack([self._prev[k], k])
+        ax, ay, ex, ey = self._x[a], self._y[a], self._ex[a], self._ey[a]
+        t = ((x - ax) * ex + (y - ay) * ey) / self._edge_sq[a]
+        np.clip(t, 0, 1, out=t)
+        cx, cy = ax + t * ex, ay + t * ey
+        gx, gy = x - cx, y - cy
+        d = np.sqrt(gx * gx + gy * gy)
         # the second edge wins only when strictly nearer (as a sequential scan would keep it)
-        pick = d1 < d0
-        best_c = np.where(pick[:, None], c1, c0)
-        best_d = np.where(pick, d1, d0)
-        best_t = np.where(pick, t1, t0)
-        best_a = np.where(pick, a1, a0)
+        pick = d[1] < d[0]
+        edge, t, d = np.where(pick, a[1], a[0]), np.where(pick, t[1], t[0]), np.where(
+            pick, d[1], d[0])
+        cx, cy = np.where(pick, cx[1], cx[0]), np.where(pick, cy[1], cy[0])
+        gx, gy = np.where(pick, gx[1], gx[0]), np.where(pick, gy[1], gy[0])
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
-        best_n = np.where(((best_t > 0) & (best_t < 1))[:, None], self._edge_normal[best_a],
-                          np.where((best_t <= 0)[:, None], self._vertex_normal[best_a],
-                                   self._vertex_normal[self._next[best_a]]))
-        return best_c, best_d, np.mod(best_a + best_t, len(self.polygon)), best_n
+        m = len(self.polygon)
+        j = np.where(t <= 0, edge + m, np.where(t < 1, edge, self._next[edge] + m))
+        side = gx * self._nx[j] + gy * self._ny[j]
+        inside = side > 0 if self._orientation < 0 else side < 0
+        sign = np.where(inside, -1.0, 1.0)
+        return np.column_stack([cx, cy]), d, sign, edge, t
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, d, _, normal = self._closest(pts)
-        gap = pts - c
-        side = (gap[:, 0] * normal[:, 0] + gap[:, 1] * normal[:, 1]) * self._orientation
-        return c, d, np.where(side < 0, -1.0, 1.0)
+        c, d, sign, _, _ = self._closest(pts)
+        return c, d, sign
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """Boolean: which points lie inside the polygon."""
@@ -148,7 +195,7 @@ class ExactSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign = self._signed(pts)
+        _, d, sign, _, _ = self._closest(pts)
         return sign * d
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
