@@ -25,6 +25,7 @@ skeleton), or to reproduce the paper.
 from __future__ import annotations
 
 import threading
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -33,7 +34,6 @@ from skimage.measure import points_in_poly
 
 from ..errors import InputError
 from .choices import SDF_KINDS
-from .contour import signed_area
 
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
 
@@ -52,6 +52,14 @@ def _scratch(size: int) -> np.ndarray:
         buf = _SCRATCH.buf = np.empty(max(size, _BLOCK * ExactSDF.BRUTE_FORCE_VERTICES),
                                       np.float32)
     return buf
+
+
+@lru_cache(maxsize=16)
+def _ring_neighbours(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The next and the previous index of each of m points on a closed ring (read-only)."""
+    nxt, prv = np.roll(np.arange(m), -1), np.roll(np.arange(m), 1)
+    nxt.flags.writeable = prv.flags.writeable = False
+    return nxt, prv
 
 
 class ExactSDF:
@@ -80,46 +88,39 @@ class ExactSDF:
     def __init__(self, polygon: np.ndarray) -> None:
         p = self.polygon = np.ascontiguousarray(polygon, dtype=float)
         m = len(p)
-        self._next = np.concatenate([np.arange(1, m), [0]])
-        self._prev = np.concatenate([[m - 1], np.arange(m - 1)])
-        # per-vertex values as contiguous columns (x = first axis, y = second): the start of
-        # edge i (vertex i), the edge vector to vertex i + 1 and its squared length
-        x, y = self._x, self._y = p[:, 0].copy(), p[:, 1].copy()
-        ex, ey = x[self._next] - x, y[self._next] - y
-        self._ex, self._ey = ex, ey
-        self._edge_sq = ex * ex + ey * ey
-        length = np.sqrt(self._edge_sq)
-        nx, ny = ey / length, -ex / length  # outward for counter-clockwise
-        # the pseudo-normals: rows 0 … M-1 the edges', M … 2M-1 the vertices' (the bisector of
-        # the normals of the two edges at the vertex)
-        vx, vy = nx + nx[self._prev], ny + ny[self._prev]
-        vn = np.maximum(np.sqrt(vx * vx + vy * vy), 1e-12)
-        self._nx = np.concatenate([nx, vx / vn])
-        self._ny = np.concatenate([ny, vy / vn])
-        self._orientation = np.sign(signed_area(p)) or 1.0
+        self._next, self._prev = _ring_neighbours(m)
+        # per vertex i, in rows: the start of edge i (vertex i, first and second axis), the edge
+        # vector to vertex i + 1 and its squared length
+        edge = np.empty((5, m))
+        edge[:2] = p.T
+        np.subtract(p[self._next].T, edge[:2], out=edge[2:4])
+        ex, ey = edge[2], edge[3]
+        np.multiply(ex, ex, out=edge[4])
+        edge[4] += ey * ey
+        # the two edges at each vertex k, (k − 1 → k) and (k → k + 1): _pair[:, 0 or 1, k]
+        self._pair = np.stack([edge[:, self._prev], edge], axis=1)
+        # the pseudo-normals, outward for counter-clockwise: columns 0 … M-1 the edges',
+        # M … 2M-1 the vertices' (the bisector of the normals of the two edges at the vertex)
+        normals = self._normals = np.empty((2, 2 * m))
+        length = np.sqrt(edge[4])
+        np.divide(ey, length, out=normals[0, :m])
+        np.divide(-ex, length, out=normals[1, :m])
+        vertex = normals[:, :m] + normals[:, self._prev]
+        norm = np.sqrt(vertex[0] * vertex[0] + vertex[1] * vertex[1])
+        np.divide(vertex, np.maximum(norm, 1e-12), out=normals[:, m:])
+        # the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i, as Σ x_i e_y,i − e_x,i y_i
+        self._orientation = -1.0 if np.dot(edge[0], ey) < np.dot(ex, edge[1]) else 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
             # relative to the polygon's mean, so that single precision holds in any units
             self._origin = p.mean(axis=0)
             p32 = (p - self._origin).astype(np.float32)
-            self._sq32 = (p32 ** 2).sum(axis=1)
-            self._twice32 = 2.0 * p32.T
+            # [x, y, 1] · [−2q_x, −2q_y, |q|²] = |p − q|² − |p|²: one product per block
+            self._rhs32 = np.empty((3, m), np.float32)
+            np.multiply(p32.T, -2.0, out=self._rhs32[:2])
+            self._rhs32[2] = (p32 ** 2).sum(axis=1)
             self._tree = None
         else:
             self._tree = cKDTree(p)
-
-    @property
-    def _edge(self) -> np.ndarray:
-        return np.column_stack([self._ex, self._ey])
-
-    @property
-    def _edge_normal(self) -> np.ndarray:
-        m = len(self.polygon)
-        return np.column_stack([self._nx[:m], self._ny[:m]])
-
-    @property
-    def _vertex_normal(self) -> np.ndarray:
-        m = len(self.polygon)
-        return np.column_stack([self._nx[m:], self._ny[m:]])
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest boundary point of each query point.
@@ -133,7 +134,7 @@ class ExactSDF:
             Position of the closest point along the polygon, in vertex units (0 … M).
         """
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        c, d, _, edge, t = self._closest(pts)
+        c, d, _, edge, t = self._closest(pts, full=True)
         return c, d, np.mod(edge + t, len(self.polygon))
 
     def _nearest_vertex(self, pts: np.ndarray) -> np.ndarray:
@@ -146,46 +147,64 @@ class ExactSDF:
         # blocks of 256 points: OpenBLAS runs such small products on one thread (threads would
         # burn twice the CPU time for nothing, measured), in one reused buffer
         buf = _scratch(_BLOCK * m)
-        p32 = (pts - self._origin).astype(np.float32)
+        p32 = np.empty((n, 3), np.float32)
+        np.subtract(pts, self._origin, out=p32[:, :2], casting="same_kind")
+        p32[:, 2] = 1.0
         for i in range(0, n, _BLOCK):
             block = p32[i:i + _BLOCK]
             d = buf[:len(block) * m].reshape(len(block), m)
-            # |p − q|² − |p|²: the same order of vertices for each point
-            np.matmul(block, self._twice32, out=d)
-            np.subtract(self._sq32, d, out=d)
+            np.matmul(block, self._rhs32, out=d)
             np.argmin(d, axis=1, out=k[i:i + len(block)])
         return k
 
-    def _closest(self, pts: np.ndarray):
-        """Closest points (K, 2), unsigned distances, the signs (−1 inside), and the edge and
-        the position t ∈ [0, 1] along it of each closest point."""
+    def _closest(self, pts: np.ndarray, full: bool = False):
+        """Closest points (K, 2) (None unless ``full``), unsigned distances, signs (−1 inside),
+        and the edge of each closest point and the position t ∈ [0, 1] along it."""
         k = self._nearest_vertex(pts)
-        x, y = pts[:, 0], pts[:, 1]
+        x, y = np.ascontiguousarray(pts.T)
         # the two edges at the nearest vertex, (prev → k) and (k → next), as rows 0 and 1
-        a = np.stack([self._prev[k], k])
-        ax, ay, ex, ey = self._x[a], self._y[a], self._ex[a], self._ey[a]
-        t = ((x - ax) * ex + (y - ay) * ey) / self._edge_sq[a]
+        ax, ay, ex, ey, edge_sq = self._pair[:, :, k]
+        work = np.empty((4, 2, len(k)))
+        t, d, gx, gy = work
+        np.subtract(x, ax, out=gx)
+        np.multiply(gx, ex, out=t)
+        np.subtract(y, ay, out=gy)
+        np.multiply(gy, ey, out=d)
+        t += d
+        t /= edge_sq
         np.clip(t, 0, 1, out=t)
-        cx, cy = ax + t * ex, ay + t * ey
-        gx, gy = x - cx, y - cy
-        d = np.sqrt(gx * gx + gy * gy)
+        # the gap from the closest point c = a + t e of each edge to the point
+        np.multiply(t, ex, out=gx)
+        gx += ax
+        np.subtract(x, gx, out=gx)
+        np.multiply(t, ey, out=gy)
+        gy += ay
+        np.subtract(y, gy, out=gy)
+        np.multiply(gx, gx, out=d)
+        d += gy * gy
+        np.sqrt(d, out=d)
         # the second edge wins only when strictly nearer (as a sequential scan would keep it)
         pick = d[1] < d[0]
-        edge, t, d = np.where(pick, a[1], a[0]), np.where(pick, t[1], t[0]), np.where(
-            pick, d[1], d[0])
-        cx, cy = np.where(pick, cx[1], cx[0]), np.where(pick, cy[1], cy[0])
-        gx, gy = np.where(pick, gx[1], gx[0]), np.where(pick, gy[1], gy[0])
+        t, d, gx, gy = np.where(pick, work[:, 1], work[:, 0])
+        edge = np.where(pick, k, self._prev[k])
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
         m = len(self.polygon)
-        j = np.where(t <= 0, edge + m, np.where(t < 1, edge, self._next[edge] + m))
-        side = gx * self._nx[j] + gy * self._ny[j]
+        j = np.where(t <= 0, edge + m, np.where(t < 1, edge, np.where(pick, self._next[k], k) + m))
+        nx, ny = self._normals[:, j]
+        side = gx * nx
+        side += gy * ny
         inside = side > 0 if self._orientation < 0 else side < 0
         sign = np.where(inside, -1.0, 1.0)
-        return np.column_stack([cx, cy]), d, sign, edge, t
+        closest = None
+        if full:
+            ex_, ey_ = np.where(pick, ex[1], ex[0]), np.where(pick, ey[1], ey[0])
+            ax_, ay_ = np.where(pick, ax[1], ax[0]), np.where(pick, ay[1], ay[0])
+            closest = np.column_stack([ax_ + t * ex_, ay_ + t * ey_])
+        return closest, d, sign, edge, t
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, d, sign, _, _ = self._closest(pts)
+        c, d, sign, _, _ = self._closest(pts, full=True)
         return c, d, sign
 
     def inside(self, points: np.ndarray) -> np.ndarray:
@@ -196,7 +215,8 @@ class ExactSDF:
         """Signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
         _, d, sign, _, _ = self._closest(pts)
-        return sign * d
+        d *= sign
+        return d
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """Gradient ∇φ at ``points`` (K, 2): the unit vector away from the closest point,
@@ -320,7 +340,7 @@ class ViscousSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Viscous signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign = self.exact._signed(pts)
+        _, d, sign, _, _ = self.exact._closest(pts)
         inside = sign < 0
         phi = sign * d
         # Within a fraction of the refined node spacing the quadrature is not resolved; there
