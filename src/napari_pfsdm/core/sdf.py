@@ -86,33 +86,35 @@ class ExactSDF:
     BRUTE_FORCE_VERTICES = 512
 
     def __init__(self, polygon: np.ndarray) -> None:
-        p = self.polygon = np.ascontiguousarray(polygon, dtype=float)
+        p = self.polygon = np.ascontiguousarray(polygon, dtype=float).reshape(-1, 2)
         m = len(p)
         self._next, self._prev = _ring_neighbours(m)
-        # per vertex i, in rows: the start of edge i (vertex i, first and second axis), the edge
-        # vector to vertex i + 1 and its squared length
-        edge = np.empty((5, m))
-        edge[:2] = p.T
-        np.subtract(p[self._next].T, edge[:2], out=edge[2:4])
-        ex, ey = edge[2], edge[3]
-        np.multiply(ex, ex, out=edge[4])
-        edge[4] += ey * ey
-        # the two edges at each vertex k, (k − 1 → k) and (k → k + 1): _pair[:, 0 or 1, k]
-        self._pair = np.stack([edge[:, self._prev], edge], axis=1)
-        # the pseudo-normals, outward for counter-clockwise: columns 0 … M-1 the edges',
-        # M … 2M-1 the vertices' (the bisector of the normals of the two edges at the vertex)
-        normals = self._normals = np.empty((2, 2 * m))
-        length = np.sqrt(edge[4])
-        np.divide(ey, length, out=normals[0, :m])
-        np.divide(-ex, length, out=normals[1, :m])
-        vertex = normals[:, :m] + normals[:, self._prev]
-        norm = np.sqrt(vertex[0] * vertex[0] + vertex[1] * vertex[1])
-        np.divide(vertex, np.maximum(norm, 1e-12), out=normals[:, m:])
-        # the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i, as Σ x_i e_y,i − e_x,i y_i
-        self._orientation = -1.0 if np.dot(edge[0], ey) < np.dot(ex, edge[1]) else 1.0
+        # points as complex numbers first axis + i·second; edge i runs from vertex i to i + 1
+        z = p.view(complex)[:, 0]
+        e = z[self._next] - z
+        # per vertex k the two edges at it, (k − 1 → k) and (k → k + 1), as _pair[:, 0 or 1, k]:
+        # their start a, the edge e and 1/e (t = Re((p − a)/e) is p's position along it)
+        own = np.empty((3, m), complex)
+        own[0] = z
+        own[1] = e
+        np.divide(1.0, e, out=own[2])
+        self._pair = np.stack([own[:, self._prev], own], axis=1)
+        # outward unit normals for counter-clockwise (−i e/|e|) and at the vertices the
+        # bisector of the two edges' normals; conjugated, so that Re(g n̄) = g · n
+        normal = e * -1j
+        normal /= np.abs(e)
+        vertex = normal + normal[self._prev]
+        vertex /= np.maximum(np.abs(vertex), 1e-12)
+        # the pseudo-normal of the closest point on edge slot s of vertex k, by where it lies
+        # along the edge (class 0: at its start, 1: inside, 2: at its end): _normal[c, s, k]
+        self._normal = np.conj(np.stack([[vertex[self._prev], vertex],
+                                         [normal[self._prev], normal],
+                                         [vertex, vertex[self._next]]])).reshape(-1)
+        # the sign of the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i = Σ Im(z̄_i e_i)
+        self._orientation = -1.0 if np.vdot(z, e).imag < 0 else 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
             # relative to the polygon's mean, so that single precision holds in any units
-            self._origin = p.mean(axis=0)
+            self._origin = np.add.reduce(p, axis=0) / m
             p32 = (p - self._origin).astype(np.float32)
             # [x, y, 1] · [−2q_x, −2q_y, |q|²] = |p − q|² − |p|²: one product per block
             self._rhs32 = np.empty((3, m), np.float32)
@@ -159,49 +161,37 @@ class ExactSDF:
 
     def _closest(self, pts: np.ndarray, full: bool = False):
         """Closest points (K, 2) (None unless ``full``), unsigned distances, signs (−1 inside),
-        and the edge of each closest point and the position t ∈ [0, 1] along it."""
+        and (None unless ``full``) the edge of each closest point and the position t ∈ [0, 1]
+        along it."""
         k = self._nearest_vertex(pts)
-        x, y = np.ascontiguousarray(pts.T)
+        zp = np.ascontiguousarray(pts).view(complex)[:, 0]
         # the two edges at the nearest vertex, (prev → k) and (k → next), as rows 0 and 1
-        ax, ay, ex, ey, edge_sq = self._pair[:, :, k]
-        work = np.empty((4, 2, len(k)))
-        t, d, gx, gy = work
-        np.subtract(x, ax, out=gx)
-        np.multiply(gx, ex, out=t)
-        np.subtract(y, ay, out=gy)
-        np.multiply(gy, ey, out=d)
-        t += d
-        t /= edge_sq
-        np.clip(t, 0, 1, out=t)
-        # the gap from the closest point c = a + t e of each edge to the point
-        np.multiply(t, ex, out=gx)
-        gx += ax
-        np.subtract(x, gx, out=gx)
-        np.multiply(t, ey, out=gy)
-        gy += ay
-        np.subtract(y, gy, out=gy)
-        np.multiply(gx, gx, out=d)
-        d += gy * gy
-        np.sqrt(d, out=d)
+        a, e, inv = np.take(self._pair, k, axis=2)  # (C-contiguous, unlike [:, :, k])
+        g = zp - a
+        t = np.clip((g * inv).real, 0, 1)
+        c = t * e
+        c += a
+        np.subtract(zp, c, out=g)
+        d = np.abs(g)
         # the second edge wins only when strictly nearer (as a sequential scan would keep it)
         pick = d[1] < d[0]
-        t, d, gx, gy = np.where(pick, work[:, 1], work[:, 0])
-        edge = np.where(pick, k, self._prev[k])
+        t, d, g = np.where(pick, t[1], t[0]), np.where(pick, d[1], d[0]), np.where(
+            pick, g[1], g[0])
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
         m = len(self.polygon)
-        j = np.where(t <= 0, edge + m, np.where(t < 1, edge, np.where(pick, self._next[k], k) + m))
-        nx, ny = self._normals[:, j]
-        side = gx * nx
-        side += gy * ny
-        inside = side > 0 if self._orientation < 0 else side < 0
+        where = 2 - (t < 1) - (t <= 0)
+        where *= 2
+        where += pick
+        where *= m
+        where += k
+        g *= self._normal[where]
+        inside = g.real > 0 if self._orientation < 0 else g.real < 0
         sign = np.where(inside, -1.0, 1.0)
-        closest = None
-        if full:
-            ex_, ey_ = np.where(pick, ex[1], ex[0]), np.where(pick, ey[1], ey[0])
-            ax_, ay_ = np.where(pick, ax[1], ax[0]), np.where(pick, ay[1], ay[0])
-            closest = np.column_stack([ax_ + t * ex_, ay_ + t * ey_])
-        return closest, d, sign, edge, t
+        if not full:
+            return None, d, sign, None, None
+        closest = np.where(pick, c[1], c[0])
+        return closest.view(float).reshape(-1, 2), d, sign, np.where(pick, k, self._prev[k]), t
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         c, d, sign, _, _ = self._closest(pts, full=True)
