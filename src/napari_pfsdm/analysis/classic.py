@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D", "REPORTER_MEASURES", "classic_columns",
-           "classic_measures"]
+           "classic_measures", "convex_area", "perimeter_4", "shape_measures_2d"]
 
 #: regionprops properties of 2-D objects (plus circularity, from area and perimeter).
 SHAPE_MEASURES_2D = ("perimeter", "eccentricity", "solidity", "axis_major_length",
@@ -75,7 +75,9 @@ def classic_measures(mask: np.ndarray, image: np.ndarray | None = None, *,
     if spacing is not None and ndim == 3:
         kwargs["spacing"] = tuple(float(s) for s in spacing)
     out: dict[str, float] = {}
-    if mask.any():
+    if ndim == 2 and mask.any():
+        out = shape_measures_2d(mask)
+    elif mask.any():
         props = regionprops_table(mask.astype(np.uint8), properties=("area", *names), **kwargs)
         out = {k: float(props[k][0]) for k in names}
         if ndim == 2:
@@ -86,6 +88,141 @@ def classic_measures(mask: np.ndarray, image: np.ndarray | None = None, *,
     if image is not None:
         out.update(reporter_measures(mask, np.asarray(image, float)))
     return out
+
+
+def shape_measures_2d(mask: np.ndarray) -> dict[str, float]:
+    """The 2-D shape measures of one object (:data:`SHAPE_MEASURES_2D`), as
+    ``regionprops_table`` gives them, without its per-object machinery (a fifth of its time on
+    nucleus-sized objects).
+
+    ``perimeter`` is scikit-image's (:func:`perimeter_4`). The inertia tensor's eigenvalues
+    come from the central moments in closed form (regionprops: ``moments_central`` and
+    ``eigvalsh``; the same numbers to ~1e-15 relative, ~1e-7 absolute for an eigenvalue that
+    is 0, as for a one-pixel-wide line). The convex area, which regionprops counts on
+    ``convex_hull_image`` (the pixels whose centres lie in or on the hull of the pixels' edge
+    midpoints), is counted row by row in exact integer arithmetic from the hull's edges: the
+    same count (:func:`convex_area`).
+    """
+    r, c = np.nonzero(mask)
+    n = r.size
+    dr = r - r.mean()
+    dc = c - c.mean()
+    # regionprops' inertia tensor [[mu02, -mu11], [-mu11, mu20]] / mu00, its eigenvalues
+    a, b, d = float(dc @ dc) / n, -float(dr @ dc) / n, float(dr @ dr) / n
+    mid, radius = 0.5 * (a + d), float(np.hypot(0.5 * (a - d), b))
+    l1, l2 = max(mid + radius, 0.0), max(mid - radius, 0.0)
+    per = perimeter_4(mask)
+    return {
+        "perimeter": per,
+        "eccentricity": float(np.sqrt(1 - l2 / l1)) if l1 != 0 else 0.0,
+        "solidity": n / convex_area(mask, r, c),
+        "axis_major_length": 4 * float(np.sqrt(l1)),
+        "axis_minor_length": 4 * float(np.sqrt(l2)),
+        "circularity": 4 * np.pi * n / per**2 if per > 0 else np.nan,
+    }
+
+
+#: scikit-image's perimeter weights of the codes of :func:`perimeter_4`.
+_PERIMETER_WEIGHTS = np.zeros(50)
+_PERIMETER_WEIGHTS[[5, 7, 15, 17, 25, 27]] = 1
+_PERIMETER_WEIGHTS[[21, 33]] = np.sqrt(2)
+_PERIMETER_WEIGHTS[[13, 23]] = (1 + np.sqrt(2)) / 2
+
+
+def perimeter_4(mask: np.ndarray) -> float:
+    """``skimage.measure.perimeter(mask, 4)``, the same number, by array slices instead of
+    ``binary_erosion`` and ``convolve``: the border pixels (those with a 4-neighbour outside
+    the object), each coded 1 + 2·(border 4-neighbours) + 10·(border diagonal neighbours),
+    and the codes' histogram times scikit-image's weights.
+
+    Examples
+    --------
+    >>> from skimage.measure import perimeter
+    >>> disk = np.add.outer(np.arange(-9, 10) ** 2, np.arange(-9, 10) ** 2) <= 64
+    >>> perimeter_4(disk) == perimeter(disk, 4)
+    True
+    """
+    h, w = mask.shape
+    m = np.zeros((h + 2, w + 2), np.uint8)
+    m[1:-1, 1:-1] = mask
+    core = m[1:-1, 1:-1]
+    border = np.zeros_like(m)
+    inner = core & m[:-2, 1:-1]
+    inner &= m[2:, 1:-1]
+    inner &= m[1:-1, :-2]
+    inner &= m[1:-1, 2:]
+    np.subtract(core, inner, out=border[1:-1, 1:-1])
+    code = border[:-2, 1:-1] + border[2:, 1:-1]
+    code += border[1:-1, :-2]
+    code += border[1:-1, 2:]
+    code *= 2
+    diagonal = border[:-2, :-2] + border[:-2, 2:]
+    diagonal += border[2:, :-2]
+    diagonal += border[2:, 2:]
+    diagonal *= 10
+    code += diagonal
+    code += border[1:-1, 1:-1]
+    return float(np.bincount(code.ravel(), minlength=50) @ _PERIMETER_WEIGHTS)
+
+
+def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
+                cols: np.ndarray | None = None) -> int:
+    """Pixels of ``skimage.morphology.convex_hull_image(mask)``: the pixel centres in or on the
+    convex hull of the midpoints of the object's pixel edges, i.e. of the hull of its pixel
+    centres P grown by the diamond D of radius ½ (hull(P ⊕ D) = hull(P) ⊕ D).
+
+    That polygon is the intersection of the half-planes u · x ≤ h_P(u) + ½ max(|u_r|, |u_c|)
+    over the outward normals u of hull(P)'s edges and of D's; in doubled coordinates every
+    number is an integer, so the count of each row's pixels is exact. ``rows``, ``cols``: the
+    object's pixels (``np.nonzero(mask)``) if already known.
+
+    Examples
+    --------
+    >>> from skimage.morphology import convex_hull_image
+    >>> ell = np.zeros((9, 9), bool); ell[1:8, 1:3] = ell[6:8, 1:8] = True
+    >>> convex_area(ell), int(convex_hull_image(ell).sum())
+    (37, 37)
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    if rows is None:
+        rows, cols = np.nonzero(mask)
+    # each row's first and last pixel: their hull is the object's (np.nonzero: row by row)
+    first = np.flatnonzero(rows[1:] != rows[:-1]) + 1
+    pts = np.empty((2 * len(first) + 2, 2), np.int64)
+    pts[0] = rows[0], cols[0]
+    pts[1:len(first) + 1, 0], pts[1:len(first) + 1, 1] = rows[first], cols[first]
+    pts[len(first) + 1:-1, 0], pts[len(first) + 1:-1, 1] = rows[first - 1], cols[first - 1]
+    pts[-1] = rows[-1], cols[-1]
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError):  # a line, a pixel: too thin for a 2-D hull of centres
+        from skimage.morphology import convex_hull_image
+
+        return int(np.count_nonzero(convex_hull_image(mask)))
+    v = pts[hull.vertices]  # counter-clockwise in (row, col)
+    normal = np.empty((len(v) + 4, 2), np.int64)
+    normal[:len(v) - 1, 0] = v[1:, 1] - v[:-1, 1]
+    normal[:len(v) - 1, 1] = v[:-1, 0] - v[1:, 0]
+    normal[len(v) - 1] = v[0, 1] - v[-1, 1], v[-1, 0] - v[0, 0]
+    normal[len(v):] = _DIAMOND_NORMALS
+    # 2 u · x <= k with k = 2 h_P(u) + max(|u_r|, |u_c|), i.e. 2 u_c · col <= rhs on each row
+    k = 2 * (normal @ v.T).max(axis=1) + np.abs(normal).max(axis=1)
+    y = np.arange(rows[0], rows[-1] + 1)[:, None]
+    rhs = k - 2 * normal[:, 0] * y
+    uc = normal[:, 1]
+    up, down, flat = uc > 0, uc < 0, uc == 0
+    upper = (rhs[:, up] // (2 * uc[up])).min(axis=1)
+    # col >= ceil(rhs / 2u_c) = −((−rhs) // 2u_c) where u_c < 0: the largest of these
+    lower = -((-rhs[:, down]) // (2 * uc[down])).min(axis=1)
+    count = np.clip(upper - lower + 1, 0, None)
+    if flat.any():
+        count = count[(rhs[:, flat] >= 0).all(axis=1)]
+    return int(count.sum())
+
+
+#: The outward normals of the diamond of pixel-edge midpoints around a pixel centre.
+_DIAMOND_NORMALS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
 
 
 def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:
