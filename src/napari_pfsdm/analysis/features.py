@@ -308,9 +308,10 @@ def _object_in_crop(labels_crop, crop, t: int, label: int, box, big, shape,
     (:func:`_crop_of` of ``box`` in a frame of ``shape``). A worker process is sent the crops
     of the objects of one large frame, not the frame for each task."""
     mask = labels_crop == label
-    area = int(mask.sum())
     start = [s.start for s in big]
-    centroid = np.array(ndi.center_of_mass(mask)) + start
+    where = np.nonzero(mask)  # the centre of mass, as ndimage's (exact sums of whole numbers)
+    area = len(where[0])
+    centroid = np.array([w.sum() / area for w in where]) + start
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, shape, strict=True))
     res, error, int_error = _describe(mask, crop, tuple(start), options)
     measures = classic_measures(mask, crop, spacing=options.get("spacing"))
