@@ -55,11 +55,17 @@ def _scratch(size: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _ring_neighbours(m: int) -> tuple[np.ndarray, np.ndarray]:
-    """The next and the previous index of each of m points on a closed ring (read-only)."""
-    nxt, prv = np.roll(np.arange(m), -1), np.roll(np.arange(m), 1)
-    nxt.flags.writeable = prv.flags.writeable = False
-    return nxt, prv
+def _ring_neighbours(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For m points on a closed ring (read-only): the next and the previous index of each, the
+    indices (2m,) of [previous, self] (the two edges at each vertex), and the indices (6m,)
+    into [edge normals, vertex normals] of :attr:`ExactSDF._normal`'s table."""
+    i = np.arange(m)
+    nxt, prv = np.roll(i, -1), np.roll(i, 1)
+    pair = np.concatenate([prv, i])
+    normal = np.concatenate([prv + m, i + m, prv, i, i + m, nxt + m])
+    for a in (nxt, prv, pair, normal):
+        a.flags.writeable = False
+    return nxt, prv, pair, normal
 
 
 class ExactSDF:
@@ -88,7 +94,7 @@ class ExactSDF:
     def __init__(self, polygon: np.ndarray) -> None:
         p = self.polygon = np.ascontiguousarray(polygon, dtype=float).reshape(-1, 2)
         m = len(p)
-        self._next, self._prev = _ring_neighbours(m)
+        self._next, self._prev, pair, table = _ring_neighbours(m)
         # points as complex numbers first axis + i·second; edge i runs from vertex i to i + 1
         z = p.view(complex)[:, 0]
         e = z[self._next] - z
@@ -98,18 +104,18 @@ class ExactSDF:
         own[0] = z
         own[1] = e
         np.divide(1.0, e, out=own[2])
-        self._pair = np.stack([own[:, self._prev], own], axis=1)
+        self._pair = np.take(own, pair, axis=1).reshape(3, 2, m)
         # outward unit normals for counter-clockwise (−i e/|e|) and at the vertices the
         # bisector of the two edges' normals; conjugated, so that Re(g n̄) = g · n
-        normal = e * -1j
+        normals = np.empty(2 * m, complex)
+        normal, vertex = normals[:m], normals[m:]
+        np.multiply(e, -1j, out=normal)
         normal /= np.abs(e)
-        vertex = normal + normal[self._prev]
+        np.add(normal, normal[self._prev], out=vertex)
         vertex /= np.maximum(np.abs(vertex), 1e-12)
         # the pseudo-normal of the closest point on edge slot s of vertex k, by where it lies
         # along the edge (class 0: at its start, 1: inside, 2: at its end): _normal[c, s, k]
-        self._normal = np.conj(np.stack([[vertex[self._prev], vertex],
-                                         [normal[self._prev], normal],
-                                         [vertex, vertex[self._next]]])).reshape(-1)
+        self._normal = np.conj(normals[table])
         # the sign of the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i = Σ Im(z̄_i e_i)
         self._orientation = -1.0 if np.vdot(z, e).imag < 0 else 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
@@ -149,11 +155,12 @@ class ExactSDF:
         # blocks of 256 points: OpenBLAS runs such small products on one thread (threads would
         # burn twice the CPU time for nothing, measured), in one reused buffer
         buf = _scratch(_BLOCK * m)
-        p32 = np.empty((n, 3), np.float32)
-        np.subtract(pts, self._origin, out=p32[:, :2], casting="same_kind")
-        p32[:, 2] = 1.0
+        # rows x, y, 1 relative to the origin, in single precision (one cast of contiguous rows)
+        p32 = np.empty((3, n), np.float32)
+        np.subtract(pts.T, self._origin[:, None], out=p32[:2], casting="same_kind")
+        p32[2] = 1.0
         for i in range(0, n, _BLOCK):
-            block = p32[i:i + _BLOCK]
+            block = p32[:, i:i + _BLOCK].T
             d = buf[:len(block) * m].reshape(len(block), m)
             np.matmul(block, self._rhs32, out=d)
             np.argmin(d, axis=1, out=k[i:i + len(block)])
