@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import InputError
 from .choices import DEFAULT_MIN_AREA
-from .marching_squares import outer_boundary, trace_boundary
+from .marching_squares import _trace, outer_boundary, trace_boundary
 from .pieces import fill_holes, largest_piece
 
 __all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
@@ -150,7 +150,7 @@ def prepare_mask(
     touches = bool(r0 == 0 or c0 == 0 or r1 == mask.shape[0] or c1 == mask.shape[1])
     crop = np.zeros((r1 - r0 + 2 * pad, c1 - c0 + 2 * pad), bool)
     crop[pad:pad + r1 - r0, pad:pad + c1 - c0] = mask[r0:r1, c0:c1]
-    trace = trace_boundary(crop)
+    trace = _trace(crop.view(np.uint8), 0.0) if pad > 0 else trace_boundary(crop)
     if trace.single_loop and not trace.n_saddles:
         # one piece without holes, with 4- and 8-connectivity alike: nothing to label or fill
         return _mask_info(crop, r0 - pad, c0 - pad, 1, 0, touches, min_area, trace.points)
@@ -214,13 +214,19 @@ def _as_xy(z: np.ndarray) -> np.ndarray:
 def _resample_z(z: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     """:func:`resample_closed` of a closed polyline given as complex numbers (K,), and its
     length."""
-    closed = np.empty(len(z) + 1, complex)
-    closed[:-1] = z
-    closed[-1] = z[0]
+    closed = np.concatenate((z, z[:1]))
     s = np.empty(len(closed))
     s[0] = 0.0
-    np.cumsum(np.abs(np.diff(closed)), out=s[1:])
-    return np.interp(np.arange(n) * (s[-1] / n), s, closed), float(s[-1])
+    np.cumsum(np.abs(closed[1:] - closed[:-1]), out=s[1:])
+    return np.interp(_arange(n) * (s[-1] / n), s, closed), float(s[-1])
+
+
+@lru_cache(maxsize=16)
+def _arange(n: int) -> np.ndarray:
+    """``np.arange(n)`` as floats (read-only)."""
+    out = np.arange(n, dtype=float)
+    out.flags.writeable = False
+    return out
 
 
 def _smooth_closed(points: np.ndarray, sigma: float) -> np.ndarray:

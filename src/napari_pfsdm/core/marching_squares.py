@@ -33,6 +33,9 @@ _SEGMENTS = {1: [(0, 2)], 2: [(3, 0)], 3: [(3, 2)], 4: [(2, 1)], 5: [(0, 1)],
              11: [(1, 2)], 12: [(2, 3)], 13: [(0, 3)], 14: [(2, 0)]}
 _FROM = np.full((2, 16), -1, np.int8)
 _TO = np.full((2, 16), -1, np.int8)
+#: Which cell cases are saddles (6 and 9: object pixels touching at a corner only).
+_SADDLE = np.zeros(16, bool)
+_SADDLE[[6, 9]] = True
 #: Where each side's vertex sits in its cell, relative to the cell's upper-left pixel (r, c).
 _ROW = np.array([0.0, 1.0, 0.5, 0.5])
 _COL = np.array([0.5, 0.5, 0.0, 1.0])
@@ -112,6 +115,12 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
     if m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any():
         m = np.pad(m, 1)
         shift = -1.0
+    return _trace(m, shift)
+
+
+def _trace(m: np.ndarray, shift: float) -> BoundaryTrace:
+    """:func:`trace_boundary` of a uint8 mask whose edge rows and columns are background, its
+    coordinates moved by ``shift``."""
     h, w = m.shape
     case = m[:-1, :-1] + 2 * m[:-1, 1:]
     case += 4 * m[1:, :-1]
@@ -121,7 +130,7 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
     if r.size == 0:
         raise InputError("The mask is empty: no pixel belongs to the object.")
     kind = case[r, c]
-    n_saddles = int(np.count_nonzero((kind == 6) | (kind == 9)))
+    n_saddles = int(np.count_nonzero(_SADDLE[kind]))
     # vertex ids: the crack between (r, c) and (r, c + 1), at (r, c + ½): r·w + c; the crack
     # between (r, c) and (r + 1, c), at (r + ½, c): h·w + r·w + c
     rc = r * w + c
@@ -136,10 +145,13 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
         succ = at[base[_TO[0, kind]] + rc].tolist()
         loop = _walk(succ, 0, bytearray(len(succ)))
         if len(loop) == len(succ):
+            loop = np.array(loop)
             side = frm[loop]
             points = np.empty((len(loop), 2))
-            points[:, 0] = r[loop] + _ROW[side] + shift
-            points[:, 1] = c[loop] + _COL[side] + shift
+            np.add(r[loop], _ROW[side], out=points[:, 0])
+            np.add(c[loop], _COL[side], out=points[:, 1])
+            if shift:
+                points += shift
             return BoundaryTrace(points, True, 0)
     side_id = np.stack([rc, rc + w, h * w + rc, h * w + rc + 1])
     starts, ends, keys = [], [], []

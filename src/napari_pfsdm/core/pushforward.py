@@ -101,7 +101,15 @@ class FourierMap:
             return self._polar(damp, n_angles), self._jacobian(np.asarray(radii, float), damp,
                                                               n_angles)
         factors = _ring_factors(tuple(np.asarray(radii, float).tolist()), m)
-        z = _on_angles(self.coefficients * factors, n_angles)
+        # _on_angles(coefficients · factors): the modes folded onto n_angles by two real
+        # products summed over the folds (the same sums, without the (3, n_r, m) product)
+        rows = factors.shape[0] * factors.shape[1]
+        folds = factors.reshape(rows, m // n_angles, n_angles)
+        c = self.coefficients.reshape(m // n_angles, n_angles)
+        folded = np.empty((rows, n_angles), complex)
+        folded.real = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.real))
+        folded.imag = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.imag))
+        z = (np.fft.ifft(folded, axis=-1) * n_angles).reshape(*factors.shape[:2], n_angles)
         # det = Im(conj(∂X/∂r) · ∂X/∂θ) with ∂X/∂θ = i Σ n a_n r^|n| e^{inθ}
         x_r, x_t = z[1], z[2]
         jacobian = x_r.real * x_t.real
