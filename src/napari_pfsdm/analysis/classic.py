@@ -172,8 +172,10 @@ def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
     centres P grown by the diamond D of radius ½ (hull(P ⊕ D) = hull(P) ⊕ D).
 
     That polygon is the intersection of the half-planes u · x ≤ h_P(u) + ½ max(|u_r|, |u_c|)
-    over the outward normals u of hull(P)'s edges and of D's; in doubled coordinates every
-    number is an integer, so the count of each row's pixels is exact. ``rows``, ``cols``: the
+    over the outward normals u of hull(P)'s edges and of D's (and the axes', which only
+    support it); in doubled coordinates every number is an integer, so the count of each
+    row's pixels is exact. hull(P)'s sides are the convex minorant of each row's first pixel
+    and the concave majorant of each row's last (:func:`_envelope`). ``rows``, ``cols``: the
     object's pixels (``np.nonzero(mask)``) if already known.
 
     Examples
@@ -183,46 +185,70 @@ def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
     >>> convex_area(ell), int(convex_hull_image(ell).sum())
     (37, 37)
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     if rows is None:
         rows, cols = np.nonzero(mask)
-    # each row's first and last pixel: their hull is the object's (np.nonzero: row by row)
-    first = np.flatnonzero(rows[1:] != rows[:-1]) + 1
-    pts = np.empty((2 * len(first) + 2, 2), np.int64)
-    pts[0] = rows[0], cols[0]
-    pts[1:len(first) + 1, 0], pts[1:len(first) + 1, 1] = rows[first], cols[first]
-    pts[len(first) + 1:-1, 0], pts[len(first) + 1:-1, 1] = rows[first - 1], cols[first - 1]
-    pts[-1] = rows[-1], cols[-1]
-    try:
-        hull = ConvexHull(pts)
-    except (QhullError, ValueError):  # a line, a pixel: too thin for a 2-D hull of centres
+    # each row's first and last pixel (np.nonzero goes row by row): the hull's left side is
+    # the convex minorant of the first ones, its right side the concave majorant of the last
+    start = np.flatnonzero(rows[1:] != rows[:-1]) + 1
+    y = np.concatenate((rows[:1], rows[start])).astype(np.int64)
+    left = np.concatenate((cols[:1], cols[start])).astype(np.int64)
+    right = np.concatenate((cols[start - 1], cols[-1:])).astype(np.int64)
+    lk, rk = _envelope(y, left), _envelope(y, -right)
+    if lk is None or rk is None:  # pathological: more than _MAX_PASSES pruning passes
         from skimage.morphology import convex_hull_image
 
         return int(np.count_nonzero(convex_hull_image(mask)))
-    v = pts[hull.vertices]  # counter-clockwise in (row, col)
-    normal = np.empty((len(v) + 4, 2), np.int64)
-    normal[:len(v) - 1, 0] = v[1:, 1] - v[:-1, 1]
-    normal[:len(v) - 1, 1] = v[:-1, 0] - v[1:, 0]
-    normal[len(v) - 1] = v[0, 1] - v[-1, 1], v[-1, 0] - v[0, 0]
-    normal[len(v):] = _DIAMOND_NORMALS
+    # the hull's corners (row, col), left side then right side, and the outward normals of its
+    # edges: left side (dx, −dy), right side (−dx, dy)
+    nl, nr = len(lk), len(rk)
+    corners = np.empty((nl + nr, 2), np.int64)
+    corners[:nl, 0], corners[:nl, 1] = y[lk], left[lk]
+    corners[nl:, 0], corners[nl:, 1] = y[rk], right[rk]
+    step = corners[1:] - corners[:-1]
+    normal = np.empty((nl + nr - 2 + len(_EXTRA_NORMALS), 2), np.int64)
+    normal[:nl - 1, 0], normal[:nl - 1, 1] = step[:nl - 1, 1], -step[:nl - 1, 0]
+    normal[nl - 1:nl + nr - 2, 0] = -step[nl:, 1]
+    normal[nl - 1:nl + nr - 2, 1] = step[nl:, 0]
+    normal[nl + nr - 2:] = _EXTRA_NORMALS
     # 2 u · x <= k with k = 2 h_P(u) + max(|u_r|, |u_c|), i.e. 2 u_c · col <= rhs on each row
-    k = 2 * (normal @ v.T).max(axis=1) + np.abs(normal).max(axis=1)
-    y = np.arange(rows[0], rows[-1] + 1)[:, None]
-    rhs = k - 2 * normal[:, 0] * y
+    k = 2 * (normal @ corners.T).max(axis=1) + np.abs(normal).max(axis=1)
+    rhs = k - 2 * normal[:, 0] * np.arange(y[0], y[-1] + 1)[:, None]
     uc = normal[:, 1]
     up, down, flat = uc > 0, uc < 0, uc == 0
     upper = (rhs[:, up] // (2 * uc[up])).min(axis=1)
     # col >= ceil(rhs / 2u_c) = −((−rhs) // 2u_c) where u_c < 0: the largest of these
     lower = -((-rhs[:, down]) // (2 * uc[down])).min(axis=1)
-    count = np.clip(upper - lower + 1, 0, None)
+    count = np.maximum(upper - lower + 1, 0)
     if flat.any():
         count = count[(rhs[:, flat] >= 0).all(axis=1)]
     return int(count.sum())
 
 
-#: The outward normals of the diamond of pixel-edge midpoints around a pixel centre.
-_DIAMOND_NORMALS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]])
+#: Most pruning passes of :func:`_envelope` (a smooth outline needs a handful).
+_MAX_PASSES = 64
+
+
+def _envelope(y: np.ndarray, x: np.ndarray) -> np.ndarray | None:
+    """Indices of the vertices of the convex minorant of the points (y, x), y increasing:
+    points on or above the chord of their neighbours are dropped, all at once, until none is
+    (each dropped point lies in the hull of points kept). None after :data:`_MAX_PASSES`."""
+    keep = np.arange(len(y))
+    for _ in range(_MAX_PASSES):
+        if len(keep) < 3:
+            return keep
+        yk, xk = y[keep], x[keep]
+        dy, dx = yk[2:] - yk[:-2], xk[2:] - xk[:-2]
+        drop = (xk[1:-1] - xk[:-2]) * dy >= dx * (yk[1:-1] - yk[:-2])
+        if not drop.any():
+            return keep
+        keep = np.concatenate((keep[:1], keep[1:-1][~drop], keep[-1:]))
+    return None
+
+
+#: The outward normals of the diamond of pixel-edge midpoints around a pixel centre, and the
+#: axes' (supporting lines of any convex polygon: they close a hull of one row or column).
+_EXTRA_NORMALS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1], [1, 0], [-1, 0], [0, 1],
+                           [0, -1]])
 
 
 def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:

@@ -260,7 +260,7 @@ def iter_objects(
     voxel = _spacing(axes, spacing)
     p = as_params(params, options)  # a bad option fails here, before any work
     p.check_dimension(3 if "z" in axes else 2)
-    opts = p.options()
+    opts = _pfsdm_options(p)
     if voxel is not None:
         opts["spacing"] = voxel
     with _one_blas_thread():
@@ -346,7 +346,7 @@ def describe_object(
     n_frames, timelapse, axes = _validate(labels, intensity, axes)
     voxel = _spacing(axes, spacing)
     p = as_params(params, {})
-    opts = p.options()
+    opts = _pfsdm_options(p)
     if voxel is not None:
         opts["spacing"] = voxel
     t = int(frame) if timelapse else 0
@@ -363,6 +363,12 @@ def describe_object(
     image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
     with _one_blas_thread():
         return _object_in_frame(plane, image, t, int(label), box, opts)
+
+
+def _pfsdm_options(p: PFSDMParams) -> dict[str, Any]:
+    """The keywords ``pfsdm`` is called with for ``p``: none at the defaults (``pfsdm`` then
+    skips checking the same fourteen values again for every object)."""
+    return {} if p == PFSDMParams() else p.options()
 
 
 def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, str]:
