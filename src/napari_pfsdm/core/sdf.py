@@ -62,7 +62,7 @@ def _ring_neighbours(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     i = np.arange(m)
     nxt, prv = np.roll(i, -1), np.roll(i, 1)
     pair = np.concatenate([prv, i])
-    normal = np.concatenate([prv + m, i + m, prv, i, i + m, nxt + m])
+    normal = np.concatenate([i + m, nxt + m, prv, i, prv + m, i + m])
     for a in (nxt, prv, pair, normal):
         a.flags.writeable = False
     return nxt, prv, pair, normal
@@ -114,7 +114,7 @@ class ExactSDF:
         np.add(normal, normal[self._prev], out=vertex)
         vertex /= np.maximum(np.abs(vertex), 1e-12)
         # the pseudo-normal of the closest point on edge slot s of vertex k, by where it lies
-        # along the edge (class 0: at its start, 1: inside, 2: at its end): _normal[c, s, k]
+        # along the edge (class 0: at its end, 1: inside, 2: at its start): _normal[c, s, k]
         self._normal = np.conj(normals[table])
         # the sign of the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i = Σ Im(z̄_i e_i)
         self._orientation = -1.0 if np.vdot(z, e).imag < 0 else 1.0
@@ -167,15 +167,16 @@ class ExactSDF:
         return k
 
     def _closest(self, pts: np.ndarray, full: bool = False):
-        """Closest points (K, 2) (None unless ``full``), unsigned distances, signs (−1 inside),
-        and (None unless ``full``) the edge of each closest point and the position t ∈ [0, 1]
-        along it."""
+        """Closest points (K, 2) (None unless ``full``), unsigned distances, which points are
+        inside, and (None unless ``full``) the edge of each closest point and the position
+        t ∈ [0, 1] along it."""
         k = self._nearest_vertex(pts)
         zp = np.ascontiguousarray(pts).view(complex)[:, 0]
         # the two edges at the nearest vertex, (prev → k) and (k → next), as rows 0 and 1
         a, e, inv = np.take(self._pair, k, axis=2)  # (C-contiguous, unlike [:, :, k])
         g = zp - a
-        t = np.clip((g * inv).real, 0, 1)
+        t = np.maximum((g * inv).real, 0.0)  # clipped to [0, 1]
+        np.minimum(t, 1.0, out=t)
         c = t * e
         c += a
         np.subtract(zp, c, out=g)
@@ -187,22 +188,21 @@ class ExactSDF:
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
         m = len(self.polygon)
-        where = 2 - (t < 1) - (t <= 0)
+        where = np.add(t < 1, t <= 0, dtype=np.intp)  # 0: t = 1, 1: inside, 2: t = 0
         where *= 2
         where += pick
         where *= m
         where += k
         g *= self._normal[where]
         inside = g.real > 0 if self._orientation < 0 else g.real < 0
-        sign = np.where(inside, -1.0, 1.0)
         if not full:
-            return None, d, sign, None, None
+            return None, d, inside, None, None
         closest = np.where(pick, c[1], c[0])
-        return closest.view(float).reshape(-1, 2), d, sign, np.where(pick, k, self._prev[k]), t
+        return closest.view(float).reshape(-1, 2), d, inside, np.where(pick, k, self._prev[k]), t
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, d, sign, _, _ = self._closest(pts, full=True)
-        return c, d, sign
+        c, d, inside, _, _ = self._closest(pts, full=True)
+        return c, d, np.where(inside, -1.0, 1.0)
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """Boolean: which points lie inside the polygon."""
@@ -211,9 +211,8 @@ class ExactSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign, _, _ = self._closest(pts)
-        d *= sign
-        return d
+        _, d, inside, _, _ = self._closest(pts)
+        return np.negative(d, out=d, where=inside)
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """Gradient ∇φ at ``points`` (K, 2): the unit vector away from the closest point,
@@ -337,9 +336,8 @@ class ViscousSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Viscous signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign, _, _ = self.exact._closest(pts)
-        inside = sign < 0
-        phi = sign * d
+        _, d, inside, _, _ = self.exact._closest(pts)
+        phi = np.where(inside, -d, d)
         # Within a fraction of the refined node spacing the quadrature is not resolved; there
         # the viscous and exact distances agree to O(d·ν·κ), far below the sampling error.
         far = d > 0.5 * self.h / self._refine
