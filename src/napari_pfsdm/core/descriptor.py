@@ -213,7 +213,7 @@ def pfsdm(
     if intensity is not None:
         intensity = _check_intensity(intensity, mask.shape)
     n_angles, n_fourier = p.n_angles, p.n_fourier
-    n_points = n_angles * int(np.ceil(256 / n_angles))
+    n_points = n_angles * -(-256 // n_angles)  # the multiple of n_angles from 256 up
     contour = extract_contour(info, n_points=n_points, smooth=smooth)
     nodes = contour.normalized
     phi = make_sdf(p.sdf, nodes, viscosity=p.viscosity)

@@ -114,7 +114,8 @@ class FourierMap:
         x_r, x_t = z[1], z[2]
         jacobian = x_r.real * x_t.real
         jacobian += x_r.imag * x_t.imag
-        return _as_real(z[0]), jacobian
+        # the shape points (n_r, n_angles, 2): the complex samples' own memory, as pairs
+        return z[0].view(float).reshape(*z.shape[1:], 2), jacobian
 
     def __call__(self, uv: np.ndarray, chunk: int = 2048) -> np.ndarray:
         """Shape points of arbitrary disk points ``uv`` (K, 2)."""
