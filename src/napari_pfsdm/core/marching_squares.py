@@ -143,7 +143,12 @@ def _trace(m: np.ndarray, shift: float) -> BoundaryTrace:
         at = np.empty(2 * h * w, np.intp)
         at[start] = np.arange(len(start))
         succ = at[base[_TO[0, kind]] + rc].tolist()
-        loop = _walk(succ, 0, bytearray(len(succ)))
+        # (succ is a permutation: the walk from 0 comes back to 0)
+        loop = [0]
+        j = succ[0]
+        while j:
+            loop.append(j)
+            j = succ[j]
         if len(loop) == len(succ):
             loop = np.array(loop)
             side = frm[loop]
