@@ -1,9 +1,11 @@
 """Classic measures of each object, in the same table as its PF-SDM features.
 
-The shape measures are scikit-image's (:func:`skimage.measure.regionprops_table`, called, not
-rewritten), on **the labelled pixels** of the object in its frame (``labels == label``, every
-piece and hole as segmented; not the analysed mask, which keeps the largest piece and fills
-holes), so that they agree with napari-skimage-regionprops on the same layer:
+The shape measures are scikit-image's (:func:`skimage.measure.regionprops_table`'s numbers;
+in 2-D computed without its per-object machinery by :func:`shape_measures_2d`, the same
+perimeter and solidity exactly, the axes and eccentricity to ~1e-15, tested against it), on
+**the labelled pixels** of the object in its frame (``labels == label``, every piece and hole
+as segmented; not the analysed mask, which keeps the largest piece and fills holes), so that
+they agree with napari-skimage-regionprops on the same layer:
 
 - 2-D: ``perimeter``, ``eccentricity``, ``solidity``, ``axis_major_length``,
   ``axis_minor_length`` (pixels), and ``circularity`` = 4π·area / perimeter² (1 for a disk,
