@@ -1,34 +1,36 @@
-"""Speed of PF-SDM against EFA per object, and ``measure`` throughput on a label stack.
+"""Cost per object against object size (PF-SDM, EFA, regionprops), and ``measure`` throughput.
 
 Run from the repository root::
 
     .venv/bin/python benchmarks/speed.py
-    .venv/bin/python benchmarks/speed.py --n-masks 10 --reps 1     # quicker, noisier
+    .venv/bin/python benchmarks/speed.py --methods      # also every map x SDF, and distances
 
-Per object: ``pfsdm`` on 256 × 256 masks of the synthetic five-shape set (every
-``mapping`` × ``sdf``), and the EFA baseline on the same masks in the same run — the
-marching-squares contour of the whole 256 × 256 mask (``skimage.measure.find_contours``) plus
-``pyefd.elliptic_fourier_descriptors(order=10, normalize=True)`` — the ratio "x EFA" is to this
-row. A second EFA row runs pyefd on the outline PF-SDM itself traces (the object's box and the
-vectorised marching squares, ``core.marching_squares``): EFA made as fast as our contour.
-The methods take turns in ``--reps`` passes over all masks (methods slower than 5 s a pass run
-once); each call's fastest time is kept and averaged over the masks, reported as ms per object
-and as a ratio to EFA.
-The machine is shared: the ratio, measured in the same passes, is steadier than the ms.
+Per object, against size: smooth random blobs (an ellipse of aspect up to 1.4 with harmonics
+2-5, randomly turned, sub-pixel placed) of radius 10, 12, 20, 40, 80, 160 and 320 px, each in
+its own crop, described in one run by
 
-Throughput: ``measure`` (default options) on a 25-frame × 4-object label stack (512 × 512
-frames, one object of the five-shape set per 256 × 256 quadrant), in objects per second (the
-fastest of up to three runs).
+* ``pfsdm`` with the default options (``pf.pfsdm(mask)``, the outline coefficients included:
+  they are the harmonic map's own);
+* EFA: ``skimage.measure.find_contours`` + ``pyefd.elliptic_fourier_descriptors(order=10,
+  normalize=True)`` on the same crop;
+* regionprops: ``skimage.measure.regionprops_table`` with area, perimeter, eccentricity,
+  solidity and the axis lengths (what ``measure``'s classic columns hold).
 
-Distances: all pairs of ``--n-distance`` objects (perturbed five shapes, 128 × 128) with the
-default distance (SDF magnitudes + boundary term) and with the SDF's combined distance (no
-boundary term), in the same run, wall seconds.
+CPU time (``time.process_time``), one BLAS/FFT thread; the methods take turns in ``--reps``
+passes over all masks of a size (so that a change of load hits all of them alike) and each
+call's fastest time is kept and averaged; ratios are to EFA in the same passes.
 
-Single-threaded BLAS/FFT (``*_NUM_THREADS=1``) so that the numbers are per core (the distances
-too, unless ``--threads``). Writes ``speed.csv`` to ``--out``. Targets: default ``pfsdm``
-≤ 3× EFA per object, ``bijective`` ≤ 50 ms per object, ``measure`` ≥ 150 objects/s; default
-``pfsdm`` with the boundary term's outline coefficients ≤ 2× EFA, all 1,400² default distances
-< 20 s.
+Throughput: ``measure`` (default options) on a nucleus-sized label movie: ``--frames`` frames of
+512 x 512 with non-overlapping blobs of radius 10-20 px (about 150 per frame), in objects per
+CPU-second (the best of three runs).
+
+Targets: ``pfsdm`` on radius-12 blobs <= 2.5x EFA; ``measure`` >= 1,000 objects per
+CPU-second on the nucleus-sized movie. Writes ``speed_sizes.csv`` to ``--out``.
+
+``--methods`` adds the earlier table on 256 x 256 masks of the perturbed five-shape set (every
+``mapping`` x ``sdf``, EFA on PF-SDM's own outline) and the time of all pairwise distances of
+``--n-distance`` objects (targets: default ``pfsdm`` <= 3x EFA, ``bijective`` <= 50 ms, all
+1,400^2 default distances < 20 s).
 """
 
 from __future__ import annotations
@@ -52,6 +54,13 @@ from napari_pfsdm.data import shapes as S  # noqa: E402
 TARGET_RATIO = 3.0
 TARGET_BIJECTIVE_MS = 50.0
 TARGET_MEASURE = 150.0
+#: Radii (px) of the size table; 12 is the nucleus-sized target row.
+RADII = (10, 12, 20, 40, 80, 160, 320)
+TARGET_SMALL_RADIUS = 12
+TARGET_SMALL_RATIO = 2.5
+TARGET_THROUGHPUT = 1000.0
+REGIONPROPS = ("area", "perimeter", "eccentricity", "solidity", "axis_major_length",
+               "axis_minor_length")
 OUTLINE_ROW = "pfsdm default + outline coefficients (boundary term)"
 
 
@@ -80,7 +89,7 @@ def efa_on_our_outline(mask: np.ndarray):
 
 def time_methods(methods: dict[str, Callable[[np.ndarray], object]], masks: list[np.ndarray],
                  reps: int) -> dict[str, float]:
-    """Mean over the masks of each call's fastest time, in seconds per object.
+    """Mean over the masks of each call's fastest CPU time, in seconds per object.
 
     The methods take turns within every pass (so that a change of machine load hits all of
     them alike); a method whose pass took more than 5 s is not repeated.
@@ -93,9 +102,9 @@ def time_methods(methods: dict[str, Callable[[np.ndarray], object]], masks: list
             if rep > 0 and best[name].sum() > 5.0:
                 continue
             for i, m in enumerate(masks):
-                start = time.perf_counter()
+                start = time.process_time()
                 fn(m)
-                best[name][i] = min(best[name][i], time.perf_counter() - start)
+                best[name][i] = min(best[name][i], time.process_time() - start)
     return {name: float(t.mean()) for name, t in best.items()}
 
 
@@ -115,17 +124,131 @@ def label_stack(n_frames: int = 25, seed: int = 0) -> np.ndarray:
     return stack
 
 
+def blob(radius: float, rng: np.random.Generator) -> np.ndarray:
+    """A smooth random blob of about ``radius`` px in its own crop (3.4 radii + 8 px wide): an
+    ellipse of aspect 1-1.4 with harmonics 2-5, turned and placed at random to a sub-pixel."""
+    n = int(3.4 * radius + 8)
+    yy, xx = np.mgrid[:n, :n] - n / 2 + rng.uniform(-0.5, 0.5, 2)[:, None, None]
+    theta = np.arctan2(yy, xx)
+    r = np.ones_like(theta)
+    for k in range(2, 6):
+        r += rng.uniform(0, 0.24 / k) * np.cos(k * theta + rng.uniform(0, 2 * np.pi))
+    aspect, turn = rng.uniform(1.0, 1.4), rng.uniform(0, np.pi)
+    u = xx * np.cos(turn) + yy * np.sin(turn)
+    v = -xx * np.sin(turn) + yy * np.cos(turn)
+    return np.hypot(u / aspect**0.5, v * aspect**0.5) < radius * r
+
+
+def blobs(radius: float, n: int, seed: int = 0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [blob(radius, rng) for _ in range(n)]
+
+
+def nucleus_movie(n_frames: int = 4, size: int = 512, seed: int = 0) -> np.ndarray:
+    """(T, size, size) labels: blobs of radius 10-20 px dropped at random, each kept only where
+    it lies 2 px clear of the others (about 150 per 512 x 512 frame)."""
+    from scipy import ndimage as ndi
+
+    rng = np.random.default_rng(seed)
+    movie = np.zeros((n_frames, size, size), np.int32)
+    for t in range(n_frames):
+        label = 1
+        for _ in range(2000):
+            m = blob(rng.uniform(10, 20), rng)
+            h = m.shape[0]
+            r0, c0 = rng.integers(0, size - h, 2)
+            window = movie[t, r0:r0 + h, c0:c0 + h]
+            if (window[ndi.binary_dilation(m, iterations=2)] != 0).any():
+                continue
+            window[m] = label
+            label += 1
+    return movie
+
+
+def regionprops_object(mask: np.ndarray):
+    from skimage.measure import regionprops_table
+
+    return regionprops_table(mask.astype(np.uint8), properties=REGIONPROPS)
+
+
+def size_table(reps: int) -> pd.DataFrame:
+    """ms per object of PF-SDM, EFA and regionprops for each radius of :data:`RADII`."""
+    rows = []
+    for radius in RADII:
+        n = 40 if radius <= 20 else max(2, int(40 * 20 / radius))
+        masks = blobs(radius, n, seed=radius)
+        seconds = time_methods({"pfsdm": lambda m: P.pfsdm(m).outline, "efa": efa_object,
+                                "regionprops": regionprops_object}, masks, reps)
+        rows.append({"radius_px": radius, "crop_px": masks[0].shape[0], "objects": n,
+                     "pfsdm_ms": 1e3 * seconds["pfsdm"], "efa_ms": 1e3 * seconds["efa"],
+                     "regionprops_ms": 1e3 * seconds["regionprops"],
+                     "pfsdm_x_efa": seconds["pfsdm"] / seconds["efa"],
+                     "regionprops_x_efa": seconds["regionprops"] / seconds["efa"]})
+        print(f"  radius {radius}: done", flush=True)
+    return pd.DataFrame(rows)
+
+
+def throughput(frames: int) -> tuple[int, float]:
+    """(objects, objects per CPU-second) of ``measure`` on :func:`nucleus_movie`."""
+    movie = nucleus_movie(frames)
+    n_obj = int(sum(len(np.unique(f)) - 1 for f in movie))
+    P.measure(movie[:1])  # warm-up
+    best = np.inf
+    for _ in range(3):
+        start = time.process_time()
+        table = P.measure(movie)
+        best = min(best, time.process_time() - start)
+    assert len(table) == n_obj
+    return n_obj, n_obj / best
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="benchmarks/out", help="output folder")
-    parser.add_argument("--n-masks", type=int, default=20,
-                        help="masks (a multiple of 5: the five shapes in turn)")
     parser.add_argument("--reps", type=int, default=3, help="passes per method (best kept)")
-    parser.add_argument("--frames", type=int, default=25, help="frames of the measure stack")
+    parser.add_argument("--frames", type=int, default=4,
+                        help="frames of the nucleus-sized measure movie")
+    parser.add_argument("--methods", action="store_true",
+                        help="also every map x SDF on the five shapes, and distances")
+    parser.add_argument("--n-masks", type=int, default=20,
+                        help="--methods: masks (a multiple of 5: the five shapes in turn)")
+    parser.add_argument("--measure-frames", type=int, default=25,
+                        help="--methods: frames of the five-shape measure stack")
     parser.add_argument("--n-distance", type=int, default=1400,
-                        help="objects whose all pairwise distances are timed")
+                        help="--methods: objects whose all pairwise distances are timed")
     args = parser.parse_args(argv)
 
+    print(f"CPU time per object, best of {args.reps} passes; threads per process: 1; load "
+          f"average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    sizes = size_table(args.reps)
+    n_obj, per_second = throughput(args.frames)
+    print()
+    print(sizes.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print()
+    print(f"measure: {n_obj} objects ({args.frames} frames of 512 x 512, blobs of radius 10-20 "
+          f"px) at {per_second:.0f} objects per CPU-second")
+    small = float(sizes.loc[sizes["radius_px"] == TARGET_SMALL_RADIUS, "pfsdm_x_efa"].iloc[0])
+    checks = [
+        (f"pfsdm on radius-{TARGET_SMALL_RADIUS} blobs <= {TARGET_SMALL_RATIO:g}x EFA",
+         f"{small:.2f}x", small <= TARGET_SMALL_RATIO),
+        (f"measure >= {TARGET_THROUGHPUT:,.0f} objects per CPU-second (nucleus-sized)",
+         f"{per_second:.0f}/s", per_second >= TARGET_THROUGHPUT),
+    ]
+    for what, value, ok in checks:
+        print(f"  {'met ' if ok else 'MISSED'}  {what}: {value}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    sizes.assign(measure_objects_per_cpu_second=per_second).to_csv(out / "speed_sizes.csv",
+                                                                     index=False)
+    print(f"\nwrote {out / 'speed_sizes.csv'}")
+    if args.methods:
+        print()
+        methods_table(args)
+    return 0
+
+
+def methods_table(args) -> None:
+    """The five-shape table of every map x SDF against EFA, and distances (``--methods``)."""
     masks, _, _ = S.make_benchmark_set(max(1, args.n_masks // 5), perturb=True, seed=0, size=256)
     print(f"{len(masks)} masks of 256 x 256 (perturbed five-shape set), best of "
           f"{args.reps} passes; threads per process: 1; load average "
@@ -148,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     table = pd.DataFrame(rows)
     table["x EFA"] = table["ms_per_object"] / (1e3 * efa)
 
-    stack = label_stack(args.frames)
+    stack = label_stack(args.measure_frames)
     n_obj = int(sum(len(np.unique(f)) - 1 for f in stack))
     P.measure(stack[:1])  # warm-up
     elapsed = np.inf
@@ -177,7 +300,8 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     print()
-    print(f"measure: {n_obj} objects ({args.frames} frames x 4, 512 x 512) in {elapsed:.2f} s "
+    print(f"measure: {n_obj} objects ({args.measure_frames} frames x 4, 512 x 512) in "
+          f"{elapsed:.2f} s "
           f"= {throughput:.0f} objects/s")
     for label, sec in dist_s.items():
         print(f"all pairs of {len(results)} objects, {label}: {sec:.2f} s")
@@ -207,7 +331,6 @@ def main(argv: list[str] | None = None) -> int:
             "x EFA": np.nan}]) for label, sec in dist_s.items()], ignore_index=True)
     summary.to_csv(out / "speed.csv", index=False)
     print(f"\nwrote {out / 'speed.csv'}")
-    return 0
 
 
 if __name__ == "__main__":

@@ -25,6 +25,8 @@ Boundary distance (:func:`boundary_distance_matrix`)
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from ..errors import InputError
@@ -85,11 +87,20 @@ def outline_coefficients(points: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> 
 def normalised_modes(spectrum: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> np.ndarray:
     """:func:`outline_coefficients` from the outline's whole spectrum (M,), ``fft / M`` in
     ``fftfreq`` order: e.g. the harmonic map's own coefficients (``FourierMap.coefficients``)."""
-    coefs = spectrum[outline_modes(n_modes) % len(spectrum)]
+    coefs = spectrum[_mode_index(n_modes, len(spectrum))]
     norm = np.linalg.norm(coefs)
     if not norm > 0:
         raise InputError("the outline has no extent (all its points coincide)")
     return coefs / norm
+
+
+@lru_cache(maxsize=16)
+def _mode_index(n_modes: int, m: int) -> np.ndarray:
+    """Where the modes of :func:`outline_modes` sit in a spectrum of m values in ``fftfreq``
+    order (read-only)."""
+    out = outline_modes(n_modes) % m
+    out.flags.writeable = False
+    return out
 
 
 def _modes_of(coefs: np.ndarray) -> np.ndarray:

@@ -13,12 +13,13 @@ same axes after ``(p - center) / scale``. Counter-clockwise means a positive sho
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
 from ..errors import InputError
 from .choices import DEFAULT_MIN_AREA
-from .marching_squares import outer_boundary, trace_boundary
+from .marching_squares import _trace, outer_boundary, trace_boundary
 from .pieces import fill_holes, largest_piece
 
 __all__ = ["Contour", "MaskInfo", "extract_contour", "polygon_area_centroid", "prepare_mask",
@@ -147,8 +148,9 @@ def prepare_mask(
     cols = np.flatnonzero(mask.any(axis=0))
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
     touches = bool(r0 == 0 or c0 == 0 or r1 == mask.shape[0] or c1 == mask.shape[1])
-    crop = np.pad(mask[r0:r1, c0:c1], pad)
-    trace = trace_boundary(crop)
+    crop = np.zeros((r1 - r0 + 2 * pad, c1 - c0 + 2 * pad), bool)
+    crop[pad:pad + r1 - r0, pad:pad + c1 - c0] = mask[r0:r1, c0:c1]
+    trace = _trace(crop.view(np.uint8), 0.0) if pad > 0 else trace_boundary(crop)
     if trace.single_loop and not trace.n_saddles:
         # one piece without holes, with 4- and 8-connectivity alike: nothing to label or fill
         return _mask_info(crop, r0 - pad, c0 - pad, 1, 0, touches, min_area, trace.points)
@@ -194,26 +196,70 @@ def resample_closed(points: np.ndarray, n: int) -> np.ndarray:
 
 def _resample(points: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     """:func:`resample_closed` and the polyline's length."""
-    closed = np.concatenate([points, points[:1]])
-    step = np.diff(closed, axis=0)
+    z, length = _resample_z(_as_z(points), n)
+    return _as_xy(z), length
+
+
+def _as_z(points: np.ndarray) -> np.ndarray:
+    """Points (K, 2) as complex numbers first axis + i·second (a view when contiguous)."""
+    points = np.ascontiguousarray(points, dtype=float)
+    return points.view(complex).reshape(len(points))
+
+
+def _as_xy(z: np.ndarray) -> np.ndarray:
+    """Complex numbers (K,) as points (K, 2) (a view)."""
+    return np.ascontiguousarray(z).view(float).reshape(len(z), 2)
+
+
+def _resample_z(z: np.ndarray, n: int) -> tuple[np.ndarray, float]:
+    """:func:`resample_closed` of a closed polyline given as complex numbers (K,), and its
+    length."""
+    closed = np.concatenate((z, z[:1]))
     s = np.empty(len(closed))
     s[0] = 0.0
-    np.cumsum(np.sqrt(step[:, 0] ** 2 + step[:, 1] ** 2), out=s[1:])
-    t = np.arange(n) * (s[-1] / n)
-    out = np.empty((n, 2))
-    out[:, 0] = np.interp(t, s, closed[:, 0])
-    out[:, 1] = np.interp(t, s, closed[:, 1])
-    return out, float(s[-1])
+    np.cumsum(np.abs(closed[1:] - closed[:-1]), out=s[1:])
+    return np.interp(_arange(n) * (s[-1] / n), s, closed), float(s[-1])
+
+
+@lru_cache(maxsize=16)
+def _arange(n: int) -> np.ndarray:
+    """``np.arange(n)`` as floats (read-only)."""
+    out = np.arange(n, dtype=float)
+    out.flags.writeable = False
+    return out
 
 
 def _smooth_closed(points: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian low-pass of a uniformly sampled closed curve; ``sigma`` in samples."""
     if sigma <= 0:
         return points
-    n = len(points)
-    freq = np.fft.fftfreq(n)
-    gain = np.exp(-2.0 * (np.pi * freq * sigma) ** 2)
-    return np.real(np.fft.ifft(np.fft.fft(points, axis=0) * gain[:, None], axis=0))
+    return _as_xy(_smooth_z(_as_z(points), sigma))
+
+
+def _smooth_z(z: np.ndarray, sigma: float) -> np.ndarray:
+    """:func:`_smooth_closed` of a curve given as complex numbers (M,)."""
+    gain = np.exp(_minus_two_pi2_freq2(len(z)) * (sigma * sigma))
+    return np.fft.ifft(np.fft.fft(z) * gain)
+
+
+@lru_cache(maxsize=16)
+def _minus_two_pi2_freq2(n: int) -> np.ndarray:
+    """−2π² f² at the ``fftfreq`` frequencies f of n samples (read-only): the Gaussian's gain
+    exp(−2 (π f σ)²) is exp(σ² · this)."""
+    out = -2.0 * (np.pi * np.fft.fftfreq(n)) ** 2
+    out.flags.writeable = False
+    return out
+
+
+def _area_centroid_z(z: np.ndarray) -> tuple[float, complex]:
+    """:func:`polygon_area_centroid` of a closed polygon given as complex numbers (K,)."""
+    zn = np.empty_like(z)
+    zn[:-1] = z[1:]
+    zn[-1] = z[0]
+    cross = (z.conj() * zn).imag  # x·y_next − x_next·y
+    area = 0.5 * cross.sum()
+    zn += z
+    return float(area), complex(np.dot(zn, cross) / (6.0 * area))
 
 
 def signed_area(points: np.ndarray) -> float:
@@ -269,17 +315,22 @@ def extract_contour(info: MaskInfo, n_points: int = 256, smooth: float = 1.0) ->
     """
     # the longest loop of skimage's find_contours(mask, 0.5), traced once
     raw = info.outline if info.outline is not None else outer_boundary(info.mask)
+    z = _as_z(raw)
+    # (the centroid to the last bit as ever: it decides between vertices equally far from it)
     area, raw_center = polygon_area_centroid(raw)
     if area < 0:
-        raw = raw[::-1]
+        z = z[::-1]
     # Start at the vertex farthest from the centroid: a canonical point, so that a raster rotated
     # by 90° or mirrored is resampled at exactly the same boundary points.
-    far = int(np.argmax((raw[:, 0] - raw_center[0]) ** 2 + (raw[:, 1] - raw_center[1]) ** 2))
-    raw = np.concatenate([raw[far:], raw[:far]])
-    pts, perimeter = _resample(raw, n_points)
+    d = z - complex(raw_center[0], raw_center[1])
+    far = int(np.argmax(d.real * d.real + d.imag * d.imag))
+    z = np.concatenate([z[far:], z[:far]])
+    z, perimeter = _resample_z(z, n_points)
     if smooth > 0:
-        pts = resample_closed(_smooth_closed(pts, smooth * n_points / perimeter), n_points)
-    pts += info.offset
-    area, center = polygon_area_centroid(pts)
-    scale = float(np.sqrt(((pts - center) ** 2).sum(axis=1).max()))
-    return Contour(points=pts, center=center, scale=scale, area=abs(area))
+        z = _resample_z(_smooth_z(z, smooth * n_points / perimeter), n_points)[0]
+    z += complex(info.offset[0], info.offset[1])
+    area, center = _area_centroid_z(z)
+    d = z - center
+    scale = float(np.sqrt((d.real * d.real + d.imag * d.imag).max()))
+    return Contour(points=_as_xy(z), center=np.array([center.real, center.imag]), scale=scale,
+                   area=abs(area))

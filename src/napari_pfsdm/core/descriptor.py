@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import Any
 
 import numpy as np
@@ -213,15 +213,16 @@ def pfsdm(
     if intensity is not None:
         intensity = _check_intensity(intensity, mask.shape)
     n_angles, n_fourier = p.n_angles, p.n_fourier
-    n_points = n_angles * int(np.ceil(256 / n_angles))
+    n_points = n_angles * -(-256 // n_angles)  # the multiple of n_angles from 256 up
     contour = extract_contour(info, n_points=n_points, smooth=smooth)
     nodes = contour.normalized
     phi = make_sdf(p.sdf, nodes, viscosity=p.viscosity)
     exact = phi.exact if isinstance(phi, ViscousSDF) else phi
     pmap = make_map(p.mapping, nodes, exact, degree=degree, grid=grid)
 
-    r = ring_radii(p.n_radii, radii)
-    theta = 2 * np.pi * np.arange(n_angles) / n_angles
+    r, theta, ring_w, mode_w = (a.copy() for a in _sampling(
+        p.n_radii, radii if isinstance(radii, str) else tuple(np.ravel(radii).tolist()),
+        n_angles, p.ring_weighting, n_fourier, p.mode_exponent))
     if isinstance(pmap, FourierMap):
         samples, jacobian = pmap.polar_and_jacobian(r, n_angles)
     else:
@@ -238,7 +239,7 @@ def pfsdm(
         "touches_border": info.touches_border,
         "n_components": info.n_components,
         "n_holes": info.n_holes,
-        "folded_fraction": float(folded.mean()),
+        "folded_fraction": np.count_nonzero(folded) / folded.size,
         "scale": contour.scale,
     }
     result_options = {
@@ -249,8 +250,7 @@ def pfsdm(
     }
     result = PFSDMResult(
         contour=contour, sdf=phi, mapping=pmap, radii=r, angles=theta,
-        weights=ring_weights(r, p.ring_weighting),
-        mode_weights=mode_weights(n_fourier, p.mode_exponent), samples=samples, disk=disk,
+        weights=ring_w, mode_weights=mode_w, samples=samples, disk=disk,
         spectrum=spec, embedding=emb, diagnostics=diagnostics, options=result_options,
         mask_info=info,
     )
@@ -266,6 +266,19 @@ def pfsdm(
 
 
 pfsdm.__signature__ = with_option_keywords(pfsdm)  # type: ignore[attr-defined]
+
+
+@lru_cache(maxsize=8)
+def _sampling(n_radii: int, radii: str | tuple[float, ...], n_angles: int, ring_weighting: str,
+              n_fourier: int, mode_exponent: float) -> tuple[np.ndarray, ...]:
+    """The rings' radii, the angles, the ring weights and the mode weights of a set of
+    options, computed once (read-only; :func:`pfsdm` hands out copies)."""
+    r = ring_radii(n_radii, radii if isinstance(radii, str) else np.asarray(radii))
+    out = (r, 2 * np.pi * np.arange(n_angles) / n_angles, ring_weights(r, ring_weighting),
+           mode_weights(n_fourier, mode_exponent))
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def _shift(result: PFSDMResult, offset: np.ndarray) -> None:

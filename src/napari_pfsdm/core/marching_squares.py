@@ -33,6 +33,12 @@ _SEGMENTS = {1: [(0, 2)], 2: [(3, 0)], 3: [(3, 2)], 4: [(2, 1)], 5: [(0, 1)],
              11: [(1, 2)], 12: [(2, 3)], 13: [(0, 3)], 14: [(2, 0)]}
 _FROM = np.full((2, 16), -1, np.int8)
 _TO = np.full((2, 16), -1, np.int8)
+#: Which cell cases are saddles (6 and 9: object pixels touching at a corner only).
+_SADDLE = np.zeros(16, bool)
+_SADDLE[[6, 9]] = True
+#: Where each side's vertex sits in its cell, relative to the cell's upper-left pixel (r, c).
+_ROW = np.array([0.0, 1.0, 0.5, 0.5])
+_COL = np.array([0.5, 0.5, 0.0, 1.0])
 for _case, _segs in _SEGMENTS.items():
     for _k, (_a, _b) in enumerate(_segs):
         _FROM[_k, _case], _TO[_k, _case] = _a, _b
@@ -104,21 +110,54 @@ def trace_boundary(mask: np.ndarray) -> BoundaryTrace:
     m = np.asarray(mask)
     if m.ndim != 2:
         raise InputError(f"outer_boundary needs a 2-D mask, got shape {m.shape}.")
-    m = m.astype(np.uint8)
+    m = m.view(np.uint8) if m.dtype == bool else m.astype(np.uint8)
     shift = 0.0
     if m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any():
         m = np.pad(m, 1)
         shift = -1.0
+    return _trace(m, shift)
+
+
+def _trace(m: np.ndarray, shift: float) -> BoundaryTrace:
+    """:func:`trace_boundary` of a uint8 mask whose edge rows and columns are background, its
+    coordinates moved by ``shift``."""
     h, w = m.shape
-    case = m[:-1, :-1] + 2 * m[:-1, 1:] + 4 * m[1:, :-1] + 8 * m[1:, 1:]
-    r, c = np.nonzero((case > 0) & (case < 15))
+    case = m[:-1, :-1] + 2 * m[:-1, 1:]
+    case += 4 * m[1:, :-1]
+    case += 8 * m[1:, 1:]
+    # cases 1 … 14 hold segments: case − 1 < 14 in uint8 arithmetic (0 wraps to 255)
+    r, c = np.nonzero((case - np.uint8(1)) < 14)
     if r.size == 0:
         raise InputError("The mask is empty: no pixel belongs to the object.")
     kind = case[r, c]
-    n_saddles = int(np.count_nonzero((kind == 6) | (kind == 9)))
+    n_saddles = int(np.count_nonzero(_SADDLE[kind]))
     # vertex ids: the crack between (r, c) and (r, c + 1), at (r, c + ½): r·w + c; the crack
     # between (r, c) and (r + 1, c), at (r + ½, c): h·w + r·w + c
     rc = r * w + c
+    if not n_saddles:
+        # one segment per cell, cells in raster order: a table indexed by vertex id gives
+        # each segment's successor, and the walk from the first cell is the first loop
+        base = np.array([0, w, h * w, h * w + 1])
+        frm = _FROM[0, kind]
+        start = base[frm] + rc
+        at = np.empty(2 * h * w, np.intp)
+        at[start] = np.arange(len(start))
+        succ = at[base[_TO[0, kind]] + rc].tolist()
+        # (succ is a permutation: the walk from 0 comes back to 0)
+        loop = [0]
+        j = succ[0]
+        while j:
+            loop.append(j)
+            j = succ[j]
+        if len(loop) == len(succ):
+            loop = np.array(loop)
+            side = frm[loop]
+            points = np.empty((len(loop), 2))
+            np.add(r[loop], _ROW[side], out=points[:, 0])
+            np.add(c[loop], _COL[side], out=points[:, 1])
+            if shift:
+                points += shift
+            return BoundaryTrace(points, True, 0)
     side_id = np.stack([rc, rc + w, h * w + rc, h * w + rc + 1])
     starts, ends, keys = [], [], []
     for k in range(2):

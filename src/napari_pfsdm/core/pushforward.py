@@ -24,6 +24,8 @@ object, in the contour's normalised coordinates; a point of the disk is a comple
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy import sparse
 from scipy.interpolate import LinearNDInterpolator
@@ -39,6 +41,8 @@ __all__ = ["MAPPINGS", "FourierMap", "BijectiveMap", "display_turn", "make_map",
 
 def _as_complex(points: np.ndarray) -> np.ndarray:
     points = np.asarray(points, float)
+    if points.ndim == 2 and points.shape[1] == 2 and points.flags.c_contiguous:
+        return points.view(complex)[:, 0]  # the same numbers, without the arithmetic
     return points[..., 0] + 1j * points[..., 1]
 
 
@@ -58,8 +62,7 @@ class FourierMap:
 
     def __init__(self, coefficients: np.ndarray) -> None:
         self.coefficients = np.asarray(coefficients, complex)
-        m = len(self.coefficients)
-        self._n = np.rint(np.fft.fftfreq(m, 1.0 / m)).astype(int)
+        self._n = _mode_numbers(len(self.coefficients))
 
     def _damping(self, radii: np.ndarray) -> np.ndarray:
         """r^|n| on the rings: (n_r, M)."""
@@ -90,10 +93,29 @@ class FourierMap:
 
     def polar_and_jacobian(self, radii: np.ndarray,
                            n_angles: int) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`polar` and :meth:`jacobian_sign` at once (the damping r^|n| is shared)."""
-        damp = self._damping(radii)
-        return self._polar(damp, n_angles), self._jacobian(np.asarray(radii, float), damp,
-                                                          n_angles)
+        """:meth:`polar` and :meth:`jacobian_sign` at once (one product with the rings' cached
+        factors r^|n|, |n| r^(|n|-1) and n r^|n|, one inverse FFT)."""
+        m = len(self.coefficients)
+        if m % n_angles:
+            damp = self._damping(radii)
+            return self._polar(damp, n_angles), self._jacobian(np.asarray(radii, float), damp,
+                                                              n_angles)
+        factors = _ring_factors(tuple(np.asarray(radii, float).tolist()), m)
+        # _on_angles(coefficients · factors): the modes folded onto n_angles by two real
+        # products summed over the folds (the same sums, without the (3, n_r, m) product)
+        rows = factors.shape[0] * factors.shape[1]
+        folds = factors.reshape(rows, m // n_angles, n_angles)
+        c = self.coefficients.reshape(m // n_angles, n_angles)
+        folded = np.empty((rows, n_angles), complex)
+        folded.real = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.real))
+        folded.imag = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.imag))
+        z = (np.fft.ifft(folded, axis=-1) * n_angles).reshape(*factors.shape[:2], n_angles)
+        # det = Im(conj(∂X/∂r) · ∂X/∂θ) with ∂X/∂θ = i Σ n a_n r^|n| e^{inθ}
+        x_r, x_t = z[1], z[2]
+        jacobian = x_r.real * x_t.real
+        jacobian += x_r.imag * x_t.imag
+        # the shape points (n_r, n_angles, 2): the complex samples' own memory, as pairs
+        return z[0].view(float).reshape(*z.shape[1:], 2), jacobian
 
     def __call__(self, uv: np.ndarray, chunk: int = 2048) -> np.ndarray:
         """Shape points of arbitrary disk points ``uv`` (K, 2)."""
@@ -115,6 +137,26 @@ class FourierMap:
         closed = np.append(nodes, nodes[:1])
         t = np.mod(theta, 2 * np.pi)
         return np.column_stack([np.interp(t, grid, closed.real), np.interp(t, grid, closed.imag)])
+
+
+@lru_cache(maxsize=32)
+def _mode_numbers(m: int) -> np.ndarray:
+    """The mode number n of each of m coefficients in ``fftfreq`` order (read-only)."""
+    n = np.rint(np.fft.fftfreq(m, 1.0 / m)).astype(int)
+    n.flags.writeable = False
+    return n
+
+
+@lru_cache(maxsize=32)
+def _ring_factors(radii: tuple[float, ...], m: int) -> np.ndarray:
+    """(3, n_r, m), read-only: r^|n| (the damping of :class:`FourierMap`), |n| r^(|n|-1) (for
+    ∂X/∂r) and n r^|n| (for ∂X/∂θ, without its factor i) on the rings, for m modes."""
+    n = _mode_numbers(m)
+    r = np.asarray(radii, float)[:, None]
+    damp = r ** np.abs(n)[None, :]
+    out = np.stack([damp, np.abs(n) * damp / r, n * damp])
+    out.flags.writeable = False
+    return out
 
 
 def _on_angles(coefficients: np.ndarray, n_angles: int) -> np.ndarray:

@@ -24,6 +24,9 @@ skeleton), or to reproduce the paper.
 
 from __future__ import annotations
 
+import threading
+from functools import lru_cache
+
 import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import k1e
@@ -31,9 +34,38 @@ from skimage.measure import points_in_poly
 
 from ..errors import InputError
 from .choices import SDF_KINDS
-from .contour import signed_area
 
 __all__ = ["ExactSDF", "ViscousSDF", "make_sdf", "SDF_KINDS"]
+
+
+#: Points per block of the brute-force nearest-vertex search: a block's distances
+#: (256 points × at most 512 vertices, float32) fit one preallocated buffer of 512 KB.
+_BLOCK = 256
+_SCRATCH = threading.local()
+
+
+def _scratch(size: int) -> np.ndarray:
+    """A float32 buffer of at least ``size`` values, kept per thread: a fresh block-sized
+    temporary costs more (allocation and page faults) than the arithmetic done in it."""
+    buf = getattr(_SCRATCH, "buf", None)
+    if buf is None or buf.size < size:
+        buf = _SCRATCH.buf = np.empty(max(size, _BLOCK * ExactSDF.BRUTE_FORCE_VERTICES),
+                                      np.float32)
+    return buf
+
+
+@lru_cache(maxsize=16)
+def _ring_neighbours(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For m points on a closed ring (read-only): the next and the previous index of each, the
+    indices (2m,) of [previous, self] (the two edges at each vertex), and the indices (6m,)
+    into [edge normals, vertex normals] of :attr:`ExactSDF._normal`'s table."""
+    i = np.arange(m)
+    nxt, prv = np.roll(i, -1), np.roll(i, 1)
+    pair = np.concatenate([prv, i])
+    normal = np.concatenate([i + m, nxt + m, prv, i, prv + m, i + m])
+    for a in (nxt, prv, pair, normal):
+        a.flags.writeable = False
+    return nxt, prv, pair, normal
 
 
 class ExactSDF:
@@ -60,24 +92,40 @@ class ExactSDF:
     BRUTE_FORCE_VERTICES = 512
 
     def __init__(self, polygon: np.ndarray) -> None:
-        p = self.polygon = np.ascontiguousarray(polygon, dtype=float)
+        p = self.polygon = np.ascontiguousarray(polygon, dtype=float).reshape(-1, 2)
         m = len(p)
-        self._next = np.concatenate([np.arange(1, m), [0]])
-        self._prev = np.concatenate([[m - 1], np.arange(m - 1)])
-        edge = self._edge = p[self._next] - p
-        self._edge_sq = edge[:, 0] ** 2 + edge[:, 1] ** 2
-        normal = np.column_stack([edge[:, 1], -edge[:, 0]])  # outward for counter-clockwise
-        self._edge_normal = normal / np.sqrt(self._edge_sq)[:, None]
-        vertex = self._edge_normal + self._edge_normal[self._prev]
-        self._vertex_normal = vertex / np.maximum(
-            np.sqrt(vertex[:, 0] ** 2 + vertex[:, 1] ** 2), 1e-12)[:, None]
-        self._orientation = np.sign(signed_area(p)) or 1.0
+        self._next, self._prev, pair, table = _ring_neighbours(m)
+        # points as complex numbers first axis + i·second; edge i runs from vertex i to i + 1
+        z = p.view(complex)[:, 0]
+        e = z[self._next] - z
+        # per vertex k the two edges at it, (k − 1 → k) and (k → k + 1), as _pair[:, 0 or 1, k]:
+        # their start a, the edge e and 1/e (t = Re((p − a)/e) is p's position along it)
+        own = np.empty((3, m), complex)
+        own[0] = z
+        own[1] = e
+        np.divide(1.0, e, out=own[2])
+        self._pair = np.take(own, pair, axis=1).reshape(3, 2, m)
+        # outward unit normals for counter-clockwise (−i e/|e|) and at the vertices the
+        # bisector of the two edges' normals; conjugated, so that Re(g n̄) = g · n
+        normals = np.empty(2 * m, complex)
+        normal, vertex = normals[:m], normals[m:]
+        np.multiply(e, -1j, out=normal)
+        normal /= np.abs(e)
+        np.add(normal, normal[self._prev], out=vertex)
+        vertex /= np.maximum(np.abs(vertex), 1e-12)
+        # the pseudo-normal of the closest point on edge slot s of vertex k, by where it lies
+        # along the edge (class 0: at its end, 1: inside, 2: at its start): _normal[c, s, k]
+        self._normal = np.conj(normals[table])
+        # the sign of the shoelace sum Σ x_i y_(i+1) − x_(i+1) y_i = Σ Im(z̄_i e_i)
+        self._orientation = -1.0 if np.vdot(z, e).imag < 0 else 1.0
         if m <= self.BRUTE_FORCE_VERTICES:
             # relative to the polygon's mean, so that single precision holds in any units
-            self._origin = p.mean(axis=0)
+            self._origin = np.add.reduce(p, axis=0) / m
             p32 = (p - self._origin).astype(np.float32)
-            self._sq32 = (p32 ** 2).sum(axis=1)
-            self._twice32 = 2.0 * p32.T
+            # [x, y, 1] · [−2q_x, −2q_y, |q|²] = |p − q|² − |p|²: one product per block
+            self._rhs32 = np.empty((3, m), np.float32)
+            np.multiply(p32.T, -2.0, out=self._rhs32[:2])
+            self._rhs32[2] = (p32 ** 2).sum(axis=1)
             self._tree = None
         else:
             self._tree = cKDTree(p)
@@ -93,53 +141,68 @@ class ExactSDF:
         arc : ndarray, shape (K,)
             Position of the closest point along the polygon, in vertex units (0 … M).
         """
-        return self._closest(np.asarray(points, dtype=float).reshape(-1, 2))[:3]
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        c, d, _, edge, t = self._closest(pts, full=True)
+        return c, d, np.mod(edge + t, len(self.polygon))
 
     def _nearest_vertex(self, pts: np.ndarray) -> np.ndarray:
         """Index of each point's nearest polygon vertex."""
         if self._tree is not None:
             return self._tree.query(pts)[1]
-        k = np.empty(len(pts), np.intp)
-        # blocks of at most 2^17 point-vertex pairs: OpenBLAS runs such small products on one
-        # thread (threads would burn twice the CPU time for nothing, measured)
-        chunk = max(1, 2**17 // len(self.polygon))
-        p32 = (pts - self._origin).astype(np.float32)
-        for i in range(0, len(pts), chunk):
-            # |p − q|² − |p|²: the same order of vertices for each point
-            k[i:i + chunk] = np.argmin(self._sq32 - p32[i:i + chunk] @ self._twice32, axis=1)
+        n = len(pts)
+        m = len(self.polygon)
+        k = np.empty(n, np.intp)
+        # blocks of 256 points: OpenBLAS runs such small products on one thread (threads would
+        # burn twice the CPU time for nothing, measured), in one reused buffer
+        buf = _scratch(_BLOCK * m)
+        # rows x, y, 1 relative to the origin, in single precision (one cast of contiguous rows)
+        p32 = np.empty((3, n), np.float32)
+        np.subtract(pts.T, self._origin[:, None], out=p32[:2], casting="same_kind")
+        p32[2] = 1.0
+        for i in range(0, n, _BLOCK):
+            block = p32[:, i:i + _BLOCK].T
+            d = buf[:len(block) * m].reshape(len(block), m)
+            np.matmul(block, self._rhs32, out=d)
+            np.argmin(d, axis=1, out=k[i:i + len(block)])
         return k
 
-    def _closest(self, pts: np.ndarray):
-        """Closest points, distances, arc positions and the outward pseudo-normals there."""
+    def _closest(self, pts: np.ndarray, full: bool = False):
+        """Closest points (K, 2) (None unless ``full``), unsigned distances, which points are
+        inside, and (None unless ``full``) the edge of each closest point and the position
+        t ∈ [0, 1] along it."""
         k = self._nearest_vertex(pts)
-        # the two edges at the nearest vertex: (prev → k) and (k → next)
-        found = []
-        for a in (self._prev[k], k):
-            pa, e = self.polygon[a], self._edge[a]
-            rel = pts - pa
-            t = np.clip((rel[:, 0] * e[:, 0] + rel[:, 1] * e[:, 1]) / self._edge_sq[a], 0, 1)
-            c = pa + t[:, None] * e
-            gap = pts - c
-            found.append((a, t, c, np.sqrt(gap[:, 0] ** 2 + gap[:, 1] ** 2)))
-        (a0, t0, c0, d0), (a1, t1, c1, d1) = found
+        zp = np.ascontiguousarray(pts).view(complex)[:, 0]
+        # the two edges at the nearest vertex, (prev → k) and (k → next), as rows 0 and 1
+        a, e, inv = np.take(self._pair, k, axis=2)  # (C-contiguous, unlike [:, :, k])
+        g = zp - a
+        t = np.maximum((g * inv).real, 0.0)  # clipped to [0, 1]
+        np.minimum(t, 1.0, out=t)
+        c = t * e
+        c += a
+        np.subtract(zp, c, out=g)
+        d = np.abs(g)
         # the second edge wins only when strictly nearer (as a sequential scan would keep it)
-        pick = d1 < d0
-        best_c = np.where(pick[:, None], c1, c0)
-        best_d = np.where(pick, d1, d0)
-        best_t = np.where(pick, t1, t0)
-        best_a = np.where(pick, a1, a0)
+        pick = d[1] < d[0]
+        t, d, g = np.where(pick, t[1], t[0]), np.where(pick, d[1], d[0]), np.where(
+            pick, g[1], g[0])
         # the pseudo-normal at the closest point: the edge's normal, or at a vertex the
         # bisector of its two edges' normals; its side gives the sign exactly
-        best_n = np.where(((best_t > 0) & (best_t < 1))[:, None], self._edge_normal[best_a],
-                          np.where((best_t <= 0)[:, None], self._vertex_normal[best_a],
-                                   self._vertex_normal[self._next[best_a]]))
-        return best_c, best_d, np.mod(best_a + best_t, len(self.polygon)), best_n
+        m = len(self.polygon)
+        where = np.add(t < 1, t <= 0, dtype=np.intp)  # 0: t = 1, 1: inside, 2: t = 0
+        where *= 2
+        where += pick
+        where *= m
+        where += k
+        g *= self._normal[where]
+        inside = g.real > 0 if self._orientation < 0 else g.real < 0
+        if not full:
+            return None, d, inside, None, None
+        closest = np.where(pick, c[1], c[0])
+        return closest.view(float).reshape(-1, 2), d, inside, np.where(pick, k, self._prev[k]), t
 
     def _signed(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c, d, _, normal = self._closest(pts)
-        gap = pts - c
-        side = (gap[:, 0] * normal[:, 0] + gap[:, 1] * normal[:, 1]) * self._orientation
-        return c, d, np.where(side < 0, -1.0, 1.0)
+        c, d, inside, _, _ = self._closest(pts, full=True)
+        return c, d, np.where(inside, -1.0, 1.0)
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """Boolean: which points lie inside the polygon."""
@@ -148,8 +211,8 @@ class ExactSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign = self._signed(pts)
-        return sign * d
+        _, d, inside, _, _ = self._closest(pts)
+        return np.negative(d, out=d, where=inside)
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """Gradient ∇φ at ``points`` (K, 2): the unit vector away from the closest point,
@@ -273,9 +336,8 @@ class ViscousSDF:
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """Viscous signed distance at ``points`` (K, 2): negative inside."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        _, d, sign = self.exact._signed(pts)
-        inside = sign < 0
-        phi = sign * d
+        _, d, inside, _, _ = self.exact._closest(pts)
+        phi = np.where(inside, -d, d)
         # Within a fraction of the refined node spacing the quadrature is not resolved; there
         # the viscous and exact distances agree to O(d·ν·κ), far below the sampling error.
         far = d > 0.5 * self.h / self._refine
