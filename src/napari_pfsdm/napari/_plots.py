@@ -27,6 +27,8 @@ from ._results import explanation
 #: that graph instead of an n × n matrix.
 GRAPH_ROWS = 2000
 GRAPH_K = 15
+#: The plots dock's least height (px).
+MIN_HEIGHT = 330
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -515,6 +517,9 @@ class PlotsWidget(QWidget):
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(scrolled(inner, 150))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
+        # room for a readable plot beside the other docks (theirs scroll): at 1280 × 800 the
+        # three docks' least heights add up to about 700 px
+        self.setMinimumHeight(MIN_HEIGHT)
         self.analysis: Analysis | None = None
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())

@@ -14,7 +14,7 @@ from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
 from napari_matplotlib.base import BaseNapariMPLWidget
 from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QFileDialog, QVBoxLayout, QWidget
+from qtpy.QtWidgets import QFileDialog, QSizePolicy, QVBoxLayout, QWidget
 
 from . import _pictures
 from ._analysis import scrolled
@@ -42,7 +42,7 @@ class PredictionWidget(QWidget):
     """Dock: train on the frames chosen, show how well each channel predicts, write p_<group>."""
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
-        return QSize(360, 320)
+        return QSize(360, 280)
 
     def __init__(self, napari_viewer) -> None:
         super().__init__()
@@ -77,6 +77,8 @@ class PredictionWidget(QWidget):
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(scrolled(inner, 150))
+        # a plots dock beside gets the room this one does not need (its content scrolls)
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.worker = None
         self._stop = False
         self.give.changed.connect(self.give_selected_class)
