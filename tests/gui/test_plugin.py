@@ -324,3 +324,16 @@ def test_clusters_plotter_selects_exactly_the_rows_of_each_frame(qtbot, viewer_w
         picked = {colours[r] for r in rows if chosen[r]}
         others = {colours[r] for r in rows if not chosen[r]}
         assert picked and others and not (picked & others), f
+
+
+def test_removing_the_analysed_layer_forgets_its_results(qtbot, viewer_widget):
+    from napari_pfsdm.napari._model import REGISTRY
+
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    layer_id = viewer.layers["gastruloids"].unique_id
+    viewer.layers.remove("gastruloids")
+    assert REGISTRY.get(layer_id) is None and w.bound is None
+    assert plots.analysis is None and plots.layer_choice.choices == ()
+    assert "gastruloids" not in w.labels.choices

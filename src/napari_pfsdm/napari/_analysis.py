@@ -439,11 +439,7 @@ class AnalysisWidget(QWidget):
                  error=msg.startswith("Warning"))
 
     def _on_removed(self, event) -> None:
-        layer = event.value
-        if self.bound is not None and self.bound[0] is layer:
-            self._on_registry("")
-            self.bound = None
-        REGISTRY.forget(layer.unique_id)
+        REGISTRY.forget(event.value.unique_id)  # _on_registry unbinds this dock from it
 
     # ------------------------------------------------------------------ after
     def _export_dialog(self, *args) -> None:
