@@ -25,6 +25,7 @@ import hashlib
 import json
 import os
 import re
+import threading
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -127,23 +128,69 @@ def _count_task(labels: _Reader, start: int, stop: int, frame_bytes: int) -> lis
     return out
 
 
+#: The frames a worker process read last, with their objects' boxes: a frame split between
+#: tasks (the plan cuts large frames) is read and searched for its objects once per worker,
+#: not once per task. ``{(labels, intensity, frame): (frame, image, boxes)}``, at most
+#: :data:`_RECENT_FRAMES` entries.
+_RECENT: dict = {}
+_RECENT_FRAMES = 2
+_RECENT_LOCK = threading.Lock()
+
+
+def _recent_key(labels: _Reader, intensity: _Reader | None, t: int) -> tuple | None:
+    """The key of frame ``t`` in :data:`_RECENT`, for movies read from their files only."""
+    if labels.source is None or (intensity is not None and intensity.source is None):
+        return None
+    return (labels.source._cache_key(),
+            None if intensity is None else intensity.source._cache_key(), int(t))
+
+
 def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple],
                   options: dict, block_kw: dict, frame_bytes: int) -> RowBlock:
     """Worker task: read the frames of ``parts`` (``(frame, labels wanted)``; None: all of
     the frame's) and measure their objects with the process pool's own code
-    (:func:`napari_pfsdm.analysis.parallel._measure_task`); the rows as one block."""
+    (:func:`napari_pfsdm.analysis.parallel._measure_task`: whole frames, or the crops of the
+    objects wanted, as the pool sends them); the rows as one block."""
     from ..analysis import parallel
+    from ..analysis.features import _crop_of, _one_blas_thread, object_boxes
 
     rows: list = []
     wanted = dict(parts)
-    for a, b in _runs([t for t, _ in parts], frame_bytes):
-        lab = labels.load(a, b)
-        img = intensity.load(a, b) if intensity is not None else None
-        for t in range(a, b):
-            frame = lab[t - a]
-            ids = wanted[t] if wanted[t] is not None else _frame_ids(frame, t)
-            entry = ("frame", t, frame, None if img is None else img[t - a], ids)
-            rows += parallel._measure_task([entry], options)
+    with _one_blas_thread():  # once per task (about 1 ms), not once per frame
+        for a, b in _runs([t for t, _ in parts], frame_bytes):
+            key = _recent_key(labels, intensity, a) if b - a == 1 else None
+            with _RECENT_LOCK:
+                hit = _RECENT.get(key) if key is not None else None
+            if hit is None:
+                lab = labels.load(a, b)
+                img = intensity.load(a, b) if intensity is not None else None
+            for t in range(a, b):
+                if hit is not None:
+                    frame, image, boxes = hit
+                else:
+                    frame, image = lab[t - a], None if img is None else img[t - a]
+                    boxes = None
+                if wanted[t] is None:  # the whole frame
+                    ids = _frame_ids(frame, t)
+                    entry = ("frame", t, frame, image, ids)
+                    rows += parallel._measure_task([entry], options)
+                    continue
+                if boxes is None:  # a frame of a plan by objects: maybe split, keep it
+                    boxes = dict(object_boxes(frame.astype(np.uint8) if frame.dtype == bool
+                                              else frame))
+                    key = _recent_key(labels, intensity, t)
+                    if key is not None:
+                        with _RECENT_LOCK:
+                            while len(_RECENT) >= _RECENT_FRAMES:
+                                _RECENT.pop(next(iter(_RECENT)))
+                            _RECENT[key] = (frame, image, boxes)
+                crops = []
+                for label in wanted[t]:
+                    box = boxes[int(label)]
+                    big = _crop_of(box, frame.shape)
+                    crops.append((int(label), box, big, np.array(frame[big]),
+                                  None if image is None else np.array(image[big])))
+                rows += parallel._measure_task([("crops", t, frame.shape, crops)], options)
     return block_of(rows, **block_kw)
 
 
