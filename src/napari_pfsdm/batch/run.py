@@ -1,10 +1,12 @@
 """Measure movies in parallel with dask, on this machine or on any dask.distributed cluster.
 
-:func:`measure_dask` splits a (T, Y, X) movie into chunks of whole frames and runs the core's
-:func:`napari_pfsdm.measure` on each chunk in parallel, then concatenates the tables in frame
-order (so the result is the same whichever scheduler ran it). Each task reads its own frames
-(from the file, inside the worker), so memory stays bounded by a few chunks per worker even for
-a movie larger than RAM.
+:func:`measure_dask` measures a movie in tasks planned as the napari plugin's process pool
+plans them (:func:`napari_pfsdm.analysis.parallel.plan_tasks`: tasks of similar numbers of
+objects, a large frame cut between tasks), with the pool's code for the objects, and joins the
+tasks' row blocks in frame then label order, so the table is the pool's and
+:func:`napari_pfsdm.measure`'s whichever scheduler ran it. Each task reads its own frames
+(from the file, inside the worker), a few at a time, so memory stays bounded even for a movie
+larger than RAM.
 
 :func:`run_batch` measures a list of movies into one table with a ``movie`` column. It writes
 one part file per finished movie (Parquet when pyarrow is installed, else CSV, each with a
