@@ -290,6 +290,10 @@ def measure_dask(
         if fault is None:
             raise
         raise fault from exc
+    finally:
+        if kind == "local" and obj != "processes":  # run here: keep no frame after the run
+            with _RECENT_LOCK:
+                _RECENT.clear()
     if not blocks:  # no object at all: measure's empty table
         return block_of([], **block_kw).table
     return join_blocks(blocks).table
