@@ -16,6 +16,7 @@ import napari_pfsdm
 import napari_pfsdm.errors
 from napari_pfsdm.analysis import features as features_module
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
+from napari_pfsdm.batch import run as run_module
 from napari_pfsdm.batch.io import check_labels
 from napari_pfsdm.core.params import as_params
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
@@ -203,18 +204,18 @@ def test_check_labels_refuses_bad_inputs():
 # ------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("scheduler", ["threads", "sync"])
-@pytest.mark.parametrize("frames_per_task", [1, 2, 3])
-def test_measure_dask_offsets_frames(monkeypatch, scheduler, frames_per_task):
-    monkeypatch.setattr(features_module, "measure", fake_measure)
+@pytest.mark.parametrize("frames_per_task", [None, 1, 2, 3])
+def test_measure_dask_offsets_frames(scheduler, frames_per_task):
     labels, intensity = make_movie(5)
-    ref = fake_measure(labels, intensity)
+    ref = napari_pfsdm.measure(labels, intensity, n_fourier=4, n_radii=4)
     seen = []
     got = measure_dask(labels, intensity, scheduler=scheduler, frames_per_task=frames_per_task,
-                       progress=lambda d, n: seen.append((d, n)))
-    assert got.attrs["pfsdm"]["radii"].tolist() == [0.25, 0.75]
-    got.attrs, ref.attrs = {}, {}
-    pd.testing.assert_frame_equal(got, ref)
-    assert seen[-1] == (5, 5) and len(seen) == -(-5 // frames_per_task)
+                       progress=lambda d, n: seen.append((d, n)), n_fourier=4, n_radii=4)
+    pd.testing.assert_frame_equal(got, ref, check_exact=True)
+    assert got.attrs["pfsdm"]["n_radii"] == 4
+    assert seen[-1] == (5, 5) and [d for d, _ in seen] == sorted(d for d, _ in seen)
+    if frames_per_task:  # one call per task of whole frames
+        assert len(seen) == -(-5 // frames_per_task)
 
 
 def test_measure_dask_matches_core_measure(tmp_path):
@@ -251,6 +252,67 @@ def test_local_cluster_gives_the_in_process_table(tmp_path):
     pd.testing.assert_frame_equal(again, ref, check_exact=False, rtol=1e-12, atol=1e-12)
 
 
+def _drain(gen):
+    try:
+        while True:
+            next(gen)
+    except StopIteration as stop:
+        return stop.value
+
+
+def test_dask_table_equals_the_process_pools_table(tmp_path, monkeypatch):
+    """measure_dask plans its tasks with the pool's planner (the same tasks for as many
+    workers), reads the frames in the workers, and gives the pool's table exactly: on a
+    LocalCluster of two worker processes, with the local 'processes' scheduler, from files
+    and from arrays in memory."""
+    distributed = pytest.importorskip("distributed")
+    from napari_pfsdm.analysis import parallel
+    from napari_pfsdm.analysis.row_blocks import join_blocks
+    from napari_pfsdm.batch import io as io_module
+    from napari_pfsdm.core.params import PFSDMParams
+    from napari_pfsdm.data.gastruloids import make_timelapse_montage
+
+    labels, intensity = make_timelapse_montage(8, 6, 160, seed=4)[:2]  # 48 objects
+    params = PFSDMParams()
+    monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)  # a small movie, still in processes
+    plans = []
+    real_plan = parallel.plan_tasks
+    monkeypatch.setattr(parallel, "plan_tasks",
+                        lambda counts, n: plans.append(real_plan(counts, n)) or plans[-1])
+    try:
+        pool = join_blocks(_drain(parallel.iter_blocks(
+            labels, intensity, params=params, axes="tyx", workers=2))).table
+        assert parallel._POOL["pool"] is not None  # it did use the pool
+    finally:
+        parallel.shutdown_pool()
+    lab = open_movie(write_zarr(tmp_path / "l.zarr", labels))
+    img = open_movie(write_zarr(tmp_path / "i.zarr", intensity))
+    read_here = []
+    real_read = io_module._Frames.__getitem__
+    monkeypatch.setattr(io_module._Frames, "__getitem__",
+                        lambda self, key: read_here.append(key) or real_read(self, key))
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        got = {"cluster, files": measure_dask(lab, img, client=client, params=params)}
+        assert read_here == []  # the workers read the frames, not this process
+        got["cluster, arrays"] = measure_dask(labels, intensity, client=client, params=params)
+    got["processes, files"] = measure_dask(lab, img, scheduler="processes", num_workers=2,
+                                           params=params)
+    got["processes, arrays"] = measure_dask(labels, intensity, scheduler="processes",
+                                            num_workers=2, params=params)
+    assert len(pool) == 48
+    for name, table in got.items():
+        pd.testing.assert_frame_equal(table, pool, check_exact=True, obj=name)
+    # one planner: each run planned the pool's tasks (2 workers: 32 tasks per worker at most,
+    # at least 16 objects per task)
+    assert len(plans) == 5
+    for plan in plans[1:]:
+        assert [[(t, ids.tolist()) for t, ids in task] for task in plan] == \
+            [[(t, ids.tolist()) for t, ids in task] for task in plans[0]]
+    assert len(plans[0]) == parallel.task_count(48, 2) == 3
+
+
 # ------------------------------------------------------------------------------------------
 # resumable batches
 # ------------------------------------------------------------------------------------------
@@ -263,14 +325,15 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     out = tmp_path / "out" / "features.csv"
     out.parent.mkdir()
     calls = []
+    real = run_module._measure_task
 
-    def dies_on_b(lab, img=None, **kw):
-        calls.append(np.asarray(lab).shape)
-        if len(calls) > 3:  # a: 3 frames measured, then b's first frame: "killed"
+    def dies_on_b(*args, **kw):
+        calls.append(1)
+        if len(calls) > 1:  # a: measured in one task, then b's first task: "killed"
             raise KeyboardInterrupt
-        return fake_measure(lab, img, **kw)
+        return real(*args, **kw)
 
-    monkeypatch.setattr(features_module, "measure", dies_on_b)
+    monkeypatch.setattr(run_module, "_measure_task", dies_on_b)
     with pytest.raises(KeyboardInterrupt):
         run_batch(movies, out, scheduler="sync", n_fourier=5)
     assert not out.exists()  # no final CSV from a killed run
@@ -278,16 +341,15 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     assert len(parts) == 2 and parts[0].startswith("a-") and parts[1].startswith("a-")
 
     calls.clear()
-    monkeypatch.setattr(features_module, "measure", fake_measure)
+    monkeypatch.setattr(run_module, "_measure_task", real)
     log = []
     table = run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=5)
     assert log[0].startswith("skipped a") and log[1].startswith("measured b")
-    n = len(fake_measure(labels))
+    n = len(napari_pfsdm.measure(labels, n_fourier=5))
     assert n == 7 and table["movie"].tolist() == ["a"] * n + ["b"] * n
     back = read_table_csv(out)
     assert back.attrs["pfsdm"]["n_fourier"] == 5
-    pd.testing.assert_frame_equal(back.drop(columns="mean"), table.drop(columns="mean"),
-                                  check_exact=False)
+    pd.testing.assert_frame_equal(back, table, check_exact=False)
 
     # a third run measures nothing; other options measure again
     log.clear()

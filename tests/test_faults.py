@@ -733,7 +733,7 @@ def test_a_scheduler_lost_during_the_run_is_a_plain_message(tmp_path, monkeypatc
     import time
 
     distributed = pytest.importorskip("distributed")
-    from napari_pfsdm.analysis import features as features_module
+    from napari_pfsdm.analysis import parallel
     from napari_pfsdm.batch import measure_dask
 
     started, gone = threading.Event(), threading.Event()
@@ -748,7 +748,7 @@ def test_a_scheduler_lost_during_the_run_is_a_plain_message(tmp_path, monkeypatc
         gone.set()
         cluster.close()
 
-    monkeypatch.setattr(features_module, "measure", slow)
+    monkeypatch.setattr(parallel, "_measure_task", slow)  # the objects of a task
     cluster = distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
                                        dashboard_address=None, protocol="tcp")
     address = cluster.scheduler_address
@@ -791,12 +791,12 @@ def test_a_full_disk_while_writing_a_part_keeps_the_finished_ones(tmp_path, monk
 
 
 def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
-    from napari_pfsdm.analysis import features as features_module
+    from napari_pfsdm.analysis import parallel
 
     def buggy(*args, **kwargs):
         return 1 // 0
 
-    monkeypatch.setattr(features_module, "measure", buggy)
+    monkeypatch.setattr(parallel, "_measure_task", buggy)
     write_tiff_movie(tmp_path / "m.tif")
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
                  "--scheduler", "sync", *CLI_FAST]) == 1

@@ -62,6 +62,7 @@ __all__ = [
     "shared_pool",
     "pool_ready",
     "shutdown_pool",
+    "task_count",
     "warm_pool",
 ]
 
@@ -146,6 +147,23 @@ def plan_tasks(counts: list[np.ndarray], n_tasks: int) -> list[list[tuple[int, n
     if current:
         tasks.append(current)
     return tasks
+
+
+def task_count(total: int, workers: int) -> int:
+    """How many tasks :func:`plan_tasks` should make of ``total`` objects for ``workers``
+    workers: about :data:`TASKS_PER_WORKER` per worker, none smaller than
+    :data:`MIN_TASK_OBJECTS` objects (unless there are fewer objects than workers) nor larger
+    than :data:`MAX_TASK_OBJECTS`. The one rule of the package: the pool here and
+    :func:`napari_pfsdm.batch.measure_dask` (dask's workers) plan their tasks with it.
+
+    Examples
+    --------
+    >>> task_count(1200, 2), task_count(10, 4), task_count(50_000, 2)
+    (64, 4, 391)
+    """
+    total, workers = int(total), max(1, int(workers))
+    return max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
+               -(-total // MAX_TASK_OBJECTS))
 
 
 def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray]:
@@ -380,10 +398,8 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     voxel = _spacing(axes, spacing)
     if voxel is not None:
         options["spacing"] = voxel
-    n_tasks = max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
-                  -(-total // MAX_TASK_OBJECTS))
     counts = _labels_per_frame(labels, n_frames, timelapse)
-    tasks = plan_tasks(counts, n_tasks)
+    tasks = plan_tasks(counts, task_count(total, workers))
     pool = shared_pool(workers)
     started = _worker_pids(pool)
     boxes: dict = {}

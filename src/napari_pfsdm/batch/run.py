@@ -1,10 +1,12 @@
 """Measure movies in parallel with dask, on this machine or on any dask.distributed cluster.
 
-:func:`measure_dask` splits a (T, Y, X) movie into chunks of whole frames and runs the core's
-:func:`napari_pfsdm.measure` on each chunk in parallel, then concatenates the tables in frame
-order (so the result is the same whichever scheduler ran it). Each task reads its own frames
-(from the file, inside the worker), so memory stays bounded by a few chunks per worker even for
-a movie larger than RAM.
+:func:`measure_dask` measures a movie in tasks planned as the napari plugin's process pool
+plans them (:func:`napari_pfsdm.analysis.parallel.plan_tasks`: tasks of similar numbers of
+objects, a large frame cut between tasks), with the pool's code for the objects, and joins the
+tasks' row blocks in frame then label order, so the table is the pool's and
+:func:`napari_pfsdm.measure`'s whichever scheduler ran it. Each task reads its own frames
+(from the file, inside the worker), a few at a time, so memory stays bounded even for a movie
+larger than RAM.
 
 :func:`run_batch` measures a list of movies into one table with a ``movie`` column. It writes
 one part file per finished movie (Parquet when pyarrow is installed, else CSV, each with a
@@ -25,6 +27,7 @@ import hashlib
 import json
 import os
 import re
+import threading
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -33,9 +36,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.row_blocks import RowBlock, block_of, join_blocks
 from ..analysis.schedulers import _client_for, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
-from ..core.table_options import carry_options, concat_tables, plain, set_options, table_options
+from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError, RunFault
 from ..io_csv import (
@@ -62,78 +66,134 @@ __all__ = ["environment_fault", "measure_dask", "run_batch", "resolve_scheduler"
 
 
 
-class _Slice:
-    """Frames ``start:stop`` of an array, loaded only when the task runs (in the worker).
+class _Reader:
+    """Frames ``start:stop`` of a movie, read where the task runs (in the worker).
 
-    Hides dask arrays from the dask graph of the task on purpose: the worker computes its own
-    slice with the synchronous scheduler, so the frames are read where they are measured and
-    never travel through the scheduler or the client.
+    A movie from :func:`~napari_pfsdm.batch.io.open_movie` travels as its file's path (its
+    ``_pfsdm_source``) and is read straight from the file; a dask array travels as the graph
+    of its slice and is computed in the worker with the synchronous scheduler; another array
+    (zarr, h5py, ...) as its slice. Frames never travel through the scheduler or the client.
     """
 
     def __init__(self, array: Any, start: int, stop: int):
-        # a movie from open_movie: read the frames straight from the file in one call
         self.source = getattr(array, "_pfsdm_source", None)
-        self.span = (start, stop)
+        self.start = int(start)
         self.array = array[start:stop] if self.source is None else None
 
-    def load(self) -> np.ndarray:
+    def load(self, a: int, b: int) -> np.ndarray:
+        """Frames ``a:b`` of the movie (numbered over the whole movie)."""
         if self.source is not None:
-            return self.source[self.span[0]:self.span[1]]
-        arr = self.array
+            return np.asarray(self.source[a:b])
+        arr = self.array[a - self.start:b - self.start]
         if hasattr(arr, "dask") and hasattr(arr, "compute"):
             return np.asarray(arr.compute(scheduler="sync"))
         return np.asarray(arr)
 
 
-def _measure_chunk(
-    labels: _Slice, intensity: _Slice | None, start: int, params: PFSDMParams,
-    axes: str = "tyx", spacing: Any = None,
-) -> pd.DataFrame:
-    """Worker task: read frames, measure them, shift ``frame`` to the movie's numbering."""
-    from ..analysis.features import measure
-
-    lab = labels.load()
-    img = intensity.load() if intensity is not None else None
-    table = measure(lab, img, axes=axes, spacing=spacing, params=params)
-    table = table.copy()
-    table["frame"] = table["frame"].astype(np.int64) + int(start)
-    return table
-
-
-def _frame_chunks(n_frames: int, frames_per_task: int) -> list[tuple[int, int]]:
-    step = max(1, int(frames_per_task))
-    return [(s, min(s + step, n_frames)) for s in range(0, n_frames, step)]
-
-
-#: Largest amount of image data (labels + intensity) one task reads at once by default.
+#: Largest amount of image data (labels + intensity) one task reads at once: a task reads its
+#: frames in runs of consecutive frames up to this size, and measures them one by one.
 TASK_BYTES = 256 * 2**20
 
 
-def default_frames_per_task(
-    labels: Any, intensity: Any, kind: str, obj: Any, num_workers: int | None
-) -> int:
-    """Frames per task: few, large enough tasks (about 4 per worker), bounded in memory.
+def _runs(frames: Sequence[int], frame_bytes: int) -> list[tuple[int, int]]:
+    """``frames`` (increasing) as runs ``(a, b)`` of consecutive frames of at most
+    :data:`TASK_BYTES` together."""
+    most = max(1, TASK_BYTES // max(int(frame_bytes), 1))
+    runs: list[tuple[int, int]] = []
+    for t in frames:
+        if runs and runs[-1][1] == t and t - runs[-1][0] < most:
+            runs[-1] = (runs[-1][0], t + 1)
+        else:
+            runs.append((t, t + 1))
+    return runs
 
-    At least the dask chunk along T (a chunk is read whole anyway), at most what fits in
-    :data:`TASK_BYTES`, and a whole number of chunks.
-    """
-    n_frames = int(labels.shape[0])
-    chunks = getattr(labels, "chunks", None)
-    chunk_t = int(chunks[0][0]) if chunks and isinstance(chunks[0], tuple) else 1
-    if kind == "local":
-        workers = 1 if obj == "sync" else (num_workers or os.cpu_count() or 1)
-    else:
-        try:
-            workers = sum(obj.nthreads().values())
-        except Exception:  # pragma: no cover - a client that cannot answer
-            workers = 8
-    frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
-    if intensity is not None:
-        frame_bytes += int(np.prod(intensity.shape[1:])) * np.dtype(intensity.dtype).itemsize
-    by_memory = max(1, TASK_BYTES // max(frame_bytes, 1))
-    by_balance = max(1, -(-n_frames // (4 * max(workers, 1))))
-    k = max(1, min(by_memory, by_balance))
-    return max(chunk_t, (k // chunk_t) * chunk_t) if chunk_t <= by_memory else chunk_t
+
+def _frame_ids(frame: np.ndarray, t: int) -> np.ndarray:
+    """The labels present in frame ``t`` (sorted); negative labels are refused, as
+    :func:`napari_pfsdm.measure` refuses them."""
+    from ..analysis.features import present_ids
+
+    if frame.dtype == bool:
+        frame = frame.astype(np.uint8)
+    if frame.size and frame.min() < 0:
+        raise InputError(
+            f"Frame {t} has negative labels; labels must be 0 (background) or positive.")
+    return present_ids(frame)
+
+
+def _count_task(labels: _Reader, start: int, stop: int, frame_bytes: int) -> list[np.ndarray]:
+    """Worker task: the labels present in frames ``start:stop``, frame by frame."""
+    out = []
+    for a, b in _runs(range(start, stop), frame_bytes):
+        block = labels.load(a, b)
+        out += [_frame_ids(block[i], a + i) for i in range(b - a)]
+    return out
+
+
+#: The frames a worker process read last, with their objects' boxes: a frame split between
+#: tasks (the plan cuts large frames) is read and searched for its objects once per worker,
+#: not once per task. ``{(labels, intensity, frame): (frame, image, boxes)}``, at most
+#: :data:`_RECENT_FRAMES` entries.
+_RECENT: dict = {}
+_RECENT_FRAMES = 2
+_RECENT_LOCK = threading.Lock()
+
+
+def _recent_key(labels: _Reader, intensity: _Reader | None, t: int) -> tuple | None:
+    """The key of frame ``t`` in :data:`_RECENT`, for movies read from their files only."""
+    if labels.source is None or (intensity is not None and intensity.source is None):
+        return None
+    return (labels.source._cache_key(),
+            None if intensity is None else intensity.source._cache_key(), int(t))
+
+
+def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple],
+                  options: dict, block_kw: dict, frame_bytes: int) -> RowBlock:
+    """Worker task: read the frames of ``parts`` (``(frame, labels wanted)``; None: all of
+    the frame's) and measure their objects with the process pool's own code
+    (:func:`napari_pfsdm.analysis.parallel._measure_task`: whole frames, or the crops of the
+    objects wanted, as the pool sends them); the rows as one block."""
+    from ..analysis import parallel
+    from ..analysis.features import _crop_of, _one_blas_thread, object_boxes
+
+    rows: list = []
+    wanted = dict(parts)
+    with _one_blas_thread():  # once per task (about 1 ms), not once per frame
+        for a, b in _runs([t for t, _ in parts], frame_bytes):
+            key = _recent_key(labels, intensity, a) if b - a == 1 else None
+            with _RECENT_LOCK:
+                hit = _RECENT.get(key) if key is not None else None
+            if hit is None:
+                lab = labels.load(a, b)
+                img = intensity.load(a, b) if intensity is not None else None
+            for t in range(a, b):
+                if hit is not None:
+                    frame, image, boxes = hit
+                else:
+                    frame, image = lab[t - a], None if img is None else img[t - a]
+                    boxes = None
+                if wanted[t] is None:  # the whole frame
+                    ids = _frame_ids(frame, t)
+                    entry = ("frame", t, frame, image, ids)
+                    rows += parallel._measure_task([entry], options)
+                    continue
+                if boxes is None:  # a frame of a plan by objects: maybe split, keep it
+                    boxes = dict(object_boxes(frame.astype(np.uint8) if frame.dtype == bool
+                                              else frame))
+                    key = _recent_key(labels, intensity, t)
+                    if key is not None:
+                        with _RECENT_LOCK:
+                            while len(_RECENT) >= _RECENT_FRAMES:
+                                _RECENT.pop(next(iter(_RECENT)))
+                            _RECENT[key] = (frame, image, boxes)
+                crops = []
+                for label in wanted[t]:
+                    box = boxes[int(label)]
+                    big = _crop_of(box, frame.shape)
+                    crops.append((int(label), box, big, np.array(frame[big]),
+                                  None if image is None else np.array(image[big])))
+                rows += parallel._measure_task([("crops", t, frame.shape, crops)], options)
+    return block_of(rows, **block_kw)
 
 
 def measure_dask(
@@ -152,16 +212,25 @@ def measure_dask(
     allow_missing_chunks: bool = False,
     **options: Any,
 ) -> pd.DataFrame:
-    """PF-SDM feature table of a movie, frames computed in parallel with dask.
+    """PF-SDM feature table of a movie, measured in parallel with dask.
 
-    Same result as :func:`napari_pfsdm.measure` (same rows, same order, same numbers), but
-    chunks of frames run in parallel, on this machine or on a dask.distributed cluster.
+    The same table as :func:`napari_pfsdm.measure` and as the process pool of
+    :func:`napari_pfsdm.analysis.parallel.iter_blocks` (same rows, same order, same numbers:
+    tested equal), on this machine or on a dask.distributed cluster. The tasks are planned as
+    the pool plans them (:func:`~napari_pfsdm.analysis.parallel.plan_tasks` with
+    :func:`~napari_pfsdm.analysis.parallel.task_count`: tasks of similar numbers of objects,
+    a large frame split between tasks); each task reads its own frames where it runs (a movie
+    from :func:`~napari_pfsdm.batch.io.open_movie`: from the file) and sends back its rows as
+    one block of arrays (:class:`~napari_pfsdm.analysis.row_blocks.RowBlock`). A first, light
+    pass of tasks lists the labels of each frame (for the plan), also where the frames are.
 
     Parameters
     ----------
     labels : array-like
         Integer label image (Y, X) or movie (T, Y, X): numpy, Zarr, or a lazy dask array (e.g.
-        from :func:`napari_pfsdm.batch.io.open_movie`); frames are read by the workers.
+        from :func:`napari_pfsdm.batch.io.open_movie`); frames are read by the workers (a
+        numpy array's frames, or its objects' crops, are sent with the tasks, as the pool
+        sends them).
     intensity : array-like, optional
         Reporter image of the same shape.
     client : distributed.Client, optional
@@ -172,10 +241,11 @@ def measure_dask(
     num_workers : int, optional
         Workers of the local threads/processes scheduler (default: the number of cores).
     frames_per_task : int, optional
-        Frames per task. Default: about four tasks per worker, whole dask chunks along T,
-        at most 256 MiB of pixels per task (:func:`default_frames_per_task`).
+        Tasks of this many whole frames each, without the first pass (default: tasks
+        planned by objects, as the pool plans them).
     progress : callable, optional
-        ``progress(frames_done, n_frames)``, called in the calling process as chunks finish.
+        ``progress(frames_done, n_frames)``, called in the calling process after each task;
+        a frame is done when all its objects are.
     pool : concurrent.futures.Executor, optional
         Re-use this process pool for the ``"processes"`` scheduler (saves start-up time when
         measuring many movies).
@@ -203,26 +273,30 @@ def measure_dask(
     _check_chunks(labels, intensity, allow_missing_chunks)
     axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
+    volume = "z" in axes
+    p.check_dimension(3 if volume else 2)
+    where_kw = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
+    block_kw = {"with_intensity": intensity is not None, "params": p, **where_kw}
     if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
         labels = labels[None]
         intensity = intensity[None] if intensity is not None else None
-        axes = "t" + axes
-    n_frames = int(labels.shape[0])
 
     where = _where(kind, obj)
     try:
-        tables = _measure_spans(labels, intensity, kind, obj, p, axes, spacing, n_frames,
-                                frames_per_task, num_workers, progress, pool)
+        blocks = _measure_planned(labels, intensity, kind, obj, p, axes, spacing,
+                                  frames_per_task, num_workers, progress, pool, block_kw)
     except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
         fault = environment_fault(exc, where)
         if fault is None:
             raise
         raise fault from exc
-    if tables:
-        table = concat_tables(tables, ignore_index=True)
-    else:  # pragma: no cover - no frames at all
-        table = pd.DataFrame()
-    return table
+    finally:
+        if kind == "local" and obj != "processes":  # run here: keep no frame after the run
+            with _RECENT_LOCK:
+                _RECENT.clear()
+    if not blocks:  # no object at all: measure's empty table
+        return block_of([], **block_kw).table
+    return join_blocks(blocks).table
 
 
 def _check_chunks(labels: Any, intensity: Any, allow: bool) -> None:
@@ -246,32 +320,166 @@ def _where(kind: str, obj: Any) -> str:
     return str(address) if address else "the dask cluster"
 
 
-def _measure_spans(
+def _workers(kind: str, obj: Any, num_workers: int | None) -> int:
+    """How many tasks run at once: the local scheduler's workers, or the cluster's threads."""
+    if kind == "local":
+        return 1 if obj == "sync" else int(num_workers or os.cpu_count() or 1)
+    try:
+        return max(1, sum(obj.nthreads().values()))
+    except Exception:  # noqa: BLE001 - pragma: no cover - a client that cannot answer
+        return 8
+
+
+def _measure_planned(
     labels: Any, intensity: Any, kind: str, obj: Any, p: PFSDMParams, axes: str,
-    spacing: Any, n_frames: int, frames_per_task: int | None, num_workers: int | None,
-    progress: Callable[[int, int], None] | None, pool: Any,
-) -> list[pd.DataFrame]:
-    """The tables of a movie's spans of frames, measured where ``kind``/``obj`` say."""
+    spacing: Any, frames_per_task: int | None, num_workers: int | None,
+    progress: Callable[[int, int], None] | None, pool: Any, block_kw: dict,
+) -> list[RowBlock]:
+    """The row blocks of a movie (``labels`` with a time axis first), measured where
+    ``kind``/``obj`` say, in tasks planned as the process pool plans them."""
+    from ..analysis import parallel
+    from ..analysis.features import _spacing
+
+    n_frames = int(labels.shape[0])
+    options = p.options()
+    voxel = _spacing(axes, spacing)
+    if voxel is not None:
+        options["spacing"] = voxel
+    frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
+    if intensity is not None:
+        frame_bytes += int(np.prod(intensity.shape[1:])) * np.dtype(intensity.dtype).itemsize
+    in_memory = isinstance(labels, np.ndarray) and (
+        intensity is None or isinstance(intensity, np.ndarray))
     with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
         kind = "local" if kind == "local" else "distributed"
-        fpt = frames_per_task or default_frames_per_task(
-            labels, intensity, kind, handle, num_workers)
-        spans = _frame_chunks(n_frames, fpt)
-        args = [
-            (
-                _Slice(labels, s, e),
-                _Slice(intensity, s, e) if intensity is not None else None,
-                s,
-                p,
-                axes,
-                spacing,
-            )
-            for s, e in spans
-        ]
-        sizes = [e - s for s, e in spans]
-        if kind == "local":
-            return _run_local(args, sizes, handle, num_workers, progress, pool)
-        return _run_distributed(args, sizes, handle, progress)
+        run = _Runner(kind, handle, num_workers, pool)
+        workers = _workers(kind, handle, num_workers)
+
+        # the labels of each frame: listed where the frames are read, by the worker processes
+        # or the cluster's workers (threads, sync: here; an array in memory: here, as the pool
+        # lists them)
+        counts: list[np.ndarray] | None = None
+        if in_memory:
+            counts = [_frame_ids(labels[t], t) for t in range(n_frames)]
+        elif not frames_per_task and kind == "local" and handle != "processes":
+            counts = _count_task(_Reader(labels, 0, n_frames), 0, n_frames, frame_bytes)
+        elif not frames_per_task:
+            spans = _spans(n_frames, max(1, -(-n_frames // (4 * workers))))
+            calls = [(_count_task, (_Reader(labels, s, e), s, e, frame_bytes))
+                     for s, e in spans]
+            counts = [ids for part in run(calls, "count") for ids in part]
+
+        if frames_per_task:  # whole frames, as many as asked per task
+            tasks = [[(t, None if counts is None else counts[t]) for t in range(s, e)]
+                     for s, e in _spans(n_frames, frames_per_task)]
+        else:
+            total = sum(len(c) for c in counts)
+            tasks = parallel.plan_tasks(counts, parallel.task_count(total, workers))
+        if not tasks:
+            if progress:
+                progress(n_frames, n_frames)
+            return []
+
+        if in_memory:  # what the pool sends: whole frames, or the crops of a split frame
+            boxes: dict = {}
+            calls = [(parallel._block_task, ((parallel._task_args(
+                labels, intensity, True, task, counts, boxes), options, block_kw),))
+                for task in tasks]
+        else:
+            calls = []
+            for task in tasks:
+                s, e = task[0][0], task[-1][0] + 1
+                calls.append((_measure_task, (
+                    _Reader(labels, s, e),
+                    _Reader(intensity, s, e) if intensity is not None else None,
+                    task, options, block_kw, frame_bytes)))
+        return run(calls, "task", _frame_progress(tasks, n_frames, progress))
+
+
+def _spans(n_frames: int, frames_per_task: int) -> list[tuple[int, int]]:
+    step = max(1, int(frames_per_task))
+    return [(s, min(s + step, n_frames)) for s in range(0, n_frames, step)]
+
+
+def _frame_progress(tasks: list[list[tuple]], n_frames: int,
+                    progress: Callable[[int, int], None] | None) -> Callable[[int], None]:
+    """What to call as task ``i`` finishes: ``progress(frames done, n_frames)``, a frame done
+    when every task that has some of its objects is (frames without objects: from the
+    start)."""
+    left = np.zeros(n_frames, np.int64)
+    for task in tasks:
+        for t, _ in task:
+            left[t] += 1
+    done = [int(np.sum(left == 0))]
+
+    def finished(i: int) -> None:
+        for t, _ in tasks[i]:
+            left[t] -= 1
+            done[0] += int(left[t] == 0)
+        if progress:
+            progress(done[0], n_frames)
+
+    return finished
+
+
+class _Runner:
+    """Runs a list of ``(function, args)`` calls on the local dask scheduler
+    (:func:`_run_local`) or a cluster (:func:`_run_distributed`) and gives their results in
+    order, calling ``finished(i)`` in this process as call ``i`` ends."""
+
+    def __init__(self, kind: str, handle: Any, num_workers: int | None, pool: Any):
+        self.kind, self.handle, self.num_workers, self.pool = kind, handle, num_workers, pool
+
+    def __call__(self, calls: list[tuple], name: str,
+                 finished: Callable[[int], None] | None = None) -> list:
+        if self.kind == "local":
+            return _run_local(calls, name, finished, self.handle, self.num_workers, self.pool)
+        return _run_distributed(calls, name, finished, self.handle)
+
+
+def _run_local(calls: list[tuple], name: str, finished: Callable[[int], None] | None,
+               scheduler: str, num_workers: int | None, pool: Any) -> list:
+    import dask
+    from dask.callbacks import Callback
+
+    prefix = f"pfsdm-{name}-"
+    tasks = [dask.delayed(fn, pure=False)(*args, dask_key_name=f"{prefix}{i}")
+             for i, (fn, args) in enumerate(calls)]
+
+    class _Progress(Callback):
+        def _posttask(self, key, result, dsk, state, worker_id):
+            if isinstance(key, str) and key.startswith(prefix) and finished:
+                finished(int(key.rsplit("-", 1)[1]))
+
+    kwargs: dict[str, Any] = {"scheduler": scheduler}
+    if scheduler != "sync":
+        kwargs["num_workers"] = num_workers or os.cpu_count() or 1
+    if scheduler == "processes" and pool is not None:
+        kwargs["pool"] = pool
+    with _Progress():
+        return list(dask.compute(*tasks, **kwargs))
+
+
+def _run_distributed(calls: list[tuple], name: str, finished: Callable[[int], None] | None,
+                     client: Any) -> list:
+    from distributed import as_completed
+
+    run = os.urandom(4).hex()
+    futures = [client.submit(fn, *args, pure=False, key=f"pfsdm-{name}-{i}-{run}")
+               for i, (fn, args) in enumerate(calls)]
+    index = {f.key: i for i, f in enumerate(futures)}
+    results: list[Any] = [None] * len(futures)
+    try:
+        for fut in as_completed(futures):
+            i = index[fut.key]
+            results[i] = fut.result()
+            fut.release()
+            if finished:
+                finished(i)
+    finally:
+        for f in futures:
+            f.release()
+    return results
 
 
 #: What to do after an environment's fault: a batch resumes where it stopped.
@@ -319,62 +527,6 @@ def environment_fault(exc: BaseException, where: str) -> RunFault | None:
             f"lost the connection to the dask scheduler at {where} while measuring (the "
             f"scheduler stopped or the network failed); check that it is running, {_AGAIN}")
     return None
-
-
-def _run_local(
-    args: list[tuple], sizes: list[int], name: str, num_workers: int | None,
-    progress: Callable | None, pool: Any,
-) -> list[pd.DataFrame]:
-    import dask
-    from dask.callbacks import Callback
-
-    tasks = [
-        dask.delayed(_measure_chunk, pure=False)(*a, dask_key_name=f"pfsdm-chunk-{i}")
-        for i, a in enumerate(args)
-    ]
-    total = sum(sizes)
-    done = [0]
-
-    class _Progress(Callback):
-        def _posttask(self, key, result, dsk, state, worker_id):
-            if isinstance(key, str) and key.startswith("pfsdm-chunk-") and progress:
-                done[0] += sizes[int(key.rsplit("-", 1)[1])]
-                progress(done[0], total)
-
-    kwargs: dict[str, Any] = {"scheduler": name}
-    if name != "sync":
-        kwargs["num_workers"] = num_workers or os.cpu_count() or 1
-    if name == "processes" and pool is not None:
-        kwargs["pool"] = pool
-    with _Progress():
-        return list(dask.compute(*tasks, **kwargs))
-
-
-def _run_distributed(
-    args: list[tuple], sizes: list[int], client: Any, progress: Callable | None
-) -> list[pd.DataFrame]:
-    from distributed import as_completed
-
-    futures = [
-        client.submit(_measure_chunk, *a, pure=False, key=f"pfsdm-chunk-{i}-{os.urandom(4).hex()}")
-        for i, a in enumerate(args)
-    ]
-    index = {f.key: i for i, f in enumerate(futures)}
-    results: list[pd.DataFrame | None] = [None] * len(futures)
-    total = sum(sizes)
-    done = 0
-    try:
-        for fut in as_completed(futures):
-            i = index[fut.key]
-            results[i] = fut.result()
-            fut.release()
-            done += sizes[i]
-            if progress:
-                progress(done, total)
-    finally:
-        for f in futures:
-            f.release()
-    return [r for r in results if r is not None]
 
 
 # ---------------------------------------------------------------------------------------------
