@@ -4,12 +4,17 @@
     python scripts/mutation.py                      # the documented sample (docs/testing.md)
     python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io_csv.py
     python scripts/mutation.py --list               # the mutants it would try, nothing run
+    python scripts/mutation.py --curated-only --modules analysis/tracking.py \
+        --tests tests/test_tracking.py tests/test_linking_gates.py   # targeted
 
 Each mutant is one plausible slip on one line of the package: an operator swapped (``+``/``-``,
 ``*``/``/``, ``<``/``<=``, ``==``/``!=``, ``and``/``or``), a range or slice one off, a
 number changed, a negation or a minus sign dropped, a wrong exponent; plus curated mutants
-that once survived the suite (:data:`CURATED`). They are drawn from core, analysis, batch/io.py,
-io_csv.py and cli.py (the napari plugin is tested under Qt, not here). Code that only builds
+(:data:`CURATED`): those that once survived the suite, issue 43's guards undone, and the
+four sorts of bug a reviewer planted (a linking gate dropped, a sign in the per-object
+diagnostics, a word in the explanations, a table check forgetting a channel's columns).
+They are drawn from core, analysis, batch/io.py, io_csv.py and cli.py (the napari plugin is
+tested under Qt, not here; tests/gui never runs). Code that only builds
 messages (``raise``, f-strings, ``help=``) is not mutated.
 
 How it runs (one job at a time: the machine has 2 cores):
