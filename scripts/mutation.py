@@ -4,12 +4,17 @@
     python scripts/mutation.py                      # the documented sample (docs/testing.md)
     python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io_csv.py
     python scripts/mutation.py --list               # the mutants it would try, nothing run
+    python scripts/mutation.py --curated-only --modules analysis/tracking.py \
+        --tests tests/test_tracking.py tests/test_linking_gates.py   # targeted
 
 Each mutant is one plausible slip on one line of the package: an operator swapped (``+``/``-``,
 ``*``/``/``, ``<``/``<=``, ``==``/``!=``, ``and``/``or``), a range or slice one off, a
 number changed, a negation or a minus sign dropped, a wrong exponent; plus curated mutants
-that once survived the suite (:data:`CURATED`). They are drawn from core, analysis, batch/io.py,
-io_csv.py and cli.py (the napari plugin is tested under Qt, not here). Code that only builds
+(:data:`CURATED`): those that once survived the suite, issue 43's guards undone, and the
+four sorts of bug a reviewer planted (a linking gate dropped, a sign in the per-object
+diagnostics, a word in the explanations, a table check forgetting a channel's columns).
+They are drawn from core, analysis, batch/io.py, io_csv.py and cli.py (the napari plugin is
+tested under Qt, not here; tests/gui never runs). Code that only builds
 messages (``raise``, f-strings, ``help=``) is not mutated.
 
 How it runs (one job at a time: the machine has 2 cores):
@@ -82,8 +87,11 @@ class Mutant:
         return f"{self.path}:{self.line}:{self.kind}"
 
 
-#: Curated mutants that once survived, as (path, exact old text, new text, what it is). Each
-#: must be killed; a mismatch (the line was edited) is reported, not skipped silently.
+#: Curated mutants, as (path, exact old text, new text, what it is[, function]): the kinds of
+#: one-line bugs that once survived the suite or that a reviewer planted. The old text must
+#: occur on exactly one line of the module, or of the named function (its qualified name,
+#: e.g. ``"cmd_compare"``) when the text recurs; a mismatch (the line was edited, or the
+#: text became ambiguous) stops the run with a message rather than being skipped silently.
 CURATED = [
     ("core/morphometric.py", "w = w / (1.0 - r) ** 2", "w = w / (1.0 - r)",
      "depth ring weight without its square"),
@@ -92,8 +100,8 @@ CURATED = [
     ("analysis/tracking.py", "for back in range(2, max_gap + 2):  # gap closing over missed",
      "for back in range(2, max_gap + 1):  # gap closing over missed",
      "centroid gap closing one frame short"),
-    ("analysis/reduction.py", "return scores, var[:k] / max(float(var.sum()), 1e-300)",
-     "return scores, var[:k] / max(float(var[:k].sum()), 1e-300)",
+    ("analysis/shape_space.py", "ratio = self.pca_.explained_variance_ratio_",
+     "ratio = self.pca_.explained_variance_ / self.pca_.explained_variance_.sum()",
      "explained variance divided by the kept components' variance"),
     ("analysis/rerank.py", "sigma = np.take_along_axis(off, order[:, -1:], axis=1)[:, 0]",
      "sigma = np.take_along_axis(off, order[:, :1], axis=1)[:, 0]",
@@ -101,7 +109,7 @@ CURATED = [
     ("io_csv.py", 'TEXT_COLUMNS = ("movie", "group", "error", "warnings")',
      'TEXT_COLUMNS = ("group", "error", "warnings")', '"001" movie names read as numbers'),
     ("cli.py", "boundary_weight=args.boundary_weight)",
-     "boundary_weight=None)", "compare --boundary-weight ignored"),
+     "boundary_weight=None)", "compare --boundary-weight ignored", "cmd_compare"),
     # what issue 43 added: each guard undone (tests/test_faults.py must kill them)
     ("core/intensity.py", "bad = ~np.isfinite(values)", "bad = np.isnan(values)",
      "+inf reporter pixels inside an object accepted"),
@@ -117,6 +125,131 @@ CURATED = [
      "a killed worker reported as a bug"),
     ("batch/run.py", "empty[m.name] = _empty_frames(table, lab, axes)", "empty[m.name] = []",
      "frames without objects not named"),
+    # issue 43 point 10: the four sorts of one-line bugs a reviewer planted, across analysis/
+    # and core/. (1) a gate dropped or flipped in the default linking and its checks
+    ("analysis/tracking.py", "for i, j in zip(r, c, strict=True) if d[i, j] <= dist]",
+     "for i, j in zip(r, c, strict=True)]", "centroid links kept beyond the distance gate"),
+    ("analysis/tracking.py", "r, c = linear_sum_assignment(np.where(d <= dist, d, 1e12))",
+     "r, c = linear_sum_assignment(d)", "centroid assignment blind to the distance gate",
+     "link_centroids.nearest"),
+    ("analysis/tracking.py", " for i in prev if tr[i] not in continued})", " for i in prev})",
+     "continued tracks offered to gap closing"),
+    ("analysis/tracking.py", "free = cur[tr[cur] == NO_TRACK]", "free = cur",
+     "gap closing re-links objects already linked"),
+    ("analysis/tracking.py", "else LINK_RADII * _median_radius(table))",
+     "else _median_radius(table))", "default link distance one radius, not LINK_RADII"),
+    ("analysis/tracking.py", "return float(np.sqrt(np.median(area) / np.pi)) if len(area) else",
+     "return float(np.sqrt(np.median(area))) if len(area) else",
+     "median radius without the 1/π"),
+    ("analysis/tracking.py", "area = area[np.isfinite(area) & (area > 0)]",
+     "area = area[np.isfinite(area) | (area > 0)]", "NaN areas in the median radius"),
+    ("analysis/tracking.py", "if persistence < MIN_PERSISTENCE:", "if False:",
+     "the persistence gate of check_tracking dropped"),
+    ("analysis/tracking.py", "if switched > MAX_SWITCHED:", "if switched < MAX_SWITCHED:",
+     "the switch gate of check_tracking flipped"),
+    ("analysis/tracking.py", "switched[idx] = rows[nearest] != pairs[\"row\"].to_numpy()[idx]",
+     "switched[idx] = rows[nearest] == pairs[\"row\"].to_numpy()[idx]",
+     "a label that stays on its object counted as switched"),
+    ("analysis/tracking.py", "has_next = t[\"frame\"].isin(frames[np.isin(frames + 1, frames)])",
+     "has_next = t[\"frame\"].isin(frames)", "the last frame's ids expected to persist"),
+    ("analysis/tracking.py", "radius = np.sqrt(0.5 * (pairs[\"area\"] + pairs[\"area_b\"])",
+     "radius = np.sqrt((pairs[\"area\"] + pairs[\"area_b\"])",
+     "jump radius from the summed, not the mean, area"),
+    ("analysis/tracking.py", "if gain[rows[i], cols[j]] >= min_iou]", "]",
+     "overlap pairs below min_iou linked"),
+    ("analysis/tracking.py", "if i not in matched_prev:", "if True:",
+     "overlap: matched objects offered to gap closing"),
+    ("analysis/tracking.py", "iou[:, ~free] = 0", "pass",
+     "overlap gap closing re-links objects already linked"),
+    ("analysis/tracking.py", "keep = ids > 0", "keep = ids >= 0", "background taken for an object"),
+    ("analysis/tracking.py", "if out[row] != NO_TRACK or key in taken:",
+     "if out[row] != NO_TRACK and key in taken:", "two rows given one Tracks point"),
+    # (2) a sign or a comparison in the per-object diagnostics and their warnings
+    ("core/descriptor.py", "folded = disk > 0", "folded = disk < 0",
+     "folded samples: the inside counted instead of the outside"),
+    ("core/descriptor.py", "folded |= jacobian <= 0", "folded |= jacobian < -1",
+     "a vanishing Jacobian not counted as a fold"),
+    ("core/descriptor3d.py", "float(((ball > 0) * solid[None]).sum() / len(r))",
+     "float(((ball < 0) * solid[None]).sum() / len(r))",
+     "3-D folded samples: the inside counted"),
+    ("core/descriptor3d.py", "\"crossing_fraction\": float((solid * (crossings > 1)).sum()),",
+     "\"crossing_fraction\": float((solid * (crossings >= 1)).sum()),",
+     "every ray counted as crossing more than once"),
+    ("analysis/features.py", "np.isfinite(folded) and folded > FOLDED_WARNING:",
+     "np.isfinite(folded) and folded < FOLDED_WARNING:",
+     "folding warning for the objects that do not fold"),
+    ("analysis/features.py", "if \"crossing_fraction\" in diag:",
+     "if \"crossing_fraction\" not in diag:", "2-D folding called ball samples"),
+    ("analysis/features.py", "if n_comp > 1:", "if n_comp >= 1:",
+     "every object said to be in pieces"),
+    ("analysis/features.py", "if with_intensity and obj.intensity_error:",
+     "if obj.intensity_error:", "intensity warning without an intensity channel"),
+    ("analysis/features.py", "if obj.touches_border:", "if not obj.touches_border:",
+     "border warning for inner objects"),
+    ("analysis/features.py", "over = folded[folded > FOLDED_WARNING]",
+     "over = folded[folded >= 0]", "summary: every object counted as folded"),
+    ("analysis/features.py", "(col(\"n_holes\", 0).fillna(0).astype(float) > 0)",
+     "(col(\"n_holes\", 0).fillna(0).astype(float) >= 0)",
+     "summary: every object said to have holes"),
+    ("analysis/features.py", "(col(\"n_components\", 1).fillna(1).astype(float) > 1)",
+     "(col(\"n_components\", 1).fillna(1).astype(float) >= 1)",
+     "summary: every object said to be in pieces"),
+    ("analysis/features.py", "errors = int(col(\"error\", \"\").fillna(\"\").astype(str).ne(",
+     "errors = int(col(\"error\", \"\").fillna(\"\").astype(str).eq(",
+     "summary: the measured objects counted as failed"),
+    ("core/intensity.py", "if not mean > 0:", "if mean < 0:",
+     "a zero mean reporter accepted"),
+    ("core/intensity.py", "return np.where(np.isfinite(crop), crop / mean, 0.0)",
+     "return crop / mean", "non-finite pixels around an object kept"),
+    # (3) a word in the generated explanations
+    ("analysis/interpretation.py", "side = \"right\" if r > 0 else \"left\"",
+     "side = \"left\" if r > 0 else \"right\"", "explanation: sides swapped"),
+    ("analysis/interpretation.py", "(\"minor/major axis ratio\", \"less elongated\")",
+     "(\"minor/major axis ratio\", \"more elongated\")",
+     "explanation: more elongated for a higher minor/major ratio"),
+    ("analysis/interpretation.py", "\"circularity\": (\"circularity (4πA/P²)\", \"rounder\"),",
+     "\"circularity\": (\"circularity (4πA/P²)\", \"less round\"),",
+     "explanation: less round for a higher circularity"),
+    ("analysis/interpretation.py", "(\"solidity (area / convex hull)\", \"less indented\")",
+     "(\"solidity (area / convex hull)\", \"more indented\")",
+     "explanation: more indented for a higher solidity"),
+    ("analysis/interpretation.py", "if abs(r) >= threshold:", "if r >= threshold:",
+     "explanation: a negative correlation called none"),
+    ("analysis/interpretation.py", "best = row.abs().idxmax()", "best = row.idxmax()",
+     "explanation: the most positive, not the strongest, measure"),
+    ("analysis/interpretation.py", "if ok.sum() > 2 and a.std() > 0 and b.std() > 0:",
+     "if ok.sum() > 3 and a.std() > 0 and b.std() > 0:",
+     "correlation refused for three objects"),
+    ("analysis/interpretation.py", "np.divide(minor, major, out=ratio, where=major > 0)",
+     "np.divide(major, minor, out=ratio, where=major > 0)", "aspect ratio upside down"),
+    ("analysis/interpretation.py", "float(np.sqrt(max(lam[0], 0.0) / lam[1]))",
+     "float(max(lam[0], 0.0) / lam[1])",
+     "outline aspect ratio without its square root"),
+    # (4) a table check that forgets a channel's columns
+    ("core/table_schema.py", "for channel in channels:", "for channel in list(channels)[:1]:",
+     "check_feature_table checks the first channel only", "check_feature_table"),
+    ("core/table_schema.py", "        if missing:", "        if missing and channel == \"shape\":",
+     "a cut intensity channel accepted", "check_feature_table"),
+    ("core/table_schema.py", "if re.fullmatch(rf\"{channel}_r\\d+_[nl]\\d+\", c))",
+     "if re.fullmatch(r\"shape_r\\d+_[nl]\\d+\", c))",
+     "extra intensity columns accepted"),
+    ("core/table_schema.py", "prefix = f\"{channel}_r\"", "prefix = \"shape_r\"",
+     "has_channel answers for the shape whatever the channel", "has_channel"),
+    ("core/table_schema.py", "cols + surface_columns(degree) if channel == \"shape\" else cols",
+     "cols", "3-D shape columns without the surface term"),
+    ("core/table_schema.py", "needed = (\"weights\", \"sh_degree\", \"surface_weight\") if",
+     "needed = (\"weights\", \"sh_degree\") if", "3-D options without the surface weight accepted"),
+    ("core/table_schema.py", "k if k and all(c in names for c in outline_columns(k)) else 0",
+     "k", "cut outline columns taken for a whole outline"),
+    ("core/table_schema.py", ".startswith(prefix) and str(c)[len(prefix):].isdigit()]",
+     ".startswith(prefix)]", "PC columns by prefix only"),
+    ("analysis/tables.py", "    for channel in channels:", "    for channel in channels[:1]:",
+     "failed_rows looks at the first channel only", "failed_rows"),
+    ("analysis/tables.py", "bad |= ~np.isfinite(vals).all(axis=1)",
+     "bad |= ~np.isfinite(vals).any(axis=1)", "a row with some NaN features kept"),
+    ("analysis/features.py", "(\"shape\", \"intensity\") if intensity else (\"shape\",))",
+     "(\"shape\",))",
+     "drop_failed forgets the intensity channel"),
 ]
 
 
@@ -304,19 +437,27 @@ def find_mutants(path: Path, rel: str) -> list[Mutant]:
 def curated_mutants(only: list[str] | None = None) -> list[Mutant]:
     """The :data:`CURATED` mutants (of the modules ``only``, when given)."""
     out = []
-    for rel, old, new, what in CURATED:
+    for rel, old, new, what, *where in CURATED:
         if only and rel not in only:
             continue
         path = ROOT / PKG / rel
         lines = path.read_text(encoding="utf-8").splitlines()
+        funcs = _functions(ast.parse("\n".join(lines)))
+
+        def enclosing(i: int, funcs=funcs):
+            inner = [f for f in funcs if f[0] <= i + 1 <= f[1]]
+            return max(inner, key=lambda f: f[0]) if inner else None
+
         hits = [i for i, ln in enumerate(lines) if old in ln]
+        if where:
+            hits = [i for i in hits if (enclosing(i) or (0, 0, ""))[2] == where[0]]
         if len(hits) != 1:
+            place = f"{rel} ({where[0]})" if where else rel
             raise SystemExit(f"curated mutant {what!r}: {old!r} found {len(hits)} times in "
-                             f"{rel}; update CURATED in scripts/mutation.py")
+                             f"{place}; make it unambiguous (more of the line, or the "
+                             "function's name) in CURATED in scripts/mutation.py")
         i = hits[0]
-        tree = ast.parse("\n".join(lines))
-        inner = [f for f in _functions(tree) if f[0] <= i + 1 <= f[1]]
-        fn = max(inner, key=lambda f: f[0]) if inner else None
+        fn = enclosing(i)
         out.append(Mutant(rel, i + 1, "curated", lines[i].strip(),
                           lines[i].replace(old, new).strip(), function=fn[2] if fn else "",
                           first_line=fn[3] if fn else 0, curated=what))
@@ -409,19 +550,26 @@ def run_pytest(work: Path, args: list[str], timeout: float, env_extra: dict | No
     t0 = time.perf_counter()
     try:
         out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                              "-p", "_mutation_tracer", *args], cwd=work, env=env,
+                              "-p", "no:xvfb", "-p", "_mutation_tracer", *args], cwd=work,
+                             env=env,
                              capture_output=True, text=True, timeout=timeout)
         return out.returncode, time.perf_counter() - t0, out.stdout[-2000:]
     except subprocess.TimeoutExpired:
         return -1, time.perf_counter() - t0, "timeout"
 
 
-def call_map(work: Path, timeout: float) -> dict[str, list[tuple[str, int]]]:
-    """Run the suite once in ``work`` with the tracer: test id -> [(module, first line)] of
-    the package functions it called (fixtures it used included)."""
+#: The GUI tests (napari, Qt) are never run: the mutated modules are tested without them.
+GUI_TESTS = "tests/gui"
+
+
+def call_map(work: Path, timeout: float, tests: list[str] | None = None
+             ) -> dict[str, list[tuple[str, int]]]:
+    """Run the non-GUI suite (or the test files ``tests``) once in ``work`` with the tracer:
+    test id -> [(module, first line)] of the package functions it called (fixtures it used
+    included)."""
     dest = work / "_mutation_map.json"
     code, secs, tail = run_pytest(
-        work, ["tests"], timeout,
+        work, [*(tests or ["tests"]), f"--ignore={GUI_TESTS}"], timeout,
         {"PFSDM_MUTATION_ROOT": str(work), "PFSDM_MUTATION_MAP": str(dest)})
     if code != 0:
         raise SystemExit(f"the unmutated suite does not pass in the copy ({secs:.0f} s):\n"
@@ -443,7 +591,7 @@ def tests_for(m: Mutant, calls: dict) -> list[str]:
         hit = [t for t, fs in calls.items() if (m.path, m.first_line) in fs]
     else:
         hit = [t for t, fs in calls.items() if any(f == m.path for f, _ in fs)]
-    return sorted((t for t in hit if t.startswith("tests/")),
+    return sorted((t for t in hit if t.startswith("tests/") and not t.startswith(GUI_TESTS)),
                   key=lambda t: (SECONDS.get(t, 1e9), t))
 
 
@@ -485,6 +633,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-curated", action="store_true", help="leave out the curated mutants")
     ap.add_argument("--timeout", type=float, default=300,
                     help="seconds per mutant before it counts as killed (default 300)")
+    ap.add_argument("--tests", nargs="*", metavar="FILE",
+                    help="trace and run only these test files (default: the non-GUI suite, "
+                         "tests/ without tests/gui)")
+    ap.add_argument("--curated-only", action="store_true",
+                    help="only the curated mutants (of --modules), no drawn sample")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", type=Path, help="write the results as JSON here")
     ap.add_argument("--again", type=Path, metavar="REPORT",
@@ -500,7 +653,7 @@ def main(argv: list[str] | None = None) -> int:
     chosen: list[Mutant] = [] if args.no_curated else curated_mutants(args.modules)
     taken = {(m.path, m.line) for m in chosen}
     pool_sizes = {}
-    for rel in target_files(args.modules):
+    for rel in [] if args.curated_only else target_files(args.modules):
         found = [m for m in find_mutants(ROOT / PKG / rel, rel) if (m.path, m.line) not in taken]
         pool_sizes[rel] = len(found)
         chosen += sample(found, args.per_module, rng)
@@ -542,7 +695,7 @@ def run(chosen: list[Mutant], args: argparse.Namespace) -> int:
     select = work / "_mutation_select.txt"
     t_start = time.perf_counter()
     try:
-        calls = call_map(work, timeout=3600)
+        calls = call_map(work, timeout=3600, tests=args.tests)
         for i, m in enumerate(chosen, 1):
             m.tests = tests_for(m, calls)
             if not m.tests:

@@ -1,0 +1,54 @@
+"""The words of the generated explanations (napari_pfsdm.analysis.interpretation): a PC that
+is a classic measure, up to sign, is said to follow it, with the direction in words that
+follow from the measure's definition (a higher circularity 4πA/P² is rounder, a higher
+minor/major axis ratio less elongated, a higher solidity less indented) and the side of the
+axis where the higher values lie. The PCs here are the measures themselves (r = ±1 by
+construction) or a hand-computed r."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from napari_pfsdm.analysis.interpretation import explain_components
+
+IDS = {"frame": 0, "label": [1, 2, 3, 4]}
+
+
+def explain(pc, **measures):
+    s = pd.DataFrame({**IDS, "PC1": np.asarray(pc, float)})
+    return explain_components(s, pd.DataFrame({**IDS, **measures}), n=1)[0]
+
+
+@pytest.mark.parametrize("measure, name, higher", [
+    ("circularity", "circularity (4πA/P²)", "rounder"),
+    ("aspect_ratio", "minor/major axis ratio", "less elongated"),
+    ("solidity", "solidity (area / convex hull)", "less indented"),
+])
+def test_the_words_follow_the_measures_definition_and_sign(measure, name, higher):
+    """PC1 = the measure: its higher values (the higher side of the measure) to the right;
+    PC1 = −measure: to the left, and still "follows" (|r| = 1)."""
+    values = [0.2, 0.4, 0.6, 0.8]
+    assert explain(values, **{measure: values}) == \
+        f"PC1 follows {name}, r = +1.00: {higher} to the right"
+    assert explain([-v for v in values], **{measure: values}) == \
+        f"PC1 follows {name}, r = -1.00: {higher} to the left"
+
+
+def test_the_strongest_correlation_wins_whatever_its_sign():
+    """PC1 = −solidity (r = −1); circularity (0.4, 0.5, 0.2, 0.3) has r = +0.6 with PC1 (by
+    hand: deviations ∓1.5, ∓0.5 against 0.05, 0.15, −0.15, −0.05: 0.3 / √(5 · 0.05)). The
+    explanation names solidity, on the left."""
+    pc = [-0.5, -0.6, -0.7, -0.8]
+    circ = [0.4, 0.5, 0.2, 0.3]
+    assert np.corrcoef(pc, circ)[0, 1] == pytest.approx(0.6)
+    assert explain(pc, circularity=circ, solidity=[0.5, 0.6, 0.7, 0.8]) == \
+        "PC1 follows solidity (area / convex hull), r = -1.00: less indented to the left"
+
+
+def test_three_objects_are_enough_for_a_correlation():
+    s = pd.DataFrame({"frame": 0, "label": [1, 2, 3], "PC1": [3.0, 1.0, 2.0]})
+    m = pd.DataFrame({"frame": 0, "label": [1, 2, 3], "circularity": [0.9, 0.5, 0.7]})
+    assert explain_components(s, m, n=1) == [
+        "PC1 follows circularity (4πA/P²), r = +1.00: rounder to the right"]
