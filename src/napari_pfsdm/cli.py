@@ -199,7 +199,8 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--workers", type=int, metavar="N",
                    help="local workers (default: the number of cores)")
     g.add_argument("--frames-per-task", dest="frames_per_task", type=int, metavar="N",
-                   help="frames measured per task (default: the file's chunking, else 1)")
+                   help="whole frames measured per task (default: tasks planned by objects, "
+                        "as the local process pool plans them)")
 
 
 # --------------------------------------------------------------------------------------------

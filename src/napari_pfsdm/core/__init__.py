@@ -3,9 +3,7 @@
 Pure numpy/scipy/scikit-image; never imports Qt or napari. The names below are loaded
 lazily (PEP 562, :mod:`napari_pfsdm.core._lazy`), as the package's top level is:
 ``from napari_pfsdm.core.params import PFSDMParams`` (what the napari panel needs when napari
-docks it) then imports no scipy or scikit-image, which took ~0.6 s of the viewer's freeze when
-the panel was docked from the menu in a fresh session (``python -X importtime``;
-docs/design.md §5, "So is the measuring code").
+docks it) then imports no scipy or scikit-image (~0.6 s of imports, ``python -X importtime``).
 """
 
 from __future__ import annotations
