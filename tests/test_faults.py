@@ -335,7 +335,7 @@ def test_a_worker_killed_by_the_system_is_a_plain_message():
 
 @pytest.mark.parametrize("fault", ["KilledWorker", "CommClosedError", "FutureCancelledError"])
 def test_a_lost_cluster_is_a_plain_message(fault):
-    import distributed
+    distributed = pytest.importorskip("distributed", reason="needs dask.distributed (batch extra)")
     from distributed.client import FutureCancelledError
     from distributed.comm.core import CommClosedError
 
@@ -633,6 +633,8 @@ def test_a_chunk_rewritten_with_the_same_size_and_time_is_measured_again(tmp_pat
 
 @pytest.mark.parametrize("parquet", [True, False])
 def test_a_damaged_part_is_measured_again(tmp_path, monkeypatch, parquet):
+    if parquet:
+        pytest.importorskip("pyarrow", reason="parts as Parquet need pyarrow (parquet extra)")
     from napari_pfsdm.batch import run as run_module
 
     monkeypatch.setattr(run_module, "_have_parquet", lambda: parquet)
