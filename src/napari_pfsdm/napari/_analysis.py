@@ -505,7 +505,7 @@ def _empty_frames(analysis: Analysis, labels) -> list[int]:
     if not analysis.time_lapse:
         return []
     present = set(analysis.table["frame"].astype(int).tolist())
-    return [t for t in range(labels.data.shape[0]) if t not in present]
+    return [t for t in range(_pictures.shape(labels)[0]) if t not in present]
 
 
 def _same_pixels(image, labels) -> bool:

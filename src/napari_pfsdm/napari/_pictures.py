@@ -43,6 +43,12 @@ def is_picture(layer) -> bool:
 
 
 # --------------------------------------------------------------------------- where things are
+def shape(layer) -> tuple[int, ...]:
+    """The full-resolution shape of a layer's data (the first level of a multiscale one)."""
+    return tuple(int(n) for n in (layer.level_shapes[0] if layer.multiscale
+                                  else layer.data.shape))
+
+
 def frame_axis(viewer, layer, analysis: Analysis | None) -> int | None:
     """The viewer's axis of the layer's frames (None without a time axis)."""
     time = analysis.time_lapse if analysis is not None else layer.ndim == 3
@@ -55,7 +61,7 @@ def current_frame(viewer, layer, analysis: Analysis | None) -> int:
     if ax is None:
         return 0
     t = (viewer.dims.point[ax] - layer.translate[0]) / layer.scale[0]
-    return int(np.clip(np.rint(t), 0, layer.data.shape[0] - 1))
+    return int(np.clip(np.rint(t), 0, shape(layer)[0] - 1))
 
 
 def go_to(viewer, layer, analysis: Analysis, frame: int, label: int) -> None:
@@ -68,7 +74,7 @@ def go_to(viewer, layer, analysis: Analysis, frame: int, label: int) -> None:
 
 def _cells(layer) -> dict[str, tuple[float, float, float]]:
     """World (top, left, side) of the picture cells right of the labels (last two axes)."""
-    ny, nx = layer.data.shape[-2:]
+    ny, nx = shape(layer)[-2:]
     sy, sx = layer.scale[-2:]
     ty, tx = layer.translate[-2:]
     side = CELL * ny * sy
@@ -178,7 +184,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     paths = on_sdf + on_disk + on_object
     colors = [OUTLINE] + [SKELETON] * (len(paths) - 1)
     name = n["lines"]
-    width = 0.004 * layer.data.shape[-2] * layer.scale[-2]
+    width = 0.004 * shape(layer)[-2] * layer.scale[-2]
     lines = _layer(viewer, name, Shapes, lambda: viewer.add_shapes(
         name=name, ndim=2, edge_width=width, face_color="transparent"))
     lines.data = []
@@ -215,7 +221,7 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
     _set(surf, contrast_limits=(float(values.min()),
                                 float(max(values.max(), values.min() + 1e-6))), visible=True)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    z = float(shift[0] + scale[0] * (layer.data.shape[-3] - 1) / 2)  # mid-stack
+    z = float(shift[0] + scale[0] * (shape(layer)[-3] - 1) / 2)  # mid-stack
     above = data[0][np.argmin(data[0][:, 1])] - (0, 0.08 * side, 0)  # over the surface
     caption(viewer, layer, [(z, *_above((top, left, side))),
                             (z, *_above((top + 2.25 * side, left, side))), above],
@@ -228,7 +234,7 @@ def say(viewer, layer, text: str, analysis: Analysis | None = None) -> None:
     _hide(viewer, layer.name, ["sdf", "disk", "intensity_disk", "lines", "shells", "surface"])
     spot = _above(_cells(layer)["sdf"])
     if analysis is not None and analysis.ndim == 3:
-        spot = (float(layer.translate[-3] + layer.scale[-3] * (layer.data.shape[-3] - 1) / 2),
+        spot = (float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
                 *spot)
     caption(viewer, layer, [spot], [text])
 
