@@ -155,24 +155,21 @@ def test_huge_label_ids_are_measured_as_any_others(dtype, big):
     assert count_objects(labels) == 4
 
 
-def test_one_object_of_id_1e8_is_fast_and_small():
-    import time
+def test_one_object_of_id_1e8_takes_memory_for_one_object():
+    """Memory follows the objects, not the largest id (its time: benchmarks, not here)."""
     import tracemalloc
 
     labels = np.zeros((64, 64), np.uint32)
     labels[20:40, 15:45] = 100_000_000
     tracemalloc.start()
-    t0 = time.perf_counter()
     try:
         table = pf.measure(labels, **FAST)
         n = count_objects(labels)
-        seconds = time.perf_counter() - t0
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
     assert table["label"].tolist() == [100_000_000] and n == 1
-    assert seconds < 5.0  # was 30 s
-    assert peak < 64 * 2**20  # was 4 GB
+    assert peak < 64 * 2**20  # a table sized by the largest id would be 400 MB and more
 
 
 @pytest.mark.parametrize("link", ["overlap", "centroid"])
@@ -688,7 +685,6 @@ def silent_server():
 def test_a_port_that_is_not_a_dask_scheduler_fails_within_the_timeout(
         tmp_path, monkeypatch, capsys, silent_server):
     import threading
-    import time
 
     pytest.importorskip("distributed")
     from napari_pfsdm.analysis import schedulers
@@ -702,12 +698,11 @@ def test_a_port_that_is_not_a_dask_scheduler_fails_within_the_timeout(
                                str(tmp_path / "f.csv"), "--scheduler", silent_server,
                                *CLI_FAST])
 
-    t0 = time.perf_counter()
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
-    thread.join(30)
+    thread.join(30)  # the probe's timeout is 1 s here: far longer means it hangs
     assert not thread.is_alive(), "pfsdm hangs on a port that is not a dask scheduler"
-    assert result["code"] == 2 and time.perf_counter() - t0 < 15
+    assert result["code"] == 2
     plain_error(capsys, silent_server, "not answer as a dask scheduler")
     assert not (tmp_path / "f.csv").exists()
 
@@ -755,11 +750,9 @@ def test_a_scheduler_lost_during_the_run_is_a_plain_message(tmp_path, monkeypatc
                                        dashboard_address=None, protocol="tcp")
     address = cluster.scheduler_address
     threading.Thread(target=close, daemon=True).start()
-    t0 = time.perf_counter()
     with pytest.raises(ValueError, match="run the same command again") as info:
         measure_dask(np.stack([ellipse_labels()] * 2), scheduler=address, frames_per_task=1)
     assert isinstance(info.value, pf.errors.RunFault) and address in str(info.value)
-    assert time.perf_counter() - t0 < 25
 
 
 def test_a_full_disk_while_writing_a_part_keeps_the_finished_ones(tmp_path, monkeypatch,
