@@ -74,6 +74,17 @@ def scrolled(inner: QWidget, minimum: int = 90) -> QScrollArea:
     return scroll
 
 
+def analysed_layers(viewer, _widget=None) -> list[str]:
+    """Names of the viewer's layers that have PF-SDM results (a combo box's choices)."""
+    return [lay.name for lay in viewer.layers if lay.unique_id in REGISTRY]
+
+
+def follow_registry(widget: QWidget, callback) -> None:
+    """Call ``callback(layer_id)`` at each new run or forgotten layer while ``widget`` lives."""
+    REGISTRY.updated.connect(callback)
+    widget.destroyed.connect(lambda *_: REGISTRY.updated.disconnect(callback))
+
+
 def _data(layer):
     return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
 
@@ -196,8 +207,7 @@ class AnalysisWidget(QWidget):
         layers.events.removed.connect(self._on_removed)
         napari_viewer.dims.events.current_step.connect(self._sync_selection)
         napari_viewer.cursor.events.position.connect(self._on_hover)
-        REGISTRY.updated.connect(self._on_registry)
-        self.destroyed.connect(lambda *_, cb=self._on_registry: REGISTRY.updated.disconnect(cb))
+        follow_registry(self, self._on_registry)
         self._refresh_choices()
         threading.Thread(target=_warm_pool, name="pfsdm-pool", daemon=True).start()
 

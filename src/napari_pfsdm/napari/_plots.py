@@ -8,6 +8,8 @@ Distances and components are computed in napari workers, with Cancel.
 
 from __future__ import annotations
 
+from functools import partial
+
 import matplotlib.style as mplstyle
 import numpy as np
 from magicgui.widgets import CheckBox, ComboBox, Container, Label, PushButton, SpinBox
@@ -19,7 +21,7 @@ from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QFileDialog, QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 from . import _pictures
-from ._analysis import scrolled
+from ._analysis import analysed_layers, follow_registry, scrolled
 from ._model import REGISTRY, Analysis
 from ._results import explanation
 
@@ -75,6 +77,7 @@ class _Plot(BaseNapariMPLWidget):
                 w.changed.connect(self.redraw)
         self.layout().insertWidget(0, self.controls.native)
         self.layout().addWidget(self.info.native)
+        self.layout().setStretchFactor(self.canvas, 1)  # spare height goes to the plot
         self.canvas.setMinimumHeight(160)
         self.canvas.mpl_connect("button_press_event", self._on_click)
         self.canvas.mpl_connect("resize_event", self._on_resize)
@@ -501,7 +504,7 @@ class PlotsWidget(QWidget):
     def __init__(self, napari_viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
-        self.layer_choice = ComboBox(label="Layer", choices=self._choices,
+        self.layer_choice = ComboBox(label="Layer", choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
         self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
         self.made: list = [TrajectoryPlot(napari_viewer), None, None]  # the others when shown
@@ -523,13 +526,9 @@ class PlotsWidget(QWidget):
         self.analysis: Analysis | None = None
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())
-        REGISTRY.updated.connect(self._on_registry)
-        self.destroyed.connect(lambda *_, cb=self._on_registry: REGISTRY.updated.disconnect(cb))
+        follow_registry(self, self._on_registry)
         napari_viewer.layers.events.removed.connect(self._on_registry)
         self._on_registry()
-
-    def _choices(self, _widget=None) -> list[str]:
-        return [lay.name for lay in self.viewer.layers if lay.unique_id in REGISTRY]
 
     def _on_registry(self, *args) -> None:
         self.layer_choice.reset_choices()

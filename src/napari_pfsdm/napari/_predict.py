@@ -9,6 +9,8 @@ layer's ``features`` and the export (``p_<group>``).
 
 from __future__ import annotations
 
+from functools import partial
+
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
@@ -17,7 +19,7 @@ from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QFileDialog, QSizePolicy, QVBoxLayout, QWidget
 
 from . import _pictures
-from ._analysis import scrolled
+from ._analysis import analysed_layers, follow_registry, scrolled
 from ._model import REGISTRY, Analysis
 from ._plots import read_groups_csv
 
@@ -49,7 +51,7 @@ class PredictionWidget(QWidget):
         self.viewer = napari_viewer
         self.plot = BaseNapariMPLWidget(napari_viewer)
         self.figure, self.canvas = self.plot.figure, self.plot.canvas
-        self.layer_choice = ComboBox(label="Layer", choices=self._choices,
+        self.layer_choice = ComboBox(label="Layer", choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer.")
         self.class_name = LineEdit(label="Class", value="multi-axes",
                                    tooltip="Type a class, select a label, press Give class.")
@@ -86,13 +88,9 @@ class PredictionWidget(QWidget):
         self.run_button.changed.connect(self.run)
         self.cancel_button.changed.connect(self.cancel)
         self.layer_choice.changed.connect(self._show_classes)
-        REGISTRY.updated.connect(self._refresh)
-        self.destroyed.connect(lambda *_, cb=self._refresh: REGISTRY.updated.disconnect(cb))
+        follow_registry(self, self._refresh)
         napari_viewer.layers.events.removed.connect(self._refresh)
         self._refresh()
-
-    def _choices(self, _widget=None) -> list[str]:
-        return [lay.name for lay in self.viewer.layers if lay.unique_id in REGISTRY]
 
     def _refresh(self, *args) -> None:
         self.form.reset_choices()
