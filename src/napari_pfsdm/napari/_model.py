@@ -34,7 +34,7 @@ from psygnal import Signal
 from ..core.params import PFSDMParams
 
 #: What a ``changed`` signal can name.
-WHAT = ("selection", "identity", "groups", "comparison", "prediction", "features")
+WHAT = ("selection", "identity", "groups", "comparison", "prediction")
 
 
 @dataclass
@@ -155,9 +155,7 @@ class Analysis:
         """Each row's group name ("" when its object has none)."""
         if not self.groups:
             return np.full(len(self.table), "", dtype=object)
-        key = self.objects() if "track_id" in self.table else \
-            self.table["label"].to_numpy().astype(np.int64)
-        return np.array([self.groups.get(int(k), "") for k in key], dtype=object)
+        return np.array([self.groups.get(int(k), "") for k in self.objects()], dtype=object)
 
     # ------------------------------------------------------------------ changing
     def select(self, frame: int, label: int) -> None:

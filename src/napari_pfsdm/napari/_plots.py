@@ -82,10 +82,6 @@ class _Plot(BaseNapariMPLWidget):
         self.canvas.mpl_connect("button_press_event", self._on_click)
         self.canvas.mpl_connect("resize_event", self._on_resize)
 
-    def bind(self, layer, analysis: Analysis | None) -> None:
-        self.layer, self.analysis = layer, analysis
-        self.redraw()
-
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
         self.figure.set_layout_engine("constrained")
@@ -119,9 +115,6 @@ class _Plot(BaseNapariMPLWidget):
 
     def draw(self) -> None:  # pragma: no cover - each plot draws its own
         raise NotImplementedError
-
-    def axes(self, *args):
-        return self.figure.add_subplot(*args)
 
     def set_points(self, ax, xy: np.ndarray, keys: np.ndarray) -> None:
         self.points_axes, self.xy, self.keys = ax, np.asarray(xy, float), keys
@@ -209,7 +202,7 @@ class TrajectoryPlot(_Plot):
         rows = np.array([a.row_of(f, lab) for f, lab in keys])
         objects = self.point_objects = a.objects()[rows]
         groups = a.group_of_rows()[rows]
-        ax = self.axes(111)
+        ax = self.figure.add_subplot(111)
         order = np.lexsort((keys[:, 0], objects))
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
         lines = [np.column_stack([x[s], y[s]]) for s in np.split(order, starts[1:])
@@ -338,7 +331,7 @@ class ComparisonPlot(_Plot):
         where = f"frame {key[0]}" if key[0] is not None else "all frames"
         xy = result["xy"]
         if "d" in result:
-            ax_m, ax_p = self.axes(121), self.axes(122)
+            ax_m, ax_p = self.figure.add_subplot(121), self.figure.add_subplot(122)
             im = ax_m.imshow(result["d"], cmap="viridis", interpolation="nearest")
             self.figure.colorbar(im, ax=ax_m, fraction=0.046, pad=0.02).set_label(
                 "re-ranked distance" if key[2] else "PF-SDM distance", fontsize=7)
@@ -352,7 +345,7 @@ class ComparisonPlot(_Plot):
             ax_m.set_title(f"distances, {where}", fontsize=9)
             title = "MDS map (close = similar)"
         else:
-            ax_p = self.axes(111)
+            ax_p = self.figure.add_subplot(111)
             title = f"map of each object's {GRAPH_K} nearest shapes (spectral)"
         if key[0] is None:  # all frames: colour = frame
             ax_p.scatter(*xy.T, c=keys[:, 0], s=18, cmap="viridis", edgecolors="none")
@@ -470,7 +463,7 @@ class ComponentsPlot(_Plot):
         k = self.component.value
         maps = np.asarray(space.loadings(k))
         grid = self.figure.add_gridspec(2, len(outlines), height_ratios=(1.6, 1))
-        ax = self.axes(grid[0, :])
+        ax = self.figure.add_subplot(grid[0, :])
         lim = float(np.abs(maps).max()) or 1.0
         im = ax.imshow(maps, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
         self.figure.colorbar(im, ax=ax, fraction=0.05, pad=0.02).set_label("loading",
@@ -480,7 +473,7 @@ class ComponentsPlot(_Plot):
         ax.set_title(f"PC{k} ({100 * space.explained_variance_ratio_[k - 1]:.0f} %) loadings, "
                      f"{self.kind.value}", fontsize=8)
         for i, (row, line) in enumerate(zip(modes.itertuples(), outlines, strict=True)):
-            sub = self.axes(grid[1, i])
+            sub = self.figure.add_subplot(grid[1, i])
             sub.plot(line[:, 1], -line[:, 0], lw=1.2)
             sub.set_aspect("equal")
             sub.set_xticks([])
