@@ -70,6 +70,26 @@ def test_the_pictures_are_always_the_selected_objects_after_bursts(qtbot, viewer
         assert f"label {label}" in " ".join(_layer(viewer, "captions").features["text"])
 
 
+def test_while_the_pictures_are_made_the_old_ones_are_dimmed_and_say_so(qtbot, viewer_widget):
+    """Between a new selection and its pictures, the pictures on screen are another object's:
+    they are dimmed and the caption names the object being drawn."""
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    labels = viewer.layers["gastruloids"]
+    viewer.dims.set_current_step(0, 3)
+    labels.selected_label = 1
+    wait_pictures(qtbot, w)
+    disk = _layer(viewer, "PF-SDF disk")
+    assert disk.visible and disk.opacity == 1.0
+    labels.selected_label = 4  # not made yet: no event loop has run since
+    assert disk.opacity < 0.5
+    assert "making the pictures of frame 3, label 4" in " ".join(
+        _layer(viewer, "captions").features["text"])
+    wait_pictures(qtbot, w)
+    assert disk.opacity == 1.0 and _layer(viewer, "outline and skeleton").opacity == 1.0
+    assert "frame 3 · label 4" in " ".join(_layer(viewer, "captions").features["text"])
+
+
 def test_a_trajectory_click_moves_napari_to_that_frame_and_object(qtbot, viewer_widget):
     viewer, w = viewer_widget
     run_and_wait(qtbot, w)
@@ -83,6 +103,41 @@ def test_a_trajectory_click_moves_napari_to_that_frame_and_object(qtbot, viewer_
     # and the plot marks it: a star on that very point
     star = plots.trajectories.marks[-1]
     np.testing.assert_allclose(star.get_offsets()[0], plots.trajectories.xy[i])
+
+
+def _red_pixels_near(plot, point, radius: int = 6) -> int:
+    """Pixels of the star's red (#ff3c3c) within ``radius`` px of ``point`` (data
+    coordinates) in what the canvas shows."""
+    rgba = np.asarray(plot.canvas.buffer_rgba())
+    x, y = plot.points_axes.transData.transform(point)
+    row, col = int(round(rgba.shape[0] - y)), int(round(x))
+    patch = rgba[max(row - radius, 0):row + radius + 1, max(col - radius, 0):col + radius + 1]
+    red = (patch[..., 0] > 230) & (patch[..., 1] < 100) & (patch[..., 2] < 100)
+    return int(red.sum())
+
+
+def test_the_plot_shows_the_mark_of_the_selection_and_only_of_it(qtbot, viewer_widget):
+    """What the trajectory canvas shows (its pixels): a red star on the selected object's
+    point, and none left on the object selected before."""
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    plot = plots.trajectories
+    qtbot.waitUntil(lambda: plot.background is not None, timeout=10_000)  # drawn in full
+    labels = viewer.layers["gastruloids"]
+    viewer.dims.set_current_step(0, 0)
+    in_frame = np.flatnonzero(plot.keys[:, 0] == 0)
+    screen = plot.points_axes.transData.transform(plot.xy[in_frame])
+    far = np.hypot(*(screen[:, None] - screen[None]).transpose(2, 0, 1))
+    first, second = (in_frame[k] for k in np.unravel_index(far.argmax(), far.shape))
+    assert far.max() > 60  # the two stars cannot overlap
+    for i in (first, second):
+        labels.selected_label = int(plot.keys[i, 1])
+        qtbot.wait(50)
+        assert _red_pixels_near(plot, plot.xy[i]) > 10
+    assert _red_pixels_near(plot, plot.xy[first]) == 0  # the first star is gone
+    plot.canvas.draw()  # a full drawing (zoom, resize) keeps the mark
+    assert _red_pixels_near(plot, plot.xy[second]) > 10
 
 
 def test_an_object_without_features_says_so_where_the_pictures_would_be(qtbot,

@@ -111,7 +111,8 @@ def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
         translate=(top, left), interpolation2d="nearest"))
     layer.data = data
-    _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True)
+    _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True,
+         opacity=1.0)
     _set(layer.colorbar, visible=True)
     return layer
 
@@ -190,7 +191,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     lines.data = []
     if paths:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
-    _set(lines, visible=True)
+    _set(lines, visible=True, opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}"]
     spots = [_above(cells["sdf"]), _above(cells["disk"]),
@@ -219,7 +220,8 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
         data, name=name, colormap="viridis"))
     surf.data = data
     _set(surf, contrast_limits=(float(values.min()),
-                                float(max(values.max(), values.min() + 1e-6))), visible=True)
+                                float(max(values.max(), values.min() + 1e-6))), visible=True,
+         opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
     z = float(shift[0] + scale[0] * (shape(layer)[-3] - 1) / 2)  # mid-stack
     above = data[0][np.argmin(data[0][:, 1])] - (0, 0.08 * side, 0)  # over the surface
@@ -229,9 +231,20 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
              f"{where}label {p.label}"])
 
 
-def say(viewer, layer, text: str, analysis: Analysis | None = None) -> None:
-    """No pictures for the selection: hide them and say why where they would be."""
-    _hide(viewer, layer.name, ["sdf", "disk", "intensity_disk", "lines", "shells", "surface"])
+#: The pictures' layers, by their key in :func:`names`.
+PICTURES = ("sdf", "disk", "intensity_disk", "lines", "shells", "surface")
+#: Opacity of the pictures shown while the selection's own are being made.
+DIMMED = 0.25
+
+
+def say(viewer, layer, text: str, analysis: Analysis | None = None,
+        hide: bool = True) -> None:
+    """No pictures for the selection: hide them (or, with ``hide=False``, dim them while the
+    selection's own are being made) and say why where they would be."""
+    for key in PICTURES:
+        name = names(layer.name)[key]
+        if name in viewer.layers:
+            _set(viewer.layers[name], **({"visible": False} if hide else {"opacity": DIMMED}))
     spot = _above(_cells(layer)["sdf"])
     if analysis is not None and analysis.ndim == 3:
         spot = (float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
@@ -275,7 +288,8 @@ class PictureView:
         elif key in self.cache:
             self._show(key)
         else:
-            say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis)
+            say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis,
+                hide=False)
             if self.worker is None:
                 self._start()
 

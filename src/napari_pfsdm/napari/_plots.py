@@ -16,12 +16,12 @@ from magicgui.widgets import CheckBox, ComboBox, Container, Label, PushButton, S
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_error
-from napari_matplotlib.base import BaseNapariMPLWidget
 from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QFileDialog, QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
+from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
 from ._results import explanation
 
@@ -57,7 +57,7 @@ def _percent(ratios, i: int) -> str:
     return f" ({100 * ratios[i - 1]:.0f} %)" if len(ratios) >= i else ""
 
 
-class _Plot(BaseNapariMPLWidget):
+class _Plot(PlotCanvas):
     """A napari-matplotlib canvas showing one view of an analysis; click a point to go there."""
 
     def __init__(self, viewer, controls: list) -> None:
@@ -67,7 +67,6 @@ class _Plot(BaseNapariMPLWidget):
         self.keys = np.zeros((0, 2), np.int64)  # (frame, label) of each point
         self.xy = np.zeros((0, 2))
         self.points_axes = None
-        self.marks: list = []
         self.info = Label(value="Run the PF-SDM analysis to fill this plot.")
         self.info.native.setWordWrap(True)
         self.controls = Container(widgets=controls, layout="horizontal", labels=False)
@@ -80,11 +79,9 @@ class _Plot(BaseNapariMPLWidget):
         self.layout().setStretchFactor(self.canvas, 1)  # spare height goes to the plot
         self.canvas.setMinimumHeight(160)
         self.canvas.mpl_connect("button_press_event", self._on_click)
-        self.canvas.mpl_connect("resize_event", self._on_resize)
 
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
-        self.figure.set_layout_engine("constrained")
         self.figure.clear()
         self.marks, self.points_axes = [], None
         self.keys = np.zeros((0, 2), np.int64)
@@ -97,21 +94,8 @@ class _Plot(BaseNapariMPLWidget):
             except ValueError as err:
                 self.figure.clear()
                 self.info.value = str(err)
-        if self.isVisible():  # else when it is shown (its first resize)
-            self.lay_out()
+        self.changed()
         self.highlight()
-
-    def _on_resize(self, event=None) -> None:
-        if self.isVisible():  # a hidden tab is laid out when it is shown
-            self.lay_out()
-
-    def lay_out(self, *args) -> None:
-        """Place the axes once (constrained layout), then keep them there: the highlight's
-        redraws need no layout (a resize lays them out again)."""
-        self.figure.set_layout_engine("constrained")
-        if self.figure.axes:
-            self.figure.get_layout_engine().execute(self.figure)
-        self.figure.set_layout_engine("none")
 
     def draw(self) -> None:  # pragma: no cover - each plot draws its own
         raise NotImplementedError
@@ -121,14 +105,12 @@ class _Plot(BaseNapariMPLWidget):
 
     def highlight(self) -> None:
         """Mark the selected object (and its frame's points) on the plot."""
-        for artist in self.marks:
-            artist.remove()
-        self.marks = []
         a = self.analysis
         if a is not None and a.selection is not None and self.points_axes is not None \
                 and len(self.keys):
-            self.marks = self.mark(self.points_axes, *a.selection)
-        self.canvas.draw_idle()
+            self.set_marks(self.mark(self.points_axes, *a.selection))
+        else:
+            self.set_marks([])
 
     def mark(self, ax, frame: int, label: int) -> list:
         hit = (self.keys[:, 0] == frame) & (self.keys[:, 1] == label)

@@ -14,12 +14,12 @@ from functools import partial
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
-from napari_matplotlib.base import BaseNapariMPLWidget
 from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QFileDialog, QSizePolicy, QVBoxLayout, QWidget
 
 from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
+from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
 from ._plots import read_groups_csv
 
@@ -49,7 +49,7 @@ class PredictionWidget(QWidget):
     def __init__(self, napari_viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
-        self.plot = BaseNapariMPLWidget(napari_viewer)
+        self.plot = PlotCanvas(napari_viewer)
         self.figure, self.canvas = self.plot.figure, self.plot.canvas
         self.layer_choice = ComboBox(label="Layer", choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer.")
@@ -75,7 +75,7 @@ class PredictionWidget(QWidget):
         lay.setContentsMargins(0, 0, 0, 0)
         for widget in (self.form.native, self.status.native, self.plot):
             lay.addWidget(widget)
-        self.canvas.setMinimumHeight(160)
+        self.canvas.setFixedHeight(200)  # the status above may wrap: no new layout for that
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(scrolled(inner, 150))
@@ -207,4 +207,4 @@ class PredictionWidget(QWidget):
             ax2.set_title("how early?", fontsize=8)
         for axis in self.figure.axes:
             axis.tick_params(labelsize=7)
-        self.canvas.draw_idle()
+        self.plot.changed()

@@ -1,0 +1,67 @@
+"""A napari-matplotlib canvas that lays its figure out once per new content or size, and draws
+the selection's marks over a saved background (matplotlib's blitting).
+
+Constrained layout measures every tick label, and a full Agg drawing renders every artist:
+both are paid when the figure's content or size changes, never for a new selection. The layout
+runs inside the next drawing (coalescing a burst of resizes into one), and is then switched off
+until the content or the size changes again.
+"""
+
+from __future__ import annotations
+
+from matplotlib.layout_engine import ConstrainedLayoutEngine
+from matplotlib.ticker import MaxNLocator
+from napari_matplotlib.base import BaseNapariMPLWidget
+
+#: At most this many numbered ticks on an axis: enough in a dock, and each tick label is
+#: measured by the layout and drawn.
+TICKS = 4
+
+
+class PlotCanvas(BaseNapariMPLWidget):
+    """napari-matplotlib's themed canvas and toolbar, with :meth:`changed` (new content: laid
+    out and drawn in full at the next turn of the event loop) and :meth:`set_marks` (artists
+    drawn over the last full drawing)."""
+
+    def __init__(self, napari_viewer, parent=None) -> None:
+        super().__init__(napari_viewer, parent=parent)
+        self.marks: list = []
+        self.background = None
+        self.canvas.mpl_connect("resize_event", self._on_resize)
+        self.canvas.mpl_connect("draw_event", self._on_draw)
+
+    def changed(self) -> None:
+        """The figure's content changed: lay it out and draw it in full (once, later)."""
+        for axes in self.figure.axes:
+            for axis in (axes.xaxis, axes.yaxis):
+                if isinstance(axis.get_major_locator(), MaxNLocator):  # numbers, not names
+                    axis.get_major_locator().set_params(nbins=TICKS)
+        self.background = None
+        self.figure.set_layout_engine("constrained")
+        self.canvas.draw_idle()
+
+    def _on_resize(self, event=None) -> None:
+        self.background = None
+        self.figure.set_layout_engine("constrained")  # the canvas draws after a resize
+
+    def _on_draw(self, event=None) -> None:
+        if isinstance(self.figure.get_layout_engine(), ConstrainedLayoutEngine):
+            self.figure.set_layout_engine("none")  # placed: a new selection needs no layout
+        self.background = self.canvas.copy_from_bbox(self.figure.bbox)
+        for artist in self.marks:
+            artist.axes.draw_artist(artist)
+
+    def set_marks(self, artists: list) -> None:
+        """Show ``artists`` (and remove the previous marks) without drawing the figure again."""
+        for artist in self.marks:
+            artist.remove()
+        self.marks = list(artists)
+        for artist in self.marks:
+            artist.set_animated(True)  # drawn only here, over the saved background
+        if self.background is None:
+            self.canvas.draw_idle()
+            return
+        self.canvas.restore_region(self.background)
+        for artist in self.marks:
+            artist.axes.draw_artist(artist)
+        self.canvas.update()  # painted with napari's next repaint
