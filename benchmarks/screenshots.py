@@ -11,8 +11,8 @@ repository root on a (virtual) X screen at least as large::
     xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python benchmarks/screenshots.py
 
 Writes ``docs/screenshot.png`` (1600 × 1000) and, at 1280 × 800, ``docs/screenshot_1280x800.png``
-(the plots' Trajectories tab), ``docs/screenshot_components.png`` (Components tab) and
-``docs/screenshot_prediction.png`` (Comparison tab; the prediction dock shows its result in
+(the plots' Trajectories tab), ``docs/screenshot_components.png`` (PCs tab) and
+``docs/screenshot_prediction.png`` (Distances tab; the prediction dock shows its result in
 every picture). Look at them before committing.
 """
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.ticker import MaxNLocator
 from napari_matplotlib.base import BaseNapariMPLWidget
+from qtpy.QtWidgets import QSizePolicy
 
 #: At most this many numbered ticks on an axis: enough in a dock, and each tick label is
 #: measured by the layout and drawn.
@@ -25,6 +26,8 @@ class PlotCanvas(BaseNapariMPLWidget):
 
     def __init__(self, napari_viewer, parent=None) -> None:
         super().__init__(napari_viewer, parent=parent)
+        # the figure's own size (6.4 × 4.8 in) is no request for room: the dock decides
+        self.canvas.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Ignored)
         self.marks: list = []
         self.background = None
         self.canvas.mpl_connect("resize_event", self._on_resize)

@@ -15,9 +15,8 @@ import numpy as np
 from magicgui.widgets import CheckBox, ComboBox, Container, Label, PushButton, SpinBox
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
-from napari.utils.notifications import show_error
 from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QFileDialog, QSizePolicy, QTabWidget, QVBoxLayout, QWidget
+from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
@@ -33,24 +32,10 @@ GRAPH_K = 15
 MIN_HEIGHT = 330
 
 
-def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
-    """Object → group from a CSV with ``label,group`` or ``track_id,group`` columns; on a
-    linked time-lapse a label names the track it starts."""
-    from ..analysis.reduction import read_groups
-
-    groups = read_groups(path)
-    col = "track_id" if "track_id" in groups.columns else "label"
-    if col not in groups.columns:
-        raise ValueError("The group file needs a 'label' (or 'track_id') column and a "
-                         "'group' column, e.g. 3,multi-axes.")
-    given = dict(zip(groups[col].astype(int), groups["group"].astype(str), strict=True))
-    table = analysis.table
-    if col == "label" and "track_id" in table and not (table["track_id"] == table["label"]).all():
-        first = table.sort_values("frame").drop_duplicates("track_id")
-        given = {int(t): given[int(lab)] for t, lab in zip(first["track_id"], first["label"],
-                                                           strict=True)
-                 if int(t) >= 0 and int(lab) in given}
-    return given
+#: The tabs: each object's path, the objects' distances and map, what a PC means.
+TABS = ("Trajectories", "Distances", "PCs")
+#: The pairs of principal components the trajectories can show (x–y).
+PC_PAIRS = [f"PC{i}–PC{j}" for i in range(1, 6) for j in range(i + 1, 6)]
 
 
 def _percent(ratios, i: int) -> str:
@@ -69,6 +54,8 @@ class _Plot(PlotCanvas):
         self.points_axes = None
         self.info = Label(value="Run the PF-SDM analysis to fill this plot.")
         self.info.native.setWordWrap(True)
+        self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,
+                                       QSizePolicy.Policy.Preferred)  # the dock's width
         self.controls = Container(widgets=controls, layout="horizontal", labels=False)
         self.controls.margins = (0, 0, 0, 0)
         for w in controls:
@@ -78,6 +65,8 @@ class _Plot(PlotCanvas):
         self.layout().addWidget(self.info.native)
         self.layout().setStretchFactor(self.canvas, 1)  # spare height goes to the plot
         self.canvas.setMinimumHeight(160)
+        self.canvas.setToolTip("Click a point to go to that object (and frame) in napari.")
+        self.layout().setContentsMargins(2, 2, 2, 2)
         self.canvas.mpl_connect("button_press_event", self._on_click)
 
     def redraw(self, *args) -> None:
@@ -141,31 +130,12 @@ class TrajectoryPlot(_Plot):
         self.channel = ComboBox(choices=["shape", "intensity"], value="shape",
                                 tooltip="Which features: the shape, or the reporter on the disk.")
         self.color_by = ComboBox(choices=["time", "group"], value="time",
-                                 tooltip="Colour the points by frame, or by group (a groups "
-                                         "CSV: label,group).")
-        self.pc_x = SpinBox(value=1, min=1, max=5, tooltip="Component on the x axis")
-        self.pc_y = SpinBox(value=2, min=1, max=5, tooltip="Component on the y axis")
-        self.groups_button = PushButton(text="Groups CSV…")
-        super().__init__(viewer, [self.channel, self.color_by, self.groups_button])
-        pcs = Container(widgets=[Label(value="PCs"), self.pc_x, self.pc_y], layout="horizontal",
-                        labels=False)
-        pcs.margins = (0, 0, 0, 0)
-        for w in (self.pc_x, self.pc_y):
-            w.changed.connect(self.redraw)
-        self.layout().insertWidget(1, pcs.native)
-        self.groups_button.changed.connect(self._groups_dialog)
-
-    def _groups_dialog(self, *args) -> None:
-        if self.analysis is None:
-            return
-        path, _ = QFileDialog.getOpenFileName(self, "Groups CSV (label,group)", "",
-                                              "CSV (*.csv);;All files (*)")
-        if path:
-            try:
-                self.analysis.set_groups(read_groups_csv(path, self.analysis))
-                self.color_by.value = "group"
-            except (ValueError, OSError) as err:
-                show_error(f"Could not read the group file: {err}")
+                                 tooltip="Colour the points by frame, or by group (groups are "
+                                         "given in the prediction dock, Layers ▸ Classify: "
+                                         "a CSV or clicked classes).")
+        self.pcs = ComboBox(choices=PC_PAIRS, value=PC_PAIRS[0],
+                            tooltip="The principal components on the x and y axes.")
+        super().__init__(viewer, [self.channel, self.color_by, self.pcs])
 
     def draw(self) -> None:
         import matplotlib
@@ -178,7 +148,7 @@ class TrajectoryPlot(_Plot):
                              if channel == "intensity" else "Not enough objects for a PCA.")
         ratios = scores.attrs.get("explained_variance_ratio", [])
         n_pc = sum(str(c).startswith("PC") for c in scores.columns)
-        i, j = min(self.pc_x.value, n_pc), min(self.pc_y.value, n_pc)
+        i, j = (min(int(k), n_pc) for k in self.pcs.value.replace("PC", "").split("–"))
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         keys = scores[["frame", "label"]].to_numpy().astype(np.int64)
         rows = np.array([a.row_of(f, lab) for f, lab in keys])
@@ -211,8 +181,7 @@ class TrajectoryPlot(_Plot):
         self.set_points(ax, np.column_stack([x, y]), keys)
         words = explanation(a, channel)
         warn = a.tracking_message if a.tracking_message.startswith("Warning") else ""
-        self.info.value = " ".join([warn, "; ".join(words) + ("." if words else ""),
-                                    "Click a point to go to that object and frame."]).strip()
+        self.info.value = " ".join([warn, "; ".join(words) + ("." if words else "")]).strip()
 
     def mark(self, ax, frame: int, label: int) -> list:
         out = []
@@ -325,7 +294,7 @@ class ComparisonPlot(_Plot):
                 ax_m.set_xticks([])
                 ax_m.set_yticks([])
             ax_m.set_title(f"distances, {where}", fontsize=9)
-            title = "MDS map (close = similar)"
+            title = "MDS map"
         else:
             ax_p = self.figure.add_subplot(111)
             title = f"map of each object's {GRAPH_K} nearest shapes (spectral)"
@@ -343,7 +312,7 @@ class ComparisonPlot(_Plot):
         self.set_points(ax_p, xy, keys)
         self.info.value = (f"{len(rows):,} objects, {where}"
                            + (", colour = frame" if key[0] is None else "")
-                           + ". Click a point to go to that object.")
+                           + ". On the map, close = similar.")
 
     def _compute(self, a: Analysis, key, rows, w) -> None:
         if self.worker is not None:
@@ -479,17 +448,19 @@ class PlotsWidget(QWidget):
     def __init__(self, napari_viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
-        self.layer_choice = ComboBox(label="Layer", choices=partial(analysed_layers, napari_viewer),
+        self.layer_choice = ComboBox(choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
         self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
         self.made: list = [TrajectoryPlot(napari_viewer), None, None]  # the others when shown
         self.tabs = QTabWidget()
-        for i, name in enumerate(("Trajectories", "Comparison", "Components")):
+        for i, name in enumerate(TABS):
             self.tabs.addTab(self.made[i] or QWidget(), name)
         inner = QWidget()
         lay = QVBoxLayout(inner)
         lay.setContentsMargins(0, 0, 0, 0)
-        lay.addWidget(Container(widgets=[self.layer_choice]).native)
+        corner = Container(widgets=[self.layer_choice], labels=False)
+        corner.margins = (4, 0, 0, 0)
+        self.tabs.setCornerWidget(corner.native)  # the layer beside the tabs: one row less
         lay.addWidget(self.tabs, 1)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
@@ -542,7 +513,7 @@ class PlotsWidget(QWidget):
             current = self.tabs.currentIndex()
             self.tabs.blockSignals(True)
             self.tabs.removeTab(i)
-            self.tabs.insertTab(i, plot, ("Trajectories", "Comparison", "Components")[i])
+            self.tabs.insertTab(i, plot, TABS[i])
             self.tabs.setCurrentIndex(current)
             self.tabs.blockSignals(False)
         return self.made[i]

@@ -21,7 +21,26 @@ from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
-from ._plots import read_groups_csv
+
+
+def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
+    """Object → group from a CSV with ``label,group`` or ``track_id,group`` columns; on a
+    linked time-lapse a label names the track it starts."""
+    from ..analysis.reduction import read_groups
+
+    groups = read_groups(path)
+    col = "track_id" if "track_id" in groups.columns else "label"
+    if col not in groups.columns:
+        raise ValueError("The group file needs a 'label' (or 'track_id') column and a "
+                         "'group' column, e.g. 3,multi-axes.")
+    given = dict(zip(groups[col].astype(int), groups["group"].astype(str), strict=True))
+    table = analysis.table
+    if col == "label" and "track_id" in table and not (table["track_id"] == table["label"]).all():
+        first = table.sort_values("frame").drop_duplicates("track_id")
+        given = {int(t): given[int(lab)] for t, lab in zip(first["track_id"], first["label"],
+                                                           strict=True)
+                 if int(t) >= 0 and int(lab) in given}
+    return given
 
 
 class _Stop(Exception):
