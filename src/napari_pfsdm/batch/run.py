@@ -422,6 +422,28 @@ def _frame_progress(tasks: list[list[tuple]], n_frames: int,
     return finished
 
 
+class _Call:
+    """One task: a function and its arguments, opaque to dask. ``dask.delayed`` and
+    ``distributed`` walk every list, tuple and dict of a task's arguments in search of dask
+    collections and keys; a task's arguments are lists of frames, crops and label arrays, and
+    that walk cost about a tenth of a run's time with the local scheduler."""
+
+    __slots__ = ("fn", "args")
+
+    def __init__(self, fn: Callable, args: tuple):
+        self.fn, self.args = fn, args
+
+    def __getstate__(self) -> tuple:
+        return self.fn, self.args
+
+    def __setstate__(self, state: tuple) -> None:
+        self.fn, self.args = state
+
+
+def _run_call(call: _Call) -> Any:
+    return call.fn(*call.args)
+
+
 class _Runner:
     """Runs a list of ``(function, args)`` calls on the local dask scheduler
     (:func:`_run_local`) or a cluster (:func:`_run_distributed`) and gives their results in
@@ -443,7 +465,7 @@ def _run_local(calls: list[tuple], name: str, finished: Callable[[int], None] | 
     from dask.callbacks import Callback
 
     prefix = f"pfsdm-{name}-"
-    tasks = [dask.delayed(fn, pure=False)(*args, dask_key_name=f"{prefix}{i}")
+    tasks = [dask.delayed(_run_call, pure=False)(_Call(fn, args), dask_key_name=f"{prefix}{i}")
              for i, (fn, args) in enumerate(calls)]
 
     class _Progress(Callback):
@@ -465,8 +487,10 @@ def _run_distributed(calls: list[tuple], name: str, finished: Callable[[int], No
     from distributed import as_completed
 
     run = os.urandom(4).hex()
-    futures = [client.submit(fn, *args, pure=False, key=f"pfsdm-{name}-{i}-{run}")
-               for i, (fn, args) in enumerate(calls)]
+    # one message to the scheduler for all the tasks (client.submit would send one each); the
+    # tasks keep their order as priorities
+    futures = client.map(_run_call, [_Call(fn, args) for fn, args in calls], pure=False,
+                         key=[f"pfsdm-{name}-{i}-{run}" for i in range(len(calls))])
     index = {f.key: i for i, f in enumerate(futures)}
     results: list[Any] = [None] * len(futures)
     try:

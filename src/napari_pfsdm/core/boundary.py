@@ -88,7 +88,9 @@ def normalised_modes(spectrum: np.ndarray, n_modes: int = N_OUTLINE_MODES) -> np
     """:func:`outline_coefficients` from the outline's whole spectrum (M,), ``fft / M`` in
     ``fftfreq`` order: e.g. the harmonic map's own coefficients (``FourierMap.coefficients``)."""
     coefs = spectrum[_mode_index(n_modes, len(spectrum))]
-    norm = np.linalg.norm(coefs)
+    # ‖coefs‖ as numpy.linalg.norm computes it, without its checks
+    re, im = coefs.real, coefs.imag
+    norm = float(np.sqrt(re.dot(re) + im.dot(im)))
     if not norm > 0:
         raise InputError("the outline has no extent (all its points coincide)")
     return coefs / norm

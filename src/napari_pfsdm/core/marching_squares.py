@@ -122,9 +122,12 @@ def _trace(m: np.ndarray, shift: float) -> BoundaryTrace:
     """:func:`trace_boundary` of a uint8 mask whose edge rows and columns are background, its
     coordinates moved by ``shift``."""
     h, w = m.shape
-    case = m[:-1, :-1] + 2 * m[:-1, 1:]
-    case += 4 * m[1:, :-1]
-    case += 8 * m[1:, 1:]
+    # 1 · m[r, c] + 2 · m[r, c + 1] + 4 · m[r + 1, c] + 8 · m[r + 1, c + 1], from the pairs
+    # along rows (pair[r, c] = m[r, c] + 2 · m[r, c + 1])
+    pair = m[:, 1:] << 1
+    pair += m[:, :-1]
+    case = pair[1:] << 2
+    case += pair[:-1]
     # cases 1 … 14 hold segments: case − 1 < 14 in uint8 arithmetic (0 wraps to 255)
     r, c = np.nonzero((case - np.uint8(1)) < 14)
     if r.size == 0:

@@ -9,6 +9,7 @@ conjugates it: the magnitudes |c_n(r)| are invariant to both.
 from __future__ import annotations
 
 import numpy as np
+from scipy import fft as _fft  # pocketfft as numpy.fft, with less overhead per call
 
 from ..errors import InputError
 
@@ -98,8 +99,9 @@ def mode_weights(n_fourier: int, exponent: float = 0.0) -> np.ndarray:
 
 
 def spectrum(samples: np.ndarray) -> np.ndarray:
-    """c_n(r) for n = 0 … n_angles/2 of samples (n_radii, n_angles): ``rfft / n_angles``."""
-    return np.fft.rfft(samples, axis=-1) / samples.shape[-1]
+    """c_n(r) for n = 0 … n_angles/2 of samples (n_radii, n_angles): ``rfft / n_angles``
+    (the division done inside the transform)."""
+    return _fft.rfft(samples, axis=-1, norm="forward")
 
 
 def magnitude_embedding(

@@ -121,7 +121,8 @@ class ExactSDF:
         if m <= self.BRUTE_FORCE_VERTICES:
             # relative to the polygon's mean, so that single precision holds in any units
             self._origin = np.add.reduce(p, axis=0) / m
-            p32 = (p - self._origin).astype(np.float32)
+            p32 = np.empty((m, 2), np.float32)  # p − origin in double, rounded once
+            np.subtract(p, self._origin, out=p32, casting="same_kind")
             # [x, y, 1] · [−2q_x, −2q_y, |q|²] = |p − q|² − |p|²: one product per block
             self._rhs32 = np.empty((3, m), np.float32)
             np.multiply(p32.T, -2.0, out=self._rhs32[:2])
