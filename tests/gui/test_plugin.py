@@ -85,9 +85,12 @@ def test_while_the_pictures_are_made_the_old_ones_are_dimmed_and_say_so(qtbot, v
     assert disk.opacity < 0.5
     assert "making the pictures of frame 3, label 4" in " ".join(
         _layer(viewer, "captions").features["text"])
+    captions = _layer(viewer, "captions")
+    assert list(captions.text.values) == list(captions.features["text"])  # what napari draws
     wait_pictures(qtbot, w)
     assert disk.opacity == 1.0 and _layer(viewer, "outline and skeleton").opacity == 1.0
-    assert "frame 3 · label 4" in " ".join(_layer(viewer, "captions").features["text"])
+    assert "frame 3 · label 4" in " ".join(captions.features["text"])
+    assert list(captions.text.values) == list(captions.features["text"])
 
 
 def test_a_trajectory_click_moves_napari_to_that_frame_and_object(qtbot, viewer_widget):

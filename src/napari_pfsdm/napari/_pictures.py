@@ -141,10 +141,10 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
         data, name=name, size=0.01, face_color="transparent", border_color="transparent",
         features={"text": texts}, text=text))
-    if list(pts.features["text"]) != list(texts) or not np.array_equal(pts.data, data):
+    if not np.array_equal(pts.data, data):
         pts.data = data
-        pts.features = {"text": list(texts)}
-        pts.text = text
+    if list(pts.features["text"]) != list(texts):
+        pts.features = {"text": list(texts)}  # napari refreshes the texts from the features
     _set(pts, visible=True)
     top = len(viewer.layers) - 1
     if viewer.layers.index(pts) != top:  # over the pictures
