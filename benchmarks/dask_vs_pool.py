@@ -10,7 +10,9 @@ measures it, in the same run, with
   :func:`napari_pfsdm.batch.open_movie` from the TIFF;
 - :func:`napari_pfsdm.batch.measure_dask` on a ``distributed.LocalCluster`` of ``--workers``
   single-threaded worker processes (the code path of a real cluster), from the TIFF and from
-  the Zarr;
+  the Zarr, and the same on a second LocalCluster whose workers' sampling profiler is off
+  (``distributed.worker.profile.enabled: false``; distributed samples every worker's stack
+  every 10 ms by default);
 - :func:`napari_pfsdm.batch.measure_dask` on the local ``'processes'`` scheduler with a
   process pool kept between runs (what ``pfsdm measure`` uses by default), from the Zarr.
 
@@ -24,7 +26,7 @@ the median CPU time of the whole process tree, and the medians over the rounds o
 to the pool's wall and CPU time in the same round. Every table is checked equal to the pool's,
 exactly.
 
-Run (about four minutes on 2 cores; the timings mean something only on otherwise idle cores:
+Run (about three minutes on 2 cores; the timings mean something only on otherwise idle cores:
 the load average before and after is printed)::
 
     PYTHONPATH=src .venv/bin/python benchmarks/dask_vs_pool.py
@@ -41,6 +43,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import dask
 import numpy as np
 import pandas as pd
 
@@ -100,6 +103,10 @@ def tree_cpu() -> float:
     return total
 
 
+#: distributed's setting for its workers' sampling profiler.
+PROFILER = "distributed.worker.profile.enabled"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=32)
@@ -156,6 +163,14 @@ def main(argv=None) -> int:
         client = Client(cluster)
         client.run(_warm)
         cluster_start = time.perf_counter() - t0
+        # the same, its workers' sampling profiler (a stack sample every 10 ms) switched off
+        with dask.config.set({PROFILER: False}):
+            quiet_cluster = LocalCluster(n_workers=n, processes=True, threads_per_worker=1,
+                                         dashboard_address=None)
+        quiet = Client(quiet_cluster)
+        quiet.run(_warm)
+        if any(quiet.run(dask.config.get, PROFILER).values()):
+            raise RuntimeError("the workers' profiler is still on")
         # what run_batch keeps for the 'processes' scheduler
         spawned = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("spawn"))
         list(spawned.map(_warm, range(n)))
@@ -168,13 +183,18 @@ def main(argv=None) -> int:
                     lambda: measure_dask(*tif, client=client, params=params),
                 "measure_dask, LocalCluster, Zarr":
                     lambda: measure_dask(*zar, client=client, params=params),
+                "measure_dask, LocalCluster without profiler, TIFF":
+                    lambda: measure_dask(*tif, client=quiet, params=params),
+                "measure_dask, LocalCluster without profiler, Zarr":
+                    lambda: measure_dask(*zar, client=quiet, params=params),
                 "measure_dask, local 'processes', Zarr":
                     lambda: measure_dask(*zar, scheduler="processes", num_workers=n,
                                          pool=spawned, params=params),
             }
             ref = pool_run((labels, intensity))  # also warms the pool's processes
-            for movie in (tif, zar):  # and the cluster's and the spawned ones, on each file
-                measure_dask(*movie, client=client, params=params)
+            for movie in (tif, zar):  # and the clusters' and the spawned ones, on each file
+                for c in (client, quiet):
+                    measure_dask(*movie, client=c, params=params)
             measure_dask(*zar, scheduler="processes", num_workers=n, pool=spawned,
                          params=params)
             times: dict[str, list[float]] = {k: [] for k in configs}
@@ -196,8 +216,8 @@ def main(argv=None) -> int:
                         same[name] = False
             load = os.getloadavg()[0]
         finally:
-            client.close()
-            cluster.close()
+            for c in (client, cluster, quiet, quiet_cluster):
+                c.close()
             spawned.shutdown()
             parallel.shutdown_pool()
     finally:
@@ -218,10 +238,12 @@ def main(argv=None) -> int:
         print(df.to_string(index=False))
     print(f"{len(ref)} objects; start-up (not timed above): pool {pool_start:.1f} s, "
           f"LocalCluster {cluster_start:.1f} s; load average after the runs {load:.2f}")
-    worst = df.loc[df.run.str.contains("LocalCluster"), "vs_pool"].max()
-    worst_cpu = df.loc[df.run.str.contains("LocalCluster"), "cpu_vs_pool"].max()
-    print(f"dask on a LocalCluster of {n} workers / the pool of {n} processes (numpy): "
-          f"{worst:.2f}x wall time, {worst_cpu:.2f}x CPU time, at worst (target <= 1.20x)")
+    for which, rows_of in (("", lambda r: "LocalCluster," in r),
+                           (" without its profiler", lambda r: "without profiler" in r)):
+        sub = df[df.run.map(rows_of)]
+        print(f"dask on a LocalCluster{which} of {n} workers / the pool of {n} processes "
+              f"(numpy): {sub.vs_pool.max():.2f}x wall time, {sub.cpu_vs_pool.max():.2f}x CPU "
+              "time, at worst (target <= 1.20x)")
     print("cpu_s: CPU-seconds of this process and all its descendants during the run (median);"
           " vs_pool, cpu_vs_pool: median over the rounds of the ratio to the pool's in the "
           "same round")
