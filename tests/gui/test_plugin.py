@@ -93,6 +93,27 @@ def test_while_the_pictures_are_made_the_old_ones_are_dimmed_and_say_so(qtbot, v
     assert list(captions.text.values) == list(captions.features["text"])
 
 
+def test_a_step_to_the_next_or_previous_frame_shows_the_pictures_at_once(qtbot, viewer_widget):
+    """Once the selected object's pictures are shown, those of the frames beside are made in
+    the background: a step shows the right pictures before the event loop runs again."""
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    labels = viewer.layers["gastruloids"]
+    data = np.asarray(labels.data)
+    viewer.dims.set_current_step(0, 5)
+    labels.selected_label = 3
+    wait_pictures(qtbot, w)
+    qtbot.waitUntil(lambda: w.pictures.worker is None, timeout=10_000)
+    for frame in (6, 5, 4):
+        viewer.dims.set_current_step(0, frame)  # no event loop between the step and the check
+        assert w.pictures.shown[1:] == (frame, 3)
+        expected = pf.render_disk(pf.pfsdm(data[frame] == 3), 128)
+        np.testing.assert_allclose(_layer(viewer, "PF-SDF disk").data, np.nan_to_num(expected),
+                                   atol=1e-4)
+        assert _layer(viewer, "PF-SDF disk").opacity == 1.0
+        qtbot.waitUntil(lambda: w.pictures.worker is None, timeout=10_000)
+
+
 def test_a_trajectory_click_moves_napari_to_that_frame_and_object(qtbot, viewer_widget):
     viewer, w = viewer_widget
     run_and_wait(qtbot, w)

@@ -297,8 +297,9 @@ class PictureView:
         say(self.viewer, self.wanted[0], text, self.wanted[1])
         self.shown = key
 
-    def _start(self) -> None:
-        layer, analysis, key = self.wanted
+    def _start(self, key=None) -> None:
+        layer, analysis, wanted = self.wanted
+        key = key or wanted
         worker = _make(analysis, key[1], key[2])
         worker.returned.connect(lambda pics, key=key: self._done(key, pics))
         worker.errored.connect(lambda err, key=key: self._done(key, err))
@@ -315,9 +316,24 @@ class PictureView:
 
     def _finished(self) -> None:
         self.worker = None
-        if self.wanted is not None and self.wanted[2] not in self.cache \
-                and self.shown != self.wanted[2]:
+        if self.wanted is None:
+            return
+        if self.wanted[2] not in self.cache and self.shown != self.wanted[2]:
             self._start()
+        else:
+            self._prefetch()
+
+    def _prefetch(self) -> None:
+        """Make the selected object's pictures of the next frame (then of the one before)
+        while nothing is wanted: stepping through time then shows them at once."""
+        layer, analysis, (run, frame, label) = self.wanted
+        if not analysis.time_lapse:
+            return
+        for t in (frame + 1, frame - 1):
+            key = (run, t, label)
+            if key not in self.cache and analysis.error_of(t, label) == "":
+                self._start(key)
+                return
 
     def _show(self, key) -> None:
         layer, analysis, _ = self.wanted
