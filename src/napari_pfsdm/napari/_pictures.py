@@ -287,6 +287,8 @@ class PictureView:
             self._say(f"{where}label {label} has no features: {error.split(': ')[0]}", key)
         elif key in self.cache:
             self._show(key)
+            if self.worker is None:
+                self._prefetch()
         else:
             say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis,
                 hide=False)
