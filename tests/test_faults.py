@@ -801,7 +801,6 @@ def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
 def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
     import os
     import signal
-    import time
 
     from napari_pfsdm.analysis import parallel
     from napari_pfsdm.core.params import PFSDMParams
@@ -811,14 +810,15 @@ def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
     victims = [proc.pid for proc in pool._pool]
     run = parallel.iter_blocks(frames, params=PFSDMParams(mapping="bijective", **FAST),
                                axes="tyx", workers=2)
-    t0 = time.perf_counter()
     try:
         with pytest.raises(ValueError, match="worker process stopped") as info:
             for step, _ in enumerate(run):
                 if step == 0:
                     for pid in victims:  # the system's out-of-memory killer, say
                         os.kill(pid, signal.SIGKILL)
-                assert time.perf_counter() - t0 < 60, "the run waits for a dead worker"
+                # one value per object, and one about every 0.2 s while a task is awaited:
+                # far more than the 360 objects means the run keeps waiting for a dead worker
+                assert step < 2000, "the run waits for a dead worker"
         assert isinstance(info.value, pf.errors.RunFault)
     finally:
         parallel.shutdown_pool()
