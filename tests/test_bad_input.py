@@ -63,6 +63,37 @@ def test_several_components_keep_the_largest_with_a_warning_or_raise():
         P.pfsdm(m, components="raise")
 
 
+def test_a_measurement_in_another_thread_keeps_this_threads_warnings(monkeypatch):
+    # the plugin measures in a worker thread; warnings.catch_warnings there would swap the
+    # whole process's warning handler, and the main thread's warnings caught meanwhile are lost
+    import threading
+
+    from napari_pfsdm.core import contour
+
+    labels = np.zeros((1, 80, 80), np.int32)
+    labels[0][ellipse()] = 1
+    labels[0, 2:6, 2:8] = 1  # a second piece: measure keeps the largest quietly
+    inside, go = threading.Event(), threading.Event()
+    fill_holes = contour.fill_holes
+
+    def paused(crop):
+        if threading.current_thread() is not threading.main_thread() and not inside.is_set():
+            inside.set()
+            go.wait(10)
+        return fill_holes(crop)
+
+    monkeypatch.setattr(contour, "fill_holes", paused)
+    tables = []
+    thread = threading.Thread(target=lambda: tables.append(P.measure(labels)))
+    thread.start()
+    assert inside.wait(30)
+    with pytest.warns(UserWarning, match="separate pieces"):
+        go.set()
+        thread.join(30)
+        P.pfsdm(labels[0] > 0)
+    assert tables[0]["n_components"].tolist() == [2]
+
+
 def test_nan_in_intensity_inside_the_object():
     m = ellipse()
     inten = np.ones(m.shape)

@@ -29,8 +29,21 @@ def viewer_widget(make_napari_viewer_proxy, sample_layers):
 
 @pytest.fixture(autouse=True)
 def _workers_done():
-    """Let the docks' workers finish before the next test (napari checks for leftovers)."""
+    """Let the docks' workers finish before the next test. A worker started while Qt's event
+    loop runs is handed to the thread pool by a 1 ms timer, so pending events are processed
+    and the pool awaited until it stays idle: a worker left running would swap the process's
+    warning filters (superqt's workers catch warnings) in the middle of a later test."""
     yield
+    import time
+
+    from qtpy.QtCore import QThreadPool
+    from qtpy.QtWidgets import QApplication
     from superqt.utils._qthreading import WorkerBase
 
-    WorkerBase.await_workers(msecs=30_000)
+    pool = QThreadPool.globalInstance()
+    for _ in range(100):
+        WorkerBase.await_workers(msecs=30_000)
+        time.sleep(0.01)
+        QApplication.processEvents()
+        if pool.activeThreadCount() == 0:
+            break

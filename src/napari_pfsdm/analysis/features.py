@@ -16,6 +16,7 @@ from scipy import ndimage as ndi
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.params import PFSDMParams, as_params, with_option_keywords
+from ..core.pieces import quietly
 from ..core.table_options import carry_options, set_options
 from ..core.table_schema import (
     BASE_COLUMNS,
@@ -489,8 +490,7 @@ def _describe(mask, image, offset, options) -> tuple[PFSDMResult | None, str, st
     """pfsdm of one object; an intensity that cannot be described (NaN pixels, no signal)
     costs the intensity features only, never the shape ones."""
     def run(img):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
+        with quietly():  # the pieces are counted in the table (n_components)
             return pfsdm(mask, img, offset=offset, **options)
 
     try:

@@ -8,14 +8,34 @@ face-connected (4 or 6), its dual, so that a hole is a background region the obj
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import warnings
+from collections.abc import Iterator
 
 import numpy as np
 from scipy import ndimage as ndi
 
 from ..errors import InputError
 
-__all__ = ["fill_holes", "largest_piece"]
+__all__ = ["fill_holes", "largest_piece", "quietly"]
+
+# per thread (each thread has its own context): ``warnings.catch_warnings`` changes the filters
+# of every thread, so a measurement in a worker thread would hide or swallow the main thread's
+# warnings while it runs
+_QUIET: contextvars.ContextVar[bool] = contextvars.ContextVar("pfsdm_quiet_pieces",
+                                                              default=False)
+
+
+@contextlib.contextmanager
+def quietly() -> Iterator[None]:
+    """Within this block, in this thread only, :func:`largest_piece` keeps the largest piece
+    without warning (the callers record the number of pieces in the table instead)."""
+    token = _QUIET.set(True)
+    try:
+        yield
+    finally:
+        _QUIET.reset(token)
 
 
 def largest_piece(crop: np.ndarray, components: str = "largest",
@@ -48,6 +68,8 @@ def largest_piece(crop: np.ndarray, components: str = "largest",
         )
     if components != "largest":
         raise InputError(f"components must be 'largest' or 'raise', got {components!r}.")
+    if _QUIET.get():
+        return lab == (np.argmax(sizes) + 1), int(n_pieces)
     # stacklevel as before the move: from prepare_mask, the caller of pfsdm (2-D); from
     # prepare_volume, pfsdm (3-D, through pfsdm3d)
     warnings.warn(f"The object has {n_pieces} separate pieces; only the largest "

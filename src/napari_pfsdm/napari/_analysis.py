@@ -208,6 +208,7 @@ class AnalysisWidget(QWidget):
         napari_viewer.dims.events.current_step.connect(self._sync_selection)
         napari_viewer.cursor.events.position.connect(self._on_hover)
         follow_registry(self, self._on_registry)
+        self.destroyed.connect(lambda *_, pictures=self.pictures: pictures.stop())
         self._refresh_choices()
         threading.Thread(target=_warm_pool, name="pfsdm-pool", daemon=True).start()
 
@@ -402,6 +403,7 @@ class AnalysisWidget(QWidget):
             layer.events.selected_label.disconnect(self._sync_selection)
             old.changed.disconnect(self._on_change)
             self.bound = None
+            self.pictures.stop()
 
     def _sync_selection(self, event=None) -> None:
         """The viewer's selected label and frame → the model (which tells every view)."""

@@ -357,3 +357,9 @@ class PictureView:
         """Forget every picture (a new run)."""
         self.cache.clear()
         self.shown = None
+
+    def stop(self) -> None:
+        """Want nothing more (the layer is gone, or the dock): a picture being made is
+        dropped when it ends, and nothing is made after it."""
+        self.wanted = None
+        self.clear()
