@@ -475,9 +475,10 @@ def describe_object(
         if where[0].size == 0:
             raise KeyError(f"label {label} is not in frame {frame}")
         box = tuple(slice(int(w.min()), int(w.max()) + 1) for w in where)
-    image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
+    big = _crop_of(box, plane.shape)
+    crop = None if intensity is None else _frame(intensity, t, timelapse)[big].astype(float)
     with _one_blas_thread():
-        return _object_in_frame(plane, image, t, int(label), box, opts)
+        return _object_in_crop(plane[big], crop, t, int(label), box, big, plane.shape, opts)
 
 
 def _pfsdm_options(p: PFSDMParams) -> dict[str, Any]:
