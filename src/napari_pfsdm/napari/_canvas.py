@@ -55,12 +55,16 @@ class PlotCanvas(BaseNapariMPLWidget):
             artist.axes.draw_artist(artist)
 
     def set_marks(self, artists: list) -> None:
-        """Show ``artists`` (and remove the previous marks) without drawing the figure again."""
+        """Show ``artists`` (marks of the axes, made once and given new data for each
+        selection) over the last full drawing, without drawing the figure again; the
+        previous marks that are not among them are hidden."""
         for artist in self.marks:
-            artist.remove()
+            if not any(artist is a for a in artists):
+                artist.set_visible(False)
         self.marks = list(artists)
         for artist in self.marks:
             artist.set_animated(True)  # drawn only here, over the saved background
+            artist.set_visible(True)
         if self.background is None:
             self.canvas.draw_idle()
             return

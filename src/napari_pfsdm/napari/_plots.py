@@ -52,6 +52,7 @@ class _Plot(PlotCanvas):
         self.keys = np.zeros((0, 2), np.int64)  # (frame, label) of each point
         self.xy = np.zeros((0, 2))
         self.points_axes = None
+        self.mark_artists: dict = {}  # name → artist of points_axes, made at first use
         self.info = Label(value="Run the PF-SDM analysis to fill this plot.")
         self.info.native.setWordWrap(True)
         self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,
@@ -72,7 +73,7 @@ class _Plot(PlotCanvas):
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
         self.figure.clear()
-        self.marks, self.points_axes = [], None
+        self.marks, self.points_axes, self.mark_artists = [], None, {}
         self.keys = np.zeros((0, 2), np.int64)
         if self.analysis is None:
             self.info.value = "Run the PF-SDM analysis to fill this plot."
@@ -101,12 +102,21 @@ class _Plot(PlotCanvas):
         else:
             self.set_marks([])
 
+    def mark_artist(self, name: str, make):
+        """The mark ``name`` of the plotted axes: ``make()`` at first use after a drawing,
+        then the same artist, given the new selection's data by :meth:`mark`."""
+        if name not in self.mark_artists:
+            self.mark_artists[name] = make()
+        return self.mark_artists[name]
+
     def mark(self, ax, frame: int, label: int) -> list:
         hit = (self.keys[:, 0] == frame) & (self.keys[:, 1] == label)
         if not hit.any():
             return []
-        return [ax.scatter(*self.xy[hit].T, s=150, marker="*", color="#ff3c3c",
-                           edgecolors="white", zorder=5)]
+        star = self.mark_artist("star", lambda: ax.scatter(
+            [], [], s=150, marker="*", color="#ff3c3c", edgecolors="white", zorder=5))
+        star.set_offsets(self.xy[hit])
+        return [star]
 
     def _on_click(self, event) -> None:
         if event.inaxes is not self.points_axes or not len(self.keys) or event.button != 1:
@@ -190,11 +200,16 @@ class TrajectoryPlot(_Plot):
             obj = self.point_objects[np.flatnonzero(here)[0]]
             track = (self.point_objects == obj) if obj >= 0 else here
             order = np.argsort(self.keys[track, 0])
-            out += ax.plot(*self.xy[track][order].T, "-", color="#ff3c3c", lw=1.6, zorder=4)
+            path = self.mark_artist("path", lambda: ax.plot([], [], "-", color="#ff3c3c",
+                                                             lw=1.6, zorder=4)[0])
+            path.set_data(*self.xy[track][order].T)
+            out.append(path)
         in_frame = self.keys[:, 0] == frame
         if in_frame.any() and not in_frame.all():
-            out.append(ax.scatter(*self.xy[in_frame].T, s=40, facecolors="none",
-                                  edgecolors="white", lw=0.6, zorder=3))
+            rings = self.mark_artist("frame", lambda: ax.scatter(
+                [], [], s=40, facecolors="none", edgecolors="white", lw=0.6, zorder=3))
+            rings.set_offsets(self.xy[in_frame])
+            out.append(rings)
         return out + super().mark(ax, frame, label)
 
 
