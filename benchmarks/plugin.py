@@ -47,10 +47,11 @@ then lack; that is napari's cost for any plugin that shows progress the napari w
 For a selection and a frame step a second anchor, *napari showing the same pictures*, has
 napari alone draw what the plugin asks of it: in the napari-alone viewer the same picture
 layers get the same object's pictures (computed beforehand) with the same selection or step.
-Each viewer goes through the same sequence (frames 1, 2, 3, … from frame 0; each label
-selected from the one before): napari steps back to a frame it has just shown much faster
-than to another one, so an anchor that returned to the frame of its own previous window
-would be cheaper than the same step in the plugin's viewer. The plugin's cost over this
+Each viewer goes through the same sequence (frames 1, 2, 3, … from frame 0; the same labels
+in the same order): napari goes back to a frame or a label it has just shown much faster
+than to another one (on 1,024 ellipses a step 54 against 88 ms, a selection 60 against
+91 ms), so an anchor that returned to what its own previous window showed would be cheaper
+than the same action in the plugin's viewer. The plugin's cost over this
 anchor is what the plugin adds beyond napari's own drawing of those layers.
 
 For the actions that draw a plot, a second anchor has napari alone do the same with the
@@ -598,14 +599,21 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
         step = max(1, len(present) // repeats)
         choice = [int(present[(k * step + 1) % len(present)]) for k in range(repeats)]
         shown_alone(0, choice[-1], safe_pictures(0, choice[-1]))  # the layers exist
+        lab[plugin].selected_label = choice[-1]
+        clock.wait(pictures_of(0, choice[-1]), what="pictures")
+        # napari alone, then napari showing the pictures, then the plugin: each viewer
+        # selects the same labels in the same order, starting from the same one
+        first = lab[alone].selected_label
+        focus(alone)
         for i, label in enumerate(choice):
-            focus(alone)
-            before = lab[alone].selected_label
             res = clock.window(lambda label=label: setattr(lab[alone], "selected_label",
                                                            label))
             record("selection", "napari", i, res)
+        lab[alone].selected_label = first
+        clock.spin(500)
+        for i, label in enumerate(choice):
             pics = safe_pictures(0, label)
-            lab[alone].selected_label = before  # the same change as the plugin's
+            focus(alone)
             res = clock.window(lambda label=label, pics=pics: shown_alone(None, label, pics))
             record("selection", "napari+pictures", i, res)
             focus(plugin)
