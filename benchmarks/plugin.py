@@ -176,6 +176,26 @@ def count_objects(labels: np.ndarray) -> int:
 
 
 # ------------------------------------------------------------------------------------ clock
+#: (end, seconds) of every full collection of Python's garbage collector in this process: a
+#: window's longest gap that holds one is the collector's, whichever viewer it falls in.
+GC_PAUSES: list[tuple[float, float]] = []
+GC_NOTE_MS = 30
+_GC_START: list[float] = []
+
+
+def _gc_clock(phase: str, info: dict) -> None:
+    if info.get("generation") != 2:
+        return
+    if phase == "start":
+        _GC_START[:] = [time.perf_counter()]
+    elif _GC_START:
+        now = time.perf_counter()
+        GC_PAUSES.append((now, now - _GC_START[0]))
+
+
+gc.callbacks.append(_gc_clock)
+
+
 class Clock:
     """Timed windows inside Qt's event loop."""
 
@@ -240,7 +260,11 @@ class Clock:
             raise TimeoutError(f"not done after {timeout:.0f} s")
         t = np.asarray(ticks)
         start = max(int(np.searchsorted(t, state["t0"])) - 1, 0)
-        return {"gap_ms": 1e3 * float(np.diff(t[start:]).max()),
+        gaps = np.diff(t[start:])
+        k = int(np.argmax(gaps))
+        lo, hi = t[start + k], t[start + k + 1]
+        gc_ms = max((1e3 * d for end, d in GC_PAUSES if lo <= end <= hi), default=0.0)
+        return {"gap_ms": 1e3 * float(gaps[k]), "gc_ms": gc_ms,
                 "wall_ms": 1e3 * (state["done"] - state["t0"]), "result": state.get("result")}
 
 
@@ -367,7 +391,8 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
 
     def record(action: str, who: str, i: int, res: dict) -> None:
         rows.append({"dataset": name, "action": action, "viewer": who, "repeat": i,
-                     "gap_ms": round(res["gap_ms"], 1), "wall_ms": round(res["wall_ms"], 1)})
+                     "gap_ms": round(res["gap_ms"], 1), "wall_ms": round(res["wall_ms"], 1),
+                     "gc_ms": round(res["gc_ms"], 1)})
 
     plots_ref: list = []  # weak references to every plots dock made
 
@@ -748,6 +773,10 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     info["canvas"], info["napari canvas"] = (canvas_size(v) for v in (plugin, alone))
     clock.wait(idle, what="idle")
     info["rows"] = rows
+    held = [r for r in rows if r["gc_ms"] >= GC_NOTE_MS]
+    info["gc"] = "; ".join(
+        f"{r['action']} {r['viewer']} (repeat {r['repeat']}): gap {r['gap_ms']:.0f} ms, "
+        f"collection {r['gc_ms']:.0f} ms" for r in held) or "none"
     for viewer in (plugin, alone):
         viewer.close()
     tmp.cleanup()
@@ -829,6 +858,9 @@ def notes(info_by_set: dict) -> list[str]:
             bits.append(f"library's predict_outcome: {info['predict error']}")
         if info.get("predict status"):
             bits.append(f"prediction dock: {info['predict status']}")
+        if info.get("gc"):
+            bits.append(f"longest gaps holding a full garbage collection of ≥ {GC_NOTE_MS} ms: "
+                        f"{info['gc']}")
         out.append(f"- {dataset}: " + "; ".join(bits))
     return out
 
@@ -886,7 +918,7 @@ def main(argv=None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         with open(args.out / "plugin_gaps.csv", "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=["dataset", "action", "viewer", "repeat",
-                                                    "gap_ms", "wall_ms"])
+                                                    "gap_ms", "wall_ms", "gc_ms"])
             writer.writeheader()
             writer.writerows(rows)
     sys.stdout.flush()
