@@ -857,7 +857,7 @@ def notes(info_by_set: dict) -> list[str]:
         if info.get("predict error"):
             bits.append(f"library's predict_outcome: {info['predict error']}")
         if info.get("predict status"):
-            bits.append(f"prediction dock: {info['predict status']}")
+            bits.append(f"prediction dock: {info['predict status'].rstrip('.')}")
         if info.get("gc"):
             bits.append(f"longest gaps holding a full garbage collection of ≥ {GC_NOTE_MS} ms: "
                         f"{info['gc']}")
