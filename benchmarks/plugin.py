@@ -44,6 +44,11 @@ open: napari animates its activity indicator while a bar is open, and under a so
 OpenGL renderer each repaint composes the whole window again, which the measuring processes
 then lack; that is napari's cost for any plugin that shows progress the napari way.
 
+Run ÷ measure (the target's ratio) comes from a separate process with the plugin's viewer
+only, as a person has it (:func:`run_ratio`): napari shows every progress bar in every open
+viewer, so beside the napari-alone viewer a Run animates two activity indicators. The table
+gives both ratios.
+
 For a selection and a frame step a second anchor, *napari showing the same pictures*, has
 napari alone draw what the plugin asks of it: in the napari-alone viewer the same picture
 layers get the same object's pictures (computed beforehand) with the same selection or step.
@@ -783,6 +788,55 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     return info
 
 
+def run_ratio(name: str, run_repeats: int) -> dict:
+    """Run ÷ measure as a person has it: the plugin's viewer the only one (napari shows every
+    progress bar in every open viewer, so a napari-alone viewer beside it would animate one
+    more activity indicator during the Run). ``measure`` in napari's ``thread_worker``, then
+    the plugin's Run (all docks open) until its worker has finished, ``run_repeats`` times."""
+    import napari
+
+    import napari_pfsdm as pf
+
+    clock = Clock()
+    layers = load(name)
+    viewer = napari.Viewer(title="plugin")
+    viewer.window.resize(*SIZE)
+    for data, kwargs, kind in layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    _d, widget = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM prediction")
+    clock.spin(1500)
+
+    def run() -> float:
+        marks: dict = {}
+        t0 = time.perf_counter()
+        worker = widget.run()
+        if worker is None:
+            raise RuntimeError(f"Run refused: {widget.status.value}")
+        worker.finished.connect(lambda: marks.setdefault("end", time.perf_counter()))
+        clock.wait(lambda: "end" in marks and widget.pictures.worker is None, what="Run")
+        clock.spin(500)
+        return marks["end"] - t0
+
+    run()  # processes started, picture layers made (not counted)
+    widget.open_plots()
+    clock.spin(1500)
+    labels, axes = widget.bound[0].data, widget.bound[1].axes
+    reporter = widget.reporter_layer
+    measure_s, run_s = [], []
+    for _i in range(run_repeats):
+        t0 = time.perf_counter()
+        _worker, out = in_thread(pf.measure, labels, None if reporter is None
+                                 else reporter.data, axes=axes)
+        clock.wait(lambda out=out: "end" in out, what="measure")
+        measure_s.append(out["end"] - t0)
+        clock.spin(500)
+        run_s.append(run())
+    viewer.close()
+    return {"one viewer measure s": statistics.median(measure_s),
+            "one viewer Run s": statistics.median(run_s)}
+
+
 # ---------------------------------------------------------------------------------- report
 def summary(rows: list[dict], info_by_set: dict) -> list[str]:
     head = ("| data | objects | action | n | plugin median | plugin max | napari median "
@@ -808,14 +862,16 @@ def summary(rows: list[dict], info_by_set: dict) -> list[str]:
             dx = max(p) - max(a)
             ok = dm <= TARGET_MEDIAN and dx <= TARGET_MAX
             extra = ""
-            if action == "Run" and "Run s" in info:
-                ratio = info["Run s"] / info["measure s"]
+            if action == "Run" and "one viewer Run s" in info:
+                ratio = info["one viewer Run s"] / info["one viewer measure s"]
                 ok = ok and ratio <= TARGET_RATIO
-                extra = (f"; Run {info['Run s']:.2f} s ÷ measure {info['measure s']:.2f} s "
-                         f"= {ratio:.2f}")
+                extra = (f"; the plugin's viewer alone: Run {info['one viewer Run s']:.2f} s "
+                         f"÷ measure {info['one viewer measure s']:.2f} s = {ratio:.2f}")
                 if "measure+progress s" in info:
-                    extra += (f"; ÷ measure with napari's progress bar "
-                              f"{info['measure+progress s']:.2f} s = "
+                    extra += (f"; beside the napari-alone viewer: Run {info['Run s']:.2f} s "
+                              f"÷ measure {info['measure s']:.2f} s = "
+                              f"{info['Run s'] / info['measure s']:.2f}, ÷ measure with "
+                              f"napari's progress bar {info['measure+progress s']:.2f} s = "
                               f"{info['Run s'] / info['measure+progress s']:.2f}")
             out.append(first + f"| {statistics.median(p):.0f} | {max(p):.0f} "
                        f"| {statistics.median(a):.0f} | {max(a):.0f} "
@@ -874,7 +930,11 @@ def main(argv=None) -> int:
                         help="repeats of Run (default 3)")
     parser.add_argument("--out", type=Path, help="folder for plugin_gaps.csv (per repeat)")
     parser.add_argument("--json", type=Path, help=argparse.SUPPRESS)  # one data set, for the parent
+    parser.add_argument("--ratio", action="store_true", help=argparse.SUPPRESS)  # with --json
     args = parser.parse_args(argv)
+    if args.ratio:
+        args.json.write_text(json.dumps(run_ratio(args.data[0], args.run_repeats)))
+        return 0
     command = "benchmarks/plugin.py " + " ".join(shlex.quote(a) for a in (
         argv if argv is not None else sys.argv[1:]))
 
@@ -906,6 +966,15 @@ def main(argv=None) -> int:
                     results[name] = json.loads(path.read_text())
                 else:
                     results[name] = {"skipped": f"its process ended with code {done.returncode}"}
+    with tempfile.TemporaryDirectory() as tmp:  # Run ÷ measure, the plugin's viewer alone
+        for name, info in results.items():
+            if "skipped" in info or not args.run_repeats:
+                continue
+            path = Path(tmp) / f"{name}-ratio.json"
+            subprocess.run([sys.executable, __file__, "--data", name, "--run-repeats",
+                            str(args.run_repeats), "--ratio", "--json", str(path)], check=False)
+            if path.exists():
+                info.update(json.loads(path.read_text()))
     rows = [r for info in results.values() for r in info.get("rows", [])]
     print(f"`{command}`\n")
     print("Longest event-loop gap (ms) per action, plugin (all docks open) and napari alone "
