@@ -122,11 +122,12 @@ def _symmetric(a: np.ndarray) -> tuple[float, float]:
     return -max(m, 1e-6), max(m, 1e-6)
 
 
-def _hide(viewer, source: str, keys) -> None:
+def _restyle(viewer, source: str, keys, **props) -> None:
+    """Set ``props`` (e.g. ``visible=False``) on those of the pictures ``keys`` that exist."""
     for key in keys:
         name = names(source)[key]
         if name in viewer.layers:
-            _set(viewer.layers[name], visible=False)
+            _set(viewer.layers[name], **props)
 
 
 def caption(viewer, layer, where: list, texts: list[str]) -> None:
@@ -174,7 +175,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         _image(viewer, n["intensity_disk"], p.intensity_disk, cells["intensity_disk"],
                "magma", (0.0, max(hi, 1e-6)))
     else:
-        _hide(viewer, layer.name, ["intensity_disk"])
+        _restyle(viewer, layer.name, ["intensity_disk"], visible=False)
     scale, shift = np.asarray(layer.scale[-2:]), np.asarray(layer.translate[-2:])
     top, left, side = cells["sdf"]
     on_sdf = [(np.asarray(q) - p.sdf_corner) / p.sdf_step * side / SIZE + (top, left)
@@ -241,10 +242,8 @@ def say(viewer, layer, text: str, analysis: Analysis | None = None,
         hide: bool = True) -> None:
     """No pictures for the selection: hide them (or, with ``hide=False``, dim them while the
     selection's own are being made) and say why where they would be."""
-    for key in PICTURES:
-        name = names(layer.name)[key]
-        if name in viewer.layers:
-            _set(viewer.layers[name], **({"visible": False} if hide else {"opacity": DIMMED}))
+    _restyle(viewer, layer.name, PICTURES, **({"visible": False} if hide else
+                                                {"opacity": DIMMED}))
     spot = _above(_cells(layer)["sdf"])
     if analysis is not None and analysis.ndim == 3:
         spot = (float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
