@@ -18,7 +18,7 @@ measures it, in the same run, with
 
 The workload is sized so that fixed costs (a task's start, the first pass that lists each
 frame's labels, gathering the results) are small against the measuring: 32 frames of 150
-objects, 4,800 objects, about 8 s per configuration on 2 workers. The pool and the cluster are
+objects, 4,800 objects, about 3.5 s per configuration on 2 workers. The pool and the cluster are
 started and warmed first (start-up is not timed); the configurations then run in turn,
 ``--repeats`` rounds, the order rotated by one each round (so that none always runs first or
 after the same neighbour). For each configuration the table gives the median wall time and

@@ -261,9 +261,9 @@ def _drain(gen):
 
 
 def test_dask_table_equals_the_process_pools_table(tmp_path, monkeypatch):
-    """measure_dask plans its tasks with the pool's planner (the same tasks for as many
-    workers), reads the frames in the workers, and gives the pool's table exactly: on a
-    LocalCluster of two worker processes, with the local 'processes' scheduler, from files
+    """measure_dask plans its tasks with the pool's planner (fewer tasks per worker: a dask
+    task costs more), reads the frames in the workers, and gives the pool's table exactly: on
+    a LocalCluster of two worker processes, with the local 'processes' scheduler, from files
     and from arrays in memory."""
     distributed = pytest.importorskip("distributed")
     from napari_pfsdm.analysis import parallel
@@ -275,6 +275,7 @@ def test_dask_table_equals_the_process_pools_table(tmp_path, monkeypatch):
     labels, intensity = make_timelapse_montage(8, 6, 160, seed=4)[:2]  # 48 objects
     params = PFSDMParams()
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)  # a small movie, still in processes
+    monkeypatch.setattr(parallel, "MIN_TASK_OBJECTS", 1)  # tasks of one object allowed
     plans = []
     real_plan = parallel.plan_tasks
     monkeypatch.setattr(parallel, "plan_tasks",
@@ -304,13 +305,15 @@ def test_dask_table_equals_the_process_pools_table(tmp_path, monkeypatch):
     assert len(pool) == 48
     for name, table in got.items():
         pd.testing.assert_frame_equal(table, pool, check_exact=True, obj=name)
-    # one planner: each run planned the pool's tasks (2 workers: 32 tasks per worker at most,
-    # at least 16 objects per task)
+    # one planner: the pool made 48 tasks of one object (2 workers, up to 32 tasks each);
+    # each dask run the planner's 16 tasks of 3 objects (8 per worker), the same for all
     assert len(plans) == 5
+    assert [len(task[0][1]) for task in plans[0]] == [1] * 48
+    counts = [np.unique(frame)[1:] for frame in labels]
+    expected = [[(t, ids.tolist()) for t, ids in task] for task in real_plan(counts, 16)]
+    assert sum(len(ids) for task in expected for _, ids in task) == 48
     for plan in plans[1:]:
-        assert [[(t, ids.tolist()) for t, ids in task] for task in plan] == \
-            [[(t, ids.tolist()) for t, ids in task] for task in plans[0]]
-    assert len(plans[0]) == parallel.task_count(48, 2) == 3
+        assert [[(t, ids.tolist()) for t, ids in task] for task in plan] == expected
 
 
 # ------------------------------------------------------------------------------------------

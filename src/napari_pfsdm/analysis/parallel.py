@@ -149,21 +149,27 @@ def plan_tasks(counts: list[np.ndarray], n_tasks: int) -> list[list[tuple[int, n
     return tasks
 
 
-def task_count(total: int, workers: int) -> int:
+def task_count(total: int, workers: int, per_worker: int | None = None,
+               limited: bool = True) -> int:
     """How many tasks :func:`plan_tasks` should make of ``total`` objects for ``workers``
-    workers: about :data:`TASKS_PER_WORKER` per worker, none smaller than
-    :data:`MIN_TASK_OBJECTS` objects (unless there are fewer objects than workers) nor larger
-    than :data:`MAX_TASK_OBJECTS`. The one rule of the package: the pool here and
-    :func:`napari_pfsdm.batch.measure_dask` (dask's workers) plan their tasks with it.
+    workers: about ``per_worker`` per worker (default :data:`TASKS_PER_WORKER`), none smaller
+    than :data:`MIN_TASK_OBJECTS` objects (unless there are fewer objects than workers) nor,
+    when ``limited``, larger than :data:`MAX_TASK_OBJECTS`. The one rule of the package: the
+    pool here (with the defaults) and :func:`napari_pfsdm.batch.measure_dask` (dask's
+    workers: :data:`napari_pfsdm.batch.run.DASK_TASKS_PER_WORKER`, not limited) plan their
+    tasks with it.
 
     Examples
     --------
     >>> task_count(1200, 2), task_count(10, 4), task_count(50_000, 2)
     (64, 4, 391)
+    >>> task_count(1200, 2, per_worker=8, limited=False)
+    16
     """
     total, workers = int(total), max(1, int(workers))
-    return max(min(workers * TASKS_PER_WORKER, max(workers, total // MIN_TASK_OBJECTS)),
-               -(-total // MAX_TASK_OBJECTS))
+    per_worker = TASKS_PER_WORKER if per_worker is None else max(1, int(per_worker))
+    n = min(workers * per_worker, max(workers, total // MIN_TASK_OBJECTS))
+    return max(n, -(-total // MAX_TASK_OBJECTS)) if limited else n
 
 
 def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray]:

@@ -94,6 +94,17 @@ class _Reader:
 #: frames in runs of consecutive frames up to this size, and measures them one by one.
 TASK_BYTES = 256 * 2**20
 
+#: Tasks per worker that :func:`measure_dask` plans (the pool plans
+#: :data:`~napari_pfsdm.analysis.parallel.TASKS_PER_WORKER`, of at most
+#: :data:`~napari_pfsdm.analysis.parallel.MAX_TASK_OBJECTS` objects each). A dask task costs
+#: more than a pool's: its messages to the scheduler, its result gathered by the client, the
+#: worker's bookkeeping and profiler, its frames read and searched for objects once more when
+#: a frame is split between tasks. On ``benchmarks/dask_vs_pool.py``'s movie (2 workers,
+#: 4,800 nuclei) the pool's plan costs dask 1.22x the pool's wall time, 8 tasks per worker
+#: 1.06x, 4 1.05x; eight still balance uneven frames between the workers. The size limit of
+#: the pool's tasks (results unpickled beside napari's GUI thread) does not apply here.
+DASK_TASKS_PER_WORKER = 8
+
 
 def _runs(frames: Sequence[int], frame_bytes: int) -> list[tuple[int, int]]:
     """``frames`` (increasing) as runs ``(a, b)`` of consecutive frames of at most
@@ -216,11 +227,12 @@ def measure_dask(
 
     The same table as :func:`napari_pfsdm.measure` and as the process pool of
     :func:`napari_pfsdm.analysis.parallel.iter_blocks` (same rows, same order, same numbers:
-    tested equal), on this machine or on a dask.distributed cluster. The tasks are planned as
-    the pool plans them (:func:`~napari_pfsdm.analysis.parallel.plan_tasks` with
+    tested equal), on this machine or on a dask.distributed cluster. The tasks are planned by
+    the pool's planner (:func:`~napari_pfsdm.analysis.parallel.plan_tasks` with
     :func:`~napari_pfsdm.analysis.parallel.task_count`: tasks of similar numbers of objects,
-    a large frame split between tasks); each task reads its own frames where it runs (a movie
-    from :func:`~napari_pfsdm.batch.io.open_movie`: from the file) and sends back its rows as
+    a large frame split between tasks), fewer per worker (:data:`DASK_TASKS_PER_WORKER`);
+    each task reads its own frames where it runs (a movie from
+    :func:`~napari_pfsdm.batch.io.open_movie`: from the file) and sends back its rows as
     one block of arrays (:class:`~napari_pfsdm.analysis.row_blocks.RowBlock`). A first, light
     pass of tasks lists the labels of each frame (for the plan), also where the frames are.
 
@@ -374,7 +386,8 @@ def _measure_planned(
                      for s, e in _spans(n_frames, frames_per_task)]
         else:
             total = sum(len(c) for c in counts)
-            tasks = parallel.plan_tasks(counts, parallel.task_count(total, workers))
+            tasks = parallel.plan_tasks(counts, parallel.task_count(
+                total, workers, per_worker=DASK_TASKS_PER_WORKER, limited=False))
         if not tasks:
             if progress:
                 progress(n_frames, n_frames)
