@@ -197,6 +197,34 @@ def test_cancel_keeps_nothing(qtbot, make_napari_viewer_proxy):
     assert REGISTRY.get(layer.unique_id) is None
 
 
+def test_a_run_that_lasts_shows_napari_progress_counting_its_objects(qtbot, viewer_widget,
+                                                                     monkeypatch):
+    """Once a Run has lasted PROGRESS_AFTER_MS, napari's progress bar counts its objects to the
+    last one and closes; a Run over before then shows none (no bar flashing by)."""
+    from napari_pfsdm.napari import _analysis
+
+    bars = []
+
+    class Recorded(_analysis.progress):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.closed_at = None
+            bars.append(self)
+
+        def close(self):
+            self.closed_at = (self.n, self.total)
+            super().close()
+
+    monkeypatch.setattr(_analysis, "progress", Recorded)
+    monkeypatch.setattr(_analysis, "PROGRESS_AFTER_MS", 0)
+    _viewer, w = viewer_widget
+    n = len(run_and_wait(qtbot, w).table)
+    assert n == 72 and len(bars) == 1 and bars[0].closed_at == (n, n)
+    monkeypatch.setattr(_analysis, "PROGRESS_AFTER_MS", 600_000)
+    run_and_wait(qtbot, w)
+    assert len(bars) == 1
+
+
 def test_bad_layers_get_a_plain_message_and_no_run(qtbot, make_napari_viewer_proxy):
     viewer = make_napari_viewer_proxy()
     viewer.add_labels(np.zeros((32, 32), np.uint8), name="empty")

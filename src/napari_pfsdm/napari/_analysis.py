@@ -19,7 +19,7 @@ from napari.layers import Image, Labels, Tracks
 from napari.qt.threading import thread_worker
 from napari.utils import progress
 from napari.utils.notifications import show_error, show_info, show_warning
-from qtpy.QtCore import QSize, Qt
+from qtpy.QtCore import QSize, Qt, QTimer
 from qtpy.QtWidgets import (
     QFileDialog,
     QFrame,
@@ -38,6 +38,11 @@ from ._results import check_layers, explanation, identify, layer_features, objec
 from ._results import run_analysis as _run
 
 NONE = "(none)"
+#: A Run shows napari's progress bar once it has lasted this long (ms), as Qt's progress
+#: dialogs wait before they appear: a shorter Run would only flash it, and while a bar is open
+#: napari animates its activity indicator, which under a software renderer repaints the whole
+#: window and slows the measuring that shares the interpreter with it.
+PROGRESS_AFTER_MS = 500
 IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
             "link by centroids": "link"}
 TRACKS = "Tracks: "
@@ -301,14 +306,21 @@ class AnalysisWidget(QWidget):
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         worker = _run_worker(_data(labels), None if image is None else _data(image), params,
                              first_axis, spacing, self.identity_mode(), _ignore_errors=True)
-        bar = progress(total=0, desc=f"PF-SDM: {labels.name}")
         weight = self.intensity_weight.value if image is not None else 0.0
         start = time.perf_counter()
+        bar: list = []  # napari's progress bar, once the Run has lasted PROGRESS_AFTER_MS
+        counted = [0, 0]  # objects done, of
+
+        def show_bar():
+            if self.worker is worker and not bar:
+                bar.append(progress(total=counted[1], desc=f"PF-SDM: {labels.name}"))
+                bar[0].update(counted[0])
 
         def on_progress(value):
-            done, total = value
-            bar.total = total
-            bar.update(done - bar.n)
+            counted[:] = value
+            if bar:
+                bar[0].total = value[1]
+                bar[0].update(value[0] - bar[0].n)
 
         def on_result(result):
             self._show_results(labels, *result, weight, time.perf_counter() - start)
@@ -317,7 +329,8 @@ class AnalysisWidget(QWidget):
             self.say(f"The analysis stopped: {err}", error=True)
 
         def on_finished():
-            bar.close()
+            if bar:
+                bar[0].close()
             self.worker = None
             self.run_button.enabled, self.cancel_button.enabled = True, False
 
@@ -331,6 +344,7 @@ class AnalysisWidget(QWidget):
         self.say(f"Measuring the objects of '{labels.name}'… (progress: napari's activity "
                  "panel, bottom right)")
         worker.start()
+        QTimer.singleShot(PROGRESS_AFTER_MS, show_bar)
         return worker
 
     def cancel(self, *args) -> None:
