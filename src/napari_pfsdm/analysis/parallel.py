@@ -30,6 +30,7 @@ import sys
 import threading
 import types
 from collections.abc import Generator, Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
@@ -56,6 +57,7 @@ __all__ = [
     "MAX_TASK_OBJECTS",
     "MIN_OBJECTS",
     "available_cores",
+    "bare_main",
     "iter_blocks",
     "plan_tasks",
     "row_of",
@@ -223,21 +225,29 @@ def _context():
     return mp.get_context("spawn")  # pragma: no cover - Windows, macOS default
 
 
-def _start(workers: int):
-    """A pool whose processes do not run the caller's script.
+@contextmanager
+def bare_main() -> Iterator[None]:
+    """While worker processes start, ``__main__`` is a bare stand-in: they do not run the
+    caller's script.
 
     multiprocessing's spawn and forkserver children re-import the main module (a script
-    without an ``if __name__ == "__main__":`` guard, e.g. one that opens a napari viewer,
-    would start again in every child and make processes without end). The workers need only
-    this module: while they start, ``__main__`` is a bare stand-in, so nothing else runs.
+    without an ``if __name__ == "__main__":`` guard, e.g. one that opens a napari viewer or
+    measures a movie, would start again in every child and make processes without end, or
+    stop them). The workers of this package need only its own modules.
     """
     main = sys.modules.get("__main__")
     sys.modules["__main__"] = types.ModuleType("__main__")
     try:
-        return _context().Pool(workers)
+        yield
     finally:
         if main is not None:
             sys.modules["__main__"] = main
+
+
+def _start(workers: int):
+    """A pool whose processes do not run the caller's script (:func:`bare_main`)."""
+    with bare_main():
+        return _context().Pool(workers)
 
 
 def shared_pool(workers: int | None = None):

@@ -62,7 +62,8 @@ from .io import (
     refuse_missing_chunks,
 )
 
-__all__ = ["environment_fault", "measure_dask", "run_batch", "resolve_scheduler"]
+__all__ = ["environment_fault", "measure_dask", "process_pool", "run_batch",
+           "resolve_scheduler"]
 
 
 
@@ -260,7 +261,9 @@ def measure_dask(
         a frame is done when all its objects are.
     pool : concurrent.futures.Executor, optional
         Re-use this process pool for the ``"processes"`` scheduler (saves start-up time when
-        measuring many movies).
+        measuring many movies), e.g. from :func:`process_pool`; without one, the run starts
+        and closes its own (:func:`process_pool`: a script needs no
+        ``if __name__ == "__main__":`` guard).
     params : PFSDMParams, optional
         The method's options as one record (it travels to the workers as it is).
     axes, spacing
@@ -294,7 +297,10 @@ def measure_dask(
         intensity = intensity[None] if intensity is not None else None
 
     where = _where(kind, obj)
+    own = kind == "local" and obj == "processes" and pool is None
     try:
+        if own:  # the processes of this run, started without the caller's script
+            pool = process_pool(int(num_workers or os.cpu_count() or 1))
         blocks = _measure_planned(labels, intensity, kind, obj, p, axes, spacing,
                                   frames_per_task, num_workers, progress, pool, block_kw)
     except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
@@ -303,6 +309,8 @@ def measure_dask(
             raise
         raise fault from exc
     finally:
+        if own and pool is not None:
+            pool.shutdown(cancel_futures=True)
         if kind == "local" and obj != "processes":  # run here: keep no frame after the run
             with _RECENT_LOCK:
                 _RECENT.clear()
@@ -570,6 +578,36 @@ def environment_fault(exc: BaseException, where: str) -> RunFault | None:
 # Resumable batches over many movies
 # ---------------------------------------------------------------------------------------------
 
+def process_pool(workers: int) -> Any:
+    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned),
+    all started before it is returned, that exit with this process and do not run the
+    caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`: a script without an
+    ``if __name__ == "__main__":`` guard measures once, not again in every worker).
+
+    Returns
+    -------
+    concurrent.futures.ProcessPoolExecutor
+        Close it with ``shutdown()`` (or use it in a ``with`` block).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..analysis.parallel import bare_main
+
+    pool = ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_exit_with_parent, initargs=(os.getpid(),))
+    try:
+        with bare_main():  # each submission starts one more process, until there are enough
+            started = [pool.submit(os.getpid) for _ in range(workers)]
+        for future in started:
+            future.result()
+    except BaseException:
+        pool.shutdown(cancel_futures=True)
+        raise
+    return pool
+
+
 def _exit_with_parent(parent_pid: int) -> None:
     """Pool worker initializer: exit when the parent dies (e.g. ``kill -9`` of ``pfsdm``).
 
@@ -806,15 +844,13 @@ def _run_batch_locked(
     kind, obj = resolve_scheduler(scheduler, client)
     pool_cm: Any = contextlib.nullcontext(None)
     if kind == "local" and obj == "processes":
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        pool_cm = ProcessPoolExecutor(
-            max_workers=num_workers or os.cpu_count() or 1,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_exit_with_parent,
-            initargs=(os.getpid(),),
-        )
+        try:
+            pool_cm = process_pool(int(num_workers or os.cpu_count() or 1))
+        except Exception as exc:  # noqa: BLE001 - the machine's fault, or re-raised
+            fault = environment_fault(exc, "this machine")
+            if fault is None:
+                raise
+            raise fault from exc
     tables = []
     attrs: dict = {}
     linked = False
