@@ -187,11 +187,35 @@ def test_dask_schedulers_and_a_local_cluster_give_the_local_neighbours(blobs):
                                       block=64)
     sync = pf.nearest_neighbours(table, K, scheduler="sync", block=70)
     threads = pf.nearest_neighbours(table, K, n_jobs=2, block=30)
-    for other in (got, again, sync, threads):
+    processes = pf.nearest_neighbours(table, K, scheduler="processes", block=100)
+    for other in (got, again, sync, threads, processes):
         np.testing.assert_array_equal(other[0], idx)
         # blocks group the exact pairs differently: single-precision coarse searches may
         # differ in the last bit, the refined distances by ~1e-15
         np.testing.assert_allclose(other[1], dist, rtol=0, atol=1e-12)
+
+
+def test_a_script_without_a_main_guard_finds_neighbours_once_in_processes(tmp_path):
+    """The 'processes' scheduler's workers do not import the caller's script: one with no
+    ``if __name__ == "__main__":`` runs once (not again in every worker, which stopped them)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "no_guard.py"
+    script.write_text(
+        "import napari_pfsdm as pf\n"
+        "from napari_pfsdm.data.moving_blobs import make_moving_blobs\n"
+        "print('script body runs', flush=True)\n"
+        "movie = make_moving_blobs(n_objects=6, n_frames=2, size=160, entering=0, leaving=0,"
+        " division=False, radius=(10.0, 14.0), seed=1)\n"
+        "table = pf.measure(movie.labels)\n"
+        "idx, _ = pf.nearest_neighbours(table, 3, scheduler='processes', block=4)\n"
+        "print('rows', len(idx))\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("script body runs") == 1
+    assert "rows 12" in done.stdout
 
 
 def test_volumes_by_shells_and_surface_term(rng):

@@ -188,7 +188,7 @@ def _run_threads(index, parts, k, method, n_jobs):
 
 
 def _run_dask(index, parts, k, method, scheduler, client):
-    from .schedulers import _client_for, resolve_scheduler
+    from .schedulers import _client_for, process_pool, resolve_scheduler
 
     kind, obj = resolve_scheduler(scheduler, client)
     if kind == "local":
@@ -197,7 +197,11 @@ def _run_dask(index, parts, k, method, scheduler, client):
         shared = dask.delayed(index, traverse=False)
         tasks = [dask.delayed(_search_block, pure=False)(shared, rows, k, method)
                  for rows in parts]
-        return list(dask.compute(*tasks, scheduler=obj))
+        if obj != "processes":
+            return list(dask.compute(*tasks, scheduler=obj))
+        # worker processes that do not run the caller's script again
+        with process_pool(max(1, min(len(parts), os.cpu_count() or 1))) as pool:
+            return list(dask.compute(*tasks, scheduler=obj, pool=pool))
     with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
         shared = handle.scatter(index, broadcast=True)
         tag = os.urandom(4).hex()

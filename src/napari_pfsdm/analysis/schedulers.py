@@ -1,11 +1,13 @@
 """Which dask scheduler runs a computation: this machine (threads, processes, sync) or a
-cluster (an address, or a ``distributed.Client``). Shared by :func:`napari_pfsdm.batch.
+cluster (an address, or a ``distributed.Client``), and the worker processes of the
+``"processes"`` scheduler (:func:`process_pool`). Shared by :func:`napari_pfsdm.batch.
 measure_dask` and :func:`napari_pfsdm.nearest_neighbours` (analysis may not import batch).
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 import socket
 from collections.abc import Iterator
@@ -13,7 +15,7 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "resolve_scheduler"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "process_pool", "resolve_scheduler"]
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
@@ -118,3 +120,50 @@ def probe_scheduler(address: str, timeout: float) -> None:
             "8786). Give the address the scheduler prints when it starts, e.g. "
             "tcp://10.0.0.5:8786"
         )
+
+
+def process_pool(workers: int) -> Any:
+    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned),
+    all started before it is returned, that exit with this process and do not run the
+    caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`: a script without an
+    ``if __name__ == "__main__":`` guard measures once, not again in every worker).
+
+    Returns
+    -------
+    concurrent.futures.ProcessPoolExecutor
+        Close it with ``shutdown()`` (or use it in a ``with`` block).
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from .parallel import bare_main
+
+    pool = ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_exit_with_parent, initargs=(os.getpid(),))
+    try:
+        with bare_main():  # each submission starts one more process, until there are enough
+            started = [pool.submit(os.getpid) for _ in range(workers)]
+        for future in started:
+            future.result()
+    except BaseException:
+        pool.shutdown(cancel_futures=True)
+        raise
+    return pool
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """Pool worker initializer: exit when the parent dies (e.g. ``kill -9`` of ``pfsdm``).
+
+    Without it, the workers of a killed run would wait forever for work that never comes.
+    """
+    import threading
+    import time
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            time.sleep(1.0)
+
+    threading.Thread(target=watch, daemon=True, name="pfsdm-parent-watch").start()

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.row_blocks import RowBlock, block_of, join_blocks
-from ..analysis.schedulers import _client_for, resolve_scheduler
+from ..analysis.schedulers import _client_for, process_pool, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -577,53 +577,6 @@ def environment_fault(exc: BaseException, where: str) -> RunFault | None:
 # ---------------------------------------------------------------------------------------------
 # Resumable batches over many movies
 # ---------------------------------------------------------------------------------------------
-
-def process_pool(workers: int) -> Any:
-    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned),
-    all started before it is returned, that exit with this process and do not run the
-    caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`: a script without an
-    ``if __name__ == "__main__":`` guard measures once, not again in every worker).
-
-    Returns
-    -------
-    concurrent.futures.ProcessPoolExecutor
-        Close it with ``shutdown()`` (or use it in a ``with`` block).
-    """
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from ..analysis.parallel import bare_main
-
-    pool = ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_exit_with_parent, initargs=(os.getpid(),))
-    try:
-        with bare_main():  # each submission starts one more process, until there are enough
-            started = [pool.submit(os.getpid) for _ in range(workers)]
-        for future in started:
-            future.result()
-    except BaseException:
-        pool.shutdown(cancel_futures=True)
-        raise
-    return pool
-
-
-def _exit_with_parent(parent_pid: int) -> None:
-    """Pool worker initializer: exit when the parent dies (e.g. ``kill -9`` of ``pfsdm``).
-
-    Without it, the workers of a killed run would wait forever for work that never comes.
-    """
-    import threading
-    import time
-
-    def watch() -> None:
-        while True:
-            if os.getppid() != parent_pid:
-                os._exit(1)
-            time.sleep(1.0)
-
-    threading.Thread(target=watch, daemon=True, name="pfsdm-parent-watch").start()
-
 
 def _have_parquet() -> bool:
     try:
