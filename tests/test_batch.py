@@ -342,6 +342,29 @@ def test_a_script_without_a_main_guard_measures_once_in_processes(tmp_path):
 # resumable batches
 # ------------------------------------------------------------------------------------------
 
+def test_a_batch_starts_its_worker_processes_once_and_only_to_measure(tmp_path, monkeypatch):
+    """On the 'processes' scheduler the workers start once for all the movies to measure
+    (the table equals measure's), and not at all when every movie is finished already."""
+    labels, _ = make_movie(3)
+    write_zarr(tmp_path / "a.zarr", labels)
+    write_zarr(tmp_path / "b.zarr", labels[:, ::-1])
+    movies = pair_movies(find_movies(tmp_path))
+    out = tmp_path / "features.csv"
+    started = []
+    real = run_module.process_pool
+    monkeypatch.setattr(run_module, "process_pool",
+                        lambda n: started.append(n) or real(n))
+    table = run_batch(movies, out, scheduler="processes", num_workers=1, n_fourier=5)
+    assert started == [1]
+    expected = napari_pfsdm.measure(labels, n_fourier=5)
+    np.testing.assert_allclose(table.loc[table["movie"] == "a", "area"], expected["area"])
+    log = []
+    again = run_batch(movies, out, scheduler="processes", num_workers=1, log=log.append,
+                      n_fourier=5)
+    assert started == [1] and sum(line.startswith("skipped") for line in log) == 2
+    pd.testing.assert_frame_equal(again, table)
+
+
 def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     labels, intensity = make_movie(3)
     write_zarr(tmp_path / "a.zarr", labels)

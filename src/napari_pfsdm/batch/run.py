@@ -670,6 +670,18 @@ def default_parts_dir(output: str | os.PathLike) -> Path:
     return output.with_name(output.name + ".parts")
 
 
+def _batch_pool(num_workers: int | None) -> Any:
+    """The worker processes of a batch on the ``"processes"`` scheduler
+    (:func:`~napari_pfsdm.analysis.schedulers.process_pool`), a failed start in plain words."""
+    try:
+        return process_pool(int(num_workers or os.cpu_count() or 1))
+    except Exception as exc:  # noqa: BLE001 - the machine's fault, or re-raised
+        fault = environment_fault(exc, "this machine")
+        if fault is None:
+            raise
+        raise fault from exc
+
+
 def run_batch(
     movies: Sequence[Movie],
     output: str | os.PathLike,
@@ -795,26 +807,21 @@ def _run_batch_locked(
     missing = _missing_chunks(opened, say)
 
     kind, obj = resolve_scheduler(scheduler, client)
-    pool_cm: Any = contextlib.nullcontext(None)
-    if kind == "local" and obj == "processes":
-        try:
-            pool_cm = process_pool(int(num_workers or os.cpu_count() or 1))
-        except Exception as exc:  # noqa: BLE001 - the machine's fault, or re-raised
-            fault = environment_fault(exc, "this machine")
-            if fault is None:
-                raise
-            raise fault from exc
     tables = []
     attrs: dict = {}
     linked = False
     empty: dict[str, list[int]] = {}
-    with pool_cm as pool, _client_for(kind, obj) as cl:
+    with contextlib.ExitStack() as kept, _client_for(kind, obj) as cl:
+        pool = None
         for m, lab, img in opened:
             part = parts / (_part_name(m, p, axes, spacing) + suffix)
             table = _resumed(part, m.name, say)
             if table is not None:
                 attrs = attrs or _to_jsonable(table_options(table) or {})
             else:
+                if kind == "local" and obj == "processes" and pool is None:
+                    # started for the first movie to measure, kept for the others
+                    pool = kept.enter_context(_batch_pool(num_workers))
                 def _prog(done: int, total: int, _name: str = m.name) -> None:
                     if progress:
                         progress(_name, done, total)
