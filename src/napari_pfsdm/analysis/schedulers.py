@@ -122,11 +122,12 @@ def probe_scheduler(address: str, timeout: float) -> None:
         )
 
 
-def process_pool(workers: int) -> Any:
-    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned),
-    all started before it is returned, that exit with this process and do not run the
-    caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`: a script without an
-    ``if __name__ == "__main__":`` guard measures once, not again in every worker).
+def process_pool(workers: int | None = None) -> Any:
+    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned;
+    default: one per core), all started before it is returned, that exit with this process
+    and do not run the caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`:
+    a script without an ``if __name__ == "__main__":`` guard measures once, not again in
+    every worker).
 
     Returns
     -------
@@ -138,6 +139,7 @@ def process_pool(workers: int) -> Any:
 
     from .parallel import bare_main
 
+    workers = int(workers or os.cpu_count() or 1)
     pool = ProcessPoolExecutor(max_workers=workers,
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_exit_with_parent, initargs=(os.getpid(),))

@@ -300,7 +300,7 @@ def measure_dask(
     own = kind == "local" and obj == "processes" and pool is None
     try:
         if own:  # the processes of this run, started without the caller's script
-            pool = process_pool(int(num_workers or os.cpu_count() or 1))
+            pool = process_pool(num_workers)
         blocks = _measure_planned(labels, intensity, kind, obj, p, axes, spacing,
                                   frames_per_task, num_workers, progress, pool, block_kw)
     except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
@@ -674,7 +674,7 @@ def _batch_pool(num_workers: int | None) -> Any:
     """The worker processes of a batch on the ``"processes"`` scheduler
     (:func:`~napari_pfsdm.analysis.schedulers.process_pool`), a failed start in plain words."""
     try:
-        return process_pool(int(num_workers or os.cpu_count() or 1))
+        return process_pool(num_workers)
     except Exception as exc:  # noqa: BLE001 - the machine's fault, or re-raised
         fault = environment_fault(exc, "this machine")
         if fault is None:
@@ -822,6 +822,7 @@ def _run_batch_locked(
                 if kind == "local" and obj == "processes" and pool is None:
                     # started for the first movie to measure, kept for the others
                     pool = kept.enter_context(_batch_pool(num_workers))
+
                 def _prog(done: int, total: int, _name: str = m.name) -> None:
                     if progress:
                         progress(_name, done, total)
