@@ -20,6 +20,7 @@ from napari_pfsdm.batch import run as run_module
 from napari_pfsdm.batch.io import check_labels
 from napari_pfsdm.core.params import as_params
 from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from unguarded_script import run_once
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
 
@@ -320,22 +321,13 @@ def test_a_script_without_a_main_guard_measures_once_in_processes(tmp_path):
     """Worker processes started by spawning import the main script first: a biologist's
     script with no ``if __name__ == "__main__":`` measures once with the 'processes'
     scheduler, not again in every worker (which stopped them: a failed run)."""
-    import subprocess
-    import sys
-
-    script = tmp_path / "no_guard.py"
-    script.write_text(
-        "from napari_pfsdm.batch import measure_dask\n"
-        "from napari_pfsdm.data.gastruloids import make_timelapse_montage\n"
-        "print('script body runs', flush=True)\n"
-        "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)\n"
-        "table = measure_dask(lab, img, scheduler='processes', num_workers=2)\n"
-        "print('rows', len(table))\n")
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.count("script body runs") == 1
-    assert "rows 6" in done.stdout
+    out = run_once(tmp_path, [
+        "from napari_pfsdm.batch import measure_dask",
+        "from napari_pfsdm.data.gastruloids import make_timelapse_montage",
+        "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)",
+        "table = measure_dask(lab, img, scheduler='processes', num_workers=2)",
+        "print('rows', len(table))"])
+    assert "rows 6" in out
 
 
 # ------------------------------------------------------------------------------------------

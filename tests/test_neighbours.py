@@ -18,6 +18,7 @@ from napari_pfsdm.core.boundary import (
 from napari_pfsdm.core.distances import Embeddings
 from napari_pfsdm.data.moving_blobs import make_moving_blobs
 from napari_pfsdm.errors import InputError
+from unguarded_script import run_once
 
 K = 10
 
@@ -198,24 +199,15 @@ def test_dask_schedulers_and_a_local_cluster_give_the_local_neighbours(blobs):
 def test_a_script_without_a_main_guard_finds_neighbours_once_in_processes(tmp_path):
     """The 'processes' scheduler's workers do not import the caller's script: one with no
     ``if __name__ == "__main__":`` runs once (not again in every worker, which stopped them)."""
-    import subprocess
-    import sys
-
-    script = tmp_path / "no_guard.py"
-    script.write_text(
-        "import napari_pfsdm as pf\n"
-        "from napari_pfsdm.data.moving_blobs import make_moving_blobs\n"
-        "print('script body runs', flush=True)\n"
+    out = run_once(tmp_path, [
+        "import napari_pfsdm as pf",
+        "from napari_pfsdm.data.moving_blobs import make_moving_blobs",
         "movie = make_moving_blobs(n_objects=6, n_frames=2, size=160, entering=0, leaving=0,"
-        " division=False, radius=(10.0, 14.0), seed=1)\n"
-        "table = pf.measure(movie.labels)\n"
-        "idx, _ = pf.nearest_neighbours(table, 3, scheduler='processes', block=4)\n"
-        "print('rows', len(idx))\n")
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.count("script body runs") == 1
-    assert "rows 12" in done.stdout
+        " division=False, radius=(10.0, 14.0), seed=1)",
+        "table = pf.measure(movie.labels)",
+        "idx, _ = pf.nearest_neighbours(table, 3, scheduler='processes', block=4)",
+        "print('rows', len(idx))"])
+    assert "rows 12" in out
 
 
 def test_volumes_by_shells_and_surface_term(rng):

@@ -12,6 +12,7 @@ from napari_pfsdm.analysis import parallel
 from napari_pfsdm.analysis.row_blocks import join_blocks
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
+from unguarded_script import run_once
 
 
 def _drain(gen):
@@ -194,25 +195,16 @@ def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
 def test_a_script_without_a_main_guard_runs_once(tmp_path):
     """spawn/forkserver children re-import the main module: a biologist's script with no
     ``if __name__ == "__main__":`` must not start again in every worker process."""
-    import subprocess
-    import sys
-
-    script = tmp_path / "no_guard.py"
-    script.write_text(
-        "from napari_pfsdm.analysis import parallel\n"
-        "from napari_pfsdm.core.params import PFSDMParams\n"
-        "from napari_pfsdm.data.gastruloids import make_timelapse_montage\n"
-        "print('script body runs', flush=True)\n"
-        "parallel.MIN_OBJECTS = 1\n"
-        "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)\n"
-        "g = parallel.iter_blocks(lab, img, params=PFSDMParams(), axes='tyx', workers=2)\n"
-        "try:\n"
-        "    while True:\n"
-        "        next(g)\n"
-        "except StopIteration as stop:\n"
-        "    print('rows', sum(len(b.table) for b in stop.value))\n")
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.count("script body runs") == 1
-    assert "rows 6" in done.stdout
+    out = run_once(tmp_path, [
+        "from napari_pfsdm.analysis import parallel",
+        "from napari_pfsdm.core.params import PFSDMParams",
+        "from napari_pfsdm.data.gastruloids import make_timelapse_montage",
+        "parallel.MIN_OBJECTS = 1",
+        "lab, img, _ = make_timelapse_montage(3, 2, 128, seed=1)",
+        "g = parallel.iter_blocks(lab, img, params=PFSDMParams(), axes='tyx', workers=2)",
+        "try:",
+        "    while True:",
+        "        next(g)",
+        "except StopIteration as stop:",
+        "    print('rows', sum(len(b.table) for b in stop.value))"])
+    assert "rows 6" in out
