@@ -78,7 +78,8 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
 
     d²(s) = ‖a‖² + ‖b‖² − 2 C(s) with C(s) = Re Σ_m X_m e^{ims}, X_m = Σ_r w_r a_rm conj(b_rm)
     (a reflection conjugates b). C is sampled at max(64, 8K) angles by a real matrix product and
-    its best sample refined by a parabola.
+    its best sample refined by a parabola. The (i, j) and (j, i) estimates (single precision,
+    computed apart) are averaged, so that the matrix is exactly symmetric.
     """
     n, _, k = spec[0].shape
     n_shift = max(64, 8 * k)
@@ -104,6 +105,8 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
             corr = np.concatenate([cross.real, cross.imag], axis=2) @ basis
             best = np.maximum(best, _parabolic_peak(corr))
         out[i0:i1] = np.maximum(norms[i0:i1, None] + norms[None, :] - 2 * best, 0.0)
+    out += out.T
+    out *= 0.5
     return out
 
 
