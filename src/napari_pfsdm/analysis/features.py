@@ -59,7 +59,7 @@ __all__ = [
 FOLDED_WARNING = 0.05
 
 _BLAS_LOCK = threading.Lock()
-_BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None}
+_BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None, "controller": None}
 
 
 @contextmanager
@@ -70,9 +70,15 @@ def _one_blas_thread():
     the original setting only when the last one leaves."""
     with _BLAS_LOCK:
         if _BLAS_STATE["users"] == 0:
-            from threadpoolctl import threadpool_limits
+            if _BLAS_STATE.get("controller") is None:
+                # finding the BLAS libraries reads the process's memory map (a few ms): once,
+                # after SciPy's own OpenBLAS (its linear algebra, scikit-learn's PCA) is loaded
+                import scipy.linalg  # noqa: F401
+                from threadpoolctl import ThreadpoolController
 
-            _BLAS_STATE["limiter"] = threadpool_limits(limits=1, user_api="blas")
+                _BLAS_STATE["controller"] = ThreadpoolController()
+            _BLAS_STATE["limiter"] = _BLAS_STATE["controller"].limit(limits=1,
+                                                                     user_api="blas")
         _BLAS_STATE["users"] += 1
     try:
         yield

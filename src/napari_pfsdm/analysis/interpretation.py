@@ -114,15 +114,16 @@ def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.D
     pcs = [c for c in scores.columns if str(c).startswith("PC")]
     cols = [c for c in MEASURES if c in measures.columns]
     both = scores.merge(measures, on=["frame", "label"], how="inner")
-    out = pd.DataFrame(index=pcs, columns=cols, dtype=float)
-    for pc in pcs:
-        for m in cols:
-            a, b = both[pc].to_numpy(float), both[m].to_numpy(float)
+    left, right = both[pcs].to_numpy(float), both[cols].to_numpy(float)
+    out = np.full((len(pcs), len(cols)), np.nan)
+    for i in range(len(pcs)):
+        for j in range(len(cols)):
+            a, b = left[:, i], right[:, j]
             ok = np.isfinite(a) & np.isfinite(b)
             a, b = a[ok], b[ok]
             if ok.sum() > 2 and a.std() > 0 and b.std() > 0:
-                out.loc[pc, m] = float(np.corrcoef(a, b)[0, 1])
-    return out
+                out[i, j] = np.corrcoef(a, b)[0, 1]
+    return pd.DataFrame(out, index=pcs, columns=cols)
 
 
 def explain_components(scores: pd.DataFrame, measures: pd.DataFrame,

@@ -147,6 +147,16 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         InputError
             Fewer than two measured rows; a column of ``regress_out`` missing.
         """
+        self._fit(table)
+        return self
+
+    def fit_transform(self, table: pd.DataFrame, y=None, **fit_params) -> pd.DataFrame:
+        """:meth:`fit`, then :meth:`transform` of the same table (its features read once)."""
+        z, ok = self._fit(table)
+        return self._scores(table, z, ok)
+
+    def _fit(self, table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+        """Fit; returns the measured rows' centred features and their mask."""
         x, ok = self._features(table)
         if len(x) < 2:
             raise InputError("PCA needs at least two measured objects (rows without error)")
@@ -178,7 +188,7 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         self.explained_variance_ratio_ = np.where(np.isfinite(ratio), ratio, 0.0)
         self.n_features_ = z.shape[1]
         self._shape = embeddings_from_table(table.iloc[:1], self.channel)[0].shape[1:]
-        return self
+        return z, ok
 
     def _check(self, table: pd.DataFrame) -> None:
         if not hasattr(self, "components_"):
@@ -198,14 +208,16 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         (``movie``, ``frame``, ``label``, ``track_id``, ``group`` when present) and
         ``{channel}_PC1`` …, in table order."""
         self._check(table)
-        z, ok = self._centred(table)
+        return self._scores(table, *self._centred(table))
+
+    def _scores(self, table: pd.DataFrame, z: np.ndarray, ok: np.ndarray) -> pd.DataFrame:
         scores = self.pca_.transform(z) * self.signs_ if len(z) else np.zeros(
             (0, len(self.components_)))
         keys = [c for c in _SCORE_KEYS if c in table.columns]
         out = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
-        for i in range(scores.shape[1]):
-            out[pc_column(self.channel, i + 1)] = scores[:, i]
-        return out
+        pcs = pd.DataFrame(scores, columns=[pc_column(self.channel, i + 1)
+                                            for i in range(scores.shape[1])])
+        return pd.concat([out, pcs], axis=1)
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """``{channel}_PC1`` …, as an object array."""

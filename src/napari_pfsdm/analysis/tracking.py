@@ -134,27 +134,32 @@ def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int
     """For each label present in consecutive frames t, t + 1: its jump (px), its jump (radii),
     and whether its centroid at t + 1 lies nearer another object's centroid at t than its own
     (a switch); then the number of such steps and of ids that could persist (the labels of
-    every frame but the last)."""
+    every frame but the last). ``table`` has one row per (frame, label)."""
     from scipy.spatial import cKDTree
 
-    where = _position_columns(table)
-    t = table[["frame", "label", "area", *where]].reset_index(drop=True)
-    t = t.assign(next=t["frame"] + 1, row=np.arange(len(t)))
-    pairs = t.merge(t, left_on=["next", "label"], right_on=["frame", "label"],
-                    suffixes=("", "_b"))
-    yx = t[where].to_numpy(float)
-    after = pairs[[f"{c}_b" for c in where]].to_numpy(float)
-    jump = np.linalg.norm(after - yx[pairs["row"].to_numpy()], axis=1)
-    radius = np.sqrt(0.5 * (pairs["area"] + pairs["area_b"]).to_numpy(float) / np.pi)
-    switched = np.zeros(len(pairs), bool)
-    frame_rows = t.groupby("frame").indices
-    for f, idx in pairs.groupby("frame").indices.items():
-        rows = frame_rows[f]
-        nearest = cKDTree(yx[rows]).query(after[idx])[1]
-        switched[idx] = rows[nearest] != pairs["row"].to_numpy()[idx]
-    frames = np.sort(t["frame"].unique())
-    has_next = t["frame"].isin(frames[np.isin(frames + 1, frames)])
-    return jump, jump / np.maximum(radius, 0.5), switched, len(pairs), int(has_next.sum())
+    frame = table["frame"].to_numpy(np.int64)
+    label = table["label"].to_numpy(np.int64)
+    area = table["area"].to_numpy(float)
+    yx = table[_position_columns(table)].to_numpy(float)
+    if not len(frame):
+        return np.zeros(0), np.zeros(0), np.zeros(0, bool), 0, 0
+    span = int(label.max() - label.min()) + 1
+    key = frame * span + (label - label.min())  # (frame, label) as one number
+    order = np.argsort(key, kind="stable")
+    pos = np.minimum(np.searchsorted(key[order], key + span), len(key) - 1)
+    here = np.flatnonzero(key[order][pos] == key + span)  # rows at t whose label is at t + 1
+    there = order[pos[here]]  # the same label's row at t + 1
+    jump = np.linalg.norm(yx[there] - yx[here], axis=1)
+    radius = np.sqrt(0.5 * (area[here] + area[there]) / np.pi)
+    switched = np.zeros(len(here), bool)
+    for f in np.unique(frame[here]):
+        rows = np.flatnonzero(frame == f)
+        steps = np.flatnonzero(frame[here] == f)
+        nearest = cKDTree(yx[rows]).query(yx[there[steps]])[1]
+        switched[steps] = rows[nearest] != here[steps]
+    frames = np.unique(frame)
+    has_next = np.isin(frame, frames[np.isin(frames + 1, frames)])
+    return jump, jump / np.maximum(radius, 0.5), switched, len(here), int(has_next.sum())
 
 
 def check_tracking(table: pd.DataFrame) -> TrackingCheck:

@@ -217,7 +217,8 @@ def check_feature_table(
         )
     n_radii = len(opts["weights"])
     n_modes = int(opts["sh_degree"] if table_ndim(opts) == 3 else opts["n_fourier"])
-    columns = set(map(str, table.columns))
+    names = table.columns
+    columns = set(map(str, names.tolist() if hasattr(names, "tolist") else names))
     for channel in channels:
         expected = table_feature_columns(opts, channel)
         missing = [c for c in expected if c not in columns]

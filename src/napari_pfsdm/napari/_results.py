@@ -91,9 +91,9 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 
         scores = space.fit_transform(table)
     except ValueError:
         return empty
-    out = scores[["frame", "label"]].copy()
-    for col in pc_columns(scores.columns, channel):
-        out[col[len(channel) + 1:]] = scores[col].to_numpy()
+    pcs = pc_columns(scores.columns, channel)
+    out = scores[["frame", "label", *pcs]].rename(
+        columns={col: col[len(channel) + 1:] for col in pcs})
     out.attrs["explained_variance_ratio"] = [float(r) for r in space.explained_variance_ratio_]
     return out
 
@@ -217,26 +217,47 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
     table = analysis.table
     kept = [c for c in table.columns
             if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)]
-    out = table[kept].copy()
-    out.attrs = {}
-    bools = [c for c, dtype in out.dtypes.items() if pd.api.types.is_bool_dtype(dtype)]
-    out = out.astype(dict.fromkeys(bools, np.int8))
-    out.insert(0, "index", table["label"].to_numpy())
-    out["failed"] = (~analysis.measured).astype(np.int8)
-    keys = table[["frame", "label"]]
-    keys.attrs = {}
+    base = table[kept]
+    base.attrs = {}  # (pandas copies a frame's attrs at each operation)
+    columns = {"index": table["label"].to_numpy()}
+    for col in kept:
+        values = base[col].to_numpy()
+        columns[col] = values.astype(np.int8) if values.dtype == bool else values
+    columns["failed"] = (~analysis.measured).astype(np.int8)
     for channel, scores in analysis.pca.items():
         if "PC1" in scores:
-            merged = keys.merge(scores, on=["frame", "label"], how="left")
+            at = _rows_in(base, scores)
             for col in scores.columns:
                 if col.startswith("PC"):
-                    out[f"{channel}_{col}"] = merged[col].to_numpy()
+                    columns[f"{channel}_{col}"] = _take(scores[col].to_numpy(float), at)
     if analysis.measures is not None and len(analysis.measures):
-        merged = keys.merge(analysis.measures, on=["frame", "label"], how="left")
+        at = _rows_in(base, analysis.measures)
         for col in MEASURES:
-            if col not in out.columns:
-                out[col] = merged[col].to_numpy()
-    return out
+            if col not in columns:
+                columns[col] = _take(analysis.measures[col].to_numpy(float), at)
+    return pd.DataFrame(columns)
+
+
+def _rows_in(table: pd.DataFrame, other: pd.DataFrame) -> np.ndarray:
+    """For each (frame, label) row of ``table``, its row in ``other`` (−1 when absent)."""
+    def keys(t):
+        return t["frame"].to_numpy(np.int64), t["label"].to_numpy(np.int64)
+
+    (f, lab), (of, olab) = keys(table), keys(other)
+    if not len(of):
+        return np.full(len(f), -1)
+    low = min(lab.min(initial=0), olab.min())
+    span = int(max(lab.max(initial=0), olab.max()) - low) + 1
+    key, okey = f * span + (lab - low), of * span + (olab - low)
+    order = np.argsort(okey, kind="stable")
+    pos = np.minimum(np.searchsorted(okey[order], key), len(okey) - 1)
+    return np.where(okey[order][pos] == key, order[pos], -1)
+
+
+def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """``values[at]``, NaN where ``at`` is −1."""
+    return np.where(at >= 0, values[np.maximum(at, 0)], np.nan) if len(values) else \
+        np.full(len(at), np.nan)
 
 
 def object_line(analysis: Analysis, frame: int, label: int) -> str:
