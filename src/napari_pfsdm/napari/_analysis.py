@@ -118,10 +118,12 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity):
         fields["table"], _ = identify(fields["table"], labels, True, "labels")
         fields["tracking_message"] = f"{err} The label ids were used."
     # what the GUI thread shows first, made here (the viewer stays free meanwhile)
+    from ..analysis.features import warnings_summary
+
     shown = Analysis("", 0, **fields)
     words = explanation(shown)
     fields["derived"] = shown.derived
-    return fields, layer_features(shown), words
+    return fields, layer_features(shown), words, warnings_summary(fields["table"])
 
 
 @thread_worker(start_thread=False)
@@ -354,9 +356,7 @@ class AnalysisWidget(QWidget):
                 worker.quit()
 
     def _show_results(self, labels: Labels, fields: dict, features, words: list[str],
-                      weight: float, seconds: float):
-        from ..analysis.features import warnings_summary
-
+                      summary: str, weight: float, seconds: float):
         if labels not in self.viewer.layers:
             self.say("The Labels layer was removed during the run; nothing kept.")
             return
@@ -372,7 +372,6 @@ class AnalysisWidget(QWidget):
         if analysis.tracking_message:
             msg.insert(0, analysis.tracking_message)
         msg += [f"{w}." for w in words[:1]]
-        summary = warnings_summary(analysis.table)
         if summary:
             msg.append(f"{summary[0].upper()}{summary[1:]}.")
         frames = _empty_frames(analysis, labels)
