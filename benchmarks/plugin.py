@@ -33,8 +33,9 @@ Open plots     the dock's Open plots (… the trajectories    docking an empty w
                dock is closed in between as its × does
 Run            the dock's Run (… results, pictures and      ``napari_pfsdm.measure`` of the same
                plots shown, no worker left)                 arrays in a napari ``thread_worker``
-Export         ``export(folder)`` (… its worker ended)      ``write_table`` of the same table and
-                                                            its ``distance_matrix`` in a worker
+Export         ``export(folder)`` (… its worker ended)      ``write_table`` of the same tables
+                                                            (features, PCA scores, distances) in
+                                                            a worker
 predict        the prediction dock's Predict (… its         ``predict_outcome`` of the same table,
                worker ended)                                groups and frames in a worker
 =============  ==========================================  =====================================
@@ -361,6 +362,7 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     import napari_pfsdm as pf
     from napari_pfsdm.analysis.features import split_failed
     from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.reduction import distance_table
     from napari_pfsdm.core.table_schema import has_channel
     from napari_pfsdm.napari._plots import PlotsWidget
 
@@ -691,11 +693,16 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
         weight = float(analysis.options.get("intensity_weight", 0.0)) \
             if has_channel(table.columns, "intensity") else 0.0
 
-        def library_export(folder: Path):
-            write_table(table, folder / "features.csv", dict(analysis.options),
-                        table_type="features")
+        def library_export(folder: Path):  # the same files as the export
+            opts = dict(analysis.options)
+            write_table(table, folder / "features.csv", opts, table_type="features")
+            for channel, scores in analysis.pca.items():
+                write_table(scores, folder / f"pca_{channel}.csv",
+                            dict(opts, pca_features=channel), table_type="pca")
             measured, _ = split_failed(table, ("shape", "intensity") if weight else ("shape",))
-            return distance_matrix(measured, intensity_weight=weight)
+            d = distance_matrix(measured, intensity_weight=weight)
+            return write_table(distance_table(measured, d), folder / "distances.csv", opts,
+                               index=True, table_type="distances")
 
         for i in range(repeats):
             focus(alone)
