@@ -15,16 +15,28 @@ def sample_layers():
     return gastruloid_timelapse()
 
 
+def _sample_viewer(make_viewer, layers, **kwargs):
+    from napari_helpers import dock
+
+    viewer = make_viewer(**kwargs)
+    for data, layer_kwargs, kind in layers:
+        getattr(viewer, f"add_{kind}")(data, **layer_kwargs)
+    return viewer, dock(viewer)
+
+
 @pytest.fixture
 def viewer_widget(make_napari_viewer_proxy, sample_layers):
     """A public-only viewer with the gastruloid sample and the analysis dock docked from the
     plugin menu."""
-    from napari_helpers import dock
+    return _sample_viewer(make_napari_viewer_proxy, sample_layers)
 
-    viewer = make_napari_viewer_proxy()
-    for data, kwargs, kind in sample_layers:
-        getattr(viewer, f"add_{kind}")(data, **kwargs)
-    return viewer, dock(viewer)
+
+@pytest.fixture
+def shown_viewer_widget(make_napari_viewer_proxy, sample_layers):
+    """The same, its window on screen at 1280 × 800 (plots are drawn only on screen)."""
+    viewer, widget = _sample_viewer(make_napari_viewer_proxy, sample_layers, show=True)
+    viewer.window.resize(1280, 800)
+    return viewer, widget
 
 
 @pytest.fixture(autouse=True)

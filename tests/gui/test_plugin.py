@@ -140,10 +140,10 @@ def _red_pixels_near(plot, point, radius: int = 6) -> int:
     return int(red.sum())
 
 
-def test_the_plot_shows_the_mark_of_the_selection_and_only_of_it(qtbot, viewer_widget):
+def test_the_plot_shows_the_mark_of_the_selection_and_only_of_it(qtbot, shown_viewer_widget):
     """What the trajectory canvas shows (its pixels): a red star on the selected object's
     point, and none left on the object selected before."""
-    viewer, w = viewer_widget
+    viewer, w = shown_viewer_widget
     run_and_wait(qtbot, w)
     plots = dock(viewer, PLOTS)
     plot = plots.trajectories
@@ -162,6 +162,22 @@ def test_the_plot_shows_the_mark_of_the_selection_and_only_of_it(qtbot, viewer_w
     assert _red_pixels_near(plot, plot.xy[first]) == 0  # the first star is gone
     plot.canvas.draw()  # a full drawing (zoom, resize) keeps the mark
     assert _red_pixels_near(plot, plot.xy[second]) > 10
+
+
+def test_open_plots_draws_the_trajectories_once_at_the_size_shown(qtbot, shown_viewer_widget):
+    """Opening the plots draws the figure once, at the canvas's size on screen (not first at
+    matplotlib's default 6.4 × 4.8 inches while the dock is being laid out)."""
+    viewer, w = shown_viewer_widget
+    run_and_wait(qtbot, w)
+    w.open_plots()  # the figure is made here; it is drawn at a later turn of the event loop
+    canvas = dock(viewer, PLOTS).trajectories.canvas
+    sizes: list = []
+    canvas.mpl_connect("draw_event", lambda e: sizes.append(tuple(canvas.figure.bbox.size)))
+    qtbot.waitUntil(lambda: len(sizes) > 0, timeout=10_000)
+    qtbot.wait(1000)
+    ratio = canvas.device_pixel_ratio
+    assert len(sizes) == 1
+    assert sizes[0] == pytest.approx((canvas.width() * ratio, canvas.height() * ratio), abs=1)
 
 
 def test_an_object_without_features_says_so_where_the_pictures_would_be(qtbot,

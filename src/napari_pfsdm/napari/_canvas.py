@@ -1,6 +1,9 @@
 """A napari-matplotlib canvas that lays its figure out once per new content or size, and draws
 the selection's marks over a saved background (matplotlib's blitting).
 
+A figure is drawn only on screen: new content while the canvas is hidden (a dock being made,
+a tab not shown) is drawn when the canvas is shown, at its real size.
+
 Constrained layout measures every tick label, and a full Agg drawing renders every artist:
 both are paid when the figure's content or size changes, never for a new selection. The layout
 runs inside the next drawing (coalescing a burst of resizes into one), and is then switched off
@@ -30,6 +33,7 @@ class PlotCanvas(BaseNapariMPLWidget):
         self.canvas.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Ignored)
         self.marks: list = []
         self.background = None
+        self.stale = False  # content changed while the canvas was not on screen
         self.canvas.mpl_connect("resize_event", self._on_resize)
         self.canvas.mpl_connect("draw_event", self._on_draw)
 
@@ -41,7 +45,20 @@ class PlotCanvas(BaseNapariMPLWidget):
                     axis.get_major_locator().set_params(nbins=TICKS)
         self.background = None
         self.figure.set_layout_engine("constrained")
-        self.canvas.draw_idle()
+        self._draw_when_shown()
+
+    def _draw_when_shown(self) -> None:
+        """Draw in full at the next turn of the event loop, or, while the canvas is not on
+        screen (a dock being made, a hidden tab), once it is shown: at its real size, once."""
+        self.stale = not self.canvas.isVisible()
+        if not self.stale:
+            self.canvas.draw_idle()
+
+    def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().showEvent(event)
+        if self.stale:
+            self.stale = False
+            self.canvas.draw_idle()
 
     def _on_resize(self, event=None) -> None:
         self.background = None
@@ -66,7 +83,7 @@ class PlotCanvas(BaseNapariMPLWidget):
             artist.set_animated(True)  # drawn only here, over the saved background
             artist.set_visible(True)
         if self.background is None:
-            self.canvas.draw_idle()
+            self._draw_when_shown()
             return
         self.canvas.restore_region(self.background)
         for artist in self.marks:
