@@ -35,9 +35,31 @@ __all__ = [
     "embeddings_from_table",
     "failed_rows",
     "is_table",
+    "key_rows",
     "outlines_from_table",
     "weighted_features",
 ]
+
+
+def key_rows(frames, labels, at_frames, at_labels) -> np.ndarray:
+    """Where each (frame, label) pair lies among the pairs (``at_frames``, ``at_labels``).
+
+    The pairs ``at`` are unique (one row per object, as in a feature table); returns the
+    position of each pair of ``frames``, ``labels`` among them, −1 where it is absent.
+
+    >>> key_rows([0, 0, 1], [5, 7, 5], [1, 0, 0], [5, 5, 9])
+    array([ 1, -1,  0])
+    """
+    f, lab = np.asarray(frames, np.int64), np.asarray(labels, np.int64)
+    af, alab = np.asarray(at_frames, np.int64), np.asarray(at_labels, np.int64)
+    if not len(af) or not len(f):
+        return np.full(len(f), -1)
+    low = min(int(lab.min()), int(alab.min()))
+    span = max(int(lab.max()), int(alab.max())) - low + 1
+    key, at_key = f * span + (lab - low), af * span + (alab - low)  # a pair as one number
+    order = np.argsort(at_key, kind="stable")
+    pos = np.minimum(np.searchsorted(at_key[order], key), len(at_key) - 1)
+    return np.where(at_key[order][pos] == key, order[pos], -1)
 
 
 def is_table(items: Any) -> bool:

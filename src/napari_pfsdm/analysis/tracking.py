@@ -33,6 +33,7 @@ from scipy.optimize import linear_sum_assignment
 from ..core.table_options import carry_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
+from .tables import key_rows
 
 __all__ = [
     "DEFAULT_LINK",
@@ -141,14 +142,9 @@ def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int
     label = table["label"].to_numpy(np.int64)
     area = table["area"].to_numpy(float)
     yx = table[_position_columns(table)].to_numpy(float)
-    if not len(frame):
-        return np.zeros(0), np.zeros(0), np.zeros(0, bool), 0, 0
-    span = int(label.max() - label.min()) + 1
-    key = frame * span + (label - label.min())  # (frame, label) as one number
-    order = np.argsort(key, kind="stable")
-    pos = np.minimum(np.searchsorted(key[order], key + span), len(key) - 1)
-    here = np.flatnonzero(key[order][pos] == key + span)  # rows at t whose label is at t + 1
-    there = order[pos[here]]  # the same label's row at t + 1
+    following = key_rows(frame + 1, label, frame, label)  # the same label's row at t + 1
+    here = np.flatnonzero(following >= 0)
+    there = following[here]
     jump = np.linalg.norm(yx[there] - yx[here], axis=1)
     radius = np.sqrt(0.5 * (area[here] + area[there]) / np.pi)
     switched = np.zeros(len(here), bool)

@@ -213,12 +213,17 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
     prediction); not the text columns nor the raw feature columns (:data:`RAW_PREFIXES`).
     """
     from ..analysis.interpretation import MEASURES
+    from ..analysis.tables import key_rows
 
     table = analysis.table
     kept = [c for c in table.columns
             if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)]
     base = table[kept]
     base.attrs = {}  # (pandas copies a frame's attrs at each operation)
+
+    def rows_in(other: pd.DataFrame) -> np.ndarray:  # each row's row in other (−1: none)
+        return key_rows(base["frame"], base["label"], other["frame"], other["label"])
+
     columns = {"index": table["label"].to_numpy()}
     for col in kept:
         values = base[col].to_numpy()
@@ -226,32 +231,16 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
     columns["failed"] = (~analysis.measured).astype(np.int8)
     for channel, scores in analysis.pca.items():
         if "PC1" in scores:
-            at = _rows_in(base, scores)
+            at = rows_in(scores)
             for col in scores.columns:
                 if col.startswith("PC"):
                     columns[f"{channel}_{col}"] = _take(scores[col].to_numpy(float), at)
     if analysis.measures is not None and len(analysis.measures):
-        at = _rows_in(base, analysis.measures)
+        at = rows_in(analysis.measures)
         for col in MEASURES:
             if col not in columns:
                 columns[col] = _take(analysis.measures[col].to_numpy(float), at)
     return pd.DataFrame(columns)
-
-
-def _rows_in(table: pd.DataFrame, other: pd.DataFrame) -> np.ndarray:
-    """For each (frame, label) row of ``table``, its row in ``other`` (−1 when absent)."""
-    def keys(t):
-        return t["frame"].to_numpy(np.int64), t["label"].to_numpy(np.int64)
-
-    (f, lab), (of, olab) = keys(table), keys(other)
-    if not len(of):
-        return np.full(len(f), -1)
-    low = min(lab.min(initial=0), olab.min())
-    span = int(max(lab.max(initial=0), olab.max()) - low) + 1
-    key, okey = f * span + (lab - low), of * span + (olab - low)
-    order = np.argsort(okey, kind="stable")
-    pos = np.minimum(np.searchsorted(okey[order], key), len(okey) - 1)
-    return np.where(okey[order][pos] == key, order[pos], -1)
 
 
 def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:
