@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import napari_pfsdm as pf
-from napari_pfsdm.analysis.tables import failed_rows
+from napari_pfsdm.analysis.tables import failed_rows, key_rows
 from napari_pfsdm.core.table_schema import (
     check_feature_table,
     has_channel,
@@ -116,3 +116,13 @@ def test_a_row_without_some_intensity_features_is_failed_for_the_intensity(table
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert pf.drop_failed(t)["label"].tolist() == [1, 2]
+
+
+def test_key_rows_finds_each_frame_and_label_pair_or_says_minus_one():
+    at_frames, at_labels = [3, 0, 0, 1, 2], [7, 7, -2, 100, 7]
+    found = key_rows([0, 0, 3, 1, 2, 5, 0], [7, -2, 7, 100, 8, 7, 100], at_frames, at_labels)
+    # by hand: (0, 7) → 1, (0, −2) → 2, (3, 7) → 0, (1, 100) → 3, (2, 8) and (5, 7) and
+    # (0, 100) are absent (the same label in another frame, or the same frame another label)
+    assert found.tolist() == [1, 2, 0, 3, -1, -1, -1]
+    assert key_rows([0], [1], [], []).tolist() == [-1]
+    assert key_rows([], [], at_frames, at_labels).tolist() == []
