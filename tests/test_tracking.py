@@ -374,15 +374,16 @@ def test_cli_measure_links_untracked_labels_by_default(cli_movie, capsys):
 
 def test_the_check_counts_steps_jumps_and_switches_worked_by_hand():
     # area π·10² (radius 10). Frame 0: labels 1, 2; frame 1: 1, 2, 3; frame 2: 2, 3; label
-    # 1 moves 30 px onto label 2's place of frame 0 (a switch); rows in no particular order
+    # 1 moves 28 px, next to label 2's place of frame 0 (a switch); no two centroids tie for
+    # nearest; rows in no particular order
     rows = [(1, 2, 0.0, 30.0), (0, 1, 0.0, 0.0), (2, 3, 50.0, 3.0), (0, 2, 0.0, 30.0),
-            (1, 1, 0.0, 30.0), (1, 3, 50.0, 0.0), (2, 2, 0.0, 34.0)]
+            (1, 1, 0.0, 28.0), (1, 3, 50.0, 0.0), (2, 2, 0.0, 34.0)]
     table = pd.DataFrame(rows, columns=["frame", "label", "centroid_y", "centroid_x"])
     table["area"] = np.pi * 100.0
     check = tk.check_tracking(table)
-    # steps: 1 (0→1, 30 px), 2 (0→1, 0 px), 2 (1→2, 4 px), 3 (1→2, 3 px); 5 rows have a
+    # steps: 1 (0→1, 28 px), 2 (0→1, 0 px), 2 (1→2, 4 px), 3 (1→2, 3 px); 5 rows have a
     # next frame (2 in frame 0, 3 in frame 1)
     assert check.n_steps == 4 and check.persistence == pytest.approx(4 / 5)
-    assert check.median_jump == pytest.approx(3.5)  # median of 0, 3, 4, 30
+    assert check.median_jump == pytest.approx(3.5)  # median of 0, 3, 4, 28
     assert check.median_jump_radii == pytest.approx(0.35)
     assert check.switched == pytest.approx(1 / 4) and check.jumping == pytest.approx(1 / 4)
