@@ -70,7 +70,7 @@ def _one_blas_thread():
     the original setting only when the last one leaves."""
     with _BLAS_LOCK:
         if _BLAS_STATE["users"] == 0:
-            if _BLAS_STATE.get("controller") is None:
+            if _BLAS_STATE["controller"] is None:
                 # finding the BLAS libraries reads the process's memory map (a few ms): once,
                 # after SciPy's own OpenBLAS (its linear algebra, scikit-learn's PCA) is loaded
                 import scipy.linalg  # noqa: F401

@@ -148,14 +148,24 @@ def _steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int
     jump = np.linalg.norm(yx[there] - yx[here], axis=1)
     radius = np.sqrt(0.5 * (area[here] + area[there]) / np.pi)
     switched = np.zeros(len(here), bool)
-    for f in np.unique(frame[here]):
-        rows = np.flatnonzero(frame == f)
-        steps = np.flatnonzero(frame[here] == f)
+    rows_of = _by_value(frame)
+    for f, steps in _by_value(frame[here]).items():
+        rows = rows_of[f]
         nearest = cKDTree(yx[rows]).query(yx[there[steps]])[1]
         switched[steps] = rows[nearest] != here[steps]
     frames = np.unique(frame)
     has_next = np.isin(frame, frames[np.isin(frames + 1, frames)])
     return jump, jump / np.maximum(radius, 0.5), switched, len(here), int(has_next.sum())
+
+
+def _by_value(values: np.ndarray) -> dict[int, np.ndarray]:
+    """The positions of each value of ``values``, in increasing order (one sort, not one scan
+    per value)."""
+    if not len(values):
+        return {}
+    order = np.argsort(values, kind="stable")
+    keys, starts = np.unique(values[order], return_index=True)
+    return dict(zip(keys.tolist(), np.split(order, starts[1:]), strict=True))
 
 
 def check_tracking(table: pd.DataFrame) -> TrackingCheck:

@@ -224,7 +224,7 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
     def rows_in(other: pd.DataFrame) -> np.ndarray:  # each row's row in other (−1: none)
         return key_rows(base["frame"], base["label"], other["frame"], other["label"])
 
-    columns = {"index": table["label"].to_numpy()}
+    columns = {"index": base["label"].to_numpy()}
     for col in kept:
         values = base[col].to_numpy()
         columns[col] = values.astype(np.int8) if values.dtype == bool else values
