@@ -31,6 +31,8 @@ SIZE = 128
 #: Pictures of this many objects are kept.
 CACHE = 64
 SKELETON, OUTLINE = "#ffd000", "#202020"
+#: Points of the captions layer (a 2-D object's pictures have at most five captions).
+SLOTS = 5
 
 
 def names(source: str) -> dict[str, str]:
@@ -132,10 +134,16 @@ def _restyle(viewer, source: str, keys, **props) -> None:
 
 def caption(viewer, layer, where: list, texts: list[str]) -> None:
     """Texts centred on world points ``where``: (y, x) beside a 2-D object's pictures,
-    (z, y, x) for a 3-D object's (so that napari's 3-D view shows them in space)."""
+    (z, y, x) for a 3-D object's (so that napari's 3-D view shows them in space).
+
+    The layer always holds :data:`SLOTS` points (unused ones at the first point, with no
+    text): a new caption then changes only napari's texts, where a new number of points would
+    make napari rebuild the layer's points and texts."""
     name = names(layer.name)["captions"]
     data = np.asarray(where, float)
     data = data.reshape(-1, data.shape[-1])
+    data = np.concatenate([data, np.repeat(data[:1], SLOTS - len(data), axis=0)])
+    texts = list(texts) + [""] * (SLOTS - len(texts))
     text = {"string": "{text}", "color": "white", "size": 9, "anchor": "center"}
     if name in viewer.layers and viewer.layers[name].ndim != data.shape[1]:
         viewer.layers.remove(name)  # the layer was analysed with another first axis
@@ -144,8 +152,8 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
         features={"text": texts}, text=text))
     if not np.array_equal(pts.data, data):
         pts.data = data
-    if list(pts.features["text"]) != list(texts):
-        pts.features = {"text": list(texts)}  # napari refreshes the texts from the features
+    if list(pts.features["text"]) != texts:
+        pts.features = {"text": texts}  # napari refreshes the texts from the features
     _set(pts, visible=True)
     top = len(viewer.layers) - 1
     if viewer.layers.index(pts) != top:  # over the pictures
@@ -194,16 +202,18 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
     _set(lines, visible=True, opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}"]
-    spots = [_above(cells["sdf"]), _above(cells["disk"]),
-             _above((cells["disk"][0] + side * 1.2, cells["disk"][1], side))]
-    if p.intensity_disk is not None:
-        texts.append("reporter (× mean)")
-        spots.append(_above(cells["intensity_disk"]))
-    if p.notes:
-        texts.append("; ".join(p.notes))
-        spots.append(_above((cells["intensity_disk"][0], cells["disk"][1], side)))
-    caption(viewer, layer, spots, texts)
+    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
+             "reporter (× mean)" if p.intensity_disk is not None else "", "; ".join(p.notes)]
+    caption(viewer, layer, _spots_2d(layer), texts)
+
+
+def _spots_2d(layer) -> list[tuple[float, float]]:
+    """Where a 2-D object's captions go: over the SDF, over the disk, under the disk (the
+    object), over the reporter's disk, and beside it (notes)."""
+    cells = _cells(layer)
+    top, left, side = cells["disk"]
+    return [_above(cells["sdf"]), _above(cells["disk"]), _above((top + side * 1.2, left, side)),
+            _above(cells["intensity_disk"]), _above((cells["intensity_disk"][0], left, side))]
 
 
 def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
@@ -244,11 +254,11 @@ def say(viewer, layer, text: str, analysis: Analysis | None = None,
     selection's own are being made) and say why where they would be."""
     _restyle(viewer, layer.name, PICTURES, **({"visible": False} if hide else
                                                 {"opacity": DIMMED}))
-    spot = _above(_cells(layer)["sdf"])
+    spots = _spots_2d(layer)  # the 2-D captions' places: only their texts change
     if analysis is not None and analysis.ndim == 3:
-        spot = (float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
-                *spot)
-    caption(viewer, layer, [spot], [text])
+        spots = [(float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
+                  *spots[0])]
+    caption(viewer, layer, spots, [text])
 
 
 @thread_worker(start_thread=False)
