@@ -372,8 +372,40 @@ def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
     assert "label 2" in captions.features["text"][0]
     # 3-D captions: in napari's 3-D view the last one floats just above the surface
     assert captions.ndim == 3
-    z, y, x = captions.data[-1]
+    z, y, x = captions.data[2]  # the third caption names the object
     assert 49 <= x <= 70 and y < verts[:, 1].min() and 6 <= z <= 18
+
+
+def test_a_new_run_or_pair_of_pcs_shows_its_own_points(qtbot, shown_viewer_widget):
+    """The trajectory plot after another Run (one object fewer) and another pair of PCs: its
+    points are the new PCA scores, coloured by their frame, inside the axes, with the star on
+    the selected object's new point."""
+    viewer, w = shown_viewer_widget
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    plot = plots.trajectories
+    qtbot.waitUntil(lambda: plot.background is not None, timeout=10_000)
+    labels = viewer.layers["gastruloids"]
+    labels.data = np.where(labels.data == 6, 0, labels.data)
+    analysis = run_and_wait(qtbot, w)
+    for pair in ("PC1–PC2", "PC2–PC3"):
+        plot.pcs.value = pair
+        scores = analysis.pca["shape"]
+        i, j = pair.replace("PC", "").split("–")
+        points = plot.points_axes.collections[0]
+        np.testing.assert_allclose(points.get_offsets(),
+                                   scores[[f"PC{i}", f"PC{j}"]].to_numpy())
+        assert len(points.get_offsets()) == 60 and 6 not in plot.keys[:, 1]
+        np.testing.assert_array_equal(points.get_array(), scores["frame"].to_numpy())
+        assert points.norm.vmin == 0 and points.norm.vmax == 11
+        (x0, x1), (y0, y1) = plot.points_axes.get_xlim(), plot.points_axes.get_ylim()
+        x, y = points.get_offsets().T
+        assert x0 < x.min() and x.max() < x1 and y0 < y.min() and y.max() < y1
+        assert plot.points_axes.get_xlabel().startswith(f"PC{i} (")
+        qtbot.waitUntil(lambda: plot.background is not None, timeout=10_000)
+        frame, label = analysis.selection
+        k = int(np.flatnonzero((plot.keys[:, 0] == frame) & (plot.keys[:, 1] == label))[0])
+        assert _red_pixels_near(plot, plot.xy[k]) > 10
 
 
 def test_the_plots_follow_the_model(qtbot, viewer_widget):
