@@ -68,6 +68,9 @@ def test_rows_and_errors_are_looked_up_by_frame_and_label():
     assert a.measured.tolist() == [True, False, True, True]
     still = Analysis("A", 1, _table(), {}, axes="yx")  # no time axis: the frame is ignored
     assert still.row_of(7, 2) == 1
+    read = _table().assign(error=[np.nan, "too small", np.nan, np.nan])  # as CSV reads ""
+    a = Analysis("A", 1, read, {}, axes="tyx")
+    assert a.error_of(0, 1) == "" and a.measured.tolist() == [True, False, True, True]
 
 
 def test_the_line_on_an_object_says_what_its_row_holds():

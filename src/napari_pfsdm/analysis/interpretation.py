@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .tables import key_rows
+
 __all__ = ["MEASURES", "table_measures", "outline_measures", "component_correlations",
            "explain_components"]
 
@@ -113,8 +115,9 @@ def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.D
     """
     pcs = [c for c in scores.columns if str(c).startswith("PC")]
     cols = [c for c in MEASURES if c in measures.columns]
-    both = scores.merge(measures, on=["frame", "label"], how="inner")
-    left, right = both[pcs].to_numpy(float), both[cols].to_numpy(float)
+    at = key_rows(scores["frame"], scores["label"], measures["frame"], measures["label"])
+    left = scores[pcs].to_numpy(float)[at >= 0]
+    right = measures[cols].to_numpy(float)[at[at >= 0]]
     out = np.full((len(pcs), len(cols)), np.nan)
     for i in range(len(pcs)):
         for j in range(len(cols)):

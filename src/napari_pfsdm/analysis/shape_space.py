@@ -24,8 +24,8 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.decomposition import PCA
 
 from ..core.params import OPTIONS, SELECTION_OPTIONS
-from ..core.table_options import plain, table_options
-from ..core.table_schema import TRACK_COLUMN, pc_column
+from ..core.table_options import table_options
+from ..core.table_schema import TRACK_COLUMN, pc_column, table_ndim
 from ..errors import InputError
 from .tables import embeddings_from_table, weighted_features
 
@@ -187,7 +187,9 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         ratio = self.pca_.explained_variance_ratio_
         self.explained_variance_ratio_ = np.where(np.isfinite(ratio), ratio, 0.0)
         self.n_features_ = z.shape[1]
-        self._shape = embeddings_from_table(table.iloc[:1], self.channel)[0].shape[1:]
+        opts = table_options(table)  # a map's columns: harmonics 0 … n_fourier (sh_degree)
+        harmonics = int(opts["sh_degree"] if table_ndim(opts) == 3 else opts["n_fourier"]) + 1
+        self._shape = (self.n_features_ // harmonics, harmonics)
         return z, ok
 
     def _check(self, table: pd.DataFrame) -> None:
@@ -213,11 +215,11 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
     def _scores(self, table: pd.DataFrame, z: np.ndarray, ok: np.ndarray) -> pd.DataFrame:
         scores = self.pca_.transform(z) * self.signs_ if len(z) else np.zeros(
             (0, len(self.components_)))
-        keys = [c for c in _SCORE_KEYS if c in table.columns]
-        out = plain(table.loc[ok, keys].reset_index(drop=True))  # its own options: none
-        pcs = pd.DataFrame(scores, columns=[pc_column(self.channel, i + 1)
-                                            for i in range(scores.shape[1])])
-        return pd.concat([out, pcs], axis=1)
+        rows = np.flatnonzero(ok)
+        columns = {c: table[c].array[rows] for c in _SCORE_KEYS if c in table.columns}
+        columns.update((pc_column(self.channel, i + 1), scores[:, i])
+                       for i in range(scores.shape[1]))
+        return pd.DataFrame(columns)  # its own options: none
 
     def get_feature_names_out(self, input_features=None) -> np.ndarray:
         """``{channel}_PC1`` …, as an object array."""

@@ -565,7 +565,8 @@ def add_track_ids(table: pd.DataFrame, track_ids: Any) -> pd.DataFrame:
     ``track_id`` columns (as :func:`link_labels` returns), matched on (``movie``,) frame and
     label; rows it does not name get :data:`NO_TRACK`.
     """
-    out = table.drop(columns=[TRACK_COLUMN], errors="ignore").copy()
+    out = table.drop(columns=[TRACK_COLUMN]) if TRACK_COLUMN in table.columns \
+        else table.copy()
     if isinstance(track_ids, pd.DataFrame):
         keys = [k for k in ("movie", "frame", "label") if k in track_ids.columns]
         idx = pd.MultiIndex.from_frame(out[keys])

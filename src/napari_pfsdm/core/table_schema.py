@@ -239,8 +239,9 @@ def check_feature_table(
                 f"columns ({_span(missing)}); it was cut or edited. Use the table as "
                 "'pfsdm measure' wrote it, or measure again"
             )
-        extra = sorted(c for c in columns - set(expected)
-                       if re.fullmatch(rf"{channel}_r\d+_[nl]\d+", c))
+        feature = re.compile(rf"{channel}_r\d+_[nl]\d+")
+        extra = sorted(c for c in columns.difference(expected)
+                       if c.startswith(f"{channel}_r") and feature.fullmatch(c))
         if extra:
             raise InputError(
                 f"{where} has {len(extra)} {channel} feature columns more than its options "

@@ -124,8 +124,9 @@ class Analysis:
         labels = self.table["label"].to_numpy().astype(np.int64)
         self._rows = {(int(f), int(lab)): i for i, (f, lab) in enumerate(zip(frames, labels,
                                                                               strict=True))}
-        errors = (self.table["error"].astype(str).to_numpy() if "error" in self.table
+        errors = (self.table["error"].fillna("").astype(str).to_numpy() if "error" in self.table
                   else np.full(len(self.table), "", dtype=object))
+        self._errors = errors
         self.measured = np.array([not e for e in errors], dtype=bool)
 
     def row_of(self, frame: int, label: int) -> int | None:
@@ -142,7 +143,7 @@ class Analysis:
         i = self.row_of(frame, label)
         if i is None:
             return None
-        return str(self.table["error"].iat[i]) if "error" in self.table else ""
+        return str(self._errors[i])
 
     def objects(self) -> np.ndarray:
         """The object of each row: its ``track_id`` when the table has one, else its label."""

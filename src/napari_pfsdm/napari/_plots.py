@@ -72,6 +72,10 @@ class _Plot(PlotCanvas):
 
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
+        if self.analysis is not None and self.refresh():
+            self.changed()
+            self.highlight()
+            return
         self.figure.clear()
         self.marks, self.points_axes, self.mark_artists = [], None, {}
         self.keys = np.zeros((0, 2), np.int64)
@@ -89,6 +93,11 @@ class _Plot(PlotCanvas):
 
     def draw(self) -> None:  # pragma: no cover - each plot draws its own
         raise NotImplementedError
+
+    def refresh(self) -> bool:
+        """Give the figure's artists new data in place, when the figure keeps its kind of
+        content (True); else False, and :meth:`redraw` draws the figure from scratch."""
+        return False
 
     def set_points(self, ax, xy: np.ndarray, keys: np.ndarray) -> None:
         self.points_axes, self.xy, self.keys = ax, np.asarray(xy, float), keys
@@ -147,9 +156,8 @@ class TrajectoryPlot(_Plot):
                             tooltip="The principal components on the x and y axes.")
         super().__init__(viewer, [self.channel, self.color_by, self.pcs])
 
-    def draw(self) -> None:
-        import matplotlib
-
+    def _view(self) -> dict:
+        """What the plot shows now: points, paths, colours and texts."""
         a = self.analysis
         channel = self.channel.value
         scores = a.pca.get(channel)
@@ -162,36 +170,93 @@ class TrajectoryPlot(_Plot):
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         keys = scores[["frame", "label"]].to_numpy().astype(np.int64)
         rows = np.array([a.row_of(f, lab) for f, lab in keys])
-        objects = self.point_objects = a.objects()[rows]
+        objects = a.objects()[rows]
         groups = a.group_of_rows()[rows]
-        ax = self.figure.add_subplot(111)
         order = np.lexsort((keys[:, 0], objects))
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
         lines = [np.column_stack([x[s], y[s]]) for s in np.split(order, starts[1:])
                  if len(s) > 1 and objects[s[0]] >= 0]
-        by_group = self.color_by.value == "group" and any(groups)
-        tab = matplotlib.colormaps["tab10"]
         names = sorted({g for g in groups if g})
+        by_group = self.color_by.value == "group" and bool(names)
+        words = explanation(a, channel)
+        warn = a.tracking_message if a.tracking_message.startswith("Warning") else ""
+        return {"xy": np.column_stack([x, y]), "keys": keys, "objects": objects,
+                "groups": groups, "lines": lines,
+                # what decides the figure's artists (else only their data change)
+                "layout": (by_group, tuple(names) if by_group else (), a.time_lapse),
+                "xlabel": f"PC{i}" + _percent(ratios, i),
+                "ylabel": f"PC{j}" + _percent(ratios, j),
+                "title": f"{channel} trajectories of '{self.layer.name}'",
+                "info": " ".join([warn, "; ".join(words) + ("." if words else "")]).strip()}
+
+    @staticmethod
+    def _colors(view: dict) -> list:
+        import matplotlib
+
+        tab = matplotlib.colormaps["tab10"]
+        names = view["layout"][1]
+        return [tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6)
+                for g in view["groups"]]
+
+    def draw(self) -> None:
+        import matplotlib
+
+        view = self._view()
+        x, y = view["xy"].T
+        frames = view["keys"][:, 0]
+        by_group, names, time_lapse = view["layout"]
+        ax = self.figure.add_subplot(111)
         if by_group:
-            colors = [tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6) for g in groups]
-            ax.scatter(x, y, c=colors, s=14, zorder=2, edgecolors="none")
+            points = ax.scatter(x, y, c=self._colors(view), s=14, zorder=2, edgecolors="none")
+            tab = matplotlib.colormaps["tab10"]
             for k, name in enumerate(names):
                 ax.scatter([], [], color=tab(k % 10), s=14, label=name)
             ax.legend(fontsize=7, loc="best", title="group", title_fontsize=7)
         else:
-            sc = ax.scatter(x, y, c=keys[:, 0], cmap="viridis", s=14, zorder=2,
-                            edgecolors="none")
-            if a.time_lapse:
-                self.figure.colorbar(sc, ax=ax, pad=0.01).set_label("frame")
-        ax.add_collection(LineCollection(lines, colors=(0.6, 0.6, 0.6, 0.5), linewidths=0.8,
-                                         zorder=1))
-        ax.set_xlabel(f"PC{i}" + _percent(ratios, i))
-        ax.set_ylabel(f"PC{j}" + _percent(ratios, j))
-        ax.set_title(f"{channel} trajectories of '{self.layer.name}'", fontsize=9)
-        self.set_points(ax, np.column_stack([x, y]), keys)
-        words = explanation(a, channel)
-        warn = a.tracking_message if a.tracking_message.startswith("Warning") else ""
-        self.info.value = " ".join([warn, "; ".join(words) + ("." if words else "")]).strip()
+            points = ax.scatter(x, y, c=frames, cmap="viridis", s=14, zorder=2,
+                                edgecolors="none")
+            if time_lapse:
+                self.figure.colorbar(points, ax=ax, pad=0.01).set_label("frame")
+        paths = ax.add_collection(LineCollection(view["lines"], colors=(0.6, 0.6, 0.6, 0.5),
+                                                 linewidths=0.8, zorder=1))
+        self.artists = {"layout": view["layout"], "points": points, "paths": paths}
+        self._texts(ax, view)
+
+    def _texts(self, ax, view: dict) -> None:
+        ax.set_xlabel(view["xlabel"])
+        ax.set_ylabel(view["ylabel"])
+        ax.set_title(view["title"], fontsize=9)
+        self.point_objects = view["objects"]
+        self.set_points(ax, view["xy"], view["keys"])
+        self.info.value = view["info"]
+
+    def refresh(self) -> bool:
+        """New data in the same kind of figure (a new Run, another channel or pair of PCs):
+        the artists drawn are given the new data instead of being made again."""
+        artists = getattr(self, "artists", None)
+        ax = self.points_axes
+        if artists is None or ax is None or ax.figure is not self.figure:
+            return False
+        try:
+            view = self._view()
+        except ValueError:
+            return False  # the full drawing says why
+        if view["layout"] != artists["layout"]:
+            return False
+        xy, frames = view["xy"], view["keys"][:, 0]
+        points = artists["points"]
+        points.set_offsets(xy)
+        if view["layout"][0]:
+            points.set_facecolors(self._colors(view))
+        else:
+            points.set_array(frames)
+            points.set_clim(frames.min(), frames.max())  # the colour bar follows its points
+        artists["paths"].set_segments(view["lines"])
+        ax.ignore_existing_data_limits = True
+        ax.update_datalim(xy)
+        ax.autoscale_view()
+        self._texts(ax, view)
+        return True
 
     def mark(self, ax, frame: int, label: int) -> list:
         out = []

@@ -91,9 +91,9 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 
         scores = space.fit_transform(table)
     except ValueError:
         return empty
-    pcs = pc_columns(scores.columns, channel)
-    out = scores[["frame", "label", *pcs]].rename(
-        columns={col: col[len(channel) + 1:] for col in pcs})
+    out = pd.DataFrame({col[len(channel) + 1:] if col.startswith(channel) else col:
+                        scores[col].to_numpy()
+                        for col in ["frame", "label", *pc_columns(scores.columns, channel)]})
     out.attrs["explained_variance_ratio"] = [float(r) for r in space.explained_variance_ratio_]
     return out
 
@@ -161,7 +161,8 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
 
     if mode not in IDENTITY:
         raise ValueError(f"identity must be one of {IDENTITY}, got {mode!r}.")
-    table = carry_options(table, table.drop(columns=[TRACK_COLUMN], errors="ignore"))
+    if TRACK_COLUMN in table.columns:  # identities found again
+        table = carry_options(table, table.drop(columns=[TRACK_COLUMN]))
     if not time_lapse:
         return table, ""
     check = check_tracking(table)
