@@ -91,9 +91,10 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 
         scores = space.fit_transform(table)
     except ValueError:
         return empty
-    out = pd.DataFrame({col[len(channel) + 1:] if col.startswith(channel) else col:
-                        scores[col].to_numpy()
-                        for col in ["frame", "label", *pc_columns(scores.columns, channel)]})
+    out = pd.DataFrame({"frame": scores["frame"].to_numpy(),
+                        "label": scores["label"].to_numpy(),
+                        **{col[len(channel) + 1:]: scores[col].to_numpy()  # PC1 …
+                           for col in pc_columns(scores.columns, channel)}})
     out.attrs["explained_variance_ratio"] = [float(r) for r in space.explained_variance_ratio_]
     return out
 
