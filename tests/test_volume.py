@@ -369,6 +369,13 @@ def test_3d_table_round_trip(tmp_path, labels_tzyx):
     back = P.read_table(tmp_path / "t.csv")
     np.testing.assert_allclose(P.distance_matrix(back), P.distance_matrix(table), atol=1e-12)
     assert P.weighted_features(back).shape == (4, 17 * 9)
+    # a loadings map of the shape space: the shells and the surface row, by degree
+    from napari_pfsdm.analysis.shape_space import ShapePCA
+    from napari_pfsdm.analysis.tables import embeddings_from_table
+
+    space = ShapePCA(n_components=2).fit(table)
+    emb = embeddings_from_table(table)[0]
+    assert space.loadings(1).shape == emb.shape[1:] == (17, 9)
 
 
 def test_3d_distances_refuse_align_and_mixing():
