@@ -60,6 +60,20 @@ def test_one_signal_per_change_naming_what_changed():
     assert a.selection == (1, 2) and a.groups == {1: "x"}
 
 
+def test_a_prediction_made_elsewhere_brings_its_table_and_index():
+    a = Analysis("A", 1, _table(), {}, axes="tyx")
+    a.derived["old"] = 1
+    scored = a.with_table(_table().iloc[[2, 3, 0]].assign(p_x=[0.1, 0.2, 0.3], error=""))
+    assert a.row_of(1, 1) == 2 and not a.measured[1]  # the analysis is untouched so far
+    seen = []
+    a.changed.connect(seen.append)
+    a.set_prediction("prediction", scored)
+    assert seen == ["prediction"] and a.prediction == "prediction"
+    assert a.table["p_x"].tolist() == [0.1, 0.2, 0.3] and "old" not in a.derived
+    assert a.row_of(1, 1) == 0 and a.row_of(0, 2) is None and a.error_of(0, 1) == ""
+    assert a.measured.tolist() == [True, True, True]
+
+
 def test_rows_and_errors_are_looked_up_by_frame_and_label():
     a = Analysis("A", 1, _table(), {}, axes="tyx")
     assert a.row_of(1, 2) == 3 and a.row_of(2, 1) is None

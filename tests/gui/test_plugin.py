@@ -15,6 +15,7 @@ from napari_helpers import (
 )
 
 import napari_pfsdm as pf
+from napari_pfsdm.napari._results import layer_features
 
 pytestmark = pytest.mark.gui
 
@@ -289,6 +290,9 @@ def test_layer_for_plotters_has_one_id_per_object_and_frame(qtbot, viewer_widget
         assert set(np.unique(objects.data[t[row]][mask])) == {row + 1}
     assert objects.features["index"].tolist() == list(range(1, 73))
     assert objects.features["frame"].tolist() == t.tolist()
+    # the Labels layer keeps napari's index = its label, and so do the features kept for it
+    assert viewer.layers["gastruloids"].features["index"].tolist() == lab.tolist()
+    assert layer_features(analysis)["index"].tolist() == lab.tolist()
 
 
 def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_widget):

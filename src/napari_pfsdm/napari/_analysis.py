@@ -513,7 +513,7 @@ class AnalysisWidget(QWidget):
         name = f"{labels.name} objects"
         data = object_ids(np.asarray(_data(labels)), analysis)
         features = layer_features(analysis)
-        features["index"] = np.arange(1, len(features) + 1)
+        features = features.assign(index=np.arange(1, len(features) + 1))  # a copy
         if name in self.viewer.layers:
             layer = self.viewer.layers[name]
             layer.data = data

@@ -24,7 +24,7 @@ Examples
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -185,13 +185,19 @@ class Analysis:
         self.comparison[what] = result
         self.changed.emit("comparison")
 
-    def set_prediction(self, prediction: Any, table: pd.DataFrame | None = None) -> None:
-        """Keep a prediction; ``table`` (with its ``p_<group>`` columns) replaces the table."""
+    def with_table(self, table: pd.DataFrame) -> Analysis:
+        """A copy with another table, indexed and with nothing derived yet: made where the
+        work is done (a worker), then taken by :meth:`set_prediction`."""
+        return replace(self, table=table, derived={})
+
+    def set_prediction(self, prediction: Any, scored: Analysis | None = None) -> None:
+        """Keep a prediction; ``scored`` (:meth:`with_table` of the table with its
+        ``p_<group>`` columns) gives the new table, its index and what was derived from it."""
         self.prediction = prediction
-        if table is not None:
-            self.table = table
-            self.derived.clear()
-            self._index()
+        if scored is not None:
+            self.table, self.derived = scored.table, scored.derived
+            self._rows, self._errors, self.measured = scored._rows, scored._errors, \
+                scored.measured
         self.changed.emit("prediction")
 
 

@@ -21,6 +21,7 @@ from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
+from ._results import layer_features, with_probabilities
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -48,7 +49,9 @@ class _Stop(Exception):
 
 
 @thread_worker(start_thread=False)
-def _predict(table, groups, frames, object_col, stopped):
+def _predict(analysis: Analysis, groups, frames, object_col, stopped):
+    """The prediction, and the analysis's table with its probabilities (and the layer's
+    features made from it: the GUI thread only shows them)."""
     from ..analysis.prediction import predict_outcome
 
     def progress(done, total):
@@ -56,7 +59,11 @@ def _predict(table, groups, frames, object_col, stopped):
             raise _Stop
 
     yield "training"
-    return predict_outcome(table, groups, frames, object_col=object_col, progress=progress)
+    pred = predict_outcome(analysis.table, groups, frames, object_col=object_col,
+                           progress=progress)
+    scored = analysis.with_table(with_probabilities(analysis.table, pred, object_col))
+    layer_features(scored)
+    return pred, scored
 
 
 class PredictionWidget(QWidget):
@@ -170,9 +177,9 @@ class PredictionWidget(QWidget):
             return None
         frames = list(range(self.first.value, self.last.value + 1))
         self._stop = False
-        worker = _predict(a.table, dict(a.groups), frames, self.object_col(),
+        worker = _predict(a, dict(a.groups), frames, self.object_col(),
                           lambda: self._stop, _ignore_errors=True)
-        worker.returned.connect(lambda pred: self._show(a, pred))
+        worker.returned.connect(lambda out: self._show(a, *out))
         worker.errored.connect(self._failed)
         worker.finished.connect(self._finished)
         self.worker = worker
@@ -192,14 +199,8 @@ class PredictionWidget(QWidget):
         self.worker = None
         self.run_button.enabled, self.cancel_button.enabled = True, False
 
-    def _show(self, a: Analysis, pred) -> None:
-        col = self.object_col()
-        probs = pred.probabilities.set_index(col)
-        table = a.table.copy()
-        table.attrs = a.table.attrs
-        for name in pred.columns():
-            table[name] = probs[name].reindex(table[col].to_numpy()).to_numpy()
-        a.set_prediction(pred, table)  # the analysis dock refreshes the layer's features
+    def _show(self, a: Analysis, pred, scored: Analysis) -> None:
+        a.set_prediction(pred, scored)  # the analysis dock shows the layer's new features
         s = pred.summary
         fused = s.loc["fused"]
         self.status.value = (

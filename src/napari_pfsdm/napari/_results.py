@@ -207,13 +207,20 @@ def explanation(analysis: Analysis, channel: str = "shape") -> list[str]:
 
 
 def layer_features(analysis: Analysis) -> pd.DataFrame:
-    """The table for ``labels_layer.features``: the numbers a person plots.
+    """The table for ``labels_layer.features``: the numbers a person plots (kept in
+    ``analysis.derived``).
 
     napari's ``index`` column (the label) first, then ``frame``, ``label``, the numeric base
     columns (booleans as 0/1; ``failed`` = 1 for rows without features), the classic measures,
     the PC scores (``shape_PC1`` …) and any other number of the table (``p_<group>`` after a
     prediction); not the text columns nor the raw feature columns (:data:`RAW_PREFIXES`).
     """
+    if "layer features" not in analysis.derived:
+        analysis.derived["layer features"] = _layer_features(analysis)
+    return analysis.derived["layer features"]
+
+
+def _layer_features(analysis: Analysis) -> pd.DataFrame:
     from ..analysis.interpretation import MEASURES
     from ..analysis.tables import key_rows
 
@@ -243,6 +250,17 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
             if col not in columns:
                 columns[col] = _take(analysis.measures[col].to_numpy(float), at)
     return pd.DataFrame(columns)
+
+
+def with_probabilities(table: pd.DataFrame, prediction, object_col: str) -> pd.DataFrame:
+    """``table`` (options kept) with each object's ``p_<group>`` columns of ``prediction``
+    (NaN for the rows of objects it did not score)."""
+    probs = prediction.probabilities.set_index(object_col)
+    out = table.copy()
+    out.attrs = table.attrs
+    for name in prediction.columns():
+        out[name] = probs[name].reindex(table[object_col].to_numpy()).to_numpy()
+    return out
 
 
 def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:
