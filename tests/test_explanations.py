@@ -52,3 +52,28 @@ def test_three_objects_are_enough_for_a_correlation():
     m = pd.DataFrame({"frame": 0, "label": [1, 2, 3], "circularity": [0.9, 0.5, 0.7]})
     assert explain_components(s, m, n=1) == [
         "PC1 follows circularity (4πA/P²), r = +1.00: rounder to the right"]
+
+
+def test_correlations_leave_out_each_pairs_missing_rows_and_match_by_key():
+    """r of every PC with every measure over the rows where both are finite, the rows matched
+    on (frame, label) whatever their order: pandas' pairwise-complete Pearson r (computed on
+    the merged table) is the reference; fewer than three rows, or a constant, give NaN."""
+    from napari_pfsdm.analysis.interpretation import component_correlations
+
+    rng = np.random.default_rng(3)
+    n = 40
+    keys = {"frame": np.repeat([0, 1], n // 2), "label": np.tile(np.arange(1, n // 2 + 1), 2)}
+    scores = pd.DataFrame({**keys, "PC1": rng.normal(size=n), "PC2": rng.normal(size=n)})
+    scores.loc[[3, 7], "PC2"] = np.nan
+    measures = pd.DataFrame({**keys, "circularity": rng.normal(size=n),
+                             "aspect_ratio": rng.normal(size=n), "solidity": 0.9})
+    measures.loc[[5, 7, 11], "aspect_ratio"] = np.nan
+    measures = measures.iloc[rng.permutation(n)[: n - 4]]  # shuffled, four rows missing
+    got = component_correlations(scores, measures)
+    both = scores.merge(measures, on=["frame", "label"])
+    for pc in ("PC1", "PC2"):
+        for m in ("circularity", "aspect_ratio"):
+            assert got.loc[pc, m] == pytest.approx(both[pc].corr(both[m]), abs=1e-12)
+        assert np.isnan(got.loc[pc, "solidity"])  # constant
+    few = component_correlations(scores.iloc[:2], measures)
+    assert few.isna().all().all()

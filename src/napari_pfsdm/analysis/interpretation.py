@@ -116,16 +116,19 @@ def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.D
     pcs = [c for c in scores.columns if str(c).startswith("PC")]
     cols = [c for c in MEASURES if c in measures.columns]
     at = key_rows(scores["frame"], scores["label"], measures["frame"], measures["label"])
-    left = scores[pcs].to_numpy(float)[at >= 0]
-    right = measures[cols].to_numpy(float)[at[at >= 0]]
-    out = np.full((len(pcs), len(cols)), np.nan)
-    for i in range(len(pcs)):
-        for j in range(len(cols)):
-            a, b = left[:, i], right[:, j]
-            ok = np.isfinite(a) & np.isfinite(b)
-            a, b = a[ok], b[ok]
-            if ok.sum() > 2 and a.std() > 0 and b.std() > 0:
-                out[i, j] = np.corrcoef(a, b)[0, 1]
+    left = scores[pcs].to_numpy(float)[at >= 0][:, :, None]  # rows × PCs × 1
+    right = measures[cols].to_numpy(float)[at[at >= 0]][:, None, :]  # rows × 1 × measures
+    ok = np.isfinite(left) & np.isfinite(right)  # the rows of each pair
+    n = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        da = np.where(ok, left - np.where(ok, left, 0).sum(axis=0) / n, 0.0)
+        db = np.where(ok, right - np.where(ok, right, 0).sum(axis=0) / n, 0.0)
+        r = (da * db).sum(axis=0) / np.sqrt((da**2).sum(axis=0) * (db**2).sum(axis=0))
+
+    def varies(x):  # not one value over the pair's rows (a variance can round above 0)
+        return np.where(ok, x, -np.inf).max(axis=0) > np.where(ok, x, np.inf).min(axis=0)
+
+    out = np.where((n > 2) & varies(left) & varies(right), np.clip(r, -1.0, 1.0), np.nan)
     return pd.DataFrame(out, index=pcs, columns=cols)
 
 
