@@ -38,14 +38,14 @@ def test_each_run_of_a_layer_is_numbered_and_replaces_the_last():
     reg = Registry()
     events = []
     reg.updated.connect(events.append)
-    first = reg.new_run("A", _table(), options={}, axes="tyx")
-    second = reg.new_run("A", _table(), options={}, axes="tyx")
-    other = reg.new_run("B", _table(), options={}, axes="tyx")
+    first = reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx"))
+    second = reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx"))
+    other = reg.new_run("B", Analysis("", 0, _table(), {}, axes="tyx"))
     assert (first.run, second.run, other.run) == (1, 2, 1)
     assert reg.get("A") is second and first.key != second.key
     reg.forget("A")
     assert reg.get("A") is None and "A" not in reg and events == ["A", "A", "B", "A"]
-    assert reg.new_run("A", _table(), options={}, axes="tyx").run == 3  # never reused
+    assert reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx")).run == 3  # never reused
 
 
 def test_one_signal_per_change_naming_what_changed():

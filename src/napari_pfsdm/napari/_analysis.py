@@ -108,8 +108,12 @@ def option_widget(option) -> object:
 
 
 @thread_worker(start_thread=False)
-def _run_worker(labels, intensity, params, first_axis, spacing, identity):
+def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight):
+    """Measure, find the identities, and make what the GUI thread shows first (the viewer
+    stays free meanwhile): the :class:`Analysis`, the layer's features, the sentences on the
+    components and the warnings."""
     fields = yield from _run(labels, intensity, params, first_axis, spacing)
+    fields["options"]["intensity_weight"] = weight
     mode, tracks, name = identity
     try:
         fields["table"], fields["tracking_message"] = identify(
@@ -117,13 +121,11 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity):
     except ValueError as err:  # e.g. the Tracks layer does not fit: trust the ids
         fields["table"], _ = identify(fields["table"], labels, True, "labels")
         fields["tracking_message"] = f"{err} The label ids were used."
-    # what the GUI thread shows first, made here (the viewer stays free meanwhile)
     from ..analysis.features import warnings_summary
 
-    shown = Analysis("", 0, **fields)
-    words = explanation(shown)
-    fields["derived"] = shown.derived
-    return fields, layer_features(shown), words, warnings_summary(fields["table"])
+    analysis = Analysis("", 0, **fields)  # the registry gives it its layer and run
+    return analysis, layer_features(analysis), explanation(analysis), \
+        warnings_summary(analysis.table)
 
 
 @thread_worker(start_thread=False)
@@ -306,9 +308,10 @@ class AnalysisWidget(QWidget):
             self.say(str(err), error=True)
             return None
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
-        worker = _run_worker(_data(labels), None if image is None else _data(image), params,
-                             first_axis, spacing, self.identity_mode(), _ignore_errors=True)
         weight = self.intensity_weight.value if image is not None else 0.0
+        worker = _run_worker(_data(labels), None if image is None else _data(image), params,
+                             first_axis, spacing, self.identity_mode(), weight,
+                             _ignore_errors=True)
         start = time.perf_counter()
         bar: list = []  # napari's progress bar, once the Run has lasted PROGRESS_AFTER_MS
         counted = [0, 0]  # objects done, of
@@ -325,7 +328,7 @@ class AnalysisWidget(QWidget):
                 bar[0].update(value[0] - bar[0].n)
 
         def on_result(result):
-            self._show_results(labels, *result, weight, time.perf_counter() - start)
+            self._show_results(labels, *result, time.perf_counter() - start)
 
         def on_error(err):
             self.say(f"The analysis stopped: {err}", error=True)
@@ -355,13 +358,12 @@ class AnalysisWidget(QWidget):
             if worker is not None:
                 worker.quit()
 
-    def _show_results(self, labels: Labels, fields: dict, features, words: list[str],
-                      summary: str, weight: float, seconds: float):
+    def _show_results(self, labels: Labels, analysis: Analysis, features, words: list[str],
+                      summary: str, seconds: float):
         if labels not in self.viewer.layers:
             self.say("The Labels layer was removed during the run; nothing kept.")
             return
-        fields["options"]["intensity_weight"] = weight
-        analysis = REGISTRY.new_run(labels.unique_id, **fields)
+        REGISTRY.new_run(labels.unique_id, analysis)
         labels.features = features
         self.pictures.clear()
         self._bind(labels, analysis)

@@ -13,7 +13,7 @@ Examples
 >>> import pandas as pd
 >>> reg = Registry()
 >>> table = pd.DataFrame({"frame": [0, 0], "label": [1, 2], "error": ["", ""]})
->>> a = reg.new_run("layer-uuid", table, options={}, axes="yx")
+>>> a = reg.new_run("layer-uuid", Analysis("", 0, table, options={}, axes="yx"))
 >>> seen = []
 >>> _ = a.changed.connect(seen.append)
 >>> a.select(0, 2)
@@ -212,11 +212,12 @@ class Registry:
         self._items: dict[str, Analysis] = {}
         self._runs: dict[str, int] = {}
 
-    def new_run(self, layer_id: str, table: pd.DataFrame, **fields: Any) -> Analysis:
-        """Store the results of a new run of ``layer_id`` and return its :class:`Analysis`."""
+    def new_run(self, layer_id: str, analysis: Analysis) -> Analysis:
+        """Store ``analysis`` (made anywhere, e.g. in the Run's worker) as the new run of
+        ``layer_id``: it gets that layer id and the next run number; returns it."""
         run = self._runs.get(layer_id, 0) + 1
         self._runs[layer_id] = run
-        analysis = Analysis(layer_id=layer_id, run=run, table=table, **fields)
+        analysis.layer_id, analysis.run = layer_id, run
         self._items[layer_id] = analysis
         self.updated.emit(layer_id)
         return analysis

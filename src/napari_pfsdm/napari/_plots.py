@@ -18,6 +18,7 @@ from napari.qt.threading import thread_worker
 from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
+from ..analysis.tables import key_rows
 from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
 from ._canvas import PlotCanvas
@@ -169,7 +170,7 @@ class TrajectoryPlot(_Plot):
         i, j = (min(int(k), n_pc) for k in self.pcs.value.replace("PC", "").split("–"))
         x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
         keys = scores[["frame", "label"]].to_numpy().astype(np.int64)
-        rows = np.array([a.row_of(f, lab) for f, lab in keys])
+        rows = key_rows(keys[:, 0], keys[:, 1], a.table["frame"], a.table["label"])
         objects = a.objects()[rows]
         groups = a.group_of_rows()[rows]
         order = np.lexsort((keys[:, 0], objects))
