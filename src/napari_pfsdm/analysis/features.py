@@ -657,34 +657,42 @@ def warnings_summary(table: pd.DataFrame) -> str:
     if len(table) == 0:
         return ""
 
-    def col(name, default):
-        return table[name] if name in table.columns else pd.Series(default, index=table.index)
+    n = len(table)
+
+    def numbers(name: str, missing: float) -> np.ndarray:  # NaN (and no column) → missing
+        if name not in table.columns:
+            return np.full(n, missing)
+        values = pd.to_numeric(table[name], errors="coerce").to_numpy(float, na_value=np.nan)
+        return np.where(np.isnan(values), missing, values)
+
+    def texts(name: str) -> list[str]:
+        return [] if name not in table.columns else \
+            [str(v) for v in table[name].to_numpy() if isinstance(v, str) and v]
 
     def n_obj(n: int, verb_one: str, verb_many: str) -> str:
         return f"{n} object {verb_one}" if n == 1 else f"{n} objects {verb_many}"
 
     parts = []
-    border = int(col("touches_border", False).fillna(False).astype(bool).sum())
+    border = int((numbers("touches_border", 0.0) != 0).sum())
     if border:
         parts.append(n_obj(border, "touches the border", "touch the border"))
-    folded = col("folded_fraction", 0.0).astype(float)
+    folded = numbers("folded_fraction", 0.0)
     over = folded[folded > FOLDED_WARNING]
     if len(over) == 1:
-        parts.append(f"1 is {100 * float(over.iloc[0]):.0f} % folded")
+        parts.append(f"1 is {100 * float(over[0]):.0f} % folded")
     elif len(over):
         parts.append(f"{len(over)} are more than {100 * FOLDED_WARNING:.0f} % folded "
                      f"(up to {100 * float(over.max()):.0f} %)")
-    holes = int((col("n_holes", 0).fillna(0).astype(float) > 0).sum())
+    holes = int((numbers("n_holes", 0.0) > 0).sum())
     if holes:
         parts.append(f"{holes} had holes filled")
-    pieces = int((col("n_components", 1).fillna(1).astype(float) > 1).sum())
+    pieces = int((numbers("n_components", 1.0) > 1).sum())
     if pieces:
         parts.append(f"{pieces} {'was' if pieces == 1 else 'were'} in several pieces")
-    no_int = int(col("warnings", "").fillna("").astype(str).str.contains(
-        "intensity features left empty").sum())
+    no_int = sum("intensity features left empty" in w for w in texts("warnings"))
     if no_int:
         parts.append(f"{no_int} {'has' if no_int == 1 else 'have'} no intensity features")
-    errors = int(col("error", "").fillna("").astype(str).ne("").sum())
+    errors = len(texts("error"))
     head = (n_obj(errors, "has no features", "have no features") + " (see the error column)"
             if errors else "")
     tail = ", ".join(parts) + ": see the warnings column" if parts else ""
