@@ -308,6 +308,14 @@ def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_w
     assert sorted(cols) == ["p_multi-axes", "p_single-axis"]
     probs = viewer.layers["gastruloids"].features[cols].to_numpy()
     np.testing.assert_allclose(probs.sum(axis=1), 1.0)
+    # identities found again while a prediction runs: the scores land on the new table
+    a = w.bound[1]
+    assert p.run() is not None
+    relinked = a.table.drop(columns=cols).assign(note="linked again")
+    a.set_table(relinked, "identity", "")
+    qtbot.waitUntil(lambda: p.worker is None, timeout=180_000)
+    assert (a.table["note"] == "linked again").all()
+    np.testing.assert_allclose(a.table[cols].to_numpy().sum(axis=1), 1.0)
 
 
 def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_layers):

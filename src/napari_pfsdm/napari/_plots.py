@@ -155,6 +155,7 @@ class TrajectoryPlot(_Plot):
                                          "a CSV or clicked classes).")
         self.pcs = ComboBox(choices=PC_PAIRS, value=PC_PAIRS[0],
                             tooltip="The principal components on the x and y axes.")
+        self.artists: dict | None = None  # what draw made: its layout and artists
         super().__init__(viewer, [self.channel, self.color_by, self.pcs])
 
     def _view(self) -> dict:
@@ -234,8 +235,7 @@ class TrajectoryPlot(_Plot):
     def refresh(self) -> bool:
         """New data in the same kind of figure (a new Run, another channel or pair of PCs):
         the artists drawn are given the new data instead of being made again."""
-        artists = getattr(self, "artists", None)
-        ax = self.points_axes
+        artists, ax = self.artists, self.points_axes
         if artists is None or ax is None or ax.figure is not self.figure:
             return False
         try:

@@ -49,9 +49,10 @@ class _Stop(Exception):
 
 
 @thread_worker(start_thread=False)
-def _predict(analysis: Analysis, groups, frames, object_col, stopped):
-    """The prediction, and the analysis's table with its probabilities (and the layer's
-    features made from it: the GUI thread only shows them)."""
+def _predict(analysis: Analysis, table, groups, frames, object_col, stopped):
+    """The prediction from ``table`` (the analysis's when the prediction started), and that
+    table with its probabilities, indexed, with the layer's features made from it (the GUI
+    thread only shows them)."""
     from ..analysis.prediction import predict_outcome
 
     def progress(done, total):
@@ -59,11 +60,15 @@ def _predict(analysis: Analysis, groups, frames, object_col, stopped):
             raise _Stop
 
     yield "training"
-    pred = predict_outcome(analysis.table, groups, frames, object_col=object_col,
-                           progress=progress)
-    scored = analysis.with_table(with_probabilities(analysis.table, pred, object_col))
+    pred = predict_outcome(table, groups, frames, object_col=object_col, progress=progress)
+    return pred, scored_analysis(analysis, table, pred, object_col)
+
+
+def scored_analysis(analysis: Analysis, table, prediction, object_col: str) -> Analysis:
+    """``analysis`` with ``table`` and its probabilities, indexed, with the layer's features."""
+    scored = analysis.with_table(with_probabilities(table, prediction, object_col))
     layer_features(scored)
-    return pred, scored
+    return scored
 
 
 class PredictionWidget(QWidget):
@@ -177,9 +182,17 @@ class PredictionWidget(QWidget):
             return None
         frames = list(range(self.first.value, self.last.value + 1))
         self._stop = False
-        worker = _predict(a, dict(a.groups), frames, self.object_col(),
-                          lambda: self._stop, _ignore_errors=True)
-        worker.returned.connect(lambda out: self._show(a, *out))
+        col, table = self.object_col(), a.table
+        worker = _predict(a, table, dict(a.groups), frames, col, lambda: self._stop,
+                          _ignore_errors=True)
+
+        def show(out):
+            pred, scored = out
+            if a.table is not table:  # new identities meanwhile: their table gets the scores
+                scored = scored_analysis(a, a.table, pred, col)
+            self._show(a, pred, scored)
+
+        worker.returned.connect(show)
         worker.errored.connect(self._failed)
         worker.finished.connect(self._finished)
         self.worker = worker
