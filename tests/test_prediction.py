@@ -60,6 +60,13 @@ def test_objects_without_a_group_are_predicted_too(two_sizes):
     for k in (17, 18, 19, 20):  # never seen with a group: predicted from their size
         assert (probs.loc[k, "p_large"] > 0.5) == (groups[k] == "large")
     assert pred.curve.empty
+    # on the table's rows: each row its object's probabilities, the options kept
+    rows = pred.on_rows(table.iloc[::-1], "label")
+    assert rows.attrs["pfsdm"] == table.attrs["pfsdm"]
+    np.testing.assert_array_equal(rows["p_large"].to_numpy(),
+                                  probs.loc[table["label"].to_numpy()[::-1], "p_large"])
+    scored_some = pred.on_rows(table.assign(label=table["label"] + 100), "label")
+    assert scored_some[pred.columns()].isna().all().all()  # objects it did not score
 
 
 def test_bad_groups_are_refused_in_words(two_sizes):

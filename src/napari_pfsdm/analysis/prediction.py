@@ -334,6 +334,16 @@ class Prediction:
         """The probability columns, ``p_<group>`` (spaces become underscores)."""
         return [probability_column(g) for g in self.groups]
 
+    def on_rows(self, table: pd.DataFrame, object_col: str) -> pd.DataFrame:
+        """``table`` (its options kept) with each row's :meth:`columns`: its object's
+        probabilities (NaN for the rows of objects that were not scored)."""
+        probs = self.probabilities.set_index(object_col)
+        out = table.copy()
+        out.attrs = table.attrs
+        for name in self.columns():
+            out[name] = probs[name].reindex(table[object_col].to_numpy()).to_numpy()
+        return out
+
 
 def probability_column(group: str) -> str:
     """``p_<group>``: the column of the probability of ``group``."""

@@ -191,46 +191,23 @@ class TrajectoryPlot(_Plot):
                 "title": f"{channel} trajectories of '{self.layer.name}'",
                 "info": " ".join([warn, "; ".join(words) + ("." if words else "")]).strip()}
 
-    @staticmethod
-    def _colors(view: dict) -> list:
-        import matplotlib
-
-        tab = matplotlib.colormaps["tab10"]
-        names = view["layout"][1]
-        return [tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6)
-                for g in view["groups"]]
-
     def draw(self) -> None:
         import matplotlib
 
         view = self._view()
-        x, y = view["xy"].T
-        frames = view["keys"][:, 0]
         by_group, names, time_lapse = view["layout"]
         ax = self.figure.add_subplot(111)
+        points = ax.scatter([], [], s=14, zorder=2, edgecolors="none")
+        self.artists = {"layout": view["layout"], "points": points, "paths": ax.add_collection(
+            LineCollection([], colors=(0.6, 0.6, 0.6, 0.5), linewidths=0.8, zorder=1))}
+        self._update(ax, view)
         if by_group:
-            points = ax.scatter(x, y, c=self._colors(view), s=14, zorder=2, edgecolors="none")
             tab = matplotlib.colormaps["tab10"]
             for k, name in enumerate(names):
                 ax.scatter([], [], color=tab(k % 10), s=14, label=name)
             ax.legend(fontsize=7, loc="best", title="group", title_fontsize=7)
-        else:
-            points = ax.scatter(x, y, c=frames, cmap="viridis", s=14, zorder=2,
-                                edgecolors="none")
-            if time_lapse:
-                self.figure.colorbar(points, ax=ax, pad=0.01).set_label("frame")
-        paths = ax.add_collection(LineCollection(view["lines"], colors=(0.6, 0.6, 0.6, 0.5),
-                                                 linewidths=0.8, zorder=1))
-        self.artists = {"layout": view["layout"], "points": points, "paths": paths}
-        self._texts(ax, view)
-
-    def _texts(self, ax, view: dict) -> None:
-        ax.set_xlabel(view["xlabel"])
-        ax.set_ylabel(view["ylabel"])
-        ax.set_title(view["title"], fontsize=9)
-        self.point_objects = view["objects"]
-        self.set_points(ax, view["xy"], view["keys"])
-        self.info.value = view["info"]
+        elif time_lapse:
+            self.figure.colorbar(points, ax=ax, pad=0.01).set_label("frame")
 
     def refresh(self) -> bool:
         """New data in the same kind of figure (a new Run, another channel or pair of PCs):
@@ -244,20 +221,33 @@ class TrajectoryPlot(_Plot):
             return False  # the full drawing says why
         if view["layout"] != artists["layout"]:
             return False
-        xy, frames = view["xy"], view["keys"][:, 0]
-        points = artists["points"]
+        self._update(ax, view)
+        return True
+
+    def _update(self, ax, view: dict) -> None:
+        """Give the figure's points, paths, limits and texts the data of ``view``."""
+        import matplotlib
+
+        xy, frames, points = view["xy"], view["keys"][:, 0], self.artists["points"]
         points.set_offsets(xy)
-        if view["layout"][0]:
-            points.set_facecolors(self._colors(view))
-        else:
+        if view["layout"][0]:  # by group
+            tab, names = matplotlib.colormaps["tab10"], view["layout"][1]
+            points.set_facecolors([tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6)
+                                   for g in view["groups"]])
+        else:  # by frame: the colour bar follows its points
+            points.set_cmap("viridis")
             points.set_array(frames)
-            points.set_clim(frames.min(), frames.max())  # the colour bar follows its points
-        artists["paths"].set_segments(view["lines"])
+            points.set_clim(frames.min(), frames.max())
+        self.artists["paths"].set_segments(view["lines"])
         ax.ignore_existing_data_limits = True
         ax.update_datalim(xy)
         ax.autoscale_view()
-        self._texts(ax, view)
-        return True
+        ax.set_xlabel(view["xlabel"])
+        ax.set_ylabel(view["ylabel"])
+        ax.set_title(view["title"], fontsize=9)
+        self.point_objects = view["objects"]
+        self.set_points(ax, xy, view["keys"])
+        self.info.value = view["info"]
 
     def mark(self, ax, frame: int, label: int) -> list:
         out = []

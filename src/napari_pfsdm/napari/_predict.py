@@ -21,7 +21,7 @@ from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
-from ._results import layer_features, with_probabilities
+from ._results import layer_features
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -66,7 +66,7 @@ def _predict(analysis: Analysis, table, groups, frames, object_col, stopped):
 
 def scored_analysis(analysis: Analysis, table, prediction, object_col: str) -> Analysis:
     """``analysis`` with ``table`` and its probabilities, indexed, with the layer's features."""
-    scored = analysis.with_table(with_probabilities(table, prediction, object_col))
+    scored = analysis.with_table(prediction.on_rows(table, object_col))
     layer_features(scored)
     return scored
 

@@ -252,17 +252,6 @@ def _layer_features(analysis: Analysis) -> pd.DataFrame:
     return pd.DataFrame(columns)
 
 
-def with_probabilities(table: pd.DataFrame, prediction, object_col: str) -> pd.DataFrame:
-    """``table`` (options kept) with each object's ``p_<group>`` columns of ``prediction``
-    (NaN for the rows of objects it did not score)."""
-    probs = prediction.probabilities.set_index(object_col)
-    out = table.copy()
-    out.attrs = table.attrs
-    for name in prediction.columns():
-        out[name] = probs[name].reindex(table[object_col].to_numpy()).to_numpy()
-    return out
-
-
 def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:
     """``values[at]``, NaN where ``at`` is −1."""
     return np.where(at >= 0, values[np.maximum(at, 0)], np.nan) if len(values) else \
