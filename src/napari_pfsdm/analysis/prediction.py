@@ -44,6 +44,7 @@ from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
+from ..core.table_options import carry_options
 from ..core.table_schema import has_channel
 from ..errors import InputError
 from .classic import REPORTER_MEASURES, SHAPE_MEASURES_2D, SHAPE_MEASURES_3D
@@ -339,10 +340,9 @@ class Prediction:
         probabilities (NaN for the rows of objects that were not scored)."""
         probs = self.probabilities.set_index(object_col)
         out = table.copy()
-        out.attrs = table.attrs
         for name in self.columns():
             out[name] = probs[name].reindex(table[object_col].to_numpy()).to_numpy()
-        return out
+        return carry_options(table, out)
 
 
 def probability_column(group: str) -> str:
