@@ -382,7 +382,7 @@ def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
     assert 49 <= verts[:, 2].min() and verts[:, 2].max() <= 70
     captions = viewer.layers["stack captions"]
     assert "label 2" in captions.features["text"][0]
-    # 3-D captions: in napari's 3-D view the last one floats just above the surface
+    # 3-D captions: in napari's 3-D view the object's caption floats just above the surface
     assert captions.ndim == 3
     z, y, x = captions.data[2]  # the third caption names the object
     assert 49 <= x <= 70 and y < verts[:, 1].min() and 6 <= z <= 18
