@@ -504,3 +504,51 @@ def test_removing_the_analysed_layer_forgets_its_results(qtbot, viewer_widget):
     assert REGISTRY.get(layer_id) is None and w.bound is None
     assert plots.analysis is None and plots.layer_choice.choices == ()
     assert "gastruloids" not in w.labels.choices
+
+
+def test_the_components_tab_shows_the_loadings_and_the_real_objects_along_the_pc(
+        qtbot, viewer_widget):
+    from skimage.measure import regionprops
+
+    from napari_pfsdm.analysis.shape_space import ShapePCA, shape_modes
+
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    plots.tabs.setCurrentIndex(2)
+    comp = plots.components
+    comp.component.value = 2
+    qtbot.waitUntil(lambda: len(comp.figure.axes) > 2 and "PC2" in comp.info.value,
+                    timeout=60_000)
+    space = ShapePCA(5).fit(analysis.table)
+    loadings = comp.figure.axes[0].get_images()[0].get_array()
+    np.testing.assert_allclose(loadings, space.loadings(2), rtol=1e-9)
+    modes = shape_modes(space.transform(analysis.table), 2)
+    objects = [ax for ax in comp.figure.axes if ax.get_xlabel().startswith("f")]
+    assert [ax.get_xlabel() for ax in objects] == [
+        f"f{int(r.frame)} l{int(r.label)}" for r in modes.itertuples()]
+    for ax, r in zip(objects, modes.itertuples(), strict=True):
+        x, y = ax.get_lines()[0].get_data()
+        area = 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1)))  # shoelace
+        mask = np.asarray(analysis.labels[int(r.frame)]) == int(r.label)
+        pixels, perimeter = mask.sum(), regionprops(mask.astype(int))[0].perimeter
+        assert abs(area - pixels) < perimeter  # the outline of that object, closed
+        assert abs(np.mean(x)) < 2 and abs(np.mean(y)) < 2  # centred
+
+
+def test_cancelled_distances_say_so_and_a_new_request_computes_them(qtbot, shown_viewer_widget):
+    viewer, w = shown_viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    plots.tabs.setCurrentIndex(1)
+    comp = plots.comparison
+    qtbot.waitUntil(lambda: comp.worker is None, timeout=60_000)
+    comp.which.value = "all frames"  # 72 objects, in a worker
+    assert comp.cancel_button.visible
+    comp.cancel()
+    qtbot.waitUntil(lambda: comp.worker is None, timeout=60_000)
+    assert "Cancelled" in comp.info.value and not comp.cancel_button.visible
+    assert (None, 1.0, False) not in analysis.comparison
+    comp.rerank.value = True  # something else asked: computed
+    qtbot.waitUntil(lambda: len(comp.keys) == 72, timeout=60_000)
+    assert not comp.cancel_button.visible and "72 objects" in comp.info.value

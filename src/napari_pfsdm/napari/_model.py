@@ -124,10 +124,13 @@ class Analysis:
         labels = self.table["label"].to_numpy().astype(np.int64)
         self._rows = {(int(f), int(lab)): i for i, (f, lab) in enumerate(zip(frames, labels,
                                                                               strict=True))}
-        errors = (self.table["error"].fillna("").astype(str).to_numpy() if "error" in self.table
-                  else np.full(len(self.table), "", dtype=object))
-        self._errors = errors
-        self.measured = np.array([not e for e in errors], dtype=bool)
+        self._errors = (self.table["error"].fillna("").astype(str).to_numpy(object)
+                        if "error" in self.table else np.full(len(self.table), "", object))
+
+    @property
+    def measured(self) -> np.ndarray:
+        """Whether each row has features (no error)."""
+        return self._errors == ""
 
     def row_of(self, frame: int, label: int) -> int | None:
         """Position of the (frame, label) row in :attr:`table` (None when absent)."""
@@ -196,8 +199,7 @@ class Analysis:
         self.prediction = prediction
         if scored is not None:
             self.table, self.derived = scored.table, scored.derived
-            self._rows, self._errors, self.measured = scored._rows, scored._errors, \
-                scored.measured
+            self._rows, self._errors = scored._rows, scored._errors
         self.changed.emit("prediction")
 
 

@@ -243,7 +243,7 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
 
 
 #: The pictures' layers, by their key in :func:`names`.
-PICTURES = ("sdf", "disk", "intensity_disk", "lines", "shells", "surface")
+PICTURES = [key for key in SUFFIXES if key != "captions"]
 #: Opacity of the pictures shown while the selection's own are being made.
 DIMMED = 0.25
 

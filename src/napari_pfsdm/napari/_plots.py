@@ -395,16 +395,16 @@ class ComparisonPlot(_Plot):
         def done(result):
             a.set_comparison(key, result)  # the model tells the views (redraw)
 
+        def aborted():
+            if self.worker is worker:  # Cancel (not another request that replaced it)
+                self.cancelled.add(key)
+
         def finished():
             if self.worker is worker:
                 self.worker = None
                 self.cancel_button.visible = False
-
-        def aborted():
-            self.cancelled.add(key)
-            if self.worker is worker:
-                self.worker = None
-            self.redraw()
+                if key in self.cancelled:
+                    self.redraw()  # says so
 
         worker.returned.connect(done)
         worker.errored.connect(lambda err: setattr(self.info, "value",
@@ -431,15 +431,11 @@ def _components(analysis: Analysis, kind: str, component: int):
 
 
 def _outline(plane: np.ndarray, box, label: int) -> np.ndarray:
-    from skimage.measure import find_contours
+    """The object's closed outline (row, col), centred."""
+    from ..analysis.baselines import mask_contour
 
-    if box is None:
-        where = np.argwhere(plane == label)
-        box = tuple(slice(int(a), int(b) + 1) for a, b in zip(where.min(0), where.max(0),
-                                                                strict=True))
-    contours = find_contours(np.pad(plane[box] == label, 1).astype(float), 0.5)
-    line = max(contours, key=len) if contours else np.zeros((1, 2))
-    return line - line.mean(axis=0)
+    line = mask_contour(plane[box] == label if box is not None else plane == label)
+    return np.vstack([line, line[:1]]) - line.mean(axis=0)
 
 
 #: The PCAs the components tab offers.
@@ -471,16 +467,18 @@ class ComponentsPlot(_Plot):
             raise ValueError("Components are drawn for 2-D objects.")
         key = (a.key, self.kind.value, self.component.value)
         if key not in self.results:
-            if self.worker is None:
+            if self.worker is None:  # else the one running ends, then this one starts
                 worker = _components(a, self.kind.value, self.component.value,
                                      _ignore_errors=True)
-                worker.returned.connect(lambda res, key=key: self._done(key, res))
-                worker.errored.connect(lambda err: setattr(self.info, "value", str(err)))
-                worker.finished.connect(lambda: setattr(self, "worker", None))
+                worker.returned.connect(partial(self.results.__setitem__, key))
+                worker.errored.connect(partial(self.results.__setitem__, key))
+                worker.finished.connect(self._finished)
                 self.worker = worker
                 worker.start()
             self.info.value = "Fitting the PCA in the background…"
             return
+        if isinstance(self.results[key], Exception):
+            raise ValueError(f"No components: {self.results[key]}")
         space, modes, outlines = self.results[key]
         k = self.component.value
         maps = np.asarray(space.loadings(k))
@@ -505,9 +503,9 @@ class ComponentsPlot(_Plot):
         self.info.value = (f"Top: how much each ring (centre to outline) and Fourier index "
                            f"weighs in PC{k}. Bottom: the real objects nearest −2σ … +2σ.")
 
-    def _done(self, key, result) -> None:
-        self.results[key] = result
-        self.redraw()
+    def _finished(self) -> None:
+        self.worker = None
+        self.redraw()  # the results, or the work for what is asked now
 
 
 class PlotsWidget(QWidget):
@@ -600,10 +598,6 @@ class PlotsWidget(QWidget):
     @property
     def components(self) -> ComponentsPlot:
         return self.plot(2)
-
-    @property
-    def plots(self) -> tuple:
-        return tuple(self.plot(i) for i in range(3))
 
     def _on_change(self, what: str) -> None:
         plot = self.plot(self.tabs.currentIndex())

