@@ -166,3 +166,10 @@ def test_a_mask_of_booleans_gets_its_object_the_first_row_id():
     table = pd.DataFrame({"frame": [0, 1], "label": [1, 1], "error": ["", ""]})
     ids = object_ids(labels, Analysis("A", 1, table, {}, axes="tyx"))
     assert ids.tolist() == [[[0, 1]], [[2, 0]]]
+
+
+def test_a_z_stack_is_renumbered_as_one_object_set():
+    labels = np.array([[[3, 0]], [[3, 9]]])  # Z × Y × X: label 3 on two slices
+    table = pd.DataFrame({"frame": [0, 0], "label": [9, 3], "error": ["", ""]})
+    ids = object_ids(labels, Analysis("A", 1, table, {}, axes="zyx"))
+    assert ids.tolist() == [[[2, 0]], [[2, 1]]]

@@ -299,13 +299,11 @@ def object_ids(labels, analysis: Analysis) -> np.ndarray:
 
     frames = analysis.table["frame"].to_numpy().astype(np.int64)
     labs = analysis.table["label"].to_numpy().astype(np.int64)
-    ids = np.arange(1, len(labs) + 1, dtype=np.int32 if len(labs) < 2**31 - 1 else np.int64)
-
-    def renumber(plane, keep) -> np.ndarray:
-        plane = np.asarray(plane)
-        return map_array(plane.view(np.uint8) if plane.dtype == bool else plane, labs[keep],
-                         ids[keep])
-
-    if not analysis.time_lapse:
-        return renumber(labels, slice(None))
-    return np.stack([renumber(labels[t], frames == t) for t in range(labels.shape[0])])
+    out = np.zeros(labels.shape, dtype=np.int32 if len(labs) < 2**31 - 1 else np.int64)
+    ids = np.arange(1, len(labs) + 1, dtype=out.dtype)
+    for t in range(labels.shape[0]) if analysis.time_lapse else [None]:
+        plane = np.asarray(labels if t is None else labels[t])
+        keep = slice(None) if t is None else frames == t
+        map_array(plane.view(np.uint8) if plane.dtype == bool else plane, labs[keep], ids[keep],
+                  out=out if t is None else out[t])  # written in place: one array in memory
+    return out
