@@ -161,7 +161,7 @@ def test_ids_that_jump_between_frames_are_linked_into_tracks():
     assert warning.startswith("Warning")
 
 
-def test_a_mask_of_booleans_gets_its_object_the_first_row_id():
+def test_a_mask_of_booleans_gets_one_id_per_frame():
     labels = np.array([[[False, True]], [[True, False]]])
     table = pd.DataFrame({"frame": [0, 1], "label": [1, 1], "error": ["", ""]})
     ids = object_ids(labels, Analysis("A", 1, table, {}, axes="tyx"))
