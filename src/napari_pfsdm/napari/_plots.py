@@ -315,7 +315,7 @@ class ComparisonPlot(_Plot):
     def what(self) -> tuple:
         """(key, rows, weight, re-ranked) of what is compared now."""
         a = self.analysis
-        keep = a.measured.copy()
+        keep = a.measured  # a new array at each call
         shown = None
         if self.which.value == "current frame":
             shown = _pictures.current_frame(self.viewer, self.layer, a)
