@@ -77,3 +77,25 @@ def test_correlations_leave_out_each_pairs_missing_rows_and_match_by_key():
         assert np.isnan(got.loc[pc, "solidity"])  # constant
     few = component_correlations(scores.iloc[:2], measures)
     assert few.isna().all().all()
+
+
+def test_the_librarys_pca_table_is_explained_as_its_columns_say():
+    """``pca_scores`` names its columns ``shape_PC1`` …: their sentences are those of the same
+    numbers under ``PC1`` … (this returned no sentence when only ``PC1`` was read), and an
+    ``intensity_PC1`` column is read the same way."""
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis.interpretation import table_measures
+    from napari_pfsdm.analysis.reduction import pca_scores
+
+    labels = np.zeros((1, 64, 256), int)
+    for k in range(6):  # rectangles from square to long: PC1 is their elongation
+        labels[0, 20:20 + 20 - 2 * k, 4 + 42 * k:4 + 42 * k + 20 + 3 * k] = k + 1
+    table = pf.measure(labels)
+    scores, ratios = pca_scores(table, "shape", 2)
+    measures = table_measures(table)
+    plain = scores.rename(columns={"shape_PC1": "PC1", "shape_PC2": "PC2"})
+    want = explain_components(plain, measures, ratios)
+    assert len(want) == 2 and want[0].startswith("PC1 (")
+    assert explain_components(scores, measures, ratios) == want
+    other = scores.rename(columns={"shape_PC1": "intensity_PC1", "shape_PC2": "intensity_PC2"})
+    assert explain_components(other, measures, ratios) == want

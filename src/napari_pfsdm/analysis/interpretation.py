@@ -10,6 +10,8 @@ nothing more to compute), :func:`outline_measures` computes them from one outlin
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pandas as pd
 
@@ -110,10 +112,12 @@ def outline_measures(points: np.ndarray) -> dict[str, float]:
 def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.DataFrame:
     """Pearson r between each PC column of ``scores`` and each measure.
 
-    Both tables have ``frame`` and ``label``; rows are matched on them, NaNs left out.
-    Returns a DataFrame: one row per PC (``PC1``…), one column per measure.
+    Both tables have ``frame`` and ``label``; rows are matched on them, NaNs left out. The PC
+    columns are ``PC1`` … or, as :func:`~napari_pfsdm.analysis.reduction.pca_scores` names
+    them, ``shape_PC1`` …. Returns a DataFrame: one row per PC (``PC1``…), one column per
+    measure.
     """
-    pcs = [c for c in scores.columns if str(c).startswith("PC")]
+    pcs = [c for c in scores.columns if re.fullmatch(r"(\w+_)?PC\d+", str(c))]
     cols = [c for c in MEASURES if c in measures.columns]
     at = key_rows(scores["frame"], scores["label"], measures["frame"], measures["label"])
     left = scores[pcs].to_numpy(float)[at >= 0][:, :, None]  # rows × PCs × 1
@@ -129,7 +133,7 @@ def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.D
         return np.where(ok, x, -np.inf).max(axis=0) > np.where(ok, x, np.inf).min(axis=0)
 
     out = np.where((n > 2) & varies(left) & varies(right), np.clip(r, -1.0, 1.0), np.nan)
-    return pd.DataFrame(out, index=pcs, columns=cols)
+    return pd.DataFrame(out, index=[str(c).rsplit("_", 1)[-1] for c in pcs], columns=cols)
 
 
 def explain_components(scores: pd.DataFrame, measures: pd.DataFrame,
