@@ -326,7 +326,7 @@ def draw_scores(mpl, scores) -> None:
     mpl.figure.clear()
     with mplstyle.context(mpl.napari_theme_style_sheet):
         ax = mpl.figure.add_subplot(111)
-        sc = ax.scatter(scores["PC1"], scores["PC2"], c=scores["frame"], s=14,
+        sc = ax.scatter(scores["shape_PC1"], scores["shape_PC2"], c=scores["frame"], s=14,
                         edgecolors="none")
         mpl.figure.colorbar(sc, ax=ax).set_label("frame")
         ax.set_xlabel("PC1")

@@ -121,7 +121,7 @@ def test_the_run_gives_the_rows_of_measure_with_progress_to_the_total():
     expected = pf.measure(labels)
     pd.testing.assert_frame_equal(fields["table"].reset_index(drop=True),
                                   expected.reset_index(drop=True), check_like=True)
-    assert fields["axes"] == "tyx" and "PC1" in fields["pca"]["shape"]
+    assert fields["axes"] == "tyx" and "shape_PC1" in fields["pca"]["shape"]
 
 
 def test_a_closed_run_stops_and_keeps_nothing():

@@ -406,7 +406,7 @@ def test_a_new_run_or_pair_of_pcs_shows_its_own_points(qtbot, shown_viewer_widge
         i, j = pair.replace("PC", "").split("–")
         points = plot.points_axes.collections[0]
         np.testing.assert_allclose(points.get_offsets(),
-                                   scores[[f"PC{i}", f"PC{j}"]].to_numpy())
+                                   scores[[f"shape_PC{i}", f"shape_PC{j}"]].to_numpy())
         assert len(points.get_offsets()) == 60 and 6 not in plot.keys[:, 1]
         np.testing.assert_array_equal(points.get_array(), scores["frame"].to_numpy())
         assert points.norm.vmin == 0 and points.norm.vmax == 11

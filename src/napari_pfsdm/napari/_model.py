@@ -62,7 +62,7 @@ class Analysis:
     boxes : mapping
         ``{(frame, label): box}``: each object's bounding box.
     pca : dict
-        ``{"shape": scores, "intensity": scores}`` with ``frame``, ``label``, ``PC1`` …
+        ``{"shape": scores, "intensity": scores}`` with ``frame``, ``label``, ``shape_PC1`` …
     measures : DataFrame or None
         Classic measures of 2-D objects (circularity, aspect ratio, solidity).
     tracking_message : str

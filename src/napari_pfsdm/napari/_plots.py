@@ -19,6 +19,7 @@ from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 from ..analysis.tables import key_rows
+from ..core.table_schema import pc_columns
 from . import _pictures
 from ._analysis import analysed_layers, follow_registry, scrolled
 from ._canvas import PlotCanvas
@@ -163,13 +164,13 @@ class TrajectoryPlot(_Plot):
         a = self.analysis
         channel = self.channel.value
         scores = a.pca.get(channel)
-        if scores is None or "PC1" not in scores:
+        if scores is None or not len(scores):
             raise ValueError("No intensity features: run with a reporter image first."
                              if channel == "intensity" else "Not enough objects for a PCA.")
         ratios = scores.attrs.get("explained_variance_ratio", [])
-        n_pc = sum(str(c).startswith("PC") for c in scores.columns)
+        n_pc = len(pc_columns(scores.columns, channel))
         i, j = (min(int(k), n_pc) for k in self.pcs.value.replace("PC", "").split("–"))
-        x, y = scores[f"PC{i}"].to_numpy(), scores[f"PC{j}"].to_numpy()
+        x, y = scores[f"{channel}_PC{i}"].to_numpy(), scores[f"{channel}_PC{j}"].to_numpy()
         keys = scores[["frame", "label"]].to_numpy().astype(np.int64)
         rows = key_rows(keys[:, 0], keys[:, 1], a.table["frame"], a.table["label"])
         objects = a.objects()[rows]

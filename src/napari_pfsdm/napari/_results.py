@@ -73,30 +73,19 @@ def check_layers(labels, intensity, first_axis: str = "time") -> str:
     return axes
 
 
-def pca_scores(table: pd.DataFrame, channel: str = "shape", n_components: int = 5
-               ) -> pd.DataFrame:
-    """The package's PCA (:class:`napari_pfsdm.analysis.shape_space.ShapePCA`, weighted as the
-    PF-SDM distance) with columns ``frame``, ``label``, ``PC1`` … and
-    ``attrs["explained_variance_ratio"]``; empty (no PC columns) without that channel or with
-    fewer than two measured rows."""
-    from ..analysis.shape_space import ShapePCA
-    from ..core.table_schema import has_channel, pc_columns
+def pca_scores(table: pd.DataFrame, channel: str = "shape") -> pd.DataFrame:
+    """The package's PCA of one channel, five components
+    (:func:`napari_pfsdm.analysis.reduction.pca_scores`: ``frame``, ``label``,
+    ``shape_PC1`` …), with ``attrs["explained_variance_ratio"]``; no rows without that
+    channel or with fewer than two measured rows."""
+    from ..analysis.reduction import pca_scores as fit
 
-    empty = pd.DataFrame({"frame": pd.Series(dtype=int), "label": pd.Series(dtype=int)})
-    empty.attrs["explained_variance_ratio"] = []
-    if not has_channel(table.columns, channel):
-        return empty
-    space = ShapePCA(n_components, channel)
     try:
-        scores = space.fit_transform(table)
-    except ValueError:
-        return empty
-    out = pd.DataFrame({"frame": scores["frame"].to_numpy(),
-                        "label": scores["label"].to_numpy(),
-                        **{col[len(channel) + 1:]: scores[col].to_numpy()  # PC1 …
-                           for col in pc_columns(scores.columns, channel)}})
-    out.attrs["explained_variance_ratio"] = [float(r) for r in space.explained_variance_ratio_]
-    return out
+        scores, ratios = fit(table, channel, 5)
+    except ValueError:  # no such channel, or too few measured rows
+        scores, ratios = table[["frame", "label"]].iloc[:0].copy(), []
+    scores.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
+    return scores
 
 
 def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
@@ -200,7 +189,7 @@ def explanation(analysis: Analysis, channel: str = "shape") -> list[str]:
     if key not in analysis.derived:
         scores = analysis.pca.get(channel)
         analysis.derived[key] = [] if (analysis.measures is None or channel != "shape"
-                                       or scores is None or "PC1" not in scores) else \
+                                       or scores is None or not len(scores)) else \
             explain_components(scores, analysis.measures,
                                scores.attrs.get("explained_variance_ratio", []), n=2)
     return analysis.derived[key]
@@ -223,6 +212,7 @@ def layer_features(analysis: Analysis) -> pd.DataFrame:
 def _layer_features(analysis: Analysis) -> pd.DataFrame:
     from ..analysis.interpretation import MEASURES
     from ..analysis.tables import key_rows
+    from ..core.table_schema import pc_columns
 
     table = analysis.table
     kept = [c for c in table.columns
@@ -239,11 +229,9 @@ def _layer_features(analysis: Analysis) -> pd.DataFrame:
         columns[col] = values.astype(np.int8) if values.dtype == bool else values
     columns["failed"] = (~analysis.measured).astype(np.int8)
     for channel, scores in analysis.pca.items():
-        if "PC1" in scores:
-            at = rows_in(scores)
-            for col in scores.columns:
-                if col.startswith("PC"):
-                    columns[f"{channel}_{col}"] = _take(scores[col].to_numpy(float), at)
+        at = rows_in(scores)
+        for col in pc_columns(scores.columns, channel):
+            columns[col] = _take(scores[col].to_numpy(float), at)
     if analysis.measures is not None and len(analysis.measures):
         at = rows_in(analysis.measures)
         for col in MEASURES:
@@ -281,11 +269,11 @@ def object_line(analysis: Analysis, frame: int, label: int) -> str:
         where.append(f"no features: {row['error']}")
     else:
         scores = analysis.pca.get("shape")
-        if scores is not None and "PC1" in scores:
+        if scores is not None and len(scores):
             hit = scores[(scores["frame"] == row["frame"]) & (scores["label"] == label)]
             if len(hit):
-                where.append(" ".join(f"PC{k} {hit.iloc[0][f'PC{k}']:+.2f}" for k in (1, 2)
-                                      if f"PC{k}" in hit))
+                where.append(" ".join(f"PC{k} {hit.iloc[0][f'shape_PC{k}']:+.2f}"
+                                      for k in (1, 2) if f"shape_PC{k}" in hit))
     if str(row.get("warnings", "")):
         where.append(f"⚠ {row['warnings']}")
     return " · ".join(where)
