@@ -122,6 +122,14 @@ def test_the_run_gives_the_rows_of_measure_with_progress_to_the_total():
     pd.testing.assert_frame_equal(fields["table"].reset_index(drop=True),
                                   expected.reset_index(drop=True), check_like=True)
     assert fields["axes"] == "tyx" and "shape_PC1" in fields["pca"]["shape"]
+    # the line on a measured object gives its scores on the library's PCA (of the same table)
+    from napari_pfsdm.analysis.reduction import pca_scores
+
+    scores, _ = pca_scores(expected, "shape", 5)
+    pc1, pc2 = scores.set_index(["frame", "label"]).loc[(1, 2), ["shape_PC1", "shape_PC2"]]
+    area = int(expected.set_index(["frame", "label"]).loc[(1, 2), "area"])
+    assert object_line(Analysis("A", 1, **fields), 1, 2) == \
+        f"frame 1 · label 2 · area {area} px · PC1 {pc1:+.2f} PC2 {pc2:+.2f}"
 
 
 def test_a_closed_run_stops_and_keeps_nothing():

@@ -198,7 +198,7 @@ class TrajectoryPlot(_Plot):
         view = self._view()
         by_group, names, time_lapse = view["layout"]
         ax = self.figure.add_subplot(111)
-        points = ax.scatter([], [], s=14, zorder=2, edgecolors="none")
+        points = ax.scatter([], [], s=14, zorder=2, edgecolors="none", cmap="viridis")
         self.artists = {"layout": view["layout"], "points": points, "paths": ax.add_collection(
             LineCollection([], colors=(0.6, 0.6, 0.6, 0.5), linewidths=0.8, zorder=1))}
         self._update(ax, view)
@@ -236,7 +236,6 @@ class TrajectoryPlot(_Plot):
             points.set_facecolors([tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6)
                                    for g in view["groups"]])
         else:  # by frame: the colour bar follows its points
-            points.set_cmap("viridis")
             points.set_array(frames)
             points.set_clim(frames.min(), frames.max())
         self.artists["paths"].set_segments(view["lines"])

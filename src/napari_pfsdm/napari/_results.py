@@ -267,16 +267,13 @@ def object_line(analysis: Analysis, frame: int, label: int) -> str:
                  else f"area {int(row['area'])} px")
     if str(row.get("error", "")):
         where.append(f"no features: {row['error']}")
-    else:
-        scores = analysis.pca.get("shape")
-        if scores is not None and len(scores):
-            hit = scores[(scores["frame"] == row["frame"]) & (scores["label"] == label)]
-            if len(hit):
-                where.append(" ".join(f"PC{k} {hit.iloc[0][f'shape_PC{k}']:+.2f}"
-                                      for k in (1, 2) if f"shape_PC{k}" in hit))
+    else:  # its PCs: the layer's features have the table's rows
+        pcs = layer_features(analysis).iloc[i]
+        where.append(" ".join(f"PC{k} {pcs[f'shape_PC{k}']:+.2f}" for k in (1, 2)
+                              if np.isfinite(pcs.get(f"shape_PC{k}", np.nan))))
     if str(row.get("warnings", "")):
         where.append(f"⚠ {row['warnings']}")
-    return " · ".join(where)
+    return " · ".join(w for w in where if w)
 
 
 def object_ids(labels, analysis: Analysis) -> np.ndarray:
