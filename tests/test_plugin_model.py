@@ -181,3 +181,34 @@ def test_a_z_stack_is_renumbered_as_one_object_set():
     table = pd.DataFrame({"frame": [0, 0], "label": [9, 3], "error": ["", ""]})
     ids = object_ids(labels, Analysis("A", 1, table, {}, axes="zyx"))
     assert ids.tolist() == [[[2, 0]], [[2, 1]]]
+
+
+def test_the_neighbours_export_names_each_objects_row_in_the_features_file(tmp_path,
+                                                                            monkeypatch):
+    """Above the export's matrix limit each object's nearest shapes are written with its row
+    in the features file: with an object without features first (too small), every ``row`` and
+    ``neighbour`` is the row of the same frame and label in the features file, and each
+    distance that of ``pf.distance_matrix`` between the two."""
+    from napari_pfsdm.napari import _export
+
+    monkeypatch.setattr(_export, "MAX_DISTANCE_ROWS", 4)
+    labels = np.zeros((1, 96, 200), np.uint16)
+    labels[0, 2:4, 2:4] = 1  # too small to measure: no features
+    for k in range(6):  # rectangles of six aspect ratios
+        labels[0, 20:40 - k, 8 + 30 * k:8 + 30 * k + 12 + 3 * k] = k + 2
+    table = pf.measure(labels)
+    assert table["error"].iloc[0] != ""
+    paths, note = _export.export(Analysis("A", 1, table, {}, axes="tyx"), tmp_path, "x")
+    assert note and paths[-1].name == "x_neighbours.csv"
+    features = pd.read_csv(paths[0])
+    edges = pd.read_csv(paths[-1])
+    assert len(edges) == 6 * 5  # k = min(15, 6 - 1)
+    for end in ("", "neighbour_"):
+        at = edges["neighbour" if end else "row"]
+        assert (features["label"].to_numpy()[at] == edges[end + "label"]).all()
+    measured = table[table["error"] == ""]
+    d = np.asarray(pf.distance_matrix(measured))
+    pos = {lab: i for i, lab in enumerate(measured["label"])}
+    want = [d[pos[a], pos[b]] for a, b in zip(edges["label"], edges["neighbour_label"],
+                                                strict=True)]
+    np.testing.assert_allclose(edges["distance"], want, rtol=1e-9)

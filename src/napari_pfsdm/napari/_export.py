@@ -36,7 +36,7 @@ def file_names(analysis: Analysis, prefix: str) -> list[str]:
 def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
     """Write the tables of ``analysis`` into ``folder``; returns (paths, note)."""
     from ..analysis.neighbours import nearest_neighbours
-    from ..analysis.tables import distance_matrix
+    from ..analysis.tables import distance_matrix, key_rows
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -60,7 +60,7 @@ def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
         paths.append(write_table_csv(scores, folder / f"{prefix}_pca_{channel}.csv",
                                      dict(opts, pca_features=channel,
                                           explained_variance_ratio=ratios), table_type="pca"))
-    rows = np.flatnonzero(table.index.isin(measured.index))
+    rows = key_rows(measured["frame"], measured["label"], table["frame"], table["label"])
     if note:
         k = min(NEIGHBOURS, len(measured) - 1)
         idx, dist = nearest_neighbours(measured, k, intensity_weight=w)
