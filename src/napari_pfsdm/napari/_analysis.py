@@ -34,8 +34,16 @@ from superqt import QCollapsible
 from ..core.params import OPTIONS, PFSDMParams
 from . import _pictures
 from ._model import REGISTRY, Analysis
-from ._results import check_layers, explanation, identify, layer_features, object_line
-from ._results import run_analysis as _run
+from ._results import (
+    FIRST_AXIS,
+    IDENTITY,
+    check_layers,
+    explanation,
+    identify,
+    layer_features,
+    object_line,
+    run_analysis,
+)
 
 NONE = "(none)"
 #: A Run shows napari's progress bar once it has lasted this long (ms), as Qt's progress
@@ -43,10 +51,7 @@ NONE = "(none)"
 #: napari animates its activity indicator, which under a software renderer repaints the whole
 #: window and slows the measuring that shares the interpreter with it.
 PROGRESS_AFTER_MS = 500
-IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
-            "link by centroids": "link"}
 TRACKS = "Tracks: "
-FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
 TIPS = {
     "labels": "The segmentation: one whole number per object, 0 = background. A 2-D image, a "
               "time-lapse (T × Y × X), a Z-stack or a time-lapse of Z-stacks.",
@@ -67,16 +72,34 @@ TIPS = {
 }
 
 
-def scrolled(inner: QWidget, minimum: int = 90) -> QScrollArea:
-    """``inner`` in a scroll area: its controls keep their natural height and scroll when the
-    dock is short, so that a dock never makes napari's window taller than the screen."""
-    if inner.layout() is not None:  # the scroll area then never squeezes a control
-        inner.layout().setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)
+def scrolled(*widgets: QWidget, minimum: int = 90, stretch: int | None = None,
+             margins: bool = False) -> QScrollArea:
+    """``widgets`` one under the other in a scroll area: they keep their natural height and
+    scroll when the dock is short, so that a dock never makes napari's window taller than the
+    screen. The spare height goes to ``widgets[stretch]`` (else below the last one)."""
+    inner = QWidget()
+    lay = QVBoxLayout(inner)
+    if not margins:
+        lay.setContentsMargins(0, 0, 0, 0)
+    lay.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # never squeezes a control
+    for i, widget in enumerate(widgets):
+        lay.addWidget(widget, int(i == stretch))
+    if stretch is None:
+        lay.addStretch(1)
     scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
     scroll.setWidget(inner)
     scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
     scroll.setMinimumHeight(minimum)
     return scroll
+
+
+def stack(dock: QWidget, *rows: QWidget) -> None:
+    """``rows`` one under the other in ``dock``, edge to edge; a scroll area among them
+    (:func:`scrolled`) takes the spare height."""
+    outer = QVBoxLayout(dock)
+    outer.setContentsMargins(0, 0, 0, 0)
+    for row in rows:
+        outer.addWidget(row, int(isinstance(row, QScrollArea)))
 
 
 def analysed_layers(viewer, _widget=None) -> list[str]:
@@ -112,7 +135,7 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight
     """Measure, find the identities, and make what the GUI thread shows first (the viewer
     stays free meanwhile): the :class:`Analysis`, the layer's features, the sentences on the
     components and the warnings."""
-    fields = yield from _run(labels, intensity, params, first_axis, spacing)
+    fields = yield from run_analysis(labels, intensity, params, first_axis, spacing)
     fields["options"]["intensity_weight"] = weight
     mode, tracks, name = identity
     try:
@@ -186,18 +209,9 @@ class AnalysisWidget(QWidget):
 
         collapsible = QCollapsible("More options (the defaults are fine)")
         collapsible.addWidget(self.more.native)
-        inner = QWidget()
-        lay = QVBoxLayout(inner)
-        lay.addWidget(self.form.native)
-        lay.addWidget(collapsible)
-        lay.addWidget(self.status.native)
-        lay.addWidget(self.hover.native)
-        lay.addStretch(1)
-        outer = QVBoxLayout(self)  # Run and Export stay on screen; the form scrolls
-        outer.setContentsMargins(0, 0, 0, 0)
-        outer.addWidget(buttons.native)
-        outer.addWidget(scrolled(inner), 1)
-        outer.addWidget(after.native)
+        stack(self, buttons.native,  # Run and Export stay on screen; the form scrolls
+              scrolled(self.form.native, collapsible, self.status.native, self.hover.native,
+                       margins=True), after.native)
         # a plots dock below gets the room this panel does not need (its form scrolls)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
 
@@ -363,6 +377,8 @@ class AnalysisWidget(QWidget):
         if labels not in self.viewer.layers:
             self.say("The Labels layer was removed during the run; nothing kept.")
             return
+        groups = labels.metadata.get("groups") or {}  # e.g. the sample's
+        analysis.groups = {int(k): str(v) for k, v in groups.items()}
         REGISTRY.new_run(labels.unique_id, analysis)
         labels.features = features
         self.pictures.clear()
@@ -395,10 +411,7 @@ class AnalysisWidget(QWidget):
     # -------------------------------------------------------------- selection
     def _bind(self, labels: Labels, analysis: Analysis) -> None:
         """Follow ``labels``' selected label and the time slider into ``analysis``."""
-        if self.bound is not None:
-            old_layer, old = self.bound
-            old_layer.events.selected_label.disconnect(self._sync_selection)
-            old.changed.disconnect(self._on_change)
+        self._unbind()
         self.bound = (labels, analysis)
         labels.events.selected_label.connect(self._sync_selection)
         analysis.changed.connect(self._on_change)
@@ -414,11 +427,15 @@ class AnalysisWidget(QWidget):
     def _on_registry(self, layer_id: str) -> None:
         if self.bound is not None and self.bound[0].unique_id == layer_id \
                 and REGISTRY.get(layer_id) is not self.bound[1]:
-            layer, old = self.bound
-            layer.events.selected_label.disconnect(self._sync_selection)
-            old.changed.disconnect(self._on_change)
-            self.bound = None
+            self._unbind()
             self.pictures.stop()
+
+    def _unbind(self) -> None:
+        if self.bound is not None:
+            layer, analysis = self.bound
+            layer.events.selected_label.disconnect(self._sync_selection)
+            analysis.changed.disconnect(self._on_change)
+            self.bound = None
 
     def _sync_selection(self, event=None) -> None:
         """The viewer's selected label and frame → the model (which tells every view)."""

@@ -68,7 +68,7 @@ class Analysis:
     tracking_message : str
         What was found about identity through time ("" when nothing to say).
     groups : dict
-        Object (track id or label) → group name.
+        Object (track id or label) → group name (at a Run: the layer's ``metadata["groups"]``).
     selection : (frame, label) or None
         The object looked at.
     comparison : dict

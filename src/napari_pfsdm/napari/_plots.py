@@ -21,7 +21,7 @@ from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 from ..analysis.tables import key_rows
 from ..core.table_schema import pc_columns
 from . import _pictures
-from ._analysis import analysed_layers, follow_registry, scrolled
+from ._analysis import analysed_layers, follow_registry, scrolled, stack
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
 from ._results import explanation
@@ -30,6 +30,8 @@ from ._results import explanation
 #: that graph instead of an n × n matrix.
 GRAPH_ROWS = 2000
 GRAPH_K = 15
+#: What a plot says before a Run.
+EMPTY = "Run the PF-SDM analysis to fill this plot."
 #: The plots dock's least height (px).
 MIN_HEIGHT = 330
 
@@ -55,7 +57,7 @@ class _Plot(PlotCanvas):
         self.xy = np.zeros((0, 2))
         self.points_axes = None
         self.mark_artists: dict = {}  # name → artist of points_axes, made at first use
-        self.info = Label(value="Run the PF-SDM analysis to fill this plot.")
+        self.info = Label(value=EMPTY)
         self.info.native.setWordWrap(True)
         self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,
                                        QSizePolicy.Policy.Preferred)  # the dock's width
@@ -74,17 +76,13 @@ class _Plot(PlotCanvas):
 
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
-        if self.analysis is not None and self.refresh():
-            self.changed()
-            self.highlight()
-            return
-        self.figure.clear()
-        self.marks, self.points_axes, self.mark_artists = [], None, {}
-        self.keys = np.zeros((0, 2), np.int64)
-        if self.analysis is None:
-            self.info.value = "Run the PF-SDM analysis to fill this plot."
-        else:
+        if self.analysis is None or not self.refresh():  # else new data in the same artists
+            self.figure.clear()
+            self.marks, self.points_axes, self.mark_artists = [], None, {}
+            self.keys = np.zeros((0, 2), np.int64)
             try:
+                if self.analysis is None:
+                    raise ValueError(EMPTY)
                 with mplstyle.context(self.napari_theme_style_sheet):  # napari's colours
                     self.draw()
             except ValueError as err:
@@ -100,9 +98,6 @@ class _Plot(PlotCanvas):
         """Give the figure's artists new data in place, when the figure keeps its kind of
         content (True); else False, and :meth:`redraw` draws the figure from scratch."""
         return False
-
-    def set_points(self, ax, xy: np.ndarray, keys: np.ndarray) -> None:
-        self.points_axes, self.xy, self.keys = ax, np.asarray(xy, float), keys
 
     def highlight(self) -> None:
         """Mark the selected object (and its frame's points) on the plot."""
@@ -246,7 +241,7 @@ class TrajectoryPlot(_Plot):
         ax.set_ylabel(view["ylabel"])
         ax.set_title(view["title"], fontsize=9)
         self.point_objects = view["objects"]
-        self.set_points(ax, xy, view["keys"])
+        self.points_axes, self.xy, self.keys = ax, xy, view["keys"]
         self.info.value = view["info"]
 
     def mark(self, ax, frame: int, label: int) -> list:
@@ -357,13 +352,9 @@ class ComparisonPlot(_Plot):
             im = ax_m.imshow(result["d"], cmap="viridis", interpolation="nearest")
             self.figure.colorbar(im, ax=ax_m, fraction=0.046, pad=0.02).set_label(
                 "re-ranked distance" if key[2] else "PF-SDM distance", fontsize=7)
-            if len(rows) <= 20:
-                ticks = [str(lab) for _f, lab in keys]
-                ax_m.set_xticks(range(len(rows)), ticks, fontsize=6, rotation=90)
-                ax_m.set_yticks(range(len(rows)), ticks, fontsize=6)
-            else:
-                ax_m.set_xticks([])
-                ax_m.set_yticks([])
+            ticks = [str(lab) for _f, lab in keys] if len(rows) <= 20 else []  # labels
+            ax_m.set_xticks(range(len(ticks)), ticks, fontsize=6, rotation=90)
+            ax_m.set_yticks(range(len(ticks)), ticks, fontsize=6)
             ax_m.set_title(f"distances, {where}", fontsize=9)
             title = "MDS map"
         else:
@@ -378,9 +369,8 @@ class ComparisonPlot(_Plot):
                 ax_p.annotate(str(lab), (px, py), fontsize=7, xytext=(3, 3),
                               textcoords="offset points")
         ax_p.set_title(title, fontsize=9)
-        ax_p.set_xticks([])
-        ax_p.set_yticks([])
-        self.set_points(ax_p, xy, keys)
+        ax_p.set(xticks=[], yticks=[])
+        self.points_axes, self.xy, self.keys = ax_p, xy, keys
         self.info.value = (f"{len(rows):,} objects, {where}"
                            + (", colour = frame" if key[0] is None else "")
                            + ". On the map, close = similar.")
@@ -495,9 +485,7 @@ class ComponentsPlot(_Plot):
         for i, (row, line) in enumerate(zip(modes.itertuples(), outlines, strict=True)):
             sub = self.figure.add_subplot(grid[1, i])
             sub.plot(line[:, 1], -line[:, 0], lw=1.2)
-            sub.set_aspect("equal")
-            sub.set_xticks([])
-            sub.set_yticks([])
+            sub.set(aspect="equal", xticks=[], yticks=[])
             sub.set_title(f"{row.sigma:+.0f}σ", fontsize=7)
             sub.set_xlabel(f"f{int(getattr(row, 'frame', 0))} l{int(row.label)}", fontsize=6)
         self.info.value = (f"Top: how much each ring (centre to outline) and Fourier index "
@@ -520,25 +508,22 @@ class PlotsWidget(QWidget):
         self.layer_choice = ComboBox(choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
         self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
-        self.made: list = [TrajectoryPlot(napari_viewer), None, None]  # the others when shown
+        self.made: list = [None, None, None]  # each plot when its tab is first shown
+        self.layer, self.analysis = None, None
         self.tabs = QTabWidget()
-        for i, name in enumerate(TABS):
-            self.tabs.addTab(self.made[i] or QWidget(), name)
-        inner = QWidget()
-        lay = QVBoxLayout(inner)
-        lay.setContentsMargins(0, 0, 0, 0)
+        for name in TABS:
+            page = QWidget()
+            QVBoxLayout(page).setContentsMargins(0, 0, 0, 0)
+            self.tabs.addTab(page, name)
         corner = Container(widgets=[self.layer_choice], labels=False)
         corner.margins = (4, 0, 0, 0)
         self.tabs.setCornerWidget(corner.native)  # the layer beside the tabs: one row less
-        lay.addWidget(self.tabs, 1)
-        outer = QVBoxLayout(self)
-        outer.setContentsMargins(0, 0, 0, 0)
-        outer.addWidget(scrolled(inner, 150))
+        stack(self, scrolled(self.tabs, minimum=150, stretch=0))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
         # room for a readable plot beside the other docks (theirs scroll): at 1280 × 800 the
         # three docks' least heights add up to about 700 px
         self.setMinimumHeight(MIN_HEIGHT)
-        self.analysis: Analysis | None = None
+        self.plot(0)
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())
         follow_registry(self, self._on_registry)
@@ -561,12 +546,9 @@ class PlotsWidget(QWidget):
             return
         if self.analysis is not None:
             self.analysis.changed.disconnect(self._on_change)
-        self.analysis = analysis
+        self.layer, self.analysis = layer, analysis
         if analysis is not None:
             analysis.changed.connect(self._on_change)
-            meta = layer.metadata.get("groups") or {}
-            if not analysis.groups and meta:
-                analysis.groups = {int(k): str(v) for k, v in meta.items()}
         for plot in self.made:
             if plot is not None:
                 plot.layer, plot.analysis = layer, analysis
@@ -576,15 +558,8 @@ class PlotsWidget(QWidget):
         """The plot of tab ``i``, made when first asked for."""
         if self.made[i] is None:
             plot = self.made[i] = self.kinds[i](self.viewer)
-            plot.layer = self.viewer.layers[self.layer_choice.value] \
-                if self.analysis is not None else None
-            plot.analysis = self.analysis
-            current = self.tabs.currentIndex()
-            self.tabs.blockSignals(True)
-            self.tabs.removeTab(i)
-            self.tabs.insertTab(i, plot, TABS[i])
-            self.tabs.setCurrentIndex(current)
-            self.tabs.blockSignals(False)
+            plot.layer, plot.analysis = self.layer, self.analysis
+            self.tabs.widget(i).layout().addWidget(plot)
         return self.made[i]
 
     @property

@@ -16,10 +16,10 @@ from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, S
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
 from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QFileDialog, QSizePolicy, QVBoxLayout, QWidget
+from qtpy.QtWidgets import QFileDialog, QSizePolicy, QWidget
 
 from . import _pictures
-from ._analysis import analysed_layers, follow_registry, scrolled
+from ._analysis import analysed_layers, follow_registry, scrolled, stack
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis
 from ._results import layer_features
@@ -60,7 +60,6 @@ def _predict(analysis: Analysis, table, groups, frames, object_col, stopped):
         if stopped():
             raise _Stop
 
-    yield "training"
     pred = predict_outcome(table, groups, frames, object_col=object_col, progress=progress)
     return pred, scored_analysis(analysis, table, pred, object_col)
 
@@ -102,15 +101,8 @@ class PredictionWidget(QWidget):
                             labels=False)
         self.form = Container(widgets=[self.layer_choice, self.class_name, self.give, self.csv,
                                        self.first, self.last, self.classes, buttons])
-        inner = QWidget()
-        lay = QVBoxLayout(inner)
-        lay.setContentsMargins(0, 0, 0, 0)
-        for widget in (self.form.native, self.status.native, self.plot):
-            lay.addWidget(widget)
         self.canvas.setFixedHeight(200)  # the status above may wrap: no new layout for that
-        outer = QVBoxLayout(self)
-        outer.setContentsMargins(0, 0, 0, 0)
-        outer.addWidget(scrolled(inner, 150))
+        stack(self, scrolled(self.form.native, self.status.native, self.plot, minimum=150))
         # a plots dock beside gets the room this one does not need (its content scrolls)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.worker = None
@@ -167,8 +159,6 @@ class PredictionWidget(QWidget):
 
     def _show_classes(self, *args) -> None:
         a = self.analysis
-        if a is not None and not a.groups and self.layer.metadata.get("groups"):
-            a.groups = {int(k): str(v) for k, v in self.layer.metadata["groups"].items()}
         counts = Counter(a.groups.values() if a is not None else [])
         self.classes.value = ", ".join(f"{g}: {n} objects" for g, n in sorted(counts.items())) \
             or "No classes yet: give classes or read a groups CSV."

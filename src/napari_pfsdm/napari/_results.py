@@ -20,50 +20,45 @@ from ._model import Analysis
 
 #: Seconds between two progress reports of a Run (and its last one).
 PROGRESS_EVERY = 0.1
-#: The meanings of the first axis of a 3-D Labels layer.
-FIRST_AXIS = ("time", "z")
-#: How objects keep their identity through time: link when the ids jump, trust the ids, always
-#: link, or follow a napari Tracks layer.
-IDENTITY = ("auto", "labels", "link", "tracks")
+#: What the first axis of a 3-D Labels layer is, in the form's words → in the analysis's.
+FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
+#: How objects keep their identity through time, in the form's words → the mode: link when
+#: the ids jump, trust the ids, always link (or "tracks": follow a napari Tracks layer).
+IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
+            "link by centroids": "link"}
 #: Text columns kept out of ``layer.features`` (plotters expect numbers).
 TEXT_COLUMNS = ("error", "warnings")
 #: Raw feature columns kept out of ``layer.features`` (hundreds; in the export and the API).
 RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "surface_l")
 
 
-def layer_axes(ndim: int, first_axis: str = "time") -> str:
-    """The axes of a Labels layer of ``ndim`` dimensions (``first_axis``: what a 3-D layer's
-    first axis is, the user's answer).
-
-    >>> layer_axes(3, "z"), layer_axes(4)
-    ('zyx', 'tzyx')
-    """
-    if first_axis not in FIRST_AXIS:
-        raise ValueError(f"first_axis must be one of {FIRST_AXIS}, got {first_axis!r}.")
-    axes = {2: "yx", 3: "zyx" if first_axis == "z" else "tyx", 4: "tzyx"}.get(ndim)
-    if axes is None:
-        raise ValueError(
-            f"The Labels layer has {ndim} dimensions; PF-SDM needs a 2-D image (Y, X), a "
-            "time-lapse (T, Y, X), a Z-stack (Z, Y, X) or a time-lapse of Z-stacks "
-            "(T, Z, Y, X). Split the channels first.")
-    return axes
-
-
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
-    """Refuse label and reporter arrays the analysis cannot use; return the labels' axes.
+    """Refuse label and reporter arrays the analysis cannot use; return the labels' axes
+    (``first_axis``: what a 3-D layer's first axis is, ``"time"`` or ``"z"``).
+
+    >>> z, t = np.zeros((5, 8, 8), int), np.zeros((2, 5, 8, 8), int)
+    >>> check_layers(z, None, "z"), check_layers(z, None), check_layers(t, None)
+    ('zyx', 'tyx', 'tzyx')
 
     Raises
     ------
     ValueError
         With a sentence saying what is wrong and what to do.
     """
+    from ..analysis.features import looks_like_colour
+
     shape = tuple(int(n) for n in labels.shape)
-    if len(shape) == 3 and shape[-1] in (3, 4) and shape[-2] > 8:
+    if looks_like_colour(shape):
         raise ValueError(
-            f"The Labels layer looks like a colour picture ({shape[0]} × {shape[1]} pixels with "
-            f"{shape[-1]} colour channels), not a segmentation. Open the mask as a "
+            f"The Labels layer looks like a colour picture (shape {shape}: {shape[-1]} colour "
+            "channels on its last axis), not a segmentation. Open the mask as a "
             "single-channel label image (one whole number per object, 0 = background).")
-    axes = layer_axes(labels.ndim, first_axis)
+    axes = {2: "yx", 3: {"time": "tyx", "z": "zyx"}[first_axis], 4: "tzyx"}.get(len(shape))
+    if axes is None:
+        raise ValueError(
+            f"The Labels layer has {len(shape)} dimensions; PF-SDM needs a 2-D image (Y, X), a "
+            "time-lapse (T, Y, X), a Z-stack (Z, Y, X) or a time-lapse of Z-stacks "
+            "(T, Z, Y, X). Split the channels first.")
     if not np.issubdtype(np.dtype(labels.dtype), np.integer) and labels.dtype != bool:
         raise ValueError("The Labels layer must hold whole numbers (one number per object).")
     if intensity is not None and tuple(intensity.shape) != shape:
@@ -142,15 +137,17 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
              tracks=None, tracks_name: str = "") -> tuple[pd.DataFrame, str]:
     """``table`` with its ``track_id`` column for a time-lapse, and a sentence on what was done.
 
-    ``mode`` is one of :data:`IDENTITY`: ``"auto"`` links the objects by their centroids when
-    the label ids do not follow them (a per-frame segmentation), ``"labels"`` trusts the ids,
-    ``"link"`` always links, ``"tracks"`` reads a napari Tracks layer's data (track_id, t, y, x).
+    ``mode`` is one of :data:`IDENTITY`'s or ``"tracks"``: ``"auto"`` links the objects by
+    their centroids when the label ids do not follow them (a per-frame segmentation),
+    ``"labels"`` trusts the ids, ``"link"`` always links, ``"tracks"`` reads a napari Tracks
+    layer's data (track_id, t, y, x).
     """
     from ..analysis.tracking import DEFAULT_LINK, add_track_ids, link_movie, track_ids_from_tracks
     from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 
-    if mode not in IDENTITY:
-        raise ValueError(f"identity must be one of {IDENTITY}, got {mode!r}.")
+    if mode not in (*IDENTITY.values(), "tracks"):
+        raise ValueError(f"identity must be one of {[*IDENTITY.values(), 'tracks']}, got "
+                         f"{mode!r}.")
     if TRACK_COLUMN in table.columns:  # identities found again
         table = carry_options(table, table.drop(columns=[TRACK_COLUMN]))
     if not time_lapse:
