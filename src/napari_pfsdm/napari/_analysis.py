@@ -323,9 +323,9 @@ class AnalysisWidget(QWidget):
             return None
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         weight = self.intensity_weight.value if image is not None else 0.0
-        worker = _run_worker(_data(labels), None if image is None else _data(image), params,
-                             first_axis, spacing, self.identity_mode(), weight,
-                             _ignore_errors=True)
+        self.worker = worker = _run_worker(
+            _data(labels), None if image is None else _data(image), params, first_axis, spacing,
+            self.identity_mode(), weight, _ignore_errors=True)
         start = time.perf_counter()
         bar: list = []  # napari's progress bar, once the Run has lasted PROGRESS_AFTER_MS
         counted = [0, 0]  # objects done, of
@@ -341,12 +341,6 @@ class AnalysisWidget(QWidget):
                 bar[0].total = value[1]
                 bar[0].update(value[0] - bar[0].n)
 
-        def on_result(result):
-            self._show_results(labels, *result, time.perf_counter() - start)
-
-        def on_error(err):
-            self.say(f"The analysis stopped: {err}", error=True)
-
         def on_finished():
             if bar:
                 bar[0].close()
@@ -354,11 +348,11 @@ class AnalysisWidget(QWidget):
             self.run_button.enabled, self.cancel_button.enabled = True, False
 
         worker.yielded.connect(on_progress)
-        worker.returned.connect(on_result)
-        worker.errored.connect(on_error)
+        worker.returned.connect(lambda result: self._show_results(
+            labels, *result, time.perf_counter() - start))
+        worker.errored.connect(lambda err: self.say(f"The analysis stopped: {err}", True))
         worker.aborted.connect(lambda: self.say("Cancelled: nothing was kept."))
         worker.finished.connect(on_finished)
-        self.worker = worker
         self.run_button.enabled, self.cancel_button.enabled = False, True
         self.say(f"Measuring the objects of '{labels.name}'… (progress: napari's activity "
                  "panel, bottom right)")
@@ -496,8 +490,8 @@ class AnalysisWidget(QWidget):
         if self.bound is None or self.export_worker is not None:
             return None
         labels, analysis = self.bound
-        worker = _export_worker(analysis, folder, labels.name, _ignore_errors=True)
-        self.export_worker = worker
+        self.export_worker = worker = _export_worker(analysis, folder, labels.name,
+                                                     _ignore_errors=True)
         self.say(f"Exporting into {folder}…")
 
         def done(result):

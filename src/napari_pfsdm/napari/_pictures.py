@@ -311,11 +311,10 @@ class PictureView:
     def _start(self, key=None) -> None:
         layer, analysis, wanted = self.wanted
         key = key or wanted
-        worker = _make(analysis, key[1], key[2])
+        self.worker = worker = _make(analysis, key[1], key[2])
         worker.returned.connect(lambda pics, key=key: self._done(key, pics))
         worker.errored.connect(lambda err, key=key: self._done(key, err))
         worker.finished.connect(self._finished)
-        self.worker = worker
         worker.start()
 
     def _done(self, key, result) -> None:

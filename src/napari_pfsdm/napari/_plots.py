@@ -308,7 +308,7 @@ class ComparisonPlot(_Plot):
         viewer.dims.events.current_step.connect(self._on_step)
 
     def what(self) -> tuple:
-        """(key, rows, weight, re-ranked) of what is compared now."""
+        """(key, rows) of what is compared now: key = (frame or None, weight, re-ranked)."""
         a = self.analysis
         keep = a.measured  # a new array at each call
         shown = None
@@ -321,7 +321,7 @@ class ComparisonPlot(_Plot):
             rows = rows[np.isfinite(a.table.filter(like="intensity_r").to_numpy()[rows]).all(1)]
         if len(rows) < 2:
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
-        return (shown, w, bool(self.rerank.value)), rows, w
+        return (shown, w, bool(self.rerank.value)), rows
 
     def _on_step(self, event=None) -> None:
         if self.analysis is not None and self.which.value == "current frame" \
@@ -334,13 +334,13 @@ class ComparisonPlot(_Plot):
 
     def draw(self) -> None:
         a = self.analysis
-        key, rows, w = self.what()
+        key, rows = self.what()
         result = a.comparison.get(key)
         if result is None:
             if key in self.cancelled:
                 raise ValueError("Cancelled: no distances. Change the frame or an option to "
                                  "compute them.")
-            self._compute(a, key, rows, w)
+            self._compute(a, key, rows)
             self.info.value = f"Computing the distances of {len(rows):,} objects in the " \
                               "background…"
             return
@@ -360,10 +360,8 @@ class ComparisonPlot(_Plot):
         else:
             ax_p = self.figure.add_subplot(111)
             title = f"map of each object's {GRAPH_K} nearest shapes (spectral)"
-        if key[0] is None:  # all frames: colour = frame
-            ax_p.scatter(*xy.T, c=keys[:, 0], s=18, cmap="viridis", edgecolors="none")
-        else:
-            ax_p.scatter(*xy.T, color="tab:blue", s=18, edgecolors="none")
+        colour = {"c": keys[:, 0], "cmap": "viridis"} if key[0] is None else {"color": "tab:blue"}
+        ax_p.scatter(*xy.T, s=18, edgecolors="none", **colour)  # all frames: colour = frame
         if len(rows) <= 30:
             for (_f, lab), (px, py) in zip(keys, xy, strict=True):
                 ax_p.annotate(str(lab), (px, py), fontsize=7, xytext=(3, 3),
@@ -375,11 +373,10 @@ class ComparisonPlot(_Plot):
                            + (", colour = frame" if key[0] is None else "")
                            + ". On the map, close = similar.")
 
-    def _compute(self, a: Analysis, key, rows, w) -> None:
+    def _compute(self, a: Analysis, key, rows) -> None:
         if self.worker is not None:
             self.worker.quit()
-        worker = _distances(a.table, rows, w, key[2], _ignore_errors=True)
-        self.worker = worker
+        self.worker = worker = _distances(a.table, rows, *key[1:], _ignore_errors=True)
         self.cancel_button.visible = True
 
         def done(result):
@@ -416,7 +413,6 @@ def _components(analysis: Analysis, kind: str, component: int):
         t = int(getattr(r, "frame", 0))
         plane = np.asarray(analysis.labels[t] if analysis.time_lapse else analysis.labels)
         outlines.append(_outline(plane, analysis.boxes.get((t, int(r.label))), int(r.label)))
-    yield "fitted"
     return space, modes, outlines
 
 
@@ -458,12 +454,11 @@ class ComponentsPlot(_Plot):
         key = (a.key, self.kind.value, self.component.value)
         if key not in self.results:
             if self.worker is None:  # else the one running ends, then this one starts
-                worker = _components(a, self.kind.value, self.component.value,
-                                     _ignore_errors=True)
+                self.worker = worker = _components(a, self.kind.value, self.component.value,
+                                                   _ignore_errors=True)
                 worker.returned.connect(partial(self.results.__setitem__, key))
                 worker.errored.connect(partial(self.results.__setitem__, key))
                 worker.finished.connect(self._finished)
-                self.worker = worker
                 worker.start()
             self.info.value = "Fitting the PCA in the background…"
             return

@@ -172,8 +172,8 @@ class PredictionWidget(QWidget):
         frames = list(range(self.first.value, self.last.value + 1))
         self._stop = False
         col, table = self.object_col(), a.table
-        worker = _predict(a, table, dict(a.groups), frames, col, lambda: self._stop,
-                          _ignore_errors=True)
+        self.worker = worker = _predict(a, table, dict(a.groups), frames, col,
+                                        lambda: self._stop, _ignore_errors=True)
 
         def show(out):
             pred, scored = out
@@ -184,7 +184,6 @@ class PredictionWidget(QWidget):
         worker.returned.connect(show)
         worker.errored.connect(self._failed)
         worker.finished.connect(self._finished)
-        self.worker = worker
         self.run_button.enabled, self.cancel_button.enabled = False, True
         self.status.value = "Training on repeated splits…"
         worker.start()
