@@ -193,7 +193,8 @@ class TrajectoryPlot(_Plot):
         view = self._view()
         by_group, names, time_lapse = view["layout"]
         ax = self.figure.add_subplot(111)
-        points = ax.scatter([], [], s=14, zorder=2, edgecolors="none", cmap="viridis")
+        points = ax.scatter([], [], s=14, zorder=2, edgecolors="none")
+        points.set_cmap("viridis")  # by frame (by group: colours of their own)
         self.artists = {"layout": view["layout"], "points": points, "paths": ax.add_collection(
             LineCollection([], colors=(0.6, 0.6, 0.6, 0.5), linewidths=0.8, zorder=1))}
         self._update(ax, view)
