@@ -79,7 +79,7 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape") -> pd.DataFrame:
         scores, ratios = fit(table, channel, 5)
     except ValueError:  # no such channel, or too few measured rows
         scores, ratios = table[["frame", "label"]].iloc[:0].copy(), []
-    scores.attrs["explained_variance_ratio"] = [float(r) for r in ratios]
+    scores.attrs = {"explained_variance_ratio": [float(r) for r in ratios]}  # nothing else
     return scores
 
 
