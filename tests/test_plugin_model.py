@@ -147,6 +147,8 @@ def test_bad_layers_are_refused_in_words():
         _finish(run_analysis(np.zeros((8, 8), np.uint8)))
     with pytest.raises(ValueError, match="colour picture"):
         _finish(run_analysis(np.ones((32, 32, 3), np.uint8)))
+    with pytest.raises(ValueError, match="colour picture"):  # a colour movie (T, Y, X, RGB)
+        _finish(run_analysis(np.ones((4, 32, 32, 3), np.uint8)))
     with pytest.raises(ValueError, match="does not match"):
         _finish(run_analysis(np.ones((8, 8), np.uint8), np.ones((9, 8))))
 
