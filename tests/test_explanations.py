@@ -88,7 +88,7 @@ def test_the_librarys_pca_table_is_explained_as_its_columns_say():
     from napari_pfsdm.analysis.reduction import pca_scores
 
     labels = np.zeros((1, 64, 256), int)
-    for k in range(6):  # rectangles from square to long: PC1 is their elongation
+    for k in range(6):  # rectangles from square to long
         labels[0, 20:20 + 20 - 2 * k, 4 + 42 * k:4 + 42 * k + 20 + 3 * k] = k + 1
     table = pf.measure(labels)
     scores, ratios = pca_scores(table, "shape", 2)
