@@ -224,6 +224,53 @@ def test_link_movie_auto(movie):
     assert TRACK_COLUMN not in tk.link_movie(tracked, None, "none")[0].columns
 
 
+def _packed_movie(side: int = 6, frames: int = 6, cell: int = 26, seed: int = 0):
+    """An epithelium: side × side cells filling the field (each pixel belongs to its nearest
+    cell centre, centres on a jittered lattice), each centre wandering a tenth of a cell per
+    frame; ids shuffled in every frame. Returns the labels and each (frame, label)'s true
+    cell."""
+    rng = np.random.default_rng(seed)
+    grid = (np.stack(np.mgrid[:side, :side], -1).reshape(-1, 2) + 0.5) * cell
+    seeds = grid + rng.uniform(-0.2, 0.2, grid.shape) * cell
+    n = side * cell
+    yy, xx = np.mgrid[:n, :n]
+    labels = np.zeros((frames, n, n), np.uint16)
+    truth = {}
+    for t in range(frames):
+        at = seeds + rng.normal(0, 0.1 * cell, seeds.shape)
+        nearest = np.argmin((yy[..., None] - at[:, 0]) ** 2 + (xx[..., None] - at[:, 1]) ** 2,
+                            axis=-1)
+        ids = rng.permutation(len(seeds)) + 1
+        labels[t] = ids[nearest]
+        truth.update({(t, int(ids[k])): k for k in range(len(seeds))})
+    return labels, truth
+
+
+def test_touching_fraction_counts_objects_that_share_an_edge():
+    labels = np.zeros((2, 6, 6), np.uint8)
+    labels[:, 0:2, 0:2], labels[:, 0:2, 2:4] = 1, 2  # touch
+    labels[:, 4:6, 4:6] = 3  # alone
+    labels[1, 2, 0] = 4  # touches 1 from below
+    assert tk.touching_fraction(labels[0]) == pytest.approx(2 / 3)
+    assert tk.touching_fraction(labels) == pytest.approx((2 + 3) / (3 + 4))
+    assert np.isnan(tk.touching_fraction(np.zeros((4, 4), int)))
+
+
+def test_auto_links_packed_cells_by_overlap_and_finds_their_tracks():
+    labels, truth = _packed_movie()
+    assert tk.touching_fraction(labels) == 1.0
+    table = centroids(labels)
+    out, check, used = tk.link_movie(table, labels, "auto")
+    assert not check.tracked and used == "overlap"
+    true = np.array([truth[(f, lab)] for f, lab in zip(out["frame"], out["label"],
+                                                         strict=True)])
+    # one track per true cell, and one true cell per track
+    pairs = set(zip(out[TRACK_COLUMN], true, strict=True))
+    assert len(pairs) == out[TRACK_COLUMN].nunique() == len(set(true)) == 36
+    # without the labels (the table alone), auto links by centroids, as before
+    assert tk.link_movie(table, None, "auto")[2] == "centroid"
+
+
 def tracks_layer_data(movie) -> np.ndarray:
     """(track_id, t, y, x) at each true object's centroid, track ids 100 + true id."""
     table = centroids(movie.labels)

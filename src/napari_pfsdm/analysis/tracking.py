@@ -41,6 +41,7 @@ __all__ = [
     "LINK_RADII",
     "MIN_IOU",
     "NO_TRACK",
+    "PACKED",
     "TrackingCheck",
     "add_track_ids",
     "check_tracking",
@@ -48,6 +49,7 @@ __all__ = [
     "link_centroids",
     "link_labels",
     "link_movie",
+    "touching_fraction",
     "track_ids_from_tracks",
 ]
 
@@ -58,6 +60,10 @@ LINK_METHODS = ("centroid", "overlap", "laptrack")
 #: laptrack at the same settings or better, 70-100x faster; better than overlap when objects
 #: move fast; needs no labels, so the table alone is enough).
 DEFAULT_LINK = "centroid"
+#: ``"auto"`` links by overlap (:func:`link_labels`) rather than by centroids when at least this
+#: fraction of the objects touch another object (:func:`touching_fraction`): packed cells,
+#: whose centroids lie about one object apart, are where centroid linking swaps neighbours.
+PACKED = 0.5
 #: Largest link distance of centroid linking by default, in median object radii.
 LINK_RADII = 2.0
 #: Two objects of consecutive frames are the same only if their masks overlap at least this
@@ -239,9 +245,9 @@ def check_tracking(table: pd.DataFrame) -> TrackingCheck:
         msg = ("one frame only: there is nothing to track" if n_frames < 2 else
                "no two consecutive frames: whether labels follow objects cannot be checked")
         return TrackingCheck("one frame", True, message=msg, **common)
-    advice = ("Link the objects (napari: the Link step; command line: pfsdm measure --link "
-              "auto) before reading trajectories: until then a label's 'trajectory' jumps "
-              "between objects")
+    advice = ("Link the objects (napari: Identity 'auto', or link by centroids or overlap; "
+              "command line: pfsdm measure --link auto) before reading trajectories: until "
+              "then a label's 'trajectory' jumps between objects")
     if persistence < MIN_PERSISTENCE:
         msg = (f"label ids do not follow objects between frames: only {persistence:.0%} of a "
                f"frame's ids are still there in the next frame ({n_labels:,} ids for "
@@ -639,23 +645,70 @@ def link(
                                                max_gap=max_gap))
 
 
+def touching_fraction(labels: Any, n_frames: int = 3) -> float:
+    """Fraction of the objects that share an edge with another object.
+
+    Counted on up to ``n_frames`` frames of a movie (first, middle, last) or on one image;
+    neighbours along every axis of a frame.
+
+    Parameters
+    ----------
+    labels : array_like of int, (T, Y, X) or (Y, X)
+        Label image or movie (numpy, dask or zarr).
+    n_frames : int
+        Frames of a movie looked at.
+
+    Returns
+    -------
+    float
+        In [0, 1]; NaN without objects.
+
+    Examples
+    --------
+    >>> packed = np.array([[1, 1, 2, 2], [3, 3, 0, 4]])
+    >>> float(touching_fraction(packed))  # 1-2, 1-3, 2-3 (diagonal: no) touch; 4 alone
+    0.75
+    """
+    shape = tuple(labels.shape)
+    if len(shape) == 2:
+        planes = [np.asarray(labels)]
+    else:
+        picks = sorted({int(round(i)) for i in np.linspace(0, shape[0] - 1, n_frames)})
+        planes = [np.asarray(labels[t]) for t in picks]
+    touching = total = 0
+    for plane in planes:
+        ids = set(np.unique(plane[plane > 0]).tolist())
+        near: set = set()
+        for axis in range(plane.ndim):
+            a = np.moveaxis(plane, axis, 0)
+            first, second = a[:-1], a[1:]
+            edge = (first != second) & (first > 0) & (second > 0)
+            near.update(np.unique(first[edge]).tolist(), np.unique(second[edge]).tolist())
+        touching += len(near)
+        total += len(ids)
+    return touching / total if total else float("nan")
+
+
 def link_movie(
     table: pd.DataFrame, labels: Any = None, how: str = "auto"
 ) -> tuple[pd.DataFrame, TrackingCheck, str]:
     """Check one movie's table and link it when asked, or (``"auto"``) when it needs it.
 
-    What ``pfsdm measure --link`` does for each movie.
+    What ``pfsdm measure --link`` and the napari plugin do for each movie.
 
     Parameters
     ----------
     table : DataFrame
         One movie's feature table.
     labels : array_like (T, Y, X), optional
-        Its labels (needed for ``"overlap"`` only).
+        Its labels (needed for ``"overlap"``; with ``"auto"``, they let packed objects be
+        linked by overlap).
     how : {"auto", "none", "overlap", "centroid", "laptrack"}
-        ``"auto"``: link (with :data:`DEFAULT_LINK`) only when :func:`check_tracking` finds the
-        labels untracked; tracked labels get ``track_id = label``. ``"none"``: no ``track_id``.
-        A method name: always link with it.
+        ``"auto"``: link only when :func:`check_tracking` finds the labels untracked, by
+        overlap when the labels of a 2-D movie are given and at least :data:`PACKED` of the
+        objects touch another one (:func:`touching_fraction`), else with
+        :data:`DEFAULT_LINK`; tracked labels get ``track_id = label``. ``"none"``: no
+        ``track_id``. A method name: always link with it.
 
     Returns
     -------
@@ -675,7 +728,9 @@ def link_movie(
     if how == "auto":
         if check.tracked:
             return add_track_ids(table, table["label"].to_numpy(np.int64)), check, ""
-        how = DEFAULT_LINK
+        packed = labels is not None and len(labels.shape) == 3 \
+            and touching_fraction(labels) >= PACKED
+        how = "overlap" if packed else DEFAULT_LINK
     return link(table, labels, method=how), check, how
 
 
