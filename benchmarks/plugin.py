@@ -462,7 +462,7 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     info["first Run s"] = res["wall_ms"] / 1e3
     if widget.bound is None:
         raise RuntimeError(f"the Run gave no results: {widget.status.value}")
-    info["reporter"] = widget.reporter_layer.name if widget.reporter_layer else "none"
+    info["reporter"] = widget.reporter.value[0] if widget.reporter.value else "none"
 
     def failed(action: str, err: Exception) -> None:
         import traceback
@@ -524,10 +524,10 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     # ------------------------------------------------------------------------------ Run
     def run_repeats_() -> None:
         labels_a = lab[alone]
-        reporter = widget.reporter_layer
+        reporter = widget.reporter.value  # (layer name, channel) or None
         intensity = None
         if reporter is not None:
-            intensity = next(lay for lay in alone.layers if lay.name == reporter.name).data
+            intensity = next(lay for lay in alone.layers if lay.name == reporter[0]).data
         axes = widget.bound[1].axes
         measure_s, measure_bar_s, run_s, measured_s, results_s = [], [], [], [], []
         scores = widget.bound[1].pca["shape"]
@@ -871,14 +871,13 @@ def run_ratio(name: str, run_repeats: int) -> dict:
     widget.open_plots()
     clock.spin(1500)
     labels, axes = widget.bound[0].data, widget.bound[1].axes
-    reporter = widget.reporter_layer
+    reporter = widget.reporter_image()
     measure_s, measure_bar_s, run_s = [], [], []
     for _i in range(run_repeats):
         for times, bar in ((measure_s, False), (measure_bar_s, True)):
             shown = progress(total=0, desc="measure") if bar else None
             t0 = time.perf_counter()
-            _worker, out = in_thread(pf.measure, labels, None if reporter is None
-                                     else reporter.data, axes=axes)
+            _worker, out = in_thread(pf.measure, labels, reporter, axes=axes)
             clock.wait(lambda out=out: "end" in out, what="measure")
             times.append(out["end"] - t0)
             if shown is not None:

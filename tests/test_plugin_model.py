@@ -1,6 +1,11 @@
-"""The plugin's model and results without Qt or napari: runs, signals, the rows behind a view."""
+"""The plugin's model and results without Qt or napari: runs, signals, the rows behind a view,
+the layer it keeps in step (napari's objects played by stand-ins with the same public API)."""
 
 from __future__ import annotations
+
+import gc
+import weakref
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -8,13 +13,17 @@ import pytest
 
 pytest.importorskip("psygnal")
 
+from psygnal import Signal, SignalGroup  # noqa: E402
+
 import napari_pfsdm as pf  # noqa: E402
+from napari_pfsdm.napari._features import layer_features  # noqa: E402
 from napari_pfsdm.napari._model import Analysis, Registry  # noqa: E402
 from napari_pfsdm.napari._results import (  # noqa: E402
     identify,
-    layer_features,
     object_ids,
     object_line,
+    reporter_channels,
+    reporter_problem,
     run_analysis,
 )
 
@@ -34,44 +43,214 @@ def _finish(gen):
             return seen, stop.value
 
 
+def _fields(table=None, axes="tyx", **more) -> dict:
+    return {"table": _table() if table is None else table, "options": {}, "axes": axes, **more}
+
+
 def test_each_run_of_a_layer_is_numbered_and_replaces_the_last():
     reg = Registry()
     events = []
     reg.updated.connect(events.append)
-    first = reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx"))
-    second = reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx"))
-    other = reg.new_run("B", Analysis("", 0, _table(), {}, axes="tyx"))
+    first = reg.new_run("A", _fields())
+    second = reg.new_run("A", _fields())
+    other = reg.new_run("B", _fields())
     assert (first.run, second.run, other.run) == (1, 2, 1)
     assert reg.get("A") is second and first.key != second.key
     reg.forget("A")
     assert reg.get("A") is None and "A" not in reg and events == ["A", "A", "B", "A"]
-    assert reg.new_run("A", Analysis("", 0, _table(), {}, axes="tyx")).run == 3  # never reused
+    assert reg.new_run("A", _fields()).run == 3  # never reused
 
 
-def test_one_signal_per_change_naming_what_changed():
+def test_one_signal_per_kind_of_change():
     a = Analysis("A", 1, _table(), {}, axes="tyx")
     seen = []
-    a.changed.connect(seen.append)
+    for name in ("selection", "identity", "groups", "comparison", "prediction"):
+        getattr(a.events, name).connect(lambda *args, name=name: seen.append((name, *args)))
     a.select(1, 2)
     a.select(1, 2)  # no change, no signal
     a.set_groups({1: "x"})
     a.set_comparison((0, 0.0, False), {"d": np.zeros((2, 2))})
-    assert seen == ["selection", "groups", "comparison"]
+    a.set_table(_table(), "linked")
+    assert seen == [("selection", (1, 2)), ("groups", {1: "x"}),
+                    ("comparison", (0, 0.0, False)), ("identity", "linked")]
     assert a.selection == (1, 2) and a.groups == {1: "x"}
 
 
 def test_a_prediction_made_elsewhere_brings_its_table_and_index():
     a = Analysis("A", 1, _table(), {}, axes="tyx")
-    a.derived["old"] = 1
+    a.sentences["shape"] = ["old"]
     scored = a.with_table(_table().iloc[[2, 3, 0]].assign(p_x=[0.1, 0.2, 0.3], error=""))
     assert a.row_of(1, 1) == 2 and not a.measured[1]  # the analysis is untouched so far
     seen = []
-    a.changed.connect(seen.append)
+    a.events.prediction.connect(seen.append)
     a.set_prediction("prediction", scored)
     assert seen == ["prediction"] and a.prediction == "prediction"
-    assert a.table["p_x"].tolist() == [0.1, 0.2, 0.3] and "old" not in a.derived
+    assert a.table["p_x"].tolist() == [0.1, 0.2, 0.3] and a.sentences == {}
     assert a.row_of(1, 1) == 0 and a.row_of(0, 2) is None and a.error_of(0, 1) == ""
     assert a.measured.tolist() == [True, True, True]
+    assert a.layer_features()["p_x"].tolist() == [0.1, 0.2, 0.3]
+
+
+# ---------------------------------------------------------------------------------------------
+# stand-ins for the napari objects the model uses (their public attributes and events only)
+# ---------------------------------------------------------------------------------------------
+class _LayerEvents(SignalGroup):
+    selected_label = Signal(object)
+
+
+class _Layer:
+    def __init__(self, data, name="cells"):
+        self.data, self.name, self.unique_id = data, name, f"{name}-uuid"
+        self.ndim, self.multiscale = data.ndim, False
+        self.scale, self.translate = (1.0,) * data.ndim, (0.0,) * data.ndim
+        self.features, self.events, self._label = None, _LayerEvents(), 1
+
+    @property
+    def selected_label(self):
+        return self._label
+
+    @selected_label.setter
+    def selected_label(self, value):
+        self._label = int(value)
+        self.events.selected_label.emit(self._label)
+
+
+class _DimsEvents(SignalGroup):
+    current_step = Signal(object)
+
+
+class _Dims:
+    def __init__(self, ndim):
+        self.ndim, self.point, self.events = ndim, [0.0] * ndim, _DimsEvents()
+
+    def set_point(self, axis, value):
+        self.point[axis] = float(value)
+        self.events.current_step.emit(tuple(self.point))
+
+
+class _LayersEvents(SignalGroup):
+    removed = Signal(object)
+
+
+class _Layers(list):
+    def __init__(self, *layers):
+        super().__init__(layers)
+        self.events = _LayersEvents()
+
+    def __contains__(self, name):
+        return any(lay.name == name for lay in self)
+
+    def remove(self, what):
+        layer = next(lay for lay in self if what in (lay, lay.name))
+        super().remove(layer)
+        self.events.removed.emit(SimpleNamespace(value=layer))
+
+
+def _viewer(*layers, ndim=3):
+    return SimpleNamespace(dims=_Dims(ndim), layers=_Layers(*layers))
+
+
+def _untracked_movie():
+    """Three discs moving right (half a radius a frame), their ids shuffled in every frame.
+    Returns the labels and each frame's label of each true object."""
+    rng = np.random.default_rng(1)
+    labels = np.zeros((5, 60, 120), np.uint16)
+    yy, xx = np.mgrid[:60, :120]
+    truth = []
+    for t in range(5):
+        ids = rng.permutation([3, 7, 11])
+        for k, lab in enumerate(ids):
+            labels[t][(yy - 15 - 15 * k) ** 2 + (xx - 20 - 3 * t - 4 * k) ** 2 <= 36] = lab
+        truth.append([int(v) for v in ids])
+    return labels, truth
+
+
+def _measured(labels):
+    _, fields = _finish(run_analysis(labels, workers=1))
+    fields["table"], fields["tracking_message"] = identify(fields["table"], labels, True)
+    return fields
+
+
+def test_the_selection_follows_its_object_through_time_not_its_label():
+    """On a movie whose ids change every frame, stepping the time slider keeps the object
+    selected: the model's selection, napari's selected label and the features follow it."""
+    labels, truth = _untracked_movie()
+    layer = _Layer(labels)
+    viewer = _viewer(layer)
+    reg = Registry()
+    a = reg.new_run(layer, _measured(labels), viewer)
+    assert "linked into 3 tracks" in a.tracking_message
+    for k in range(3):  # each true object in turn
+        viewer.dims.set_point(0, 0)
+        layer.selected_label = truth[0][k]
+        for t in (1, 3, 4, 2):
+            viewer.dims.set_point(0, t)
+            assert a.selection == (t, truth[t][k]) and layer.selected_label == truth[t][k]
+            # napari's features hold the frame shown: one row per label, that frame's
+            assert layer.features["frame"].tolist() == [t] * 3
+            row = layer.features.set_index("index").loc[truth[t][k]]
+            want = a.table.set_index(["frame", "label"]).loc[(t, truth[t][k])]
+            assert row["area"] == want["area"]
+
+
+def test_an_object_missing_from_a_frame_is_followed_when_it_comes_back():
+    labels, truth = _untracked_movie()
+    labels[2][labels[2] == truth[2][0]] = 0  # object 0 missing in frame 2
+    layer = _Layer(labels)
+    viewer = _viewer(layer)
+    reg = Registry()
+    a = reg.new_run(layer, _measured(labels), viewer)
+    layer.selected_label = truth[0][0]
+    viewer.dims.set_point(0, 1)
+    viewer.dims.set_point(0, 2)
+    assert a.selection == (2, 0) and layer.selected_label == truth[1][0]  # napari's unchanged
+    viewer.dims.set_point(0, 3)
+    assert a.selection == (3, truth[3][0]) and layer.selected_label == truth[3][0]
+
+
+def test_a_prediction_reaches_the_layer_features_with_no_dock_open():
+    labels, _ = _untracked_movie()
+    layer = _Layer(labels)
+    reg = Registry()
+    a = reg.new_run(layer, _measured(labels), _viewer(layer))
+    assert "p_big" not in layer.features
+    scored = a.with_table(a.table.assign(p_big=np.linspace(0, 1, len(a.table))))
+    a.set_prediction("model", scored)
+    want = scored.table.loc[scored.table["frame"] == 0, "p_big"].to_numpy()
+    np.testing.assert_allclose(layer.features["p_big"], want)
+
+
+def test_removing_the_layer_frees_its_analysis_and_its_pictures():
+    labels, _ = _untracked_movie()
+    layer = _Layer(labels)
+    pictures = [SimpleNamespace(name=f"cells {s}") for s in ("SDF", "PF-SDF disk", "captions")]
+    other = SimpleNamespace(name="reporter")
+    viewer = _viewer(layer, *pictures, other)
+    reg = Registry()
+    ref = weakref.ref(reg.new_run(layer, _measured(labels), viewer))
+    gc.collect()
+    assert ref() is not None
+    viewer.layers.remove(layer)
+    gc.collect()
+    assert ref() is None and reg.get(layer.unique_id) is None
+    assert [lay.name for lay in viewer.layers] == ["reporter"]  # its pictures went with it
+    viewer.dims.set_point(0, 2)  # nothing follows the removed layer any more
+    layer.selected_label = 5
+
+
+def test_a_reporter_is_offered_by_channel_or_said_why_not():
+    movie = (4, 32, 48)
+    assert reporter_channels(movie, movie) == [None]
+    assert reporter_channels((4, 3, 32, 48), movie) == [0, 1, 2]
+    assert reporter_channels((3, 4, 32, 48), movie) == [0, 1, 2]
+    assert reporter_channels((4, 32, 48, 3), movie) is None  # never Y or X
+    assert reporter_channels((4, 32, 40), movie) is None
+    assert reporter_channels(movie, movie, rgb=True) is None
+    assert "65535 everywhere" in reporter_problem(np.full(movie, 65535, np.uint16))
+    ramp = np.linspace(0, 1, np.prod(movie)).reshape(movie)
+    assert reporter_problem(ramp) == ""
+    ramp[0, :16] = np.nan
+    assert "not numbers" in reporter_problem(ramp)
 
 
 def test_rows_and_errors_are_looked_up_by_frame_and_label():
@@ -96,7 +275,7 @@ def test_the_line_on_an_object_says_what_its_row_holds():
 
 def test_layer_features_are_numbers_keyed_by_label_with_the_failed_rows_flagged():
     a = Analysis("A", 1, _table().assign(border=[True, False, True, False]), {}, axes="tyx")
-    f = layer_features(a)
+    f = layer_features(a.table, {}, None)
     assert list(f.columns[:3]) == ["index", "frame", "label"]
     assert f["index"].tolist() == [1, 2, 1, 2]
     assert f["failed"].tolist() == [0, 1, 0, 0]
@@ -165,7 +344,7 @@ def test_ids_that_jump_between_frames_are_linked_into_tracks():
     table = pd.DataFrame(rows)
     linked, message = identify(table, None, True, "auto")
     left = linked[linked["centroid_y"] == 10.0]["track_id"]
-    assert left.nunique() == 1 and "do not follow" in message
+    assert left.nunique() == 1 and "Ids jump between frames" in message
     trusted, warning = identify(table, None, True, "labels")
     assert trusted["track_id"].tolist() == table["label"].tolist()
     assert warning.startswith("Warning")

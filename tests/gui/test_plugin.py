@@ -15,7 +15,6 @@ from napari_helpers import (
 )
 
 import napari_pfsdm as pf
-from napari_pfsdm.napari._results import layer_features
 
 pytestmark = pytest.mark.gui
 
@@ -27,16 +26,26 @@ def _layer(viewer, suffix):
 def test_run_measures_what_measure_measures_and_fills_the_layer_features(qtbot, viewer_widget):
     viewer, w = viewer_widget
     labels, reporter = viewer.layers["gastruloids"], viewer.layers["gastruloids reporter"]
-    assert w.labels.value == "gastruloids" and w.reporter.value == "gastruloids reporter"
+    assert w.labels.value == "gastruloids" and w.reporter.value == ("gastruloids reporter", None)
     analysis = run_and_wait(qtbot, w)
     expected = pf.measure(np.asarray(labels.data), np.asarray(reporter.data))
     got = analysis.table.drop(columns=["track_id"])
     pd.testing.assert_frame_equal(got.reset_index(drop=True), expected.reset_index(drop=True),
                                   check_like=True)
-    features = labels.features
-    assert len(features) == len(expected) and features["index"].tolist() == \
-        expected["label"].tolist()
+    # napari keeps one features row per label: the layer holds the frame shown, and napari's
+    # status bar gives each hovered object its own frame's row
+    for frame in (0, 4, 2):
+        viewer.dims.set_current_step(0, frame)
+        rows = expected[expected["frame"] == frame]
+        features = labels.features
+        assert features["index"].tolist() == rows["label"].tolist()
+        assert features["frame"].tolist() == [frame] * len(rows)
+        np.testing.assert_array_equal(features["area"], rows["area"])
     assert {"frame", "label", "shape_PC1", "circularity"} <= set(features.columns)
+    row = expected[(expected["frame"] == 2) & (expected["label"] == 4)].iloc[0]
+    y, x = row["centroid_y"], row["centroid_x"]
+    status = labels.get_status((2, y, x), world=True)["coordinates"]
+    assert f"area: {row['area']}" in status, status
     assert "72 objects" in w.status.value and "PC1" in w.status.value
 
 
@@ -66,7 +75,7 @@ def test_the_pictures_are_always_the_selected_objects_after_bursts(qtbot, viewer
         label = int(labels.selected_label)
         assert w.pictures.shown[1:] == (frame, label)
         expected = pf.render_disk(pf.pfsdm(data[frame] == label), 128)
-        shown = _layer(viewer, "PF-SDF disk").data
+        shown = _layer(viewer, "PF-SDF disk").data[:, :128]  # (its colour bar on the right)
         np.testing.assert_allclose(shown, np.nan_to_num(expected), atol=1e-4)
         assert f"label {label}" in " ".join(_layer(viewer, "captions").features["text"])
 
@@ -109,8 +118,8 @@ def test_a_step_to_the_next_or_previous_frame_shows_the_pictures_at_once(qtbot, 
         viewer.dims.set_current_step(0, frame)  # no event loop between the step and the check
         assert w.pictures.shown[1:] == (frame, 3)
         expected = pf.render_disk(pf.pfsdm(data[frame] == 3), 128)
-        np.testing.assert_allclose(_layer(viewer, "PF-SDF disk").data, np.nan_to_num(expected),
-                                   atol=1e-4)
+        np.testing.assert_allclose(_layer(viewer, "PF-SDF disk").data[:, :128],
+                                   np.nan_to_num(expected), atol=1e-4)
         assert _layer(viewer, "PF-SDF disk").opacity == 1.0
         qtbot.waitUntil(lambda: w.pictures.worker is None, timeout=10_000)
 
@@ -214,10 +223,8 @@ def test_cancel_keeps_nothing(qtbot, make_napari_viewer_proxy):
     assert REGISTRY.get(layer.unique_id) is None
 
 
-def test_a_run_that_lasts_shows_napari_progress_counting_its_objects(qtbot, viewer_widget,
-                                                                     monkeypatch):
-    """Once a Run has lasted PROGRESS_AFTER_MS, napari's progress bar counts its objects to the
-    last one and closes; a Run over before then shows none (no bar flashing by)."""
+def test_a_run_shows_napari_progress_counting_its_objects(qtbot, viewer_widget, monkeypatch):
+    """napari's progress bar counts a Run's objects to the last one and closes."""
     from napari_pfsdm.napari import _analysis
 
     bars = []
@@ -233,13 +240,9 @@ def test_a_run_that_lasts_shows_napari_progress_counting_its_objects(qtbot, view
             super().close()
 
     monkeypatch.setattr(_analysis, "progress", Recorded)
-    monkeypatch.setattr(_analysis, "PROGRESS_AFTER_MS", 0)
     _viewer, w = viewer_widget
     n = len(run_and_wait(qtbot, w).table)
     assert n == 72 and len(bars) == 1 and bars[0].closed_at == (n, n)
-    monkeypatch.setattr(_analysis, "PROGRESS_AFTER_MS", 600_000)
-    run_and_wait(qtbot, w)
-    assert len(bars) == 1
 
 
 def test_bad_layers_get_a_plain_message_and_no_run(qtbot, make_napari_viewer_proxy):
@@ -261,11 +264,15 @@ def test_export_writes_plain_csv_with_sidecars_equal_to_the_run(qtbot, viewer_wi
     qtbot.waitUntil(lambda: w.export_worker is None, timeout=120_000)
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == sorted(["gastruloids_features.csv", "gastruloids_features.csv.json",
+                            "gastruloids_columns.csv", "gastruloids_columns.csv.json",
                             "gastruloids_pca_shape.csv", "gastruloids_pca_shape.csv.json",
                             "gastruloids_pca_intensity.csv", "gastruloids_pca_intensity.csv.json",
                             "gastruloids_distances.csv", "gastruloids_distances.csv.json"])
     features = pd.read_csv(tmp_path / "gastruloids_features.csv")
     np.testing.assert_allclose(features["shape_r00_n00"], analysis.table["shape_r00_n00"])
+    columns = pd.read_csv(tmp_path / "gastruloids_columns.csv")  # a glossary beside it
+    assert columns["column"].tolist() == list(features.columns)
+    assert columns["meaning"].notna().all()
     d = pd.read_csv(tmp_path / "gastruloids_distances.csv", index_col=0)
     expected = pf.distance_matrix(pf.drop_failed(analysis.table), intensity_weight=1.0)
     np.testing.assert_allclose(d.to_numpy(), expected, rtol=1e-9)
@@ -290,9 +297,10 @@ def test_layer_for_plotters_has_one_id_per_object_and_frame(qtbot, viewer_widget
         assert set(np.unique(objects.data[t[row]][mask])) == {row + 1}
     assert objects.features["index"].tolist() == list(range(1, 73))
     assert objects.features["frame"].tolist() == t.tolist()
-    # the Labels layer keeps napari's index = its label, and so do the features kept for it
-    assert viewer.layers["gastruloids"].features["index"].tolist() == lab.tolist()
-    assert layer_features(analysis)["index"].tolist() == lab.tolist()
+    # the Labels layer keeps napari's index = its label: the frame shown's rows
+    shown = int(viewer.dims.current_step[0])
+    assert viewer.layers["gastruloids"].features["index"].tolist() == lab[t == shown].tolist()
+    assert analysis.layer_features()["index"].tolist() == lab.tolist()
 
 
 def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_widget):
@@ -312,7 +320,7 @@ def test_prediction_writes_probabilities_into_the_layer_features(qtbot, viewer_w
     a = w.bound[1]
     assert p.run() is not None
     relinked = a.table.drop(columns=cols).assign(note="linked again")
-    a.set_table(relinked, "identity", "")
+    a.set_table(relinked, "")
     qtbot.waitUntil(lambda: p.worker is None, timeout=180_000)
     assert (a.table["note"] == "linked again").all()
     np.testing.assert_allclose(a.table[cols].to_numpy().sum(axis=1), 1.0)
@@ -352,6 +360,10 @@ def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_
         more.expand(animate=False)
     qtbot.wait(200)
     assert squashed() == [] and window.height() <= 800
+    from napari_pfsdm.napari._widgets import dock_of
+
+    dock_of(w).raise_()  # the analysis tab in front
+    qtbot.wait(200)
     for button in (w.run_button, w.export_button):
         native = button.native
         top_left = native.mapTo(window, native.rect().topLeft())
@@ -370,7 +382,7 @@ def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
     labels[6:18, 10:30, 50:70] = 2
     layer = viewer.add_labels(labels, name="stack")
     w = dock(viewer)
-    w.first_axis.value = "Z (slices of 3-D objects)"
+    w.first_axis.value = "z"  # the form says "Z (slices of 3-D objects)"
     analysis = run_and_wait(qtbot, w)
     assert analysis.axes == "zyx" and len(analysis.table) == 2
     layer.selected_label = 2

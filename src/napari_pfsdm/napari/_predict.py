@@ -15,14 +15,11 @@ from functools import partial
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
-from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QFileDialog, QSizePolicy, QWidget
+from qtpy.QtWidgets import QFileDialog, QSizePolicy
 
-from . import _pictures
-from ._analysis import analysed_layers, follow_registry, scrolled, stack
 from ._canvas import PlotCanvas
-from ._model import REGISTRY, Analysis
-from ._results import layer_features
+from ._model import REGISTRY, Analysis, current_frame
+from ._widgets import PluginDock, analysed_layers, follow, follow_registry, scrolled, stack
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -67,19 +64,15 @@ def _predict(analysis: Analysis, table, groups, frames, object_col, stopped):
 def scored_analysis(analysis: Analysis, table, prediction, object_col: str) -> Analysis:
     """``analysis`` with ``table`` and its probabilities, indexed, with the layer's features."""
     scored = analysis.with_table(prediction.on_rows(table, object_col))
-    layer_features(scored)
+    scored.layer_features()  # made here, in the worker
     return scored
 
 
-class PredictionWidget(QWidget):
+class PredictionWidget(PluginDock):
     """Dock: train on the frames chosen, show how well each channel predicts, write p_<group>."""
 
-    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
-        return QSize(360, 280)
-
     def __init__(self, napari_viewer) -> None:
-        super().__init__()
-        self.viewer = napari_viewer
+        super().__init__(napari_viewer)
         self.plot = PlotCanvas(napari_viewer)
         self.figure, self.canvas = self.plot.figure, self.plot.canvas
         self.layer_choice = ComboBox(label="Layer", choices=partial(analysed_layers, napari_viewer),
@@ -102,7 +95,7 @@ class PredictionWidget(QWidget):
         self.form = Container(widgets=[self.layer_choice, self.class_name, self.give, self.csv,
                                        self.first, self.last, self.classes, buttons])
         self.canvas.setFixedHeight(200)  # the status above may wrap: no new layout for that
-        stack(self, scrolled(self.form.native, self.status.native, self.plot, minimum=150))
+        stack(self, scrolled(self.form.native, self.status.native, self.plot, minimum=120))
         # a plots dock beside gets the room this one does not need (its content scrolls)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.worker = None
@@ -113,7 +106,7 @@ class PredictionWidget(QWidget):
         self.cancel_button.changed.connect(self.cancel)
         self.layer_choice.changed.connect(self._show_classes)
         follow_registry(self, self._refresh)
-        napari_viewer.layers.events.removed.connect(self._refresh)
+        follow(self, napari_viewer.layers.events.removed, self._refresh)
         self._refresh()
 
     def _refresh(self, *args) -> None:
@@ -140,7 +133,7 @@ class PredictionWidget(QWidget):
         if a is None or not name:
             self.status.value = "Run the analysis and type a class name first."
             return
-        frame = _pictures.current_frame(self.viewer, layer, a)
+        frame = current_frame(self.viewer.dims, layer, a.time_lapse)
         i = a.row_of(frame, int(layer.selected_label))
         if i is None:
             self.status.value = f"Label {layer.selected_label} is not in frame {frame}."
@@ -201,7 +194,7 @@ class PredictionWidget(QWidget):
         self.run_button.enabled, self.cancel_button.enabled = True, False
 
     def _show(self, a: Analysis, pred, scored: Analysis) -> None:
-        a.set_prediction(pred, scored)  # the analysis dock shows the layer's new features
+        a.set_prediction(pred, scored)  # the model writes the layer's new features
         s = pred.summary
         fused = s.loc["fused"]
         self.status.value = (

@@ -2,8 +2,8 @@
 
 :func:`run_analysis` measures every object exactly as :func:`napari_pfsdm.measure` does (the same
 rows; on every core), yielding ``(done, total)`` so that a napari worker can show progress and
-stop; :func:`identify` gives a time-lapse's rows their ``track_id``; :func:`layer_features` is the
-numeric table for ``layer.features``; :func:`object_line` says in one line what one row holds.
+stop; :func:`identify` gives a time-lapse's rows their ``track_id``; :func:`explain` says what
+the PCs follow; :func:`object_line` says in one line what one row holds.
 """
 
 from __future__ import annotations
@@ -23,13 +23,12 @@ PROGRESS_EVERY = 0.1
 #: What the first axis of a 3-D Labels layer is, in the form's words → in the analysis's.
 FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
 #: How objects keep their identity through time, in the form's words → the mode: link when
-#: the ids jump, trust the ids, always link (or "tracks": follow a napari Tracks layer).
+#: the ids jump (by overlap where objects touch), trust the ids, always link by centroids or
+#: by overlap (or "tracks": follow a napari Tracks layer).
 IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
-            "link by centroids": "link"}
-#: Text columns kept out of ``layer.features`` (plotters expect numbers).
-TEXT_COLUMNS = ("error", "warnings")
-#: Raw feature columns kept out of ``layer.features`` (hundreds; in the export and the API).
-RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "surface_l")
+            "link by centroids": "centroid", "link by overlap": "overlap"}
+#: Largest number of channels a reporter image's extra axis may have to be offered by channel.
+MAX_CHANNELS = 16
 
 
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
@@ -137,12 +136,14 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
              tracks=None, tracks_name: str = "") -> tuple[pd.DataFrame, str]:
     """``table`` with its ``track_id`` column for a time-lapse, and a sentence on what was done.
 
-    ``mode`` is one of :data:`IDENTITY`'s or ``"tracks"``: ``"auto"`` links the objects by
-    their centroids when the label ids do not follow them (a per-frame segmentation),
-    ``"labels"`` trusts the ids, ``"link"`` always links, ``"tracks"`` reads a napari Tracks
+    ``mode`` is one of :data:`IDENTITY`'s or ``"tracks"``: ``"auto"`` links the objects when
+    their label ids do not follow them (a per-frame segmentation): by overlap where the objects
+    touch each other, else by their centroids
+    (:func:`~napari_pfsdm.analysis.tracking.link_movie`); ``"labels"`` trusts the ids;
+    ``"centroid"`` and ``"overlap"`` always link that way; ``"tracks"`` reads a napari Tracks
     layer's data (track_id, t, y, x).
     """
-    from ..analysis.tracking import DEFAULT_LINK, add_track_ids, link_movie, track_ids_from_tracks
+    from ..analysis.tracking import add_track_ids, link_movie, track_ids_from_tracks
     from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 
     if mode not in (*IDENTITY.values(), "tracks"):
@@ -162,85 +163,128 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
             f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
             + (f"; {missed} objects that no track point reaches are left out of the "
                "trajectories." if missed else "."))
-    out, check, used = link_movie(table, None, {"auto": "auto", "link": DEFAULT_LINK,
-                                                "labels": "none"}[mode])
+    out, check, used = link_movie(table, labels, "none" if mode == "labels" else mode)
     if used:
         n = int(out[TRACK_COLUMN].max()) if len(out) else 0
-        return out, (f"Linked the objects into {n} tracks by their centroids." if check.tracked
-                     else f"Label ids do not follow the objects (median jump "
-                     f"{check.median_jump_radii:.1f} object radii between frames): linked "
-                     f"them into {n} tracks by their centroids; trajectories follow them.")
+        how = "by overlap (the objects touch)" if used == "overlap" else "by centroids"
+        if mode == "auto":
+            return out, (f"Ids jump between frames (median {check.median_jump_radii:.1f} "
+                         f"object radii): linked into {n} tracks {how}, which the selection "
+                         "and trajectories follow.")
+        return out, f"Linked into {n} tracks {how}."
     if mode == "labels":
         out = add_track_ids(table, table["label"].to_numpy())
     return out, "" if check.tracked else (
         f"Warning: {check.message} Trajectories by label id are not meaningful here: "
-        "choose 'link by centroids' under Identity.")
+        "choose 'auto' or a link under Identity.")
+
+
+def reporter_channels(image_shape: tuple, labels_shape: tuple, rgb: bool = False,
+                      axis: bool = False):
+    """How an image of ``image_shape`` can be the reporter of labels of ``labels_shape``.
+
+    Returns ``[None]`` (the image as it is), the list of its channels (an image with one
+    more axis, of at most :data:`MAX_CHANNELS` entries, that is the labels' grid without it),
+    or None (it does not fit). With ``axis=True``: the channel axis (None without one).
+
+    >>> movie = (5, 64, 64)
+    >>> reporter_channels(movie, movie), reporter_channels((5, 2, 64, 64), movie)
+    ([None], [0, 1])
+    >>> reporter_channels((5, 2, 64, 64), movie, axis=True), reporter_channels((64, 64), movie)
+    (1, None)
+    """
+    image_shape, labels_shape = tuple(image_shape), tuple(labels_shape)
+    if rgb:
+        return None
+    if image_shape == labels_shape:
+        return None if axis else [None]
+    if len(image_shape) == len(labels_shape) + 1:
+        for k in range(len(image_shape) - 2):  # a channel axis is never Y or X
+            if image_shape[:k] + image_shape[k + 1:] == labels_shape \
+                    and image_shape[k] <= MAX_CHANNELS:
+                return k if axis else list(range(image_shape[k]))
+    return None
+
+
+#: Pixels of a reporter looked at for :func:`reporter_problem`.
+REPORTER_SAMPLE = 1_000_000
+
+
+def reporter_problem(intensity) -> str:
+    """A sentence when a reporter cannot carry a pattern (one constant value) or has pixels
+    that are not numbers (NaN, infinite), seen on an even sample of its pixels; else "".
+
+    >>> reporter_problem(np.full((4, 8, 8), 65535, np.uint16)).split(":")[0]
+    'The reporter is 65535 everywhere'
+
+    >>> reporter_problem(np.arange(64.0).reshape(8, 8))
+    ''
+    """
+    if intensity is None:
+        return ""
+    shape = tuple(intensity.shape)
+    per_axis = max(2, int(REPORTER_SAMPLE ** (1 / len(shape))))
+    sample = np.asarray(intensity[tuple(slice(None, None, max(1, -(-n // per_axis)))
+                                        for n in shape)])
+    if not np.issubdtype(sample.dtype, np.number):
+        return "The reporter does not hold numbers: choose another reporter, or none."
+    finite = np.isfinite(sample)
+    words = []
+    if not finite.all():
+        words.append(f"The reporter has pixels that are not numbers (NaN or infinite: "
+                     f"{1 - finite.mean():.0%} of those sampled); they are left out of its "
+                     "pattern.")
+    values = sample[finite]
+    if values.size and values.min() == values.max():
+        v = values.flat[0]
+        words.append(f"The reporter is {v:g} everywhere: its features carry no pattern "
+                     "(choose another reporter, or none).")
+    return " ".join(words)
+
+
+def run_message(fields: dict, labels, reporter_note: str = "") -> str:
+    """What a Run found, in few words (the status line): identity, what PC1 follows, the
+    objects to look at twice, empty frames, the reporter, where the whole table is."""
+    from ..analysis.features import warnings_summary
+
+    table, time_lapse = fields["table"], fields["axes"].startswith("t")
+    msg = [fields.get("tracking_message", "")]
+    msg += [f"{w}." for w in fields.get("sentences", {}).get("shape", [])[:1]]
+    summary = warnings_summary(table)
+    if summary:
+        msg.append(f"{summary[0].upper()}{summary[1:]}.")
+    if time_lapse:
+        present = set(table["frame"].astype(int).tolist())
+        empty = [t for t in range(int(labels.shape[0])) if t not in present]
+        if empty:
+            msg.append(f"No objects in frame{'s' if len(empty) > 1 else ''} "
+                       f"{', '.join(map(str, empty[:10]))}{' …' if len(empty) > 10 else ''}.")
+        msg.append(FEATURES_NOTE)
+    msg.append(reporter_note)
+    return " ".join(m for m in msg if m)
+
+
+#: Where a time-lapse's rows are (napari's features table holds one row per label).
+FEATURES_NOTE = ("The layer's features hold the frame shown; every frame: Export CSV… or "
+                 "Layer for plotters.")
+
+
+def explain(pca: dict, measures: pd.DataFrame | None, channel: str = "shape") -> list[str]:
+    """What PC1 and PC2 of ``channel`` follow, in words (2-D shapes only; else ``[]``)."""
+    from ..analysis.interpretation import explain_components
+
+    scores = pca.get(channel)
+    if measures is None or channel != "shape" or scores is None or not len(scores):
+        return []
+    return explain_components(scores, measures, scores.attrs.get("explained_variance_ratio", []),
+                              n=2)
 
 
 def explanation(analysis: Analysis, channel: str = "shape") -> list[str]:
-    """What PC1 and PC2 follow, in words (2-D shapes only; else ``[]``), kept in
-    ``analysis.derived``."""
-    from ..analysis.interpretation import explain_components
-
-    key = ("explanation", channel)
-    if key not in analysis.derived:
-        scores = analysis.pca.get(channel)
-        analysis.derived[key] = [] if (analysis.measures is None or channel != "shape"
-                                       or scores is None or not len(scores)) else \
-            explain_components(scores, analysis.measures,
-                               scores.attrs.get("explained_variance_ratio", []), n=2)
-    return analysis.derived[key]
-
-
-def layer_features(analysis: Analysis) -> pd.DataFrame:
-    """The table for ``labels_layer.features``: the numbers a person plots (kept in
-    ``analysis.derived``).
-
-    napari's ``index`` column (the label) first, then ``frame``, ``label``, the numeric base
-    columns (booleans as 0/1; ``failed`` = 1 for rows without features), the classic measures,
-    the PC scores (``shape_PC1`` …) and any other number of the table (``p_<group>`` after a
-    prediction); not the text columns nor the raw feature columns (:data:`RAW_PREFIXES`).
-    """
-    if "layer features" not in analysis.derived:
-        analysis.derived["layer features"] = _layer_features(analysis)
-    return analysis.derived["layer features"]
-
-
-def _layer_features(analysis: Analysis) -> pd.DataFrame:
-    from ..analysis.interpretation import MEASURES
-    from ..analysis.tables import key_rows
-    from ..core.table_schema import pc_columns
-
-    table = analysis.table
-    kept = [c for c in table.columns
-            if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)]
-    base = table[kept]
-    base.attrs = {}  # (pandas copies a frame's attrs at each operation)
-
-    def rows_in(other: pd.DataFrame) -> np.ndarray:  # each row's row in other (−1: none)
-        return key_rows(base["frame"], base["label"], other["frame"], other["label"])
-
-    columns = {"index": base["label"].to_numpy()}
-    for col in kept:
-        values = base[col].to_numpy()
-        columns[col] = values.astype(np.int8) if values.dtype == bool else values
-    columns["failed"] = (~analysis.measured).astype(np.int8)
-    for channel, scores in analysis.pca.items():
-        at = rows_in(scores)
-        for col in pc_columns(scores.columns, channel):
-            columns[col] = _take(scores[col].to_numpy(float), at)
-    if analysis.measures is not None and len(analysis.measures):
-        at = rows_in(analysis.measures)
-        for col in MEASURES:
-            if col not in columns:
-                columns[col] = _take(analysis.measures[col].to_numpy(float), at)
-    return pd.DataFrame(columns)
-
-
-def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """``values[at]``, NaN where ``at`` is −1."""
-    return np.where(at >= 0, values[np.maximum(at, 0)], np.nan) if len(values) else \
-        np.full(len(at), np.nan)
+    """:func:`explain` of the analysis's PCA, kept in ``analysis.sentences``."""
+    if channel not in analysis.sentences:
+        analysis.sentences[channel] = explain(analysis.pca, analysis.measures, channel)
+    return analysis.sentences[channel]
 
 
 def object_line(analysis: Analysis, frame: int, label: int) -> str:
@@ -265,12 +309,30 @@ def object_line(analysis: Analysis, frame: int, label: int) -> str:
     if str(row.get("error", "")):
         where.append(f"no features: {row['error']}")
     else:  # its PCs: the layer's features have the table's rows
-        pcs = layer_features(analysis).iloc[i]
+        pcs = analysis.layer_features().iloc[i]
         where.append(" ".join(f"PC{k} {pcs[f'shape_PC{k}']:+.2f}" for k in (1, 2)
                               if np.isfinite(pcs.get(f"shape_PC{k}", np.nan))))
     if str(row.get("warnings", "")):
         where.append(f"⚠ {row['warnings']}")
     return " · ".join(w for w in where if w)
+
+
+def row_glossary(analysis: Analysis, frame: int, label: int) -> str:
+    """The (frame, label) row's numbers in the layer's features, one per line, each with what
+    its column means (a tooltip); "" when the row is absent.
+
+    >>> t = pd.DataFrame({"frame": [0], "label": [4], "area": [50], "error": [""]})
+    >>> print(row_glossary(Analysis("id", 1, t, {}, axes="tyx"), 0, 4).splitlines()[2])
+    area = 50: area in pixels
+    """
+    from ..core.glossary import describe_column
+
+    i = analysis.row_of(frame, label)
+    if i is None:
+        return ""
+    row = analysis.layer_features().iloc[i]
+    return "\n".join(f"{c} = {v:.4g}: {describe_column(c)}" for c, v in row.items()
+                     if c != "index")
 
 
 def object_ids(labels, analysis: Analysis) -> np.ndarray:

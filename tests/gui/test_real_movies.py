@@ -1,0 +1,287 @@
+"""The plugin on what biologists bring: untracked movies, label images opened as images,
+multi-channel and odd reporters, docks closed mid-run, napari-clusters-plotter beside it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from napari_helpers import PLOTS, PREDICTION, dock, run_and_wait, wait_pictures
+
+import napari_pfsdm as pf
+
+pytestmark = pytest.mark.gui
+
+
+def untracked_movie(n_frames: int = 6, seed: int = 2):
+    """Four ellipses of different shapes drifting right half a radius a frame, their ids
+    shuffled in every frame (a per-frame segmentation). Returns the labels and, for each
+    frame, the label of each true object."""
+    rng = np.random.default_rng(seed)
+    labels = np.zeros((n_frames, 96, 160), np.uint16)
+    yy, xx = np.mgrid[:96, :160]
+    axes = [(14, 7), (9, 9), (16, 5), (11, 6)]
+    truth = []
+    for t in range(n_frames):
+        ids = rng.choice(np.arange(1, 40), 4, replace=False)
+        for k, ((a, b), lab) in enumerate(zip(axes, ids, strict=True)):
+            cy, cx = 24 + 48 * (k // 2), 30 + 60 * (k % 2) + 4 * t
+            labels[t][((yy - cy) / b) ** 2 + ((xx - cx) / a) ** 2 <= 1] = lab
+        truth.append([int(v) for v in ids])
+    return labels, truth
+
+
+def test_the_selection_follows_the_track_on_an_untracked_movie(qtbot, make_napari_viewer_proxy):
+    """Select an object, step one and three frames: napari's selected label, the pictures
+    and the trajectory plot's star are those of the same object (its track), not of the
+    same label number."""
+    labels, truth = untracked_movie()
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(labels, name="nuclei")
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    assert "linked into 4 tracks" in w.status.value
+    plots = dock(viewer, PLOTS)
+    traj = plots.trajectories
+    for k in (0, 2):
+        viewer.dims.set_current_step(0, 0)
+        layer.selected_label = truth[0][k]
+        for t in (1, 4, 3):
+            viewer.dims.set_current_step(0, t)
+            want = truth[t][k]
+            assert layer.selected_label == want and analysis.selection == (t, want)
+            wait_pictures(qtbot, w)
+            assert w.pictures.shown[1:] == (t, want)
+            expected = pf.render_disk(pf.pfsdm(labels[t] == want), 128)
+            np.testing.assert_allclose(viewer.layers["nuclei PF-SDF disk"].data[:, :128],
+                                       np.nan_to_num(expected), atol=1e-4)
+            i = int(np.flatnonzero((traj.keys[:, 0] == t) & (traj.keys[:, 1] == want))[0])
+            np.testing.assert_allclose(traj.marks[-1].get_offsets()[0], traj.xy[i])
+    # a click on the plot lands on that object, and stepping on follows it from there
+    i = int(np.flatnonzero((traj.keys[:, 0] == 2) & (traj.keys[:, 1] == truth[2][3]))[0])
+    traj.select(i)
+    assert viewer.dims.current_step[0] == 2 and layer.selected_label == truth[2][3]
+    viewer.dims.set_current_step(0, 5)
+    assert layer.selected_label == truth[5][3]
+
+
+def test_a_dock_closed_during_a_run_shows_its_results_when_opened_again(
+        qtbot, make_napari_viewer_proxy):
+    from napari_pfsdm.napari._model import REGISTRY
+
+    labels, truth = untracked_movie()
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(labels, name="nuclei")
+    dock_widget, w = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    assert w.run() is not None
+    viewer.window.remove_dock_widget(dock_widget)
+    qtbot.waitUntil(lambda: REGISTRY.get(layer.unique_id) is not None, timeout=120_000)
+    shown = int(viewer.dims.current_step[0])
+    assert layer.features["frame"].tolist() == [shown] * 4  # written by the model
+    again = dock(viewer)
+    assert again.bound is not None and again.export_button.enabled
+    assert "linked into 4 tracks" in again.status.value
+    viewer.dims.set_current_step(0, 0)
+    layer.selected_label = truth[0][1]
+    wait_pictures(qtbot, again)
+    assert again.pictures.shown[1:] == (0, truth[0][1])
+    viewer.dims.set_current_step(0, 2)
+    wait_pictures(qtbot, again)
+    assert again.pictures.shown[1:] == (2, truth[2][1])
+
+
+def test_removing_the_layer_removes_its_pictures(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    wait_pictures(qtbot, w)
+    pictures = [lay.name for lay in viewer.layers if lay.name.startswith("gastruloids ")
+                and lay.name != "gastruloids reporter"]
+    assert len(pictures) >= 4
+    w.run()  # removed during a second Run
+    viewer.layers.remove("gastruloids")
+    qtbot.waitUntil(lambda: w.worker is None, timeout=120_000)
+    assert [lay.name for lay in viewer.layers] == ["gastruloids reporter"]
+    assert w.bound is None and not w.export_button.enabled
+
+
+def test_a_label_image_opened_as_an_image_is_offered_and_made_a_labels_layer(
+        qtbot, make_napari_viewer_proxy):
+    labels, _ = untracked_movie(3)
+    viewer = make_napari_viewer_proxy()
+    viewer.add_image(labels, name="mask.tif")  # File ▸ Open of a label TIFF
+    viewer.add_image(labels.astype(float) * 0.5, name="photo")  # not whole numbers
+    w = dock(viewer)
+    assert w.labels.choices == ("mask.tif",)
+    assert "made a Labels layer" in w.labels.native.currentText()
+    analysis = run_and_wait(qtbot, w)
+    made = viewer.layers["mask.tif labels"]
+    assert made.data is viewer.layers["mask.tif"].data  # the same array, not a copy
+    assert w.labels.value == "mask.tif labels" and len(analysis.table) == 12
+
+
+def test_a_reporter_is_offered_by_channel_and_an_unfit_one_is_named(qtbot,
+                                                                    make_napari_viewer_proxy):
+    labels, _ = untracked_movie(3)
+    rng = np.random.default_rng(0)
+    two = rng.uniform(100, 200, (3, 2, *labels.shape[1:]))
+    viewer = make_napari_viewer_proxy()
+    viewer.add_labels(labels, name="nuclei")
+    viewer.add_image(two, name="stains")  # T × C × Y × X
+    viewer.add_image(rng.uniform(size=(3, 50, 50)), name="thumbnail")
+    w = dock(viewer)
+    assert w.reporter.choices == (None, ("stains", 0), ("stains", 1))
+    assert "'thumbnail'" in w.not_offered.value and not w.not_offered.native.isHidden()
+    w.reporter.value = ("stains", 1)
+    analysis = run_and_wait(qtbot, w)
+    expected = pf.measure(labels, two[:, 1])
+    np.testing.assert_allclose(analysis.table.filter(like="intensity_r").to_numpy(),
+                               expected.filter(like="intensity_r").to_numpy(), rtol=1e-9)
+
+
+def test_a_constant_reporter_is_measured_with_a_warning(qtbot, make_napari_viewer_proxy):
+    labels, _ = untracked_movie(2)
+    viewer = make_napari_viewer_proxy()
+    viewer.add_labels(labels, name="nuclei")
+    viewer.add_image(np.full(labels.shape, 65535, np.uint16), name="page 2")
+    w = dock(viewer)
+    assert w.reporter.value == ("page 2", None)
+    run_and_wait(qtbot, w)
+    assert "65535 everywhere" in w.status.value
+
+
+def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widget):
+    from napari_pfsdm.napari._pictures import BAR, SIZE
+
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    wait_pictures(qtbot, w)
+    texts = list(viewer.layers["gastruloids captions"].features["text"])
+    for suffix in ("SDF", "PF-SDF disk", "intensity disk"):
+        layer = viewer.layers[f"gastruloids {suffix}"]
+        lo, hi = layer.contrast_limits
+        bar = layer.data[:, -BAR:]
+        np.testing.assert_allclose(bar[:, 0], np.linspace(hi, lo, SIZE))  # top = high
+        assert not layer.colorbar.visible  # napari's would stack in one corner
+        assert f"{hi:.3g}" in texts and f"{lo:.3g}" in texts
+    assert any(t.startswith("SDF") for t in texts) and any("reporter" in t for t in texts)
+
+
+def test_every_dock_and_the_clusters_plotter_fit_1280_by_800(qtbot, make_napari_viewer,
+                                                            sample_layers):
+    """At 1280 × 800 with the plugin's docks and napari-clusters-plotter docked: the window
+    stays on screen, the plotter's plot keeps ≥ 200 px, and the status line shows whole."""
+    pytest.importorskip("napari_clusters_plotter")
+    viewer = make_napari_viewer(show=True)
+    window = viewer.window._qt_window  # the test measures the window; the plugin never does
+    window.resize(1280, 800)
+    for data, kwargs, kind in sample_layers:
+        getattr(viewer, f"add_{kind}")(data, **kwargs)
+    w = dock(viewer)
+    run_and_wait(qtbot, w)
+    qtbot.wait(300)
+
+    def status_whole() -> bool:
+        label = w.status.native
+        seen = label.visibleRegion().boundingRect().height()
+        return label.isVisible() and seen == label.height() >= label.heightForWidth(
+            label.width())
+
+    assert status_whole() and window.height() <= 800  # one dock
+    w.open_plots()
+    dock(viewer, PREDICTION)
+    _dock, plotter = viewer.window.add_plugin_dock_widget("napari-clusters-plotter",
+                                                          "Plot & select features")
+    qtbot.wait(500)
+    canvas = plotter.plotting_widget.canvas
+    assert window.height() <= 800 and canvas.height() >= 200, (window.height(),
+                                                               canvas.height())
+    from napari_pfsdm.napari._widgets import dock_of
+
+    dock_of(w).raise_()  # the analysis tab in front
+    qtbot.wait(200)
+    assert status_whole()
+    for button in (w.run_button, w.export_button):
+        native = button.native
+        top_left = native.mapTo(window, native.rect().topLeft())
+        assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
+
+
+def packed_movie(side: int = 5, frames: int = 4, cell: int = 24, seed: int = 0):
+    """Cells that fill the field (each pixel to its nearest centre on a jittered lattice),
+    ids shuffled in every frame."""
+    rng = np.random.default_rng(seed)
+    grid = (np.stack(np.mgrid[:side, :side], -1).reshape(-1, 2) + 0.5) * cell
+    centres = grid + rng.uniform(-0.2, 0.2, grid.shape) * cell
+    yy, xx = np.mgrid[:side * cell, :side * cell]
+    labels = np.zeros((frames, side * cell, side * cell), np.uint16)
+    for t in range(frames):
+        at = centres + rng.normal(0, 0.08 * cell, centres.shape)
+        nearest = np.argmin((yy[..., None] - at[:, 0]) ** 2 + (xx[..., None] - at[:, 1]) ** 2,
+                            axis=-1)
+        labels[t] = (rng.permutation(len(centres)) + 1)[nearest]
+    return labels
+
+
+def test_packed_cells_are_linked_by_overlap_and_the_panel_offers_both_links(
+        qtbot, make_napari_viewer_proxy):
+    viewer = make_napari_viewer_proxy()
+    viewer.add_labels(packed_movie(), name="epidermis")
+    w = dock(viewer)
+    assert set(w.identity.choices) >= {"auto", "labels", "centroid", "overlap"}
+    analysis = run_and_wait(qtbot, w)
+    assert "linked into 25 tracks by overlap (the objects touch)" in w.status.value
+    assert analysis.table["track_id"].nunique() == 25
+    w.identity.value = "centroid"  # found again from the same run
+    assert "Linked into 25 tracks by centroids" in w.status.value
+    assert w.bound[1] is analysis and "by centroids" in analysis.tracking_message
+
+
+def test_thousands_of_tracks_draw_a_sample_of_paths_and_the_selected_one(
+        qtbot, make_napari_viewer_proxy):
+    from napari_helpers import many_objects
+
+    from napari_pfsdm.napari._plots import MAX_PATHS
+
+    frame = many_objects(20, 40, cell=20)  # 800 objects
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(np.stack([frame, frame]), name="many")
+    w = dock(viewer)
+    w.identity.value = "labels"
+    run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    traj = plots.trajectories
+    paths = traj.artists["paths"].get_segments()
+    assert MAX_PATHS // 2 < len(paths) <= MAX_PATHS
+    assert f"paths of {len(paths):,} of 800 tracks" in traj.info.value
+    viewer.dims.set_current_step(0, 1)
+    layer.selected_label = 777
+    path = traj.mark_artists["path"]  # the selected track, drawn over the others
+    i = [int(np.flatnonzero((traj.keys[:, 0] == t) & (traj.keys[:, 1] == 777))[0])
+         for t in (0, 1)]
+    np.testing.assert_allclose(np.column_stack(path.get_data()), traj.xy[i])
+    assert path.get_zorder() > traj.artists["paths"].get_zorder()
+    # the row's numbers with their meanings, as a tooltip of the selected object's line
+    assert "area = " in w.hover.native.toolTip() and "area in pixels" in w.hover.native.toolTip()
+
+
+def test_a_dock_opened_and_closed_leaves_no_callback_on_the_viewer(qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+
+    def callbacks() -> int:
+        events = [viewer.dims.events.current_step, viewer.cursor.events.position,
+                  *(getattr(viewer.layers.events, k) for k in ("inserted", "removed",
+                                                                 "reordered"))]
+        return sum(len(e.callbacks) for e in events)
+
+    from napari_pfsdm.napari._model import REGISTRY
+
+    before, registry = callbacks(), len(REGISTRY.updated)
+    for _ in range(20):
+        for name in (PLOTS, PREDICTION):
+            dock_widget, _w = viewer.window.add_plugin_dock_widget("napari-pfsdm", name)
+            viewer.window.remove_dock_widget(dock_widget)
+        qtbot.wait(10)
+    from qtpy.QtWidgets import QApplication
+
+    QApplication.processEvents()
+    assert callbacks() == before and len(REGISTRY.updated) == registry
