@@ -11,8 +11,8 @@ A big object is traced on a coarser grid: every ``step``-th pixel of its box, th
 smallest whole number of pixels that puts at most ``samples_across`` samples along the box's
 longer side (:func:`grid_step`). The SDF is that of the sub-pixel outline at any resolution, so
 the coarser grid loses only the grid's own quantisation (on a 1-megapixel object traced with
-512 samples across, a step of 4 px, the skeleton lies within ~1 px on average of the one traced
-at every pixel; ``tests/test_skeleton.py`` holds the bound) and costs ``step``² times less.
+512 samples across, a step of 3–4 px, the skeleton lies ~0.6 px on average from the one traced
+at every pixel; ``tests/test_big_objects.py`` holds the bounds) and costs ``step``² times less.
 Objects up to ``samples_across`` pixels across are traced at every pixel, as before.
 
 The ridge is located with the *exact* distance even when the result uses the viscous SDF: the
