@@ -29,8 +29,9 @@ Writes ``big_objects.csv`` to ``--out``.
 
 ``--silhouettes DIR`` adds real outlines: the first shape of each MPEG-7 class (``*-1.gif``)
 upscaled ``--upscale`` times (bilinear, then thresholded: a smooth outline, not blocks), the
-default skeleton against the every-pixel one, with how fragmented the every-pixel ridge is
-(pieces after thinning, and the share of the largest, the one kept). Writes
+default skeleton against the every-pixel one (``full_to_grid_px``: the farthest point of
+the every-pixel skeleton from the grid's branches), with how fragmented the every-pixel ridge
+is (pieces after thinning, and the share of the largest, the one kept). Writes
 ``big_silhouettes.csv``.
 """
 
@@ -181,9 +182,10 @@ def silhouettes(folder: Path, upscale: int) -> pd.DataFrame:
         full, grid = skeleton(res, samples_across=None), skeleton(res)
         mean, hausdorff = skeleton_distance(grid.paths(), full.paths())
         pieces, share = ridge_pieces(res, None)
+        covered = to_polylines(full.points.astype(float), grid.paths()).max()
         rows.append({"shape": path.stem, "side_px": max(res.mask_info.mask.shape),
                      "step": grid.step, "full_pieces": pieces, "full_largest_share": share,
-                     "mean_px": mean, "hausdorff_px": hausdorff})
+                     "mean_px": mean, "hausdorff_px": hausdorff, "full_to_grid_px": covered})
     return pd.DataFrame(rows)
 
 
@@ -217,11 +219,13 @@ def silhouette_table(args, out: Path) -> None:
     coarse = table[table["step"] > 1]
     whole = coarse[coarse["full_largest_share"] >= 0.5]
     near = whole["mean_px"] <= 2.0
+    inside = whole["full_to_grid_px"] <= 2 * whole["step"]
     print(f"\n{len(coarse)} traced on a coarser grid; in {len(whole)} of them the every-pixel "
           "ridge is one dominant piece (>= 50 % of it, the one kept); of those, "
           f"{int(near.sum())} have the skeletons within 2 px on average (median "
           f"{whole['mean_px'].median():.2f} px, Hausdorff median "
-          f"{whole['hausdorff_px'].median():.1f} px)")
+          f"{whole['hausdorff_px'].median():.1f} px), and in {int(inside.sum())} every point "
+          "of the every-pixel skeleton lies within two grid steps of the grid's")
     table.to_csv(out / "big_silhouettes.csv", index=False)
     print(f"\nwrote {out / 'big_silhouettes.csv'}")
 
