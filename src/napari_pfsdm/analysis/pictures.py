@@ -142,7 +142,8 @@ def _volume_pictures(res, frame: int, label: int) -> VolumePictures:
 
 
 def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMParams,
-                    axes: str, spacing=None, box=None, size: int = 128
+                    axes: str, spacing=None, box=None, size: int = 128,
+                    skeleton_samples: int | None = 512
                     ) -> ObjectPictures | VolumePictures:
     """The pictures of the object ``label`` in ``frame``, made with its run's options.
 
@@ -162,6 +163,12 @@ def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMP
         The object's bounding box in its frame, when known.
     size : int
         Side of the disk and SDF pictures, in samples.
+    skeleton_samples : int or None
+        The skeleton is traced with at most this many samples along the longer side of the
+        object's box (``samples_across`` of :func:`napari_pfsdm.core.medial_axis.skeleton`):
+        a big object's skeleton then costs about what a 512-pixel one does and lies within
+        about a grid step of the one traced at every pixel. None traces every pixel. The
+        default is :data:`~napari_pfsdm.core.medial_axis.SAMPLES_ACROSS`, the result's own.
 
     Raises
     ------
@@ -191,7 +198,12 @@ def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMP
     sk_img: list = []
     sk_disk: list = []
     try:
-        sk = res.skeleton
+        from ..core.medial_axis import SAMPLES_ACROSS, skeleton
+
+        if skeleton_samples == SAMPLES_ACROSS:
+            sk = res.skeleton  # the result's own (cached) skeleton
+        else:
+            sk = skeleton(res, samples_across=skeleton_samples)
         sk_img = [p.astype(np.float32) for p in sk.paths("image")]
         sk_disk = [disk_pixels(p, size).astype(np.float32) for p in sk.paths("disk")]
     except Exception as err:  # noqa: BLE001 - the other pictures are still worth showing
