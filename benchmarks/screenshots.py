@@ -10,10 +10,12 @@ repository root on a (virtual) X screen at least as large::
 
     xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python benchmarks/screenshots.py
 
-Writes ``docs/screenshot.png`` (1600 × 1000) and, at 1280 × 800, ``docs/screenshot_1280x800.png``
-(the plots' Trajectories tab), ``docs/screenshot_components.png`` (PCs tab) and
-``docs/screenshot_prediction.png`` (Distances tab; the prediction dock shows its result in
-every picture). Look at them before committing.
+napari-clusters-plotter (when installed) is docked below the plugin's tab group, showing the
+``<layer> objects`` layer (Layer for plotters): PC1 against area. Writes ``docs/screenshot.png``
+(1600 × 1000, the plots' Trajectories tab in front) and, at 1280 × 800,
+``docs/screenshot_1280x800.png`` (the analysis dock in front: its status line),
+``docs/screenshot_components.png`` (the plots' PCs tab) and ``docs/screenshot_prediction.png``
+(the prediction dock). Look at them before committing.
 """
 
 from __future__ import annotations
@@ -28,11 +30,13 @@ from pathlib import Path
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 TABS = ("trajectories", "comparison", "components")
-#: (width, height, plots tab) → file in docs/
+#: What is in front of the plugin's tab group: a dock, or a tab of the plots.
+FRONT = ("analysis", "prediction", *TABS)
+#: (width, height, what is in front) → file in docs/
 JOBS = {(1600, 1000, "trajectories"): "screenshot.png",
-        (1280, 800, "trajectories"): "screenshot_1280x800.png",
+        (1280, 800, "analysis"): "screenshot_1280x800.png",
         (1280, 800, "components"): "screenshot_components.png",
-        (1280, 800, "comparison"): "screenshot_prediction.png"}
+        (1280, 800, "prediction"): "screenshot_prediction.png"}
 FRAME, LABEL = 9, 5
 
 
@@ -75,10 +79,26 @@ def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None
     predictor.last.value = 5
     predictor.run()
     wait(lambda: predictor.worker is None, "prediction")
+    objects = widget.add_objects_layer()
+    objects.visible = False
+    try:  # the plotter biologists already use, docked below the plugin
+        _d, plotter = window.add_plugin_dock_widget("napari-clusters-plotter",
+                                                    "Plot & select features")
+        viewer.layers.selection.active = objects
+        spin(500)
+        plotter.x_axis, plotter.y_axis = "shape_PC1", "area"
+    except Exception as err:  # noqa: BLE001 - not installed: the plugin alone
+        print(f"no napari-clusters-plotter: {err}")
+    viewer.layers.selection.active = labels
     viewer.layers["gastruloids reporter"].visible = False
     viewer.dims.set_current_step(0, FRAME)
     labels.selected_label = LABEL
-    plots.tabs.setCurrentIndex(TABS.index(tab))
+    from napari_pfsdm.napari._widgets import dock_of
+
+    front = {"analysis": widget, "prediction": predictor}.get(tab, plots)
+    dock_of(front).raise_()
+    if tab in TABS:
+        plots.tabs.setCurrentIndex(TABS.index(tab))
 
     def shown() -> bool:
         key = widget.pictures.shown
@@ -96,8 +116,8 @@ def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", nargs=2, type=int, help="one size only (width height)")
-    parser.add_argument("--tab", choices=TABS, default="trajectories",
-                        help="the plots' tab shown (with --size)")
+    parser.add_argument("--tab", choices=FRONT, default="trajectories",
+                        help="the dock, or the plots' tab, in front (with --size)")
     parser.add_argument("--out", type=Path, help="file to write (with --size)")
     args = parser.parse_args(argv)
     if args.size:

@@ -60,7 +60,8 @@ def test_tiny_objects_become_nan_rows_with_a_reason():
     assert np.isnan(bad["shape_r00_n00"])
     assert bad["area"] == 1
     # never silently NaN: the matrix of a table with failed rows is refused ...
-    with pytest.raises(ValueError, match=r"1 of 3 rows have no shape features \(frame 0 label 3"):
+    with pytest.raises(ValueError, match=r"1 of 3 rows have no shape features or are left "
+                                         r"out by the options \(frame 0 label 3"):
         P.distance_matrix(table)
     # ... and drop_failed leaves them out, saying which
     with pytest.warns(UserWarning, match=r"left out 1 of 3 rows .*frame 0 label 3: .*too small"):

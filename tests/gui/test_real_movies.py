@@ -285,3 +285,24 @@ def test_a_dock_opened_and_closed_leaves_no_callback_on_the_viewer(qtbot, viewer
 
     QApplication.processEvents()
     assert callbacks() == before and len(REGISTRY.updated) == registry
+
+
+def test_border_objects_left_out_of_the_shape_space_in_the_panel(qtbot,
+                                                                  make_napari_viewer_proxy):
+    labels = np.zeros((3, 80, 160), np.uint16)
+    for t in range(3):
+        labels[t, 0:20, 10:30 + t] = 1  # on the border
+        labels[t, 30:50, 40:60 + 2 * t] = 2
+        labels[t, 55:75, 40:52 + t] = 3
+        labels[t, 30:70, 80:95 + t] = 4
+    viewer = make_napari_viewer_proxy()
+    viewer.add_labels(labels, name="cells")
+    w = dock(viewer)
+    w.options["border_objects"].value = "leave_out"
+    analysis = run_and_wait(qtbot, w)
+    assert "1 object left out of PCA, comparison and prediction: touching the border " \
+           "(border_objects)" in w.status.value
+    assert len(analysis.table) == 12 and 1 not in analysis.pca["shape"]["label"].tolist()
+    assert analysis.measured.sum() == 9
+    plots = dock(viewer, PLOTS)
+    assert 1 not in plots.trajectories.keys[:, 1]

@@ -747,7 +747,8 @@ def drop_failed(table: pd.DataFrame, *, intensity: bool = False) -> pd.DataFrame
     if len(left):
         shown = "; ".join(f"frame {r.frame} label {r.label}: {r.reason}"
                           for r in left.head(5).itertuples())
-        warnings.warn(f"left out {len(left)} of {len(table)} rows without features ({shown}"
+        warnings.warn(f"left out {len(left)} of {len(table)} rows (no features, or left out "
+                      f"by the options: {shown}"
                       f"{'; …' if len(left) > 5 else ''})", UserWarning, stacklevel=2)
     return measured
 

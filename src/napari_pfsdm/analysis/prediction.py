@@ -44,10 +44,11 @@ from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from ..core.table_options import carry_options
+from ..core.table_options import carry_options, table_options
 from ..core.table_schema import has_channel
 from ..errors import InputError
 from .classic import REPORTER_MEASURES, SHAPE_MEASURES_2D, SHAPE_MEASURES_3D
+from .tables import left_out_reasons
 
 __all__ = [
     "CHANNELS",
@@ -435,6 +436,7 @@ def predict_outcome(
         raise InputError(f"the table has no {object_col!r} column to name the objects")
     ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
           if "error" in table.columns else np.ones(len(table), bool))
+    ok &= left_out_reasons(table, table_options(table)) == ""  # the options' choice
     ids = table[object_col]
     if pd.api.types.is_numeric_dtype(ids):  # track_id -1: rows no track reaches
         ok &= ids.to_numpy() >= 0

@@ -27,7 +27,7 @@ from ..core.params import OPTIONS, SELECTION_OPTIONS
 from ..core.table_options import table_options
 from ..core.table_schema import TRACK_COLUMN, pc_column, table_ndim
 from ..errors import InputError
-from .tables import embeddings_from_table, weighted_features
+from .tables import embeddings_from_table, left_out_reasons, weighted_features
 
 __all__ = ["ShapePCA", "shape_modes", "HARMONIC_WORDS"]
 
@@ -109,9 +109,12 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         return list(self.regress_out or ())
 
     def _features(self, table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
-        """(features of the measured rows, mask of those rows in the table)."""
+        """(features of the measured rows, mask of those rows in the table): not the rows with
+        an error, non-finite features, or left out by the table's options
+        (:func:`~napari_pfsdm.analysis.tables.left_out_reasons`)."""
         ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
               if "error" in table.columns else np.ones(len(table), bool))
+        ok &= left_out_reasons(table, table_options(table)) == ""
         if self.standardize:
             x = embeddings_from_table(table, self.channel)[0].reshape(len(table), -1)
         else:

@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -34,6 +34,7 @@ __all__ = [
     "embeddings",
     "embeddings_from_table",
     "failed_rows",
+    "left_out_reasons",
     "is_table",
     "key_rows",
     "outlines_from_table",
@@ -89,14 +90,41 @@ def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np
     return values, np.asarray(opts["weights"], float)
 
 
+def left_out_reasons(table, options: Mapping[str, Any]) -> np.ndarray:
+    """Why each row is left out of shape spaces by the options ``border_objects`` and
+    ``warned_objects`` ("" for a row kept), from its ``touches_border`` and ``warnings``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> t = pd.DataFrame({"touches_border": [True, False, False],
+    ...                   "warnings": ["", "", "29 % of the map folds"]})
+    >>> left_out_reasons(t, {"border_objects": "leave_out"}).tolist()
+    ['touches the image border (border_objects=leave_out)', '', '']
+    >>> left_out_reasons(t, {"warned_objects": "leave_out"})[2]
+    'warnings: 29 % of the map folds (warned_objects=leave_out)'
+    """
+    n = len(table)
+    out = np.full(n, "", dtype=object)
+    if options.get("warned_objects", "keep") == "leave_out" and "warnings" in table.columns:
+        warn = table["warnings"].fillna("").astype(str).to_numpy()
+        out = np.where(warn != "", np.array([f"warnings: {w} (warned_objects=leave_out)"
+                                             for w in warn], dtype=object), out)
+    if options.get("border_objects", "keep") == "leave_out" and "touches_border" in table:
+        border = table["touches_border"].fillna(False).to_numpy().astype(bool)
+        out[border] = "touches the image border (border_objects=leave_out)"
+    return out
+
+
 def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, ...]]:
-    """Rows of a feature table that have no features for ``channels``.
+    """Rows of a feature table that have no features for ``channels``, or that its options
+    leave out of shape spaces (:func:`left_out_reasons`).
 
     Returns
     -------
     list of (position, frame, label, reason)
-        ``position`` is the row's position in ``table``; ``reason`` the ``error`` text, or what
-        the ``warnings`` column says about the intensity.
+        ``position`` is the row's position in ``table``; ``reason`` the ``error`` text, what
+        the ``warnings`` column says about the intensity, or why the options leave it out.
     """
     channels = list(channels)
     opts, _, _ = check_feature_table(table, channels)
@@ -105,6 +133,8 @@ def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, 
            else np.full(n, ""))
     warn = (table["warnings"].fillna("").astype(str).to_numpy() if "warnings" in table.columns
             else np.full(n, ""))
+    left = left_out_reasons(table, opts)
+    err = np.where(err != "", err, left)
     bad = err != ""
     for channel in channels:
         vals = table[table_feature_columns(opts, channel)].to_numpy(float)
@@ -134,9 +164,9 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
     if bad:
         shown = "; ".join(f"frame {f} label {lab}: {why}" for _, f, lab, why in bad[:5])
         raise InputError(
-            f"{len(bad)} of {len(table)} rows have no {' or '.join(channels)} features "
-            f"({shown}{'; …' if len(bad) > 5 else ''}). Leave them out first, e.g. "
-            "napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
+            f"{len(bad)} of {len(table)} rows have no {' or '.join(channels)} features or are "
+            f"left out by the options ({shown}{'; …' if len(bad) > 5 else ''}). Leave them out "
+            "first, e.g. napari_pfsdm.drop_failed(table), so that rows and matrix stay in step"
         )
     shape, weights = embeddings_from_table(table, "shape")
     intensity = embeddings_from_table(table, "intensity")[0] if "intensity" in channels else None

@@ -7,7 +7,7 @@ imports no scipy or scikit-image: those modules are loaded when an object is mea
 
 from __future__ import annotations
 
-__all__ = ["BALL_MAPS", "DEFAULT_MIN_AREA", "MAPPINGS", "SDF_KINDS"]
+__all__ = ["BALL_MAPS", "DEFAULT_MIN_AREA", "KEEP_OR_LEAVE_OUT", "MAPPINGS", "SDF_KINDS"]
 
 #: Push-forward maps of the unit disk (:func:`~napari_pfsdm.core.pushforward.make_map`).
 MAPPINGS = ("harmonic", "bijective", "radial")
@@ -17,3 +17,6 @@ BALL_MAPS = ("radial", "harmonic")
 SDF_KINDS = ("exact", "viscous")
 #: Objects with fewer pixels than this are refused: their outline is mostly rasterisation.
 DEFAULT_MIN_AREA = 20
+#: What happens to objects of a kind (on the border, with warnings) in shape spaces: kept, or
+#: left out of PCA, comparison and prediction (their rows stay in the table).
+KEEP_OR_LEAVE_OUT = ("keep", "leave_out")

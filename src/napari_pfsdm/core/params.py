@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .choices import BALL_MAPS, DEFAULT_MIN_AREA, MAPPINGS, SDF_KINDS
+from .choices import BALL_MAPS, DEFAULT_MIN_AREA, KEEP_OR_LEAVE_OUT, MAPPINGS, SDF_KINDS
 from .morphometric import (
     NORMALIZATIONS,
     RADII_PLACEMENTS,
@@ -290,6 +290,14 @@ OPTIONS: tuple[Option, ...] = (
            "objects smaller than this (pixels, or voxels in 3-D) get an error instead of "
            "features",
            low=1, basic=True),
+    Option("border_objects", str, "keep",
+           "objects touching the image border (maybe cut off): 'keep' them in PCA, comparison "
+           "and prediction, or 'leave_out' (their rows stay in the table)",
+           choices=KEEP_OR_LEAVE_OUT, basic=True),
+    Option("warned_objects", str, "keep",
+           "objects with warnings (a map that folds, several pieces, holes filled): 'keep' "
+           "them in PCA, comparison and prediction, or 'leave_out'",
+           choices=KEEP_OR_LEAVE_OUT, basic=True),
     Option("sh_degree", int, 8,
            "highest spherical-harmonic degree per shell",
            low=1, high=40, dims="3d"),
@@ -328,7 +336,7 @@ ONLY_3D = tuple(o.name for o in OPTIONS if o.dims == "3d")
 
 #: Options that choose which objects are measured, not how: tables measured with different
 #: values of them still share one shape space.
-SELECTION_OPTIONS = ("components", "min_area")
+SELECTION_OPTIONS = ("components", "min_area", "border_objects", "warned_objects")
 
 
 def _check_together(values: Mapping[str, Any]) -> None:

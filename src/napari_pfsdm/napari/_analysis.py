@@ -38,7 +38,7 @@ from ._results import (
     run_analysis,
     run_message,
 )
-from ._widgets import PluginDock, follow, follow_registry, scrolled, stack
+from ._widgets import PluginDock, scrolled, stack
 
 #: The reporter choice for none.
 NONE = ("(none)", None)
@@ -75,7 +75,8 @@ def _whole_numbers(layer) -> bool:
 
 def option_widget(option) -> object:
     """The magicgui widget of one method option (its type, range, default and help)."""
-    kw = {"name": option.name, "label": option.name.replace("_", " "), "tooltip": option.help}
+    # labelled by the option's own name: the one messages, the API and --help use
+    kw = {"name": option.name, "label": option.name, "tooltip": option.help}
     if option.choices:
         return ComboBox(choices=list(option.choices), value=option.default, **kw)
     if option.kind is int:
@@ -208,12 +209,16 @@ class AnalysisWidget(PluginDock):
         self.first_axis.changed.connect(self._show_relevant_options)
         layers = napari_viewer.layers
         for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
-            follow(self, event, self._refresh_choices)
-        follow(self, napari_viewer.cursor.events.position, self._on_hover)
-        follow_registry(self, self._on_registry)
-        self.destroyed.connect(lambda *_, me=self: me._bind(None, None))  # lets go of the model
+            self.follow(event, self._refresh_choices)
+        self.follow(napari_viewer.cursor.events.position, self._on_hover)
+        self.follow(REGISTRY.updated, self._on_registry)
         self._refresh_choices()
         self._on_labels_choice()  # a reopened dock shows the layer's last run
+
+    def release(self) -> None:
+        """Closed: let go of the viewer, the registry and the model."""
+        super().release()
+        self._bind(None, None)
 
     def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
         """The status line keeps the height its words need at the dock's width (a dock made

@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 from psygnal import Signal, SignalGroup
 
+from ..analysis.tables import left_out_reasons
 from ..core.params import PFSDMParams
 from ._features import frame_rows, layer_features
 
@@ -192,14 +193,16 @@ class Analysis:
                                                                               strict=True))}
         self._errors = (self.table["error"].fillna("").astype(str).to_numpy(object)
                         if "error" in self.table else np.full(len(self.table), "", object))
+        self._left = left_out_reasons(self.table, self.options)
         objects = self.objects()
         self._where = {(int(f), int(o)): int(lab) for f, o, lab in zip(frames, objects, labels,
                                                                          strict=True) if o >= 0}
 
     @property
     def measured(self) -> np.ndarray:
-        """Whether each row has features (no error)."""
-        return self._errors == ""
+        """Whether each row enters the shape spaces: it has features (no error) and the
+        options do not leave it out (``border_objects``, ``warned_objects``)."""
+        return (self._errors == "") & (self._left == "")
 
     def row_of(self, frame: int, label: int) -> int | None:
         """Position of the (frame, label) row in :attr:`table` (None when absent)."""
@@ -310,6 +313,7 @@ class Analysis:
             self.table, self.features = scored.table, scored.features
             self.sentences = scored.sentences
             self._rows, self._errors, self._where = scored._rows, scored._errors, scored._where
+            self._left = scored._left
         self.events.prediction.emit(prediction)
 
 

@@ -31,8 +31,6 @@ from ._widgets import (
     PluginDock,
     analysed_layers,
     dock_of,
-    follow,
-    follow_registry,
     scrolled,
     stack,
 )
@@ -328,7 +326,7 @@ class ComparisonPlot(_Plot):
         self.cancel_button.changed.connect(self.cancel)
         self.worker = None
         self.cancelled: set = set()
-        follow(self, viewer.dims.events.current_step, self._on_step)
+        # (the plots dock follows the time slider for it: ComparisonPlot._on_step)
 
     def what(self) -> tuple:
         """(key, rows) of what is compared now: key = (frame or None, weight, re-ranked)."""
@@ -544,11 +542,16 @@ class PlotsWidget(PluginDock):
         self.plot(0)
         self.layer_choice.changed.connect(self._bind)
         self.tabs.currentChanged.connect(lambda i: self.plot(i).redraw())
-        follow_registry(self, self._on_registry)
-        follow(self, napari_viewer.layers.events.removed, self._on_registry)
-        self.destroyed.connect(lambda *_, me=self: me._follow(me.analysis, connect=False)
-                               if me.analysis is not None else None)
+        self.follow(REGISTRY.updated, self._on_registry)
+        self.follow(napari_viewer.layers.events.removed, self._on_registry)
         self._on_registry()
+
+    def release(self) -> None:
+        """Closed: let go of the viewer, the registry and the model."""
+        super().release()
+        if self.analysis is not None:
+            self._follow(self.analysis, connect=False)
+            self.analysis = None
 
     def toggle_floating(self, *args) -> None:
         """Undock the plots into a large window of their own, or dock them back."""
@@ -588,6 +591,8 @@ class PlotsWidget(PluginDock):
         """The plot of tab ``i``, made when first asked for."""
         if self.made[i] is None:
             plot = self.made[i] = self.kinds[i](self.viewer)
+            if isinstance(plot, ComparisonPlot):  # the frame shown is what it compares
+                self.follow(self.viewer.dims.events.current_step, plot._on_step)
             plot.layer, plot.analysis = self.layer, self.analysis
             self.tabs.widget(i).layout().addWidget(plot)
         return self.made[i]

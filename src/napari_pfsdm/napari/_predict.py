@@ -19,7 +19,7 @@ from qtpy.QtWidgets import QFileDialog, QSizePolicy
 
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
-from ._widgets import PluginDock, analysed_layers, follow, follow_registry, scrolled, stack
+from ._widgets import PluginDock, analysed_layers, scrolled, stack
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -105,8 +105,8 @@ class PredictionWidget(PluginDock):
         self.run_button.changed.connect(self.run)
         self.cancel_button.changed.connect(self.cancel)
         self.layer_choice.changed.connect(self._show_classes)
-        follow_registry(self, self._refresh)
-        follow(self, napari_viewer.layers.events.removed, self._refresh)
+        self.follow(REGISTRY.updated, self._refresh)
+        self.follow(napari_viewer.layers.events.removed, self._refresh)
         self._refresh()
 
     def _refresh(self, *args) -> None:

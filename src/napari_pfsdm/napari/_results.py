@@ -253,6 +253,7 @@ def run_message(fields: dict, labels, reporter_note: str = "") -> str:
     summary = warnings_summary(table)
     if summary:
         msg.append(f"{summary[0].upper()}{summary[1:]}.")
+    msg.append(left_out_words(table, fields["options"]))
     if time_lapse:
         present = set(table["frame"].astype(int).tolist())
         empty = [t for t in range(int(labels.shape[0])) if t not in present]
@@ -262,6 +263,29 @@ def run_message(fields: dict, labels, reporter_note: str = "") -> str:
         msg.append(FEATURES_NOTE)
     msg.append(reporter_note)
     return " ".join(m for m in msg if m)
+
+
+def left_out_words(table: pd.DataFrame, options: dict) -> str:
+    """How many objects the options leave out of the shape spaces, and why ("" for none).
+
+    >>> t = pd.DataFrame({"touches_border": [True, True, False], "warnings": ["", "w", ""]})
+    >>> left_out_words(t, {"border_objects": "leave_out"})
+    '2 objects left out of PCA, comparison and prediction: touching the border (border_objects).'
+    """
+    from ..analysis.tables import left_out_reasons
+
+    reasons = left_out_reasons(table, options)
+    border = int(sum(r.startswith("touches") for r in reasons))
+    warned = int(sum(r.startswith("warnings") for r in reasons))
+    if not border + warned:
+        return ""
+    why = ["touching the border (border_objects)" if border and not warned else
+           f"{border} touching the border (border_objects)" if border else "",
+           "with warnings (warned_objects)" if warned and not border else
+           f"{warned} with warnings (warned_objects)" if warned else ""]
+    n = border + warned
+    return (f"{n} object{'s' if n > 1 else ''} left out of PCA, comparison and prediction: "
+            f"{', '.join(w for w in why if w)}.")
 
 
 #: Where a time-lapse's rows are (napari's features table holds one row per label).
@@ -331,7 +355,8 @@ def row_glossary(analysis: Analysis, frame: int, label: int) -> str:
     if i is None:
         return ""
     row = analysis.layer_features().iloc[i]
-    return "\n".join(f"{c} = {v:.4g}: {describe_column(c)}" for c, v in row.items()
+    return "\n".join(f"{c} = {v:.4g}: {describe_column(c)}" if isinstance(v, (int, float))
+                     else f"{c} = {v}: {describe_column(c)}" for c, v in row.items()
                      if c != "index")
 
 

