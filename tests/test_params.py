@@ -128,15 +128,17 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
     assert list(P.DEFAULTS) == [f.name for f in fields(PFSDMParams)] == [o.name for o in OPTIONS]
     assert CHOICES == {o.name: o.choices for o in OPTIONS if o.choices}
     assert DEFAULTS_3D == {o.name: o.default for o in OPTIONS if o.dims == "3d"}
-    assert sorted(o.name for o in OPTIONS if o.basic) == ["mapping", "min_area", "n_fourier",
-                                                          "n_radii", "sdf"]
+    assert sorted(o.name for o in OPTIONS if o.basic) == [
+        "border_objects", "mapping", "min_area", "n_fourier", "n_radii", "sdf",
+        "warned_objects"]
 
 
 #: A value other than the default for every option (consistent with one another).
 CHANGED = {"n_fourier": 7, "n_radii": 5, "n_angles": 40, "sdf": "viscous", "viscosity": 0.2,
            "mapping": "radial", "normalization": "ring", "radii": "boundary",
            "ring_weighting": "none", "mode_exponent": 0.5, "components": "raise",
-           "min_area": 11, "sh_degree": 4, "surface_weight": 2.0, "ball_map": "harmonic"}
+           "min_area": 11, "border_objects": "leave_out", "warned_objects": "leave_out",
+           "sh_degree": 4, "surface_weight": 2.0, "ball_map": "harmonic"}
 
 
 def test_an_option_given_at_any_door_reaches_the_record():

@@ -306,3 +306,34 @@ def test_border_objects_left_out_of_the_shape_space_in_the_panel(qtbot,
     assert analysis.measured.sum() == 9
     plots = dock(viewer, PLOTS)
     assert 1 not in plots.trajectories.keys[:, 1]
+
+
+def test_any_measure_over_time_follows_tracks_and_groups(qtbot, make_napari_viewer_proxy):
+    """The Over time tab: the chosen column's line of each object (track), the groups'
+    means, the selection's line in red; a click lands on that point's object and frame."""
+    from napari_pfsdm.analysis.over_time import over_time
+
+    labels, truth = untracked_movie()
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(labels, name="nuclei")
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    analysis.set_groups({1: "a", 2: "a", 3: "b", 4: "b"})
+    plots = dock(viewer, PLOTS)
+    plots.tabs.setCurrentIndex(3)
+    plot = plots.made[3]
+    plot.column.value = "area"
+    lines, groups = over_time(analysis.layer_features(), "area", analysis.groups)
+    assert lines["object"].nunique() == 4 and len(plot.keys) == 24
+    means = [ln for ln in plot.points_axes.get_lines() if ln.get_linewidth() == 2]
+    np.testing.assert_allclose(sorted(np.concatenate([m.get_ydata() for m in means])),
+                               sorted(groups["mean"]))
+    viewer.dims.set_current_step(0, 0)
+    layer.selected_label = truth[0][2]
+    path = plot.mark_artists["path"]
+    track = analysis.object_of(0, truth[0][2])
+    want = analysis.table[analysis.table["track_id"] == track].sort_values("frame")["area"]
+    np.testing.assert_allclose(path.get_ydata(), want)
+    i = int(np.flatnonzero((plot.keys[:, 0] == 4) & (plot.keys[:, 1] == truth[4][1]))[0])
+    plot.select(i)
+    assert viewer.dims.current_step[0] == 4 and layer.selected_label == truth[4][1]

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 from functools import partial
 
-import matplotlib.style as mplstyle
 import numpy as np
-from magicgui.widgets import CheckBox, ComboBox, Container, Label, PushButton, SpinBox
+from magicgui.widgets import CheckBox, ComboBox, Container, PushButton, SpinBox
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
 from qtpy.QtCore import QSize
@@ -24,8 +23,9 @@ from ..analysis.reduction import FULL_MATRIX_LIMIT as GRAPH_ROWS
 from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
 from ..core.table_schema import pc_columns
-from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
+from ._plot_base import Plot
+from ._plot_time import OverTimePlot
 from ._results import explanation
 from ._widgets import (
     PluginDock,
@@ -35,18 +35,15 @@ from ._widgets import (
     stack,
 )
 
-#: What a plot says before a Run.
-EMPTY = "Run the PF-SDM analysis to fill this plot."
 #: The size of the plots undocked (Float).
 FLOATING_SIZE = QSize(900, 650)
 #: The plots dock's least height (px): beyond it the tabs scroll.
 MIN_HEIGHT = 120
-#: A plot's least height on the canvas (px).
-MIN_CANVAS = 120
 
 
-#: The tabs: each object's path, the objects' distances and map, what a PC means.
-TABS = ("Trajectories", "Distances", "PCs")
+#: The tabs: each object's path, the objects' distances and map, what a PC means, any
+#: measure against time.
+TABS = ("Trajectories", "Distances", "PCs", "Over time")
 #: Beyond this many tracks the trajectories plot draws the paths of this many (every k-th
 #: track) over all the points: thousands of paths are a hairball. The selected object's path
 #: is always drawn, on top.
@@ -59,102 +56,7 @@ def _percent(ratios, i: int) -> str:
     return f" ({100 * ratios[i - 1]:.0f} %)" if len(ratios) >= i else ""
 
 
-class _Plot(PlotCanvas):
-    """A napari-matplotlib canvas showing one view of an analysis; click a point to go there."""
-
-    def __init__(self, viewer, controls: list) -> None:
-        super().__init__(viewer)
-        self.layer = None
-        self.analysis: Analysis | None = None
-        self.keys = np.zeros((0, 2), np.int64)  # (frame, label) of each point
-        self.xy = np.zeros((0, 2))
-        self.points_axes = None
-        self.mark_artists: dict = {}  # name → artist of points_axes, made at first use
-        self.info = Label(value=EMPTY)
-        self.info.native.setWordWrap(True)
-        self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,
-                                       QSizePolicy.Policy.Preferred)  # the dock's width
-        self.controls = Container(widgets=controls, layout="horizontal", labels=False)
-        self.controls.margins = (0, 0, 0, 0)
-        for w in controls:
-            if not isinstance(w, PushButton):
-                w.changed.connect(self.redraw)
-        self.layout().insertWidget(0, self.controls.native)
-        self.layout().addWidget(self.info.native)
-        self.layout().setStretchFactor(self.canvas, 1)  # spare height goes to the plot
-        self.canvas.setMinimumHeight(MIN_CANVAS)
-        self.canvas.setToolTip("Click a point to go to that object (and frame) in napari.")
-        self.layout().setContentsMargins(2, 2, 2, 2)
-        self.canvas.mpl_connect("button_press_event", self._on_click)
-
-    def redraw(self, *args) -> None:
-        """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
-        if self.analysis is None or not self.refresh():  # else new data in the same artists
-            self.figure.clear()
-            self.marks, self.points_axes, self.mark_artists = [], None, {}
-            self.keys = np.zeros((0, 2), np.int64)
-            try:
-                if self.analysis is None:
-                    raise ValueError(EMPTY)
-                with mplstyle.context(self.napari_theme_style_sheet):  # napari's colours
-                    self.draw()
-            except ValueError as err:
-                self.figure.clear()
-                self.info.value = str(err)
-        self.changed()
-        self.highlight()
-
-    def draw(self) -> None:  # pragma: no cover - each plot draws its own
-        raise NotImplementedError
-
-    def refresh(self) -> bool:
-        """Give the figure's artists new data in place, when the figure keeps its kind of
-        content (True); else False, and :meth:`redraw` draws the figure from scratch."""
-        return False
-
-    def highlight(self) -> None:
-        """Mark the selected object (and its frame's points) on the plot."""
-        a = self.analysis
-        if a is not None and a.selection is not None and self.points_axes is not None \
-                and len(self.keys):
-            self.set_marks(self.mark(self.points_axes, *a.selection))
-        else:
-            self.set_marks([])
-
-    def mark_artist(self, name: str, make):
-        """The mark ``name`` of the plotted axes: ``make()`` at first use after a drawing,
-        then the same artist, given the new selection's data by :meth:`mark`."""
-        if name not in self.mark_artists:
-            self.mark_artists[name] = make()
-        return self.mark_artists[name]
-
-    def mark(self, ax, frame: int, label: int) -> list:
-        hit = (self.keys[:, 0] == frame) & (self.keys[:, 1] == label)
-        if not hit.any():
-            return []
-        star = self.mark_artist("star", lambda: ax.scatter(
-            [], [], s=150, marker="*", color="#ff3c3c", edgecolors="white", zorder=5))
-        star.set_offsets(self.xy[hit])
-        return [star]
-
-    def _on_click(self, event) -> None:
-        if event.inaxes is not self.points_axes or not len(self.keys) or event.button != 1:
-            return
-        if self.toolbar.mode:  # zooming or panning
-            return
-        screen = self.points_axes.transData.transform(self.xy)
-        i = int(np.argmin(np.hypot(*(screen - (event.x, event.y)).T)))
-        self.select(i)
-
-    def select(self, i: int) -> None:
-        """Go to the object of point ``i``: napari moves to its frame and selects it."""
-        frame, label = (int(v) for v in self.keys[i])
-        link = REGISTRY.link(self.analysis.layer_id)
-        if link is not None:
-            link.go_to(frame, label)
-
-
-class TrajectoryPlot(_Plot):
+class TrajectoryPlot(Plot):
     """Each object's path through the PCA of the PF-SDM features, frame by frame."""
 
     def __init__(self, viewer) -> None:
@@ -312,7 +214,7 @@ def _distances(table, rows, weight: float, reranked: bool):
     return {"d": d, "xy": mds_coordinates(d, 2)}
 
 
-class ComparisonPlot(_Plot):
+class ComparisonPlot(Plot):
     """PF-SDM distances of the current frame's (or all) objects and their MDS map."""
 
     def __init__(self, viewer) -> None:
@@ -455,7 +357,7 @@ KINDS = {
 }
 
 
-class ComponentsPlot(_Plot):
+class ComponentsPlot(Plot):
     """What one principal component means: its loadings (ring × harmonic) and the real objects
     at −2σ … +2σ along it."""
 
@@ -519,8 +421,8 @@ class PlotsWidget(PluginDock):
         super().__init__(napari_viewer)
         self.layer_choice = ComboBox(choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
-        self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot)
-        self.made: list = [None, None, None]  # each plot when its tab is first shown
+        self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot, OverTimePlot)
+        self.made: list = [None] * len(self.kinds)  # each plot when its tab is first shown
         self.layer, self.analysis = None, None
         self.tabs = QTabWidget()
         for name in TABS:
@@ -587,7 +489,7 @@ class PlotsWidget(PluginDock):
                 plot.layer, plot.analysis = layer, analysis
         self.plot(self.tabs.currentIndex()).redraw()
 
-    def plot(self, i: int) -> _Plot:
+    def plot(self, i: int) -> Plot:
         """The plot of tab ``i``, made when first asked for."""
         if self.made[i] is None:
             plot = self.made[i] = self.kinds[i](self.viewer)
@@ -618,7 +520,7 @@ class PlotsWidget(PluginDock):
                                  (events.comparison, self._on_comparison)):
             signal.connect(callback) if connect else signal.disconnect(callback)
 
-    def _current(self) -> _Plot:
+    def _current(self) -> Plot:
         return self.plot(self.tabs.currentIndex())
 
     def _on_selection(self, *args) -> None:
