@@ -337,3 +337,33 @@ def test_any_measure_over_time_follows_tracks_and_groups(qtbot, make_napari_view
     i = int(np.flatnonzero((plot.keys[:, 0] == 4) & (plot.keys[:, 1] == truth[4][1]))[0])
     plot.select(i)
     assert viewer.dims.current_step[0] == 4 and layer.selected_label == truth[4][1]
+
+
+def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_there(
+        qtbot, viewer_widget):
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    plots = dock(viewer, PLOTS)
+    plots.tabs.setCurrentIndex(4)
+    gallery = plots.made[4]
+    labels = viewer.layers["gastruloids"]
+    viewer.dims.set_current_step(0, 3)
+    labels.selected_label = 2
+    qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 8,
+                    timeout=60_000)
+    measured = pf.drop_failed(analysis.table)
+    d = pf.distance_matrix(measured, intensity_weight=1.0)
+    me = int(np.flatnonzero((measured["frame"] == 3) & (measured["label"] == 2))[0])
+    order = np.argsort(d[me])[:8]  # itself first (distance 0), then the 7 nearest
+    want = list(zip(measured["frame"].to_numpy()[order], measured["label"].to_numpy()[order],
+                    strict=True))
+    assert [(f, lab) for _ax, f, lab in gallery.thumbs] == [(int(f), int(lab))
+                                                            for f, lab in want]
+    np.testing.assert_allclose(gallery.result[3], d[me][order], rtol=1e-9)
+    ax, frame, label = gallery.thumbs[3]
+
+    class Click:  # what matplotlib hands the canvas's click handler
+        inaxes, button = ax, 1
+
+    gallery._on_click(Click)
+    assert viewer.dims.current_step[0] == frame and labels.selected_label == label

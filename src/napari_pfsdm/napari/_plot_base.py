@@ -110,3 +110,11 @@ class Plot(PlotCanvas):
         link = REGISTRY.link(self.analysis.layer_id)
         if link is not None:
             link.go_to(frame, label)
+
+
+def outline_of(plane: np.ndarray, box, label: int) -> np.ndarray:
+    """The object's closed outline (row, col), centred."""
+    from ..analysis.baselines import mask_contour
+
+    line = mask_contour(plane[box] == label if box is not None else plane == label)
+    return np.vstack([line, line[:1]]) - line.mean(axis=0)

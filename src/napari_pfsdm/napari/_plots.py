@@ -24,7 +24,8 @@ from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
 from ..core.table_schema import pc_columns
 from ._model import REGISTRY, Analysis, current_frame
-from ._plot_base import Plot
+from ._plot_base import Plot, outline_of
+from ._plot_similar import SimilarPlot
 from ._plot_time import OverTimePlot
 from ._results import explanation
 from ._widgets import (
@@ -42,8 +43,8 @@ MIN_HEIGHT = 120
 
 
 #: The tabs: each object's path, the objects' distances and map, what a PC means, any
-#: measure against time.
-TABS = ("Trajectories", "Distances", "PCs", "Over time")
+#: measure against time, the objects most like the selected one.
+TABS = ("Trajectories", "Distances", "PCs", "Over time", "Similar")
 #: Beyond this many tracks the trajectories plot draws the paths of this many (every k-th
 #: track) over all the points: thousands of paths are a hairball. The selected object's path
 #: is always drawn, on top.
@@ -335,16 +336,8 @@ def _components(analysis: Analysis, kind: str, component: int):
     for r in modes.itertuples():
         t = int(getattr(r, "frame", 0))
         plane = np.asarray(analysis.labels[t] if analysis.time_lapse else analysis.labels)
-        outlines.append(_outline(plane, analysis.boxes.get((t, int(r.label))), int(r.label)))
+        outlines.append(outline_of(plane, analysis.boxes.get((t, int(r.label))), int(r.label)))
     return space, modes, outlines
-
-
-def _outline(plane: np.ndarray, box, label: int) -> np.ndarray:
-    """The object's closed outline (row, col), centred."""
-    from ..analysis.baselines import mask_contour
-
-    line = mask_contour(plane[box] == label if box is not None else plane == label)
-    return np.vstack([line, line[:1]]) - line.mean(axis=0)
 
 
 #: The PCAs the components tab offers.
@@ -421,7 +414,7 @@ class PlotsWidget(PluginDock):
         super().__init__(napari_viewer)
         self.layer_choice = ComboBox(choices=partial(analysed_layers, napari_viewer),
                                      tooltip="The analysed Labels layer shown.")
-        self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot, OverTimePlot)
+        self.kinds = (TrajectoryPlot, ComparisonPlot, ComponentsPlot, OverTimePlot, SimilarPlot)
         self.made: list = [None] * len(self.kinds)  # each plot when its tab is first shown
         self.layer, self.analysis = None, None
         self.tabs = QTabWidget()
