@@ -1,0 +1,93 @@
+"""The fault battery, round 2 (issue 57): what files really hold, names that collide, the
+user's own files, numbers that would give NaN, formulas in cells, the drawer of each error.
+
+Each test reproduces one case as a user meets it and asserts the plain words, the exit status
+and the files left behind (or, for a case that is now handled, the right result). Expected
+values are computed here from numpy and the bytes on disk, never from the code under test.
+"""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pandas as pd
+import pytest
+import tifffile
+
+import napari_pfsdm as pf
+from napari_pfsdm.cli import main
+
+zarr = pytest.importorskip("zarr")
+
+FAST = {"n_fourier": 4, "n_radii": 4}
+CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "none", "-q",
+            "--scheduler", "sync"]
+
+
+def ellipse_labels(shape=(64, 64), centre=(32, 30), axes=(20, 12), label=1) -> np.ndarray:
+    """One elliptic object of id ``label`` in a frame of ``shape`` (uint8)."""
+    yy, xx = np.mgrid[: shape[0], : shape[1]]
+    inside = ((yy - centre[0]) / axes[0]) ** 2 + ((xx - centre[1]) / axes[1]) ** 2 < 1
+    out = np.zeros(shape, np.uint8)
+    out[inside] = label
+    return out
+
+
+def movie(n_frames: int = 3, shift: int = 1) -> np.ndarray:
+    """``n_frames`` frames of one ellipse moving right by ``shift`` pixels per frame."""
+    return np.stack([ellipse_labels(centre=(32, 24 + shift * t)) for t in range(n_frames)])
+
+
+def cells(path) -> list[list[str]]:
+    """The CSV's cells as a spreadsheet's importer sees them (no pandas)."""
+    with open(path, newline="", encoding="utf-8") as handle:
+        return list(csv.reader(handle))
+
+
+def error_line(capsys) -> str:
+    """The one ``pfsdm: error:`` line of the last command (and no traceback)."""
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "internal error" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("pfsdm: error:")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# --------------------------------------------------------------------------------------------
+# 5. tables safe to open in a spreadsheet
+# --------------------------------------------------------------------------------------------
+
+FORMULA_NAMES = ["=1+1", "+SUM(A1)", "-2+3", "@cmd", "\tx", "\rx", "'=quoted"]
+
+
+@pytest.mark.parametrize("name", FORMULA_NAMES)
+def test_a_text_cell_is_never_a_formula_and_reads_back_the_same(tmp_path, name):
+    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+
+    df = pd.DataFrame({"movie": [name, "e1"], "group": ["a", name], "frame": [0, 1],
+                       "x": [-1.5, 2.0], "n": [-3, 4]})
+    out = tmp_path / "t.csv"
+    write_table_csv(df, out, {})
+    rows = cells(out)
+    header, first, second = rows[0], rows[1], rows[2]
+    for cell in (first[header.index("movie")], second[header.index("group")]):
+        assert cell[0] not in "=+-@\t\r", repr(cell)  # a spreadsheet shows it as text
+    # negative numbers are numbers, not escaped
+    assert first[header.index("x")] == "-1.5" and first[header.index("n")] == "-3"
+    back = read_table_csv(out)
+    assert back["movie"].tolist() == [name, "e1"] and back["group"].tolist() == ["a", name]
+    assert back["x"].tolist() == [-1.5, 2.0] and back["n"].tolist() == [-3, 4]
+
+
+def test_movie_names_that_look_like_formulas_are_safe_through_the_command_line(tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in ("=e1", "+e2", "-e3", "@e4"):
+        tifffile.imwrite(folder / f"{name}.tif", movie(2))
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(folder), "-o", str(out), *CLI_FAST]) == 0
+    rows = cells(out)
+    col = rows[0].index("movie")
+    assert all(r[col].startswith("'") for r in rows[1:])
+    assert sorted(set(pf.read_table(out)["movie"])) == ["+e2", "-e3", "=e1", "@e4"]
