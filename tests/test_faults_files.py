@@ -9,6 +9,7 @@ values are computed here from numpy and the bytes on disk, never from the code u
 from __future__ import annotations
 
 import csv
+import json
 
 import numpy as np
 import pandas as pd
@@ -91,3 +92,59 @@ def test_movie_names_that_look_like_formulas_are_safe_through_the_command_line(t
     col = rows[0].index("movie")
     assert all(r[col].startswith("'") for r in rows[1:])
     assert sorted(set(pf.read_table(out)["movie"])) == ["+e2", "-e3", "=e1", "@e4"]
+
+
+# --------------------------------------------------------------------------------------------
+# 3. never touch a file the run did not write
+# --------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def one_movie(tmp_path):
+    path = tmp_path / "m.tif"
+    tifffile.imwrite(path, movie(2))
+    return path
+
+
+USERS_OWN = {
+    "sidecar json": ("o.csv.json", b'{"my": "notes"}\n'),
+    "sidecar text": ("o.csv.json", b"notes for the run\n"),
+    "sidecar of another program": ("o.csv.json",
+                                   b'{"written_by": "other", "options": {}}\n'),
+    "lock": (".o.csv.lock", b"my lock of another tool\n"),
+    "parts": ("o.csv.parts", b"not a folder\n"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(USERS_OWN))
+def test_a_file_beside_the_output_that_pfsdm_did_not_write_is_kept(tmp_path, one_movie,
+                                                                   capsys, case):
+    name, content = USERS_OWN[case]
+    theirs = tmp_path / name
+    theirs.write_bytes(content)
+    out = tmp_path / "o.csv"
+    assert main(["measure", str(one_movie), "-o", str(out), *CLI_FAST]) == 2
+    line = error_line(capsys)
+    assert name in line and ("--force" in line or "--parts" in line)
+    assert theirs.read_bytes() == content
+    assert not out.exists()
+
+
+def test_force_replaces_a_users_sidecar(tmp_path, one_movie):
+    side = tmp_path / "o.csv.json"
+    side.write_text('{"my": "notes"}\n')
+    out = tmp_path / "o.csv"
+    assert main(["measure", str(one_movie), "-o", str(out), "--force", *CLI_FAST]) == 0
+    assert json.loads(side.read_text())["written_by"].startswith("napari-pfsdm")
+    # and a second run replaces pfsdm's own pair without --force
+    assert main(["measure", str(one_movie), "-o", str(out), *CLI_FAST]) == 0
+
+
+@pytest.mark.parametrize("command", ["trajectories", "compare"])
+def test_the_sidecar_of_any_commands_output_is_checked(tmp_path, one_movie, capsys, command):
+    table = tmp_path / "f.csv"
+    assert main(["measure", str(one_movie), "-o", str(table), *CLI_FAST]) == 0
+    side = tmp_path / "r.csv.json"
+    side.write_text("[1, 2, 3]\n")
+    assert main([command, str(table), "-o", str(tmp_path / "r.csv"), "-q"]) == 2
+    assert "r.csv.json" in error_line(capsys)
+    assert side.read_text() == "[1, 2, 3]\n" and not (tmp_path / "r.csv").exists()

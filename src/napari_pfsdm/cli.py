@@ -93,12 +93,21 @@ def _check_output(
     for q in inputs:
         if Path(q).exists() and p.exists() and os.path.samefile(p, q):
             raise UserError(f"the {what} {p} is also an input; choose another output name")
-    check_overwrite(p, force=force, what=what)
+    check_overwrite(p, force=force, what=what, table=what != "plot")
     if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
         from .io_csv import _pyarrow
 
         _pyarrow(p, "writing")
     return p
+
+
+def _check_parts(parts: Path) -> None:
+    """Refuse a parts folder name that is taken by something other than a folder."""
+    if (parts.exists() or parts.is_symlink()) and not parts.is_dir():
+        raise UserError(
+            f"{parts} already exists and is not a folder, but pfsdm keeps the finished movies' "
+            "parts in a folder of that name; nothing was changed. Move that file, or give "
+            "another folder with --parts")
 
 
 def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
@@ -238,6 +247,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     intensity = find_movies(args.intensity) if args.intensity else None
     out = _check_output(args.output, force=args.force,
                         inputs=[*labels, *(intensity or [])])
+    _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
     movies = pair_movies(labels, intensity)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
     t0 = time.perf_counter()

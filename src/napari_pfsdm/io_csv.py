@@ -75,6 +75,8 @@ __all__ = [
     "atomic_write",
     "check_overwrite",
     "is_parquet",
+    "lock_path",
+    "output_files",
     "output_lock",
     "read_options",
     "read_sidecar",
@@ -667,21 +669,83 @@ def written_by_pfsdm(path: str | os.PathLike) -> bool:
     return head[:8] == b"\x89PNG\r\n\x1a\n" and PNG_SOFTWARE.encode() in head
 
 
-def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str = "output") -> None:
+def _is_pfsdm_sidecar(path: Path) -> bool:
+    """Whether ``path`` is a sidecar napari-pfsdm wrote (JSON naming napari-pfsdm)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    return isinstance(data, dict) and str(data.get("written_by", "")).startswith("napari-pfsdm")
+
+
+#: What :func:`output_lock` writes into a lock file: "pid host 2026-12-06T14:00:00" (a
+#: process number, then one line), or nothing (a run killed before it wrote).
+_LOCK_TEXT = re.compile(r"(\d+ [^\n]*\n?)?")
+
+
+def lock_path(path: str | os.PathLike) -> Path:
+    """The lock file of an output (:func:`output_lock`): ``.features.csv.lock`` beside it."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+def _is_pfsdm_lock(path: Path) -> bool:
+    """Whether ``path`` is a lock file as :func:`output_lock` writes it (or an empty one)."""
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(300)
+    except OSError:
+        return False
+    return _LOCK_TEXT.fullmatch(head.decode("utf-8", "replace")) is not None
+
+
+def output_files(path: str | os.PathLike, *, table: bool = True) -> list[Path]:
+    """Every file a run writing ``path`` makes beside it: the file itself and, for a table,
+    its sidecar (``.json``) and its lock (``.name.lock``)."""
+    path = Path(path)
+    return [path, sidecar_path(path), lock_path(path)] if table else [path]
+
+
+def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str = "output",
+                    table: bool = True) -> None:
     """Refuse to replace an existing file that this program did not write.
+
+    Checked are the output itself and, for a table (``table=True``), the files written beside
+    it: its sidecar ``path + ".json"`` (a JSON file not written by napari-pfsdm, or any other
+    file, under that name is the user's) and its lock ``.name.lock``.
 
     Raises
     ------
-    ValueError
-        ``path`` exists, is not a table or plot written by napari-pfsdm, and ``force`` is False.
+    InputError
+        One of these exists, was not written by napari-pfsdm, and ``force`` is False.
     """
     path = Path(path)
-    if force or not path.exists() or path.is_dir() or written_by_pfsdm(path):
+    if force:
         return
-    raise InputError(
-        f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
-        "nothing was changed. Choose another name, or add --force to replace it"
-    )
+    if path.exists() and not path.is_dir() and not written_by_pfsdm(path):
+        raise InputError(
+            f"the {what} {path} already exists and was not written by pfsdm (an input "
+            "image?); nothing was changed. Choose another name, or add --force to replace it"
+        )
+    if not table:
+        return
+    side = sidecar_path(path)
+    if (side.exists() or side.is_symlink()) and not (side.is_file()
+                                                     and _is_pfsdm_sidecar(side)):
+        raise InputError(
+            f"{side} already exists and was not written by pfsdm, but pfsdm writes the "
+            f"options of the {what} {path} under that name; nothing was changed. Move that "
+            "file, choose another output name, or add --force to replace it"
+        )
+    lock = lock_path(path)
+    if (lock.exists() or lock.is_symlink()) and not _is_pfsdm_lock(lock):
+        raise InputError(
+            f"{lock} already exists and is not a lock file of pfsdm, but pfsdm locks the "
+            f"{what} {path} under that name; nothing was changed. Move that file, choose "
+            "another output name, or add --force to replace it"
+        )
 
 
 #: A temporary file of :func:`atomic_write` for ``name``: ``.name.XXXXXXXX.tmp`` (the eight
@@ -748,7 +812,7 @@ def output_lock(path: str | os.PathLike) -> Iterator[Path]:
     True
     """
     path = Path(path)
-    lock = path.with_name(f".{path.name}.lock")
+    lock = lock_path(path)
     try:
         import fcntl
     except ImportError:  # pragma: no cover - Windows: a lock file created exclusively
