@@ -148,3 +148,78 @@ def test_the_sidecar_of_any_commands_output_is_checked(tmp_path, one_movie, caps
     assert main([command, str(table), "-o", str(tmp_path / "r.csv"), "-q"]) == 2
     assert "r.csv.json" in error_line(capsys)
     assert side.read_text() == "[1, 2, 3]\n" and not (tmp_path / "r.csv").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# 2. one name, one movie
+# --------------------------------------------------------------------------------------------
+
+def _zarr_movie(path, data) -> None:
+    arr = zarr.create_array(str(path), shape=data.shape, dtype=data.dtype,
+                            chunks=(1, *data.shape[1:]))
+    arr[:] = data
+
+
+COLLIDING = {
+    "tif and tiff": ["e1.tif", "e1.tiff"],
+    "tif and zarr": ["e1.tif", "e1.zarr"],
+    "tif, tiff and zarr": ["e1.tif", "e1.tiff", "e1.zarr"],
+    "ome.tif and tif": ["e1.ome.tif", "e1.tif"],
+    "ome.zarr and zarr": ["e1.ome.zarr", "e1.zarr"],
+}
+
+
+@pytest.mark.parametrize("case", sorted(COLLIDING))
+def test_movies_that_would_share_a_name_are_refused(tmp_path, capsys, case):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in COLLIDING[case]:
+        if name.endswith(".zarr"):
+            _zarr_movie(folder / name, movie(2))
+        else:
+            tifffile.imwrite(folder / name, movie(2))
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(folder), "-o", str(out), *CLI_FAST]) == 2
+    line = error_line(capsys)
+    assert "'e1'" in line and all(n in line for n in COLLIDING[case])
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("twice", [["a.tif", "a.tif"], ["a.tif", "./a.tif"],
+                                   ["in", "in/a.tif"]])
+def test_the_same_file_given_twice_is_refused(tmp_path, capsys, monkeypatch, twice):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "in").mkdir()
+    tifffile.imwrite(tmp_path / "in" / "a.tif", movie(2))
+    tifffile.imwrite(tmp_path / "a.tif", movie(2))
+    assert main(["measure", *twice, "-o", "f.csv", *CLI_FAST]) == 2
+    assert "twice" in error_line(capsys)
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_the_same_file_name_in_two_folders_gets_two_names(tmp_path):
+    for sub in ("a", "b"):
+        (tmp_path / sub).mkdir()
+        tifffile.imwrite(tmp_path / sub / "e1.tif", movie(2))
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(tmp_path / "a"), str(tmp_path / "b"), "-o", str(out),
+                 *CLI_FAST]) == 0
+    table = pf.read_table(out)
+    names = sorted(set(table["movie"]))
+    assert len(names) == 2 and names[0].endswith("a/e1") and names[1].endswith("b/e1")
+    assert len(table) == 4  # 2 frames x 1 object each, never merged
+
+
+def test_run_batch_refuses_two_movies_of_one_name(tmp_path):
+    from napari_pfsdm.batch.io import Movie
+    from napari_pfsdm.batch.run import run_batch
+
+    for name in ("a.tif", "b.tif"):
+        tifffile.imwrite(tmp_path / name, movie(2))
+    with pytest.raises(ValueError, match="two movies are named 'x'"):
+        run_batch([Movie("x", tmp_path / "a.tif"), Movie("x", tmp_path / "b.tif")],
+                  tmp_path / "f.csv", scheduler="sync", **FAST)
+    with pytest.raises(ValueError, match="given twice"):
+        run_batch([Movie("x", tmp_path / "a.tif"), Movie("y", tmp_path / "a.tif")],
+                  tmp_path / "f.csv", scheduler="sync", **FAST)
+    assert not (tmp_path / "f.csv").exists()

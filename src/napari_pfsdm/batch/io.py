@@ -557,6 +557,54 @@ class Movie:
     intensity: Path | None = None
 
 
+def _refuse_twice(paths: list[Path], what: str) -> None:
+    """Refuse the same file (or store) given twice: its rows would be doubled."""
+    seen: dict[Path, Path] = {}
+    for p in paths:
+        key = p.resolve()
+        if key in seen:
+            same = f"{seen[key]}" + (f" and {p}" if str(p) != str(seen[key]) else " twice")
+            raise InputError(
+                f"the same {what} movie is given twice ({same}): its objects would be "
+                "measured and counted twice. Give each movie once")
+        seen[key] = p
+
+
+def unique_names(paths: list[Path]) -> list[str]:
+    """One movie name per path (the ``movie`` column): the file name without its suffix, or,
+    where two files share it in different folders, the path without the suffix.
+
+    Raises
+    ------
+    InputError
+        Two files would still get the same name (``e1.tif``, ``e1.tiff`` and ``e1.zarr`` in
+        one folder): their rows could not be told apart, so they are refused by name.
+    """
+    names = [movie_name(p) for p in paths]
+    if len(set(names)) != len(names):
+        # keep names unique (e.g. same file name in two folders)
+        names = [_path_name(p) for p in paths]
+    groups: dict[str, list[Path]] = {}
+    for n, p in zip(names, paths, strict=True):
+        groups.setdefault(n, []).append(p)
+    clash = {n: ps for n, ps in groups.items() if len(ps) > 1}
+    if clash:
+        n, ps = next(iter(clash.items()))
+        more = f" (and {len(clash) - 1} more such name{'s' if len(clash) > 2 else ''})" \
+            if len(clash) > 1 else ""
+        raise InputError(
+            f"{', '.join(str(p) for p in ps)} would all be the movie {movie_name(ps[0])!r}"
+            f"{more}: their rows "
+            "could not be told apart in the table. Rename them so that their names differ "
+            "before the suffix, or measure them into separate tables")
+    return names
+
+
+def _path_name(path: Path) -> str:
+    """The path without the movie suffix (``.ome.tif``, ``.zarr``, …), with "/"."""
+    return str(path.with_name(movie_name(path))).replace(os.sep, "/")
+
+
 def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list[Movie]:
     """Match label movies with intensity movies.
 
@@ -567,14 +615,15 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
     A file that is among the intensity movies is not a label movie, so that a folder holding
     both (``movies/`` with ``movies/*_reporter.tif``) can be given as the labels.
     """
+    labels = [Path(p) for p in labels]
+    _refuse_twice(labels, "label")
     if intensity:
+        intensity = [Path(q) for q in intensity]
+        _refuse_twice(intensity, "intensity")
         given = {Path(q).resolve() for q in intensity}
         kept = [p for p in labels if Path(p).resolve() not in given]
         labels = kept or labels  # the same single file as both: leave it to the checks
-    names = [movie_name(p) for p in labels]
-    if len(set(names)) != len(names):
-        # keep names unique (e.g. same file name in two folders)
-        names = [str(p.with_suffix("")).replace(os.sep, "/") for p in labels]
+    names = unique_names(labels)
     if not intensity:
         return [Movie(n, p) for n, p in zip(names, labels, strict=True)]
     if len(labels) == 1 and len(intensity) == 1:

@@ -754,6 +754,7 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    _refuse_collisions(movies)
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         _pyarrow(output, "writing")  # a missing package fails here, not after measuring
     with output_lock(output):  # one run at a time per output; a second one refuses
@@ -762,6 +763,25 @@ def run_batch(
             frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
             spacing=spacing, allow_missing_chunks=allow_missing_chunks)
+
+
+def _refuse_collisions(movies: Sequence[Movie]) -> None:
+    """One name, one movie: refuse two movies of one name, or one label file twice (their
+    rows would be merged under one name, or doubled)."""
+    names: dict[str, Movie] = {}
+    files: dict[Path, Movie] = {}
+    for m in movies:
+        if m.name in names:
+            raise InputError(
+                f"two movies are named {m.name!r} ({names[m.name].labels} and {m.labels}): "
+                "their rows could not be told apart in the table; give them different names")
+        key = Path(m.labels).resolve()
+        if key in files:
+            raise InputError(
+                f"the label movie {m.labels} is given twice (as {files[key].name!r} and "
+                f"{m.name!r}): its objects would be counted twice; give each movie once")
+        names[m.name] = m
+        files[key] = m
 
 
 #: Temporary files a killed run may leave in a parts folder: those of
