@@ -264,6 +264,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         axes=args.axes,
         spacing=args.spacing,
         allow_missing_chunks=args.allow_missing_chunks,
+        series=args.series,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -957,6 +958,15 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _series_index(text: str) -> int:
+    """``--series``: a whole number (negative counts from the last series)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--series must be a whole number (0 = the first series); got {text!r}") from None
+
+
 def _add_force(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="replace output files even when pfsdm did not write them (by default "
@@ -1019,6 +1029,10 @@ examples:
                         "the missing ones as the fill value (empty), with a warning per frame "
                         "(default: an error, as a store that lost files in a copy looks "
                         "just the same)")
+    p.add_argument("--series", type=_series_index, metavar="N",
+                   help="the image series to read from TIFF files that hold several (OME-TIFF "
+                        "positions, a thumbnail beside the image; 0 = the first); such a file "
+                        "is refused without it")
     _add_force(p)
     p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
                    default="auto",

@@ -222,6 +222,7 @@ def measure_dask(
     axes: str | None = None,
     spacing: Any = None,
     allow_missing_chunks: bool = False,
+    series: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, measured in parallel with dask.
@@ -587,7 +588,7 @@ def _have_parquet() -> bool:
 
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
-               spacing: Any = None) -> str:
+               spacing: Any = None, series: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
     (:func:`~napari_pfsdm.batch.io.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
@@ -599,7 +600,8 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
         + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
-           if axes is not None and "z" in axes else []),
+           if axes is not None and "z" in axes else [])
+        + ([["series", int(series)]] if series is not None else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -699,6 +701,7 @@ def run_batch(
     axes: str | None = None,
     spacing: Any = None,
     allow_missing_chunks: bool = False,
+    series: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -737,6 +740,9 @@ def run_batch(
         A Zarr movie whose chunk files are not all on disk stops the run before any work
         (its missing frames would read as empty); True measures it as it is, ``log`` warns
         once per such frame and the sidecar lists them (``missing_chunks``).
+    series : int, optional
+        The image series read from every TIFF (:func:`~napari_pfsdm.batch.io.open_movie`);
+        a TIFF of several series is refused without it.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -762,7 +768,7 @@ def run_batch(
             movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
             frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
-            spacing=spacing, allow_missing_chunks=allow_missing_chunks)
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series)
 
 
 def _refuse_collisions(movies: Sequence[Movie]) -> None:
@@ -802,7 +808,7 @@ def _run_batch_locked(
     num_workers: int | None, frames_per_task: int | None,
     parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
     say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
-    spacing: Any, allow_missing_chunks: bool,
+    spacing: Any, allow_missing_chunks: bool, series: int | None = None,
 ) -> pd.DataFrame:
     """:func:`run_batch`'s work, holding the output's lock."""
     remove_leftovers(output)
@@ -814,9 +820,9 @@ def _run_batch_locked(
     # Open and check every movie first: a bad file fails the run before any long work.
     opened = []
     for m in movies:
-        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes)
-        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes) \
-            if m.intensity else None
+        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
+        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
+                         series=series) if m.intensity else None
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
@@ -834,7 +840,7 @@ def _run_batch_locked(
     with contextlib.ExitStack() as kept, _client_for(kind, obj) as cl:
         pool = None
         for m, lab, img in opened:
-            part = parts / (_part_name(m, p, axes, spacing) + suffix)
+            part = parts / (_part_name(m, p, axes, spacing, series) + suffix)
             table = _resumed(part, m.name, say)
             if table is not None:
                 attrs = attrs or _to_jsonable(table_options(table) or {})
