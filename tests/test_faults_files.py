@@ -223,3 +223,149 @@ def test_run_batch_refuses_two_movies_of_one_name(tmp_path):
         run_batch([Movie("x", tmp_path / "a.tif"), Movie("y", tmp_path / "a.tif")],
                   tmp_path / "f.csv", scheduler="sync", **FAST)
     assert not (tmp_path / "f.csv").exists()
+
+
+# --------------------------------------------------------------------------------------------
+# 1. read what the file holds, or refuse
+# --------------------------------------------------------------------------------------------
+
+TIFF_KINDS = {"plain": {}, "imagej": {"imagej": True, "metadata": {"axes": "TYX"}},
+              "ome": {"ome": True, "metadata": {"axes": "TYX"}},
+              "zlib": {"compression": "zlib"},
+              "no metadata": {"photometric": "minisblack", "metadata": None}}
+
+
+@pytest.mark.parametrize("cut", [0.5, 0.9])
+@pytest.mark.parametrize("kind", sorted(TIFF_KINDS))
+def test_a_truncated_tiff_is_refused_never_a_shorter_movie(tmp_path, capsys, kind, cut):
+    whole = tmp_path / "whole.tif"
+    tifffile.imwrite(whole, movie(10), **TIFF_KINDS[kind])
+    data = whole.read_bytes()
+    cut_file = tmp_path / "m.tif"
+    cut_file.write_bytes(data[: int(len(data) * cut)])
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(cut_file), "-o", str(out), *CLI_FAST]) == 2
+    line = error_line(capsys)
+    assert "m.tif" in line and "truncated" in line and "again" in line
+    assert not out.exists()
+    with pytest.raises(ValueError, match="truncated"):
+        pf.batch.open_movie(cut_file)
+    # the whole file is read whole
+    assert pf.batch.open_movie(whole).shape == (10, 64, 64)
+
+
+def two_series_tiff(path, first, second, **kw) -> None:
+    with tifffile.TiffWriter(path, **kw) as tif:
+        tif.write(first, **({"metadata": {"axes": "TYX"}} if kw.get("ome") else {}))
+        tif.write(second, **({"metadata": {"axes": "TYX"}} if kw.get("ome") else {}))
+
+
+def test_an_ome_tiff_of_two_positions_needs_a_series(tmp_path, capsys):
+    path = tmp_path / "two.ome.tif"
+    two_series_tiff(path, movie(5), movie(3, shift=2), ome=True)
+    out = tmp_path / "f.csv"
+    assert main(["measure", str(path), "-o", str(out), *CLI_FAST]) == 2
+    line = error_line(capsys)
+    assert "2 image series" in line and "--series" in line
+    assert not out.exists()
+    for series, frames in ((0, 5), (1, 3), (-1, 3)):
+        assert main(["measure", str(path), "-o", str(out), "--series", str(series),
+                     *CLI_FAST]) == 0
+        assert pf.read_table(out)["frame"].tolist() == list(range(frames))
+
+
+def test_a_series_that_does_not_exist_is_refused(tmp_path, capsys):
+    path = tmp_path / "two.ome.tif"
+    two_series_tiff(path, movie(5), movie(3), ome=True)
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), "--series", "2",
+                 *CLI_FAST]) == 2
+    assert "no series 2" in error_line(capsys)
+    with pytest.raises(SystemExit) as stop:  # argparse's own usage error
+        main(["measure", str(path), "-o", str(tmp_path / "f.csv"), "--series", "one",
+              *CLI_FAST])
+    assert stop.value.code == 2
+    assert "--series must be a whole number" in capsys.readouterr().err
+
+
+def test_a_thumbnail_before_the_image_is_not_taken_for_the_movie(tmp_path, capsys):
+    path = tmp_path / "thumb.tif"
+    with tifffile.TiffWriter(path) as tif:
+        tif.write(np.zeros((16, 16, 3), np.uint8), photometric="rgb", subfiletype=1)
+        tif.write(movie(4), photometric="minisblack")
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "--series" in error_line(capsys)
+    assert pf.batch.open_movie(path, series=1).shape == (4, 64, 64)
+
+
+def ome_zarr(path, levels: dict[str, np.ndarray], scales: dict[str, list] | None,
+             axes=("t", "y", "x")) -> None:
+    """An OME-Zarr (v0.4 layout) with the given levels, listed in the given order."""
+    g = zarr.open_group(str(path), mode="w", zarr_format=2)
+    for name, data in levels.items():
+        a = g.create_array(name, shape=data.shape, dtype=data.dtype,
+                           chunks=(1, *data.shape[1:]))
+        a[:] = data
+    datasets = [{"path": name, **({"coordinateTransformations": [
+        {"type": "scale", "scale": scales[name]}]} if scales else {})} for name in levels]
+    g.attrs["multiscales"] = [{"version": "0.4", "datasets": datasets,
+                               "axes": [{"name": a} for a in axes]}]
+
+
+def test_the_ome_zarr_level_is_chosen_by_its_scale_not_its_place(tmp_path):
+    full = movie(3)
+    half = full[:, ::2, ::2]
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"low": half, "high": full}, {"low": [1, 2, 2], "high": [1, 1, 1]})
+    got = pf.batch.open_movie(path)
+    assert got.shape == full.shape
+    np.testing.assert_array_equal(np.asarray(got), full)
+
+
+def test_without_scales_the_largest_ome_zarr_level_is_read(tmp_path):
+    full = movie(3)
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"small": full[:, ::4, ::4], "big": full}, None)
+    assert pf.batch.open_movie(path).shape == full.shape
+
+
+def test_an_ome_zarr_level_that_is_declared_but_absent_is_refused(tmp_path, capsys):
+    import shutil
+
+    full = movie(3)
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"0": full, "1": full[:, ::2, ::2]}, {"0": [1, 1, 1], "1": [1, 2, 2]})
+    shutil.rmtree(path / "0")
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "'0'" in error_line(capsys)
+    assert not (tmp_path / "f.csv").exists()
+
+
+@pytest.mark.parametrize("axes", [("y", "x", "t"), ("t", "x", "y"), ("x", "y")])
+def test_axes_stored_out_of_order_are_refused_not_misread(tmp_path, capsys, axes):
+    data = movie(3) if len(axes) == 3 else movie(1)[0]
+    order = {"t": 0, "y": 1, "x": 2} if len(axes) == 3 else {"y": 0, "x": 1}
+    stored = np.transpose(data, [order[a] for a in axes])
+    path = tmp_path / "m.zarr"
+    arr = zarr.create_array(str(path), shape=stored.shape, dtype=stored.dtype,
+                            chunks=stored.shape, dimension_names=list(axes))
+    arr[:] = stored
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "order" in error_line(capsys)
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_ome_axes_that_do_not_match_the_array_are_refused(tmp_path, capsys):
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"0": movie(3)}, None, axes=("c", "t", "y", "x"))
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "4 axes" in error_line(capsys)
+
+
+def test_two_images_in_one_ome_zarr_group_are_refused(tmp_path, capsys):
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"0": movie(3)}, None)
+    g = zarr.open_group(str(path), mode="r+")
+    ms = g.attrs["multiscales"]
+    g.attrs["multiscales"] = [ms[0], {**ms[0], "name": "other"}]
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "2 OME-Zarr images" in error_line(capsys)
