@@ -369,3 +369,79 @@ def test_two_images_in_one_ome_zarr_group_are_refused(tmp_path, capsys):
     g.attrs["multiscales"] = [ms[0], {**ms[0], "name": "other"}]
     assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
     assert "2 OME-Zarr images" in error_line(capsys)
+
+
+# --------------------------------------------------------------------------------------------
+# 4. numbers that would give NaN: refused before any work
+# --------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """A feature table of 2 frames x 2 objects, with a reporter, and its sidecar."""
+    folder = tmp_path_factory.mktemp("measured")
+    labels = movie(2)
+    labels[:, 5:15, 5:15] = 2
+    image = np.broadcast_to(1.0 + np.arange(64) / 64, labels.shape).astype(np.float32)
+    tifffile.imwrite(folder / "m.tif", labels, photometric="minisblack")
+    tifffile.imwrite(folder / "i.tif", image, photometric="minisblack")
+    out = folder / "f.csv"
+    assert main(["measure", str(folder / "m.tif"), "-i", str(folder / "i.tif"), "-o", str(out),
+                 *CLI_FAST]) == 0
+    return out
+
+
+def _huge(key, value):
+    def damage(options):
+        options[key] = [value] * len(options[key])
+    return damage
+
+
+SIDECAR_DAMAGE = {
+    "weights 1e308": _huge("weights", 1e308),
+    "weights 1e200": _huge("weights", 1e200),
+    "mode_weights 1e308": _huge("mode_weights", 1e308),
+    "surface_weight 1e308": lambda o: o.update(surface_weight=1e308),
+    "intensity_weight 1e308": lambda o: o.update(intensity_weight=1e308),
+    "boundary_weight -1": lambda o: o.update(boundary_weight=-1.0),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SIDECAR_DAMAGE))
+def test_a_sidecar_number_that_would_give_nan_is_refused(tmp_path, measured, capsys, case):
+    import shutil
+
+    table = tmp_path / "f.csv"
+    shutil.copy(measured, table)
+    side = json.loads((measured.parent / "f.csv.json").read_text())
+    SIDECAR_DAMAGE[case](side["options"])
+    (tmp_path / "f.csv.json").write_text(json.dumps(side))
+    for command in ("compare", "trajectories"):
+        out = tmp_path / f"{command}.csv"
+        assert main([command, str(table), "-o", str(out), "-q"]) == 2
+        assert case.split()[0] in error_line(capsys)
+        assert not out.exists()
+
+
+@pytest.mark.parametrize(("flag", "value"), [("--intensity-weight", "1e308"),
+                                             ("--intensity-weight", "-1"),
+                                             ("--intensity-weight", "nan"),
+                                             ("--boundary-weight", "1e300"),
+                                             ("--boundary-weight", "inf")])
+def test_a_distance_weight_that_would_give_nan_is_refused(tmp_path, measured, capsys,
+                                                          flag, value):
+    out = tmp_path / "d.csv"
+    with pytest.raises(SystemExit) as stop:
+        main(["compare", str(measured), "-o", str(out), flag, value, "-q"])
+    assert stop.value.code == 2
+    assert "must be a number from 0 to 1e+12" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_the_distance_functions_refuse_the_same_weights(measured):
+    table = pf.read_table(measured)
+    with pytest.raises(ValueError, match="intensity_weight must be"):
+        pf.distance_matrix(table, intensity_weight=1e308)
+    with pytest.raises(ValueError, match="boundary_weight must be"):
+        pf.distance_matrix(table, boundary_weight=1e308)
+    d = pf.distance_matrix(table, intensity_weight=1e12, boundary_weight=1e12)
+    assert np.isfinite(np.asarray(d, float)).all()  # the largest allowed stay finite

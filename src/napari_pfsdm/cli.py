@@ -948,16 +948,6 @@ A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
 """
 
 
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value >= 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return value
-
-
 def _series_index(text: str) -> int:
     """``--series``: a whole number (negative counts from the last series)."""
     try:
@@ -1100,15 +1090,14 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                         "install \"napari-pfsdm[umap]\"), 'spectral' (fastest, mixes kinds)")
     p.add_argument("--frames", metavar="RANGE",
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
-    p.add_argument("--intensity-weight", type=float, default=0.0, metavar="W",
-                   help="weight of the reporter pattern in the distance (default 0: shape only)")
     from .analysis.rerank import RERANK_METHODS
-    from .core.distances import BOUNDARY_WEIGHT
+    from .core.params import option
 
-    p.add_argument("--boundary-weight", dest="boundary_weight", type=_non_negative,
-                   default=BOUNDARY_WEIGHT, metavar="W",
-                   help=f"weight of the outline (boundary) term (default {BOUNDARY_WEIGHT:g}; "
-                        "0: the pushed-forward SDF alone)")
+    for name in ("intensity_weight", "boundary_weight"):  # ranges: core.params.WEIGHT_OPTIONS
+        opt = option(name)
+        p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
+                       metavar="W", help=f"{opt.help} (default {opt.default:g}; "
+                                         f"{opt.allowed()})")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "

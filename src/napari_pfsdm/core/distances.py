@@ -217,6 +217,7 @@ def distance_matrix(
     if invariance is None:
         invariance = "magnitude"
     boundary_weight = _check_boundary_weight(boundary_weight)
+    intensity_weight = _check_weight("intensity_weight", intensity_weight)
     if invariance not in INVARIANCES:
         raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
@@ -284,14 +285,18 @@ def _no_boundary_in_3d(weight: float | None) -> float:
     return 0.0
 
 
+def _check_weight(name: str, weight: float) -> float:
+    """A weight of the distance checked by its record (``core.params.WEIGHT_OPTIONS``: from 0
+    to ``MAX_WEIGHT``, where every distance stays finite)."""
+    from .params import option
+
+    return float(option(name).check(weight))
+
+
 def _check_boundary_weight(weight: float | None) -> float:
     if weight is None:
         return BOUNDARY_WEIGHT
-    value = float(weight)
-    if not np.isfinite(value) or value < 0:
-        raise InputError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
-                         f"got {weight!r}.")
-    return value
+    return _check_weight("boundary_weight", weight)
 
 
 def outlines_of(items) -> np.ndarray:
