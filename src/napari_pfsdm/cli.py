@@ -110,6 +110,26 @@ def _check_parts(parts: Path) -> None:
             "another folder with --parts")
 
 
+def _with_groups(table, path: str, quiet: bool = False):
+    """The table with its ``group`` column from the groups file at ``path``, and the groups;
+    rows of the file that were left out or match no object are named on stderr (even with
+    ``-q``: they are warnings, not progress)."""
+    import warnings
+
+    from .analysis.reduction import attach_groups, read_groups
+
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", UserWarning)
+        groups = read_groups(path)
+        out = attach_groups(table, groups)
+    for w in said:
+        if issubclass(w.category, UserWarning):
+            _note(f"warning: {path}: {w.message}")
+        else:  # pragma: no cover - not ours: shown as Python shows it
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return out, groups
+
+
 def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
     """Say on stderr how many rows were left out and which (frame, label, reason)."""
     if not len(left):
@@ -418,7 +438,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from .analysis.reduction import attach_groups, distance_table, read_groups
+    from .analysis.reduction import distance_table
     from .analysis.tables import distance_matrix
     from .batch.reports import load_features
     from .core.table_options import carry_options, table_options
@@ -437,7 +457,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
     if args.groups:
-        table = attach_groups(table, read_groups(args.groups))
+        table, _ = _with_groups(table, args.groups, args.quiet)
     channels = ["shape"] + (["intensity"] if args.intensity_weight else [])
     table, left = _measured(table, channels, "objects", args.quiet)
     n = len(table)
@@ -537,7 +557,6 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
 def cmd_trajectories(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .analysis.reduction import attach_groups, read_groups
     from .analysis.shape_space import ShapePCA
     from .batch.reports import load_features, plot_trajectories
     from .core.table_options import table_options
@@ -550,7 +569,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     table = load_features(args.features)
     table = _follow_objects(table, args.link, args.quiet)
     if args.groups:
-        table = attach_groups(table, read_groups(args.groups))
+        table, _ = _with_groups(table, args.groups, args.quiet)
     has_int = has_channel(table.columns, "intensity")
     channels = {"shape": ["shape"], "intensity": ["intensity"],
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
@@ -682,14 +701,14 @@ def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> 
 def cmd_predict(args: argparse.Namespace) -> int:
     from .analysis import classification as clf
     from .analysis.prediction import predict_outcome
-    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_options import table_options
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
-    table = attach_groups(table, read_groups(args.groups))
+    table, _ = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames) if args.frames else None
     if frames is None or len(frames) > 1:
         table = _follow_objects(table, None, args.quiet, command="predict")
@@ -720,7 +739,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .analysis import classification as clf
-    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_schema import has_channel
     from .io_csv import write_table_csv
@@ -728,8 +747,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
-    groups = read_groups(args.groups)
-    table = attach_groups(table, groups)
+    table, groups = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames)
     if not table["frame"].isin(frames).any():
         raise UserError(f"no rows in frames {args.frames}: the table has frames "

@@ -585,6 +585,9 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
     path = Path(path)
     if not path.exists():
         raise InputError(f"cannot read {path}: no such file")
+    if not path.is_file() and not path.is_dir():  # reading a pipe would wait for ever
+        raise InputError(f"cannot read {path}: it is not a file (a pipe or a device?); give "
+                         "the table's file")
     if path.is_file() and is_parquet(path):
         return _read_parquet(path, strict)
     what = _looks_binary(path)

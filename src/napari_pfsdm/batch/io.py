@@ -381,10 +381,20 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
 
 
 def _scale(dataset: dict) -> list[float] | None:
-    """The ``scale`` of an OME-Zarr dataset's coordinate transformations (None: none given)."""
+    """The ``scale`` of an OME-Zarr dataset's coordinate transformations (None: none given);
+    one that is not positive numbers is refused."""
     for t in dataset.get("coordinateTransformations") or ():
-        if isinstance(t, dict) and t.get("type") == "scale" and isinstance(t.get("scale"), list):
-            return [float(v) for v in t["scale"]]
+        if isinstance(t, dict) and t.get("type") == "scale":
+            try:
+                scale = [float(v) for v in t["scale"]]
+            except (KeyError, TypeError, ValueError):
+                scale = []
+            if not scale or not all(np.isfinite(v) and v > 0 for v in scale):
+                raise InputError(
+                    f"the OME-Zarr level {dataset.get('path')!r} has the scale "
+                    f"{t.get('scale')!r}, not positive numbers (one per axis); write the "
+                    "store again")
+            return scale
     return None
 
 
@@ -401,6 +411,9 @@ def _ome_level(path: Path, group: Any, multiscales: list) -> tuple[str, list[str
             f"{path} holds {len(multiscales)} OME-Zarr images ({names}) in one group; pfsdm "
             "reads one movie per store: save each image in a store of its own")
     first = multiscales[0]
+    if not isinstance(first, dict):
+        raise InputError(f"{path}: its OME-Zarr 'multiscales' entry is not a set of named "
+                         "fields; write the store again")
     datasets = first.get("datasets") or []
     axes_meta = first.get("axes")
     axes = ([a["name"] if isinstance(a, dict) else str(a) for a in axes_meta]
@@ -721,6 +734,9 @@ def find_movies(spec: str | os.PathLike | list) -> list[Path]:
         raise InputError(f"{p}: no such file or folder")
     if _is_zarr(p) or p.is_file():
         return [p]
+    if not p.is_dir():
+        raise InputError(f"{p} is not a file or a folder (a pipe or a device?); give a TIFF "
+                         "file, a Zarr store or a folder of them")
     movies = sorted(c for c in p.iterdir() if _is_zarr(c) or _is_tiff(c))
     if not movies:
         raise InputError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
