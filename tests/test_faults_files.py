@@ -17,6 +17,7 @@ import pytest
 import tifffile
 
 import napari_pfsdm as pf
+from napari_pfsdm.batch.io import open_movie
 from napari_pfsdm.cli import main
 
 zarr = pytest.importorskip("zarr")
@@ -249,9 +250,9 @@ def test_a_truncated_tiff_is_refused_never_a_shorter_movie(tmp_path, capsys, kin
     assert "m.tif" in line and "truncated" in line and "again" in line
     assert not out.exists()
     with pytest.raises(ValueError, match="truncated"):
-        pf.batch.open_movie(cut_file)
+        open_movie(cut_file)
     # the whole file is read whole
-    assert pf.batch.open_movie(whole).shape == (10, 64, 64)
+    assert open_movie(whole).shape == (10, 64, 64)
 
 
 def two_series_tiff(path, first, second, **kw) -> None:
@@ -294,7 +295,7 @@ def test_a_thumbnail_before_the_image_is_not_taken_for_the_movie(tmp_path, capsy
         tif.write(movie(4), photometric="minisblack")
     assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
     assert "--series" in error_line(capsys)
-    assert pf.batch.open_movie(path, series=1).shape == (4, 64, 64)
+    assert open_movie(path, series=1).shape == (4, 64, 64)
 
 
 def ome_zarr(path, levels: dict[str, np.ndarray], scales: dict[str, list] | None,
@@ -316,7 +317,7 @@ def test_the_ome_zarr_level_is_chosen_by_its_scale_not_its_place(tmp_path):
     half = full[:, ::2, ::2]
     path = tmp_path / "m.ome.zarr"
     ome_zarr(path, {"low": half, "high": full}, {"low": [1, 2, 2], "high": [1, 1, 1]})
-    got = pf.batch.open_movie(path)
+    got = open_movie(path)
     assert got.shape == full.shape
     np.testing.assert_array_equal(np.asarray(got), full)
 
@@ -325,7 +326,7 @@ def test_without_scales_the_largest_ome_zarr_level_is_read(tmp_path):
     full = movie(3)
     path = tmp_path / "m.ome.zarr"
     ome_zarr(path, {"small": full[:, ::4, ::4], "big": full}, None)
-    assert pf.batch.open_movie(path).shape == full.shape
+    assert open_movie(path).shape == full.shape
 
 
 def test_an_ome_zarr_level_that_is_declared_but_absent_is_refused(tmp_path, capsys):
@@ -445,3 +446,151 @@ def test_the_distance_functions_refuse_the_same_weights(measured):
         pf.distance_matrix(table, boundary_weight=1e308)
     d = pf.distance_matrix(table, intensity_weight=1e12, boundary_weight=1e12)
     assert np.isfinite(np.asarray(d, float)).all()  # the largest allowed stay finite
+
+
+# --------------------------------------------------------------------------------------------
+# 6. the right drawer for every error: a test per door
+# --------------------------------------------------------------------------------------------
+
+def _edited(measured, tmp_path, change) -> str:
+    """A copy of the measured table with ``change`` applied, its sidecar copied beside it."""
+    table = pd.read_csv(measured)
+    change(table)
+    out = tmp_path / "edited.csv"
+    table.to_csv(out, index=False)
+    side = json.loads((measured.parent / "f.csv.json").read_text())
+    side.pop("table_sha256")
+    side.pop("table_bytes")
+    side["csv"] = out.name
+    (tmp_path / "edited.csv.json").write_text(json.dumps(side))
+    return str(out)
+
+
+def _set(col, value, row=0):
+    def change(t):
+        t[col] = t[col].astype(object)
+        t.loc[row, col] = value
+    return change
+
+
+def _first_shape(t):
+    return next(c for c in t.columns if c.startswith("shape_r"))
+
+
+TABLE_CELLS = {
+    "text frame": (_set("frame", "abc"), "'frame'"),
+    "negative frame": (_set("frame", -1), "'frame'"),
+    "fractional frame": (_set("frame", 0.5), "'frame'"),
+    "label 0": (_set("label", 0), "'label'"),
+    "fractional label": (_set("label", 1.5), "'label'"),
+    "text feature": (lambda t: _set(_first_shape(t), "x")(t), "'shape_r00_n00'"),
+    "a repeated object": (lambda t: t.loc.__setitem__((1, "label"), t.loc[0, "label"])
+                          or t.loc.__setitem__((1, "frame"), t.loc[0, "frame"]),
+                          "repeat an object"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TABLE_CELLS))
+@pytest.mark.parametrize("command", ["trajectories", "compare"])
+def test_an_odd_table_cell_is_the_users_mistake_in_plain_words(tmp_path, measured, capsys,
+                                                               case, command):
+    change, words = TABLE_CELLS[case]
+    path = _edited(measured, tmp_path, change)
+    out = tmp_path / "r.csv"
+    assert main([command, path, "-o", str(out), "-q"]) == 2
+    line = error_line(capsys)
+    assert words in line and "row" in line
+    assert not out.exists()
+
+
+def test_the_api_refuses_the_same_cells(tmp_path, measured):
+    path = _edited(measured, tmp_path, _set("frame", "abc"))
+    table = pf.read_table(path)
+    with pytest.raises(ValueError, match="'frame' holds 'abc'"):
+        pf.distance_matrix(pf.drop_failed(table))
+
+
+def test_rows_of_a_groups_file_that_match_nothing_are_named(tmp_path, measured, capsys):
+    groups = tmp_path / "g.csv"
+    groups.write_text("label,group\n1,a\n2,b\n7,b\n9,a\n")
+    assert main(["trajectories", str(measured), "-o", str(tmp_path / "p.csv"),
+                 "--groups", str(groups), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "2 rows of the groups file match no object" in err
+    assert "label 7 -> b" in err and "label 9 -> a" in err
+    assert "label 1 ->" not in err
+
+
+def test_rows_of_a_groups_file_with_an_empty_cell_are_named(tmp_path, measured, capsys):
+    groups = tmp_path / "g.csv"
+    groups.write_text("label,group\n1,a\n2,\n")
+    assert main(["trajectories", str(measured), "-o", str(tmp_path / "p.csv"),
+                 "--groups", str(groups), "-q"]) == 0
+    assert "row 3" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("content", "words"), [(b"", "is empty"),
+                                                (b"label,group\n1,a\n2,b,c,d\n", "not a readable"),
+                                                (b"label,group\n1,\xff\xfe\n", "not a readable")])
+def test_a_groups_file_that_cannot_be_read_is_the_users_mistake(tmp_path, measured, capsys,
+                                                                content, words):
+    groups = tmp_path / "g.csv"
+    groups.write_bytes(content)
+    assert main(["trajectories", str(measured), "-o", str(tmp_path / "p.csv"),
+                 "--groups", str(groups), "-q"]) == 2
+    assert words in error_line(capsys)
+
+
+def test_a_pipe_given_as_a_movie_or_a_table_is_named_as_such(tmp_path, measured, capsys):
+    import os
+
+    fifo = tmp_path / "fifo.tif"
+    os.mkfifo(fifo)
+    assert main(["measure", str(fifo), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    line = error_line(capsys)
+    assert "pipe" in line and "Errno" not in line
+    table = tmp_path / "fifo.csv"
+    os.mkfifo(table)
+    assert main(["trajectories", str(table), "-o", str(tmp_path / "p.csv"), "-q"]) == 2
+    assert "pipe" in error_line(capsys)  # and it did not wait for a writer
+
+
+def test_an_ome_zarr_scale_that_is_not_numbers_is_the_users_mistake(tmp_path, capsys):
+    path = tmp_path / "m.ome.zarr"
+    ome_zarr(path, {"0": movie(3)}, {"0": ["a", 1, 1]})
+    assert main(["measure", str(path), "-o", str(tmp_path / "f.csv"), *CLI_FAST]) == 2
+    assert "scale" in error_line(capsys)
+
+
+def test_a_frame_too_big_for_memory_is_not_called_damaged(tmp_path, monkeypatch):
+    from napari_pfsdm.batch import io
+
+    path = tmp_path / "m.tif"
+    tifffile.imwrite(path, movie(2))
+    arr = open_movie(path)
+    source = arr._pfsdm_source
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError("Unable to allocate 40.0 GiB")
+
+    monkeypatch.setattr(io._TiffFrames, "_open", lambda self: type(
+        "H", (), {"__getitem__": no_memory})())
+    with pytest.raises(ValueError) as info:
+        source[0:1]
+    assert "memory" in str(info.value) and "damaged" not in str(info.value)
+
+
+@pytest.mark.parametrize(("frames", "expected"), [([-1], [2]), ([0, -1], [0, 2]),
+                                                  (-2, [1])])
+def test_negative_frame_indexes_in_the_api_are_the_frames_they_name(frames, expected):
+    got = [o.frame for o in pf.iter_objects(movie(3), frames=frames, **FAST)]
+    assert got == expected
+
+
+@pytest.mark.parametrize(("frames", "words"), [([3], "frame 3 is not in the movie"),
+                                               ([-4], "frame -4 is not in the movie"),
+                                               ([1, -2], "given twice"),
+                                               ([0.5], "whole numbers")])
+def test_frame_indexes_outside_the_movie_are_refused(frames, words):
+    with pytest.raises(ValueError, match=words):
+        list(pf.iter_objects(movie(3), frames=frames, **FAST))
