@@ -609,10 +609,13 @@ def _open_tiff(path: Path, keep_z: bool = False, series: int | None = None) -> _
     # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"): these
     # planes are frames too, of labels and of a reporter (integer or float) alike. A colour
     # image is judged by its last axis (interleaved samples, "yxs"), never by its frames.
+    generic = sum(a in ("q", "i") for a in axes)
     axes = ["t" if a in ("q", "i") else a for a in axes]
     if axes[0] == "s" and "t" not in axes:
         axes[0] = "t"
-    drop = _drop_axes(shape, axes, str(path), keep_z)
+    # several unnamed axes (a plain 4-D stack is "QQYX"): the file names none of them, so the
+    # user's --axes decides (no metadata to obey)
+    drop = _drop_axes(shape, None if generic > 1 else axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _TiffFrames(str(path), index, out_shape, dtype, drop)
     frames.chunks_t = 1
