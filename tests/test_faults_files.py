@@ -594,3 +594,30 @@ def test_negative_frame_indexes_in_the_api_are_the_frames_they_name(frames, expe
 def test_frame_indexes_outside_the_movie_are_refused(frames, words):
     with pytest.raises(ValueError, match=words):
         list(pf.iter_objects(movie(3), frames=frames, **FAST))
+
+
+COUNTS = [("measure", "--workers", "0"), ("measure", "--workers", "-2"),
+          ("measure", "--frames-per-task", "0"), ("measure", "--frames-per-task", "-1"),
+          ("trajectories", "--components", "-1"), ("trajectories", "--components", "0"),
+          ("compare", "--rerank-k", "0"), ("compare", "--max-objects", "-1"),
+          ("classify", "--test-size", "1.5"), ("classify", "--splits", "1")]
+
+
+@pytest.mark.parametrize(("command", "flag", "value"), COUNTS)
+def test_an_odd_count_on_the_command_line_is_refused_in_words(tmp_path, one_movie, measured,
+                                                              capsys, command, flag, value):
+    first = str(one_movie) if command == "measure" else str(measured)
+    extra = ["--groups", str(measured), "--frames", "0"] if command == "classify" else []
+    with pytest.raises(SystemExit) as stop:
+        main([command, first, "-o", str(tmp_path / "r.csv"), flag, value, *extra, "-q"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"{flag} must be" in err and "Traceback" not in err
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_show_beyond_the_components_is_refused(tmp_path, measured, capsys):
+    assert main(["trajectories", str(measured), "-o", str(tmp_path / "p.csv"), "--plot",
+                 str(tmp_path / "p.png"), "--show", "1", "9", "-q"]) == 2
+    assert "--components 3" in error_line(capsys)
+    assert not (tmp_path / "p.png").exists()

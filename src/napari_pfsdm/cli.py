@@ -225,9 +225,10 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                    help="'processes' (default: one process per core of this machine), "
                         "'threads', 'sync' (one at a time, for debugging), or the address of a "
                         "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
-    g.add_argument("--workers", type=int, metavar="N",
+    g.add_argument("--workers", type=_whole("--workers", 1), metavar="N",
                    help="local workers (default: the number of cores)")
-    g.add_argument("--frames-per-task", dest="frames_per_task", type=int, metavar="N",
+    g.add_argument("--frames-per-task", dest="frames_per_task",
+                   type=_whole("--frames-per-task", 1), metavar="N",
                    help="whole frames measured per task (default: tasks planned by objects, "
                         "as the local process pool plans them)")
 
@@ -566,6 +567,10 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.plot:
         _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
+        if max(args.show) > args.components:
+            raise UserError(f"--show {args.show[0]} {args.show[1]} names a component above "
+                            f"--components {args.components}; show components from 1 to "
+                            f"{args.components}, or raise --components")
     table = load_features(args.features)
     table = _follow_objects(table, args.link, args.quiet)
     if args.groups:
@@ -966,6 +971,39 @@ A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
 """
 
 
+def _whole(flag: str, low: int) -> Callable[[str], int]:
+    """argparse's ``type`` of a count: a whole number of at least ``low``, else one line
+    saying so (``--workers 0`` was once taken as the default without a word)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a whole number of at least {low}; got {text!r}")
+        return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _fraction(flag: str) -> Callable[[str], float]:
+    """argparse's ``type`` of a fraction strictly between 0 and 1."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not 0.0 < value < 1.0:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a number strictly between 0 and 1; got {text!r}")
+        return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
 def _series_index(text: str) -> int:
     """``--series``: a whole number (negative counts from the last series)."""
     try:
@@ -1093,7 +1131,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
     p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv",
                    help="the square distance table, or with --neighbours the edge list "
                         "(.parquet: written as Parquet)")
-    p.add_argument("--neighbours", type=int, metavar="K",
+    p.add_argument("--neighbours", type=_whole("--neighbours", 1), metavar="K",
                    help="write each object's K nearest neighbours as an edge list (columns "
                         "row, neighbour, rank, distance and the frame/label keys of both "
                         "ends) instead of the n x n matrix: any number of objects")
@@ -1121,12 +1159,13 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                    help="re-rank the distances (and the map) by the collection's "
                         f"neighbourhoods: {', '.join(RERANK_METHODS)} (default when given: "
                         "diffusion); for large collections, see 'pfsdm compare -h'")
-    p.add_argument("--rerank-k", dest="rerank_k", type=int, default=10, metavar="K",
+    p.add_argument("--rerank-k", dest="rerank_k", type=_whole("--rerank-k", 1), default=10,
+                   metavar="K",
                    help="neighbours per object for --rerank (default 10: about the number "
                         "of objects per kind, at most); with --neighbours the graph holds "
                         "3 K")
     p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
-    p.add_argument("--max-objects", type=int, default=5000, metavar="N",
+    p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
                    help="refuse larger matrices (default 5000; --neighbours has no limit)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
@@ -1159,13 +1198,13 @@ examples:
                    help="CSV with a 'group' column and 'label' and/or 'movie' columns")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
-    p.add_argument("--components", type=int, default=3, metavar="K",
+    p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
                    help="principal components to keep (default 3)")
     p.add_argument("--reference", metavar="REFERENCE.csv",
                    help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
                         "FEATURES.csv is projected into that space; both must be measured "
                         "with the same options")
-    p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
+    p.add_argument("--show", type=_whole("--show", 1), nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
     p.add_argument("--link", choices=("centroid", "laptrack", "none"),
                    help="link untracked labels from the table's centroids first "
@@ -1195,9 +1234,11 @@ example:
                    help="frames whose features are used, e.g. 0-10 or 0,5,10")
     p.add_argument("--positive", metavar="GROUP",
                    help="the group to detect (default: the second name alphabetically)")
-    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
-    p.add_argument("--test-size", type=float, default=0.2, help="test fraction (default 0.2)")
-    p.add_argument("--repeats", type=int, default=3, help="repeats (default 3)")
+    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+                   help="splits per repeat (default 5)")
+    p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
+                   help="test fraction (default 0.2)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1), default=3, help="repeats (default 3)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
     _add_force(p)
@@ -1224,8 +1265,9 @@ example:
                         "'movie' columns; objects without a group are predicted only")
     p.add_argument("--frames", metavar="RANGE",
                    help="frames whose features are used, e.g. 0-5 (default: all)")
-    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=int, default=2, help="repeats (default 2)")
+    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+                   help="splits per repeat (default 5)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
     _add_force(p)
