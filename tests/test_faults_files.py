@@ -621,3 +621,22 @@ def test_show_beyond_the_components_is_refused(tmp_path, measured, capsys):
                  str(tmp_path / "p.png"), "--show", "1", "9", "-q"]) == 2
     assert "--components 3" in error_line(capsys)
     assert not (tmp_path / "p.png").exists()
+
+
+@pytest.fixture()
+def one_stack(tmp_path):
+    z, y, x = np.mgrid[:20, :32, :32]
+    mask = (((z - 10) / 7) ** 2 + ((y - 16) / 10) ** 2 + ((x - 16) / 8) ** 2 < 1)
+    path = tmp_path / "s.tif"
+    tifffile.imwrite(path, mask.astype(np.uint8), photometric="minisblack")
+    return path
+
+
+@pytest.mark.parametrize("spacing", [["1e308", "1", "1"], ["1e-300", "1", "1"],
+                                     ["1", "1", "1000"]])
+def test_a_voxel_size_that_would_overflow_is_refused(tmp_path, one_stack, capsys, spacing):
+    out = tmp_path / "s.csv"
+    assert main(["measure", str(one_stack), "--axes", "zyx", "--spacing", *spacing, "-o",
+                 str(out), "-q", "--link", "none", "--scheduler", "sync"]) == 2
+    assert "spacing must be numbers from" in error_line(capsys)
+    assert not out.exists()

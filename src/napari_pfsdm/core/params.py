@@ -619,3 +619,6 @@ def _check_record(record: Mapping[str, Any]) -> None:
         if sp.size != 3 or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise InputError(f"spacing must be 3 positive numbers (Z, Y, X); got "
                              f"{_shown(spacing)}.")
+        from .volume_sdf import check_spacing  # its range: one rule for every door
+
+        check_spacing(sp, 3)
