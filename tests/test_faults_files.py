@@ -640,3 +640,16 @@ def test_a_voxel_size_that_would_overflow_is_refused(tmp_path, one_stack, capsys
                  str(out), "-q", "--link", "none", "--scheduler", "sync"]) == 2
     assert "spacing must be numbers from" in error_line(capsys)
     assert not out.exists()
+
+
+def test_a_users_temporary_file_in_the_parts_folder_is_kept(tmp_path, one_movie):
+    parts = tmp_path / "mine"
+    parts.mkdir()
+    theirs = [parts / ".notes.csv.tmp", parts / ".draft.json.tmp", parts / ".a.parquet.tmp"]
+    for f in theirs:
+        f.write_text("mine")
+    ours = parts / ".m-0123456789.parquet.x1y2z3w4.tmp"
+    ours.write_text("half")
+    assert main(["measure", str(one_movie), "-o", str(tmp_path / "o.csv"), "--parts",
+                 str(parts), *CLI_FAST]) == 0
+    assert all(f.read_text() == "mine" for f in theirs) and not ours.exists()

@@ -791,8 +791,11 @@ def _refuse_collisions(movies: Sequence[Movie]) -> None:
 
 
 #: Temporary files a killed run may leave in a parts folder: those of
-#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions.
-_PART_TEMP = re.compile(r"\..+\.(?:parquet|csv|json)(?:\.[a-z0-9_]{8})?\.tmp")
+#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions, for a
+#: part's name only (``movie-0123456789.parquet``, :func:`_part_name`): a user's own file in a
+#: folder given as ``--parts`` is never removed.
+_PART_TEMP = re.compile(
+    r"\..+-[0-9a-f]{10}\.(?:parquet|csv)(?:\.json)?(?:\.[a-z0-9_]{8})?\.tmp")
 
 
 def _remove_part_leftovers(parts: Path) -> None:
