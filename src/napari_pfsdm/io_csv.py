@@ -301,7 +301,7 @@ def escape_formulas(df: pd.DataFrame) -> pd.DataFrame:
     >>> escape_formulas(pd.DataFrame({"movie": ["=1+1", "e1"], "x": [-1.5, 2.0]})).values.tolist()
     [["'=1+1", -1.5], ['e1', 2.0]]
     """
-    out = df.copy()
+    out = df.copy(deep=False)  # the numbers are not copied: only text columns change
     for col in out.columns:
         if _text_like(out[col]):
             out[col] = out[col].map(_escape_cell)

@@ -25,6 +25,7 @@ import glob
 import logging
 import os
 import re
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -561,6 +562,17 @@ def _tiff_damage(path: Path, tif: Any, series: Any, log: list[str]) -> str | Non
 
 
 def _open_tiff(path: Path, keep_z: bool = False, series: int | None = None) -> _TiffFrames:
+    """A TIFF's series as frames, after checking that the file holds what it declares
+    (:func:`_tiff_damage`) and that the series to read is known."""
+    with _TIFF_LOG_LOCK:  # the logger is shared: one opening at a time changes it
+        return _open_tiff_logged(path, keep_z, series)
+
+
+#: Held while :func:`_open_tiff` listens to tifffile's logger.
+_TIFF_LOG_LOCK = threading.Lock()
+
+
+def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFrames:
     import tifffile
 
     handler = _TiffLog()

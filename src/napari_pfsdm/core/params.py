@@ -29,7 +29,6 @@ import numpy as np
 
 from ..errors import InputError
 from .choices import BALL_MAPS, DEFAULT_MIN_AREA, MAPPINGS, SDF_KINDS
-from .distances import BOUNDARY_WEIGHT
 from .morphometric import (
     NORMALIZATIONS,
     RADII_PLACEMENTS,
@@ -316,7 +315,8 @@ WEIGHT_OPTIONS: tuple[Option, ...] = (
     Option("intensity_weight", float, 0.0,
            "weight of the reporter pattern in the distance (0: shape only)",
            low=0.0, high=MAX_WEIGHT),
-    Option("boundary_weight", float, BOUNDARY_WEIGHT,
+    # λ = 1: why, at core.distances.BOUNDARY_WEIGHT (which reads it here)
+    Option("boundary_weight", float, 1.0,
            "weight of the outline (boundary) term in the distance (0: the pushed-forward SDF "
            "alone)",
            low=0.0, high=MAX_WEIGHT),
