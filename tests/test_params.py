@@ -264,11 +264,13 @@ def _text_weights(o):
 
 
 @pytest.mark.parametrize("damage, words", [
-    (_nan_weight, "weights must be 16 numbers of at least 0, one per ring (not all 0); got "),
+    (_nan_weight, "weights must be 16 numbers of at least 0 and at most 1e+12, one per ring "
+                  "(not all 0); got "),
     (_inf_weight, "weights must be 16 numbers of at least 0"),
     (_negative_weight, "weights must be 16 numbers of at least 0"),
     (_four_weights, "weights has 4 numbers but the table has 16 rings"),
-    (_nan_mode_weight, "mode_weights must be 11 numbers of at least 0, one per Fourier index"),
+    (_nan_mode_weight, "mode_weights must be 11 numbers of at least 0 and at most 1e+12, one "
+                       "per Fourier index"),
     (_three_mode_weights, "mode_weights has 3 numbers but the table has 11 Fourier indices"),
     (_huge_n_fourier, option("n_fourier").message(10**12)),
     (_text_n_fourier, option("n_fourier").message("ten")),

@@ -93,12 +93,41 @@ def _check_output(
     for q in inputs:
         if Path(q).exists() and p.exists() and os.path.samefile(p, q):
             raise UserError(f"the {what} {p} is also an input; choose another output name")
-    check_overwrite(p, force=force, what=what)
+    check_overwrite(p, force=force, what=what, table=what != "plot")
     if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
         from .io_csv import _pyarrow
 
         _pyarrow(p, "writing")
     return p
+
+
+def _check_parts(parts: Path) -> None:
+    """Refuse a parts folder name that is taken by something other than a folder."""
+    if (parts.exists() or parts.is_symlink()) and not parts.is_dir():
+        raise UserError(
+            f"{parts} already exists and is not a folder, but pfsdm keeps the finished movies' "
+            "parts in a folder of that name; nothing was changed. Move that file, or give "
+            "another folder with --parts")
+
+
+def _with_groups(table, path: str, quiet: bool = False):
+    """The table with its ``group`` column from the groups file at ``path``, and the groups;
+    rows of the file that were left out or match no object are named on stderr (even with
+    ``-q``: they are warnings, not progress)."""
+    import warnings
+
+    from .analysis.reduction import attach_groups, read_groups
+
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", UserWarning)
+        groups = read_groups(path)
+        out = attach_groups(table, groups)
+    for w in said:
+        if issubclass(w.category, UserWarning):
+            _note(f"warning: {path}: {w.message}")
+        else:  # pragma: no cover - not ours: shown as Python shows it
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return out, groups
 
 
 def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
@@ -196,9 +225,10 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                    help="'processes' (default: one process per core of this machine), "
                         "'threads', 'sync' (one at a time, for debugging), or the address of a "
                         "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
-    g.add_argument("--workers", type=int, metavar="N",
+    g.add_argument("--workers", type=_whole("--workers", 1), metavar="N",
                    help="local workers (default: the number of cores)")
-    g.add_argument("--frames-per-task", dest="frames_per_task", type=int, metavar="N",
+    g.add_argument("--frames-per-task", dest="frames_per_task",
+                   type=_whole("--frames-per-task", 1), metavar="N",
                    help="whole frames measured per task (default: tasks planned by objects, "
                         "as the local process pool plans them)")
 
@@ -238,6 +268,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     intensity = find_movies(args.intensity) if args.intensity else None
     out = _check_output(args.output, force=args.force,
                         inputs=[*labels, *(intensity or [])])
+    _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
     movies = pair_movies(labels, intensity)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
     t0 = time.perf_counter()
@@ -254,6 +285,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         axes=args.axes,
         spacing=args.spacing,
         allow_missing_chunks=args.allow_missing_chunks,
+        series=args.series,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -407,7 +439,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
-    from .analysis.reduction import attach_groups, distance_table, read_groups
+    from .analysis.reduction import distance_table
     from .analysis.tables import distance_matrix
     from .batch.reports import load_features
     from .core.table_options import carry_options, table_options
@@ -426,7 +458,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
     if args.groups:
-        table = attach_groups(table, read_groups(args.groups))
+        table, _ = _with_groups(table, args.groups, args.quiet)
     channels = ["shape"] + (["intensity"] if args.intensity_weight else [])
     table, left = _measured(table, channels, "objects", args.quiet)
     n = len(table)
@@ -526,7 +558,6 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
 def cmd_trajectories(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .analysis.reduction import attach_groups, read_groups
     from .analysis.shape_space import ShapePCA
     from .batch.reports import load_features, plot_trajectories
     from .core.table_options import table_options
@@ -536,10 +567,14 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.plot:
         _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
+        if max(args.show) > args.components:
+            raise UserError(f"--show {args.show[0]} {args.show[1]} names a component above "
+                            f"--components {args.components}; show components from 1 to "
+                            f"{args.components}, or raise --components")
     table = load_features(args.features)
     table = _follow_objects(table, args.link, args.quiet)
     if args.groups:
-        table = attach_groups(table, read_groups(args.groups))
+        table, _ = _with_groups(table, args.groups, args.quiet)
     has_int = has_channel(table.columns, "intensity")
     channels = {"shape": ["shape"], "intensity": ["intensity"],
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
@@ -671,14 +706,14 @@ def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> 
 def cmd_predict(args: argparse.Namespace) -> int:
     from .analysis import classification as clf
     from .analysis.prediction import predict_outcome
-    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_options import table_options
     from .io_csv import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
-    table = attach_groups(table, read_groups(args.groups))
+    table, _ = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames) if args.frames else None
     if frames is None or len(frames) > 1:
         table = _follow_objects(table, None, args.quiet, command="predict")
@@ -709,7 +744,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .analysis import classification as clf
-    from .analysis.reduction import attach_groups, object_ids, read_groups
+    from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_schema import has_channel
     from .io_csv import write_table_csv
@@ -717,8 +752,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
-    groups = read_groups(args.groups)
-    table = attach_groups(table, groups)
+    table, groups = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames)
     if not table["frame"].isin(frames).any():
         raise UserError(f"no rows in frames {args.frames}: the table has frames "
@@ -937,14 +971,46 @@ A groups.csv has a 'group' column and 'label' and/or 'movie' columns, e.g.
 """
 
 
-def _non_negative(text: str) -> float:
+def _whole(flag: str, low: int) -> Callable[[str], int]:
+    """argparse's ``type`` of a count: a whole number of at least ``low``, else one line
+    saying so (``--workers 0`` was once taken as the default without a word)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a whole number of at least {low}; got {text!r}")
+        return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _fraction(flag: str) -> Callable[[str], float]:
+    """argparse's ``type`` of a fraction strictly between 0 and 1."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not 0.0 < value < 1.0:
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a number strictly between 0 and 1; got {text!r}")
+        return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _series_index(text: str) -> int:
+    """``--series``: a whole number (negative counts from the last series)."""
     try:
-        value = float(text)
+        return int(text)
     except ValueError:
-        value = float("nan")
-    if not value >= 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return value
+        raise argparse.ArgumentTypeError(
+            f"--series must be a whole number (0 = the first series); got {text!r}") from None
 
 
 def _add_force(p: argparse.ArgumentParser) -> None:
@@ -1009,6 +1075,10 @@ examples:
                         "the missing ones as the fill value (empty), with a warning per frame "
                         "(default: an error, as a store that lost files in a copy looks "
                         "just the same)")
+    p.add_argument("--series", type=_series_index, metavar="N",
+                   help="the image series to read from TIFF files that hold several (OME-TIFF "
+                        "positions, a thumbnail beside the image; 0 = the first); such a file "
+                        "is refused without it")
     _add_force(p)
     p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
                    default="auto",
@@ -1061,7 +1131,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
     p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv",
                    help="the square distance table, or with --neighbours the edge list "
                         "(.parquet: written as Parquet)")
-    p.add_argument("--neighbours", type=int, metavar="K",
+    p.add_argument("--neighbours", type=_whole("--neighbours", 1), metavar="K",
                    help="write each object's K nearest neighbours as an edge list (columns "
                         "row, neighbour, rank, distance and the frame/label keys of both "
                         "ends) instead of the n x n matrix: any number of objects")
@@ -1076,26 +1146,26 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                         "install \"napari-pfsdm[umap]\"), 'spectral' (fastest, mixes kinds)")
     p.add_argument("--frames", metavar="RANGE",
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
-    p.add_argument("--intensity-weight", type=float, default=0.0, metavar="W",
-                   help="weight of the reporter pattern in the distance (default 0: shape only)")
     from .analysis.rerank import RERANK_METHODS
-    from .core.distances import BOUNDARY_WEIGHT
+    from .core.params import option
 
-    p.add_argument("--boundary-weight", dest="boundary_weight", type=_non_negative,
-                   default=BOUNDARY_WEIGHT, metavar="W",
-                   help=f"weight of the outline (boundary) term (default {BOUNDARY_WEIGHT:g}; "
-                        "0: the pushed-forward SDF alone)")
+    for name in ("intensity_weight", "boundary_weight"):  # ranges: core.params.WEIGHT_OPTIONS
+        opt = option(name)
+        p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
+                       metavar="W", help=f"{opt.help} (default {opt.default:g}; "
+                                         f"{opt.allowed()})")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "
                         f"neighbourhoods: {', '.join(RERANK_METHODS)} (default when given: "
                         "diffusion); for large collections, see 'pfsdm compare -h'")
-    p.add_argument("--rerank-k", dest="rerank_k", type=int, default=10, metavar="K",
+    p.add_argument("--rerank-k", dest="rerank_k", type=_whole("--rerank-k", 1), default=10,
+                   metavar="K",
                    help="neighbours per object for --rerank (default 10: about the number "
                         "of objects per kind, at most); with --neighbours the graph holds "
                         "3 K")
     p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
-    p.add_argument("--max-objects", type=int, default=5000, metavar="N",
+    p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
                    help="refuse larger matrices (default 5000; --neighbours has no limit)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
@@ -1128,13 +1198,13 @@ examples:
                    help="CSV with a 'group' column and 'label' and/or 'movie' columns")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
-    p.add_argument("--components", type=int, default=3, metavar="K",
+    p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
                    help="principal components to keep (default 3)")
     p.add_argument("--reference", metavar="REFERENCE.csv",
                    help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
                         "FEATURES.csv is projected into that space; both must be measured "
                         "with the same options")
-    p.add_argument("--show", type=int, nargs=2, default=(1, 2), metavar=("X", "Y"),
+    p.add_argument("--show", type=_whole("--show", 1), nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
     p.add_argument("--link", choices=("centroid", "laptrack", "none"),
                    help="link untracked labels from the table's centroids first "
@@ -1164,9 +1234,11 @@ example:
                    help="frames whose features are used, e.g. 0-10 or 0,5,10")
     p.add_argument("--positive", metavar="GROUP",
                    help="the group to detect (default: the second name alphabetically)")
-    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
-    p.add_argument("--test-size", type=float, default=0.2, help="test fraction (default 0.2)")
-    p.add_argument("--repeats", type=int, default=3, help="repeats (default 3)")
+    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+                   help="splits per repeat (default 5)")
+    p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
+                   help="test fraction (default 0.2)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1), default=3, help="repeats (default 3)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
     _add_force(p)
@@ -1193,8 +1265,9 @@ example:
                         "'movie' columns; objects without a group are predicted only")
     p.add_argument("--frames", metavar="RANGE",
                    help="frames whose features are used, e.g. 0-5 (default: all)")
-    p.add_argument("--splits", type=int, default=5, help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=int, default=2, help="repeats (default 2)")
+    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+                   help="splits per repeat (default 5)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
     _add_force(p)

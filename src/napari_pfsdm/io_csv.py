@@ -14,6 +14,12 @@ in plain words before the table is read). A copy of the table re-saved by pandas
 with it. Tables of older versions, which carried the options in a first ``# pfsdm: {json}``
 comment line, still read.
 
+Text cells a spreadsheet would run as a formula (starting with ``= + - @``, a tab or a
+carriage return: a movie or group named ``=cmd|...``) are written with a single quote in
+front, so that Excel or LibreOffice show them as text; numbers, negative ones included, are
+left alone. The sidecar says so (``"text_escape": "'"``) and :func:`read_table_csv` removes
+exactly that quote again: names read back as they were.
+
 A name ending in ``.parquet`` is written (and read) as Apache Parquet instead, with the same
 sidecar (``features.parquet.json``): the columns and their dtypes come back exactly as written,
 and reading or writing 50,000 rows x 350 columns takes a fraction of a second where CSV takes
@@ -39,6 +45,7 @@ reads as it is. :func:`output_lock` lets one run at a time write an output, and
 from __future__ import annotations
 
 import contextlib
+import csv
 import hashlib
 import io
 import json
@@ -68,11 +75,15 @@ __all__ = [
     "atomic_write",
     "check_overwrite",
     "is_parquet",
+    "lock_path",
+    "output_files",
     "output_lock",
     "read_options",
     "read_sidecar",
     "read_table_csv",
     "remove_leftovers",
+    "escape_formulas",
+    "unescape_formulas",
     "sidecar_path",
     "write_table_csv",
     "written_by_pfsdm",
@@ -240,6 +251,79 @@ def save_figure(fig: Any, path: str | os.PathLike, **kwargs: Any) -> Path:
     )
 
 
+#: A text cell that a spreadsheet would run as a formula starts with one of these (OWASP's
+#: "CSV injection"); such a cell is written with a single quote in front, which a spreadsheet
+#: shows as text and :func:`read_table_csv` removes again.
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+#: A cell written with the quote: the quote(s), then a formula's first character. A name that
+#: already starts with quotes before such a character gets one more, so that reading back
+#: removes exactly the one that writing added.
+_ESCAPED = re.compile(r"'+[=+\-@\t\r]")
+_TO_ESCAPE = re.compile(r"'*[=+\-@\t\r]")
+#: The sidecar's entry saying that text cells were written escaped (its value: the prefix).
+ESCAPE_KEY = "text_escape"
+
+
+def _escape_cell(value: Any) -> Any:
+    if isinstance(value, str) and _TO_ESCAPE.match(value):
+        return "'" + value
+    return value
+
+
+def _unescape_cell(value: Any) -> Any:
+    if isinstance(value, str) and _ESCAPED.match(value):
+        return value[1:]
+    return value
+
+
+def _text_like(values: pd.Index | pd.Series) -> bool:
+    return values.dtype == object or pd.api.types.is_string_dtype(values.dtype)
+
+
+def _has_carriage_return(df: pd.DataFrame) -> bool:
+    """Whether a text cell, column name or index label of ``df`` holds a carriage return."""
+    names = [*df.columns, *(df.index if _text_like(df.index) else [])]
+    if any(isinstance(v, str) and "\r" in v for v in names):
+        return True
+    return any(df[c].map(lambda v: isinstance(v, str) and "\r" in v).any()
+               for c in df.columns if _text_like(df[c]))
+
+
+def escape_formulas(df: pd.DataFrame) -> pd.DataFrame:
+    """A copy of ``df`` whose text cells (and text column names and index labels) that a
+    spreadsheet would run as a formula (starting with ``= + - @``, a tab or a carriage
+    return) start with a single quote instead; numbers, negative ones included, are left as
+    they are. :func:`unescape_formulas` undoes it exactly.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> escape_formulas(pd.DataFrame({"movie": ["=1+1", "e1"], "x": [-1.5, 2.0]})).values.tolist()
+    [["'=1+1", -1.5], ['e1', 2.0]]
+    """
+    out = df.copy(deep=False)  # the numbers are not copied: only text columns change
+    for col in out.columns:
+        if _text_like(out[col]):
+            out[col] = out[col].map(_escape_cell)
+    out.columns = pd.Index([_escape_cell(c) for c in out.columns], name=out.columns.name)
+    if _text_like(out.index) and not isinstance(out.index, pd.MultiIndex):
+        out.index = pd.Index([_escape_cell(v) for v in out.index], name=out.index.name)
+    return out
+
+
+def unescape_formulas(df: pd.DataFrame) -> pd.DataFrame:
+    """Undo :func:`escape_formulas` (in place; returns ``df``): one leading quote removed from
+    text cells, column names and index labels that start with quotes and then ``= + - @``,
+    a tab or a carriage return."""
+    for col in df.columns:
+        if _text_like(df[col]):
+            df[col] = df[col].map(_unescape_cell)
+    df.columns = pd.Index([_unescape_cell(c) for c in df.columns], name=df.columns.name)
+    if _text_like(df.index) and not isinstance(df.index, pd.MultiIndex):
+        df.index = pd.Index([_unescape_cell(v) for v in df.index], name=df.index.name)
+    return df
+
+
 #: Cells pandas formats per chunk when writing a CSV. Each chunk holds Python's lock from
 #: start to end: at pandas' default (100,000 cells) a worker thread writing a 3,000 × 3,001
 #: distance table froze the GUI thread for up to 164 ms per chunk; at 15,000 for 33 ms, in the
@@ -317,10 +401,16 @@ def write_table_csv(
 
         tmp = _write_temp(path, fill, binary=True)
     else:
+        # text a spreadsheet would run as a formula is written so that it is not run
+        out = escape_formulas(out)
+        side[ESCAPE_KEY] = "'"
+        # Python's csv writer quotes a cell holding "\n" (the line end) but not a lone "\r",
+        # which every reader takes for a line end: such a table has every text cell quoted
+        quoting = csv.QUOTE_NONNUMERIC if _has_carriage_return(out) else csv.QUOTE_MINIMAL
         # the table first into a temporary file: if that fails, neither file has changed
         rows = max(1, CSV_CHUNK_CELLS // max(1, out.shape[1]))
         tmp = _write_temp(path, lambda h: out.to_csv(h, index=index, lineterminator="\n",
-                                                     chunksize=rows))
+                                                     chunksize=rows, quoting=quoting))
     try:
         side["table_bytes"], side["table_sha256"] = _size_and_digest(tmp)
         text = json.dumps(side, indent=1) + "\n"
@@ -495,6 +585,9 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
     path = Path(path)
     if not path.exists():
         raise InputError(f"cannot read {path}: no such file")
+    if not path.is_file() and not path.is_dir():  # reading a pipe would wait for ever
+        raise InputError(f"cannot read {path}: it is not a file (a pipe or a device?); give "
+                         "the table's file")
     if path.is_file() and is_parquet(path):
         return _read_parquet(path, strict)
     what = _looks_binary(path)
@@ -537,6 +630,8 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
         tracks = df[TRACK_COLUMN].fillna(NO_TRACK)
         if np.array_equal(tracks, np.round(tracks)):
             df[TRACK_COLUMN] = tracks.astype(np.int64)
+    if side is not None and side.get(ESCAPE_KEY) == "'":
+        unescape_formulas(df)  # what writing added, exactly
     if side_options is not None:
         set_options(df, side_options)
     return df
@@ -577,21 +672,83 @@ def written_by_pfsdm(path: str | os.PathLike) -> bool:
     return head[:8] == b"\x89PNG\r\n\x1a\n" and PNG_SOFTWARE.encode() in head
 
 
-def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str = "output") -> None:
+def _is_pfsdm_sidecar(path: Path) -> bool:
+    """Whether ``path`` is a sidecar napari-pfsdm wrote (JSON naming napari-pfsdm)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    return isinstance(data, dict) and str(data.get("written_by", "")).startswith("napari-pfsdm")
+
+
+#: What :func:`output_lock` writes into a lock file: "pid host 2026-12-06T14:00:00" (a
+#: process number, then one line), or nothing (a run killed before it wrote).
+_LOCK_TEXT = re.compile(r"(\d+ [^\n]*\n?)?")
+
+
+def lock_path(path: str | os.PathLike) -> Path:
+    """The lock file of an output (:func:`output_lock`): ``.features.csv.lock`` beside it."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+def _is_pfsdm_lock(path: Path) -> bool:
+    """Whether ``path`` is a lock file as :func:`output_lock` writes it (or an empty one)."""
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(300)
+    except OSError:
+        return False
+    return _LOCK_TEXT.fullmatch(head.decode("utf-8", "replace")) is not None
+
+
+def output_files(path: str | os.PathLike, *, table: bool = True) -> list[Path]:
+    """Every file a run writing ``path`` makes beside it: the file itself and, for a table,
+    its sidecar (``.json``) and its lock (``.name.lock``)."""
+    path = Path(path)
+    return [path, sidecar_path(path), lock_path(path)] if table else [path]
+
+
+def check_overwrite(path: str | os.PathLike, *, force: bool = False, what: str = "output",
+                    table: bool = True) -> None:
     """Refuse to replace an existing file that this program did not write.
+
+    Checked are the output itself and, for a table (``table=True``), the files written beside
+    it: its sidecar ``path + ".json"`` (a JSON file not written by napari-pfsdm, or any other
+    file, under that name is the user's) and its lock ``.name.lock``.
 
     Raises
     ------
-    ValueError
-        ``path`` exists, is not a table or plot written by napari-pfsdm, and ``force`` is False.
+    InputError
+        One of these exists, was not written by napari-pfsdm, and ``force`` is False.
     """
     path = Path(path)
-    if force or not path.exists() or path.is_dir() or written_by_pfsdm(path):
+    if force:
         return
-    raise InputError(
-        f"the {what} {path} already exists and was not written by pfsdm (an input image?); "
-        "nothing was changed. Choose another name, or add --force to replace it"
-    )
+    if path.exists() and not path.is_dir() and not written_by_pfsdm(path):
+        raise InputError(
+            f"the {what} {path} already exists and was not written by pfsdm (an input "
+            "image?); nothing was changed. Choose another name, or add --force to replace it"
+        )
+    if not table:
+        return
+    side = sidecar_path(path)
+    if (side.exists() or side.is_symlink()) and not (side.is_file()
+                                                     and _is_pfsdm_sidecar(side)):
+        raise InputError(
+            f"{side} already exists and was not written by pfsdm, but pfsdm writes the "
+            f"options of the {what} {path} under that name; nothing was changed. Move that "
+            "file, choose another output name, or add --force to replace it"
+        )
+    lock = lock_path(path)
+    if (lock.exists() or lock.is_symlink()) and not _is_pfsdm_lock(lock):
+        raise InputError(
+            f"{lock} already exists and is not a lock file of pfsdm, but pfsdm locks the "
+            f"{what} {path} under that name; nothing was changed. Move that file, choose "
+            "another output name, or add --force to replace it"
+        )
 
 
 #: A temporary file of :func:`atomic_write` for ``name``: ``.name.XXXXXXXX.tmp`` (the eight
@@ -658,7 +815,7 @@ def output_lock(path: str | os.PathLike) -> Iterator[Path]:
     True
     """
     path = Path(path)
-    lock = path.with_name(f".{path.name}.lock")
+    lock = lock_path(path)
     try:
         import fcntl
     except ImportError:  # pragma: no cover - Windows: a lock file created exclusively

@@ -363,7 +363,10 @@ def iter_objects(
     spacing : 3 floats, optional
         Voxel size along Z, Y, X of 3-D objects (default 1, 1, 1); 2-D frames take none.
     frames : iterable of int, optional
-        Frames to process (default all).
+        Frames to process (default all). A negative index counts from the end as in Python
+        (``-1``: the last frame) and is reported as the frame it is (``n_frames - 1``); a
+        frame outside the movie, one given twice, or one that is not a whole number is
+        refused (``InputError``).
     params : PFSDMParams, optional
         The method's options as one record (or give them as keywords).
     **options
@@ -386,11 +389,41 @@ def iter_objects(
     opts = _pfsdm_options(p)
     if voxel is not None:
         opts["spacing"] = voxel
+    frames = None if frames is None else check_frames(frames, n_frames if timelapse else 1)
     with _one_blas_thread():
         yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, opts)
 
 
 iter_objects.__signature__ = with_option_keywords(iter_objects)  # type: ignore[attr-defined]
+
+
+def check_frames(frames: Any, n_frames: int) -> list[int]:
+    """Frame indices given to the API as the frames they are: whole numbers, negative ones
+    counted from the end (``-1`` is ``n_frames - 1``), each once, inside the movie.
+
+    Examples
+    --------
+    >>> check_frames([0, -1], 5)
+    [0, 4]
+    """
+    if isinstance(frames, int | np.integer):
+        frames = [frames]
+    out: list[int] = []
+    for f in np.asarray(list(frames), dtype=object).ravel():
+        if isinstance(f, bool | np.bool_) or not isinstance(f, int | np.integer):
+            if not (isinstance(f, float | np.floating) and float(f).is_integer()):
+                raise InputError(f"frames must be whole numbers (frame indices); got {f!r}.")
+        t = int(f)
+        if not -n_frames <= t < n_frames:
+            raise InputError(f"frame {t} is not in the movie: it has {n_frames} frame"
+                             f"{'s' if n_frames != 1 else ''} (0 to {n_frames - 1}, or -1 for "
+                             "the last).")
+        t %= n_frames
+        if t in out:
+            raise InputError(f"frame {t} is given twice in frames (its objects would be "
+                             "counted twice); give each frame once.")
+        out.append(t)
+    return out
 
 
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):

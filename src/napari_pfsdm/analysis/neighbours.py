@@ -50,11 +50,7 @@ def neighbour_index(items, intensity_weight: float = 0.0,
             items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
             boundary_weight = _dist._no_boundary_in_3d(boundary_weight)
     lam = _dist._check_boundary_weight(boundary_weight)
-    w_i = float(intensity_weight)
-    if not np.isfinite(w_i) or w_i < 0:
-        from ..errors import InputError
-
-        raise InputError(f"intensity_weight must be a number >= 0, got {intensity_weight!r}")
+    w_i = _dist._check_weight("intensity_weight", intensity_weight)
     if not isinstance(items, Embeddings) and not items:
         return NeighbourIndex.build(np.zeros((0, 1)), None, 0.0)
     feats = _dist._magnitude_features(*_dist._channel_arrays(items, "shape"))

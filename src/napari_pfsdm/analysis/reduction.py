@@ -10,6 +10,7 @@ scikit-learn; the classical MDS is an eigendecomposition in plain numpy.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -309,8 +310,17 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
     """
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: no such groups file")
-    groups = pd.read_csv(p, dtype=str, comment="#")
+        raise InputError(f"{p}: no such groups file" if not p.exists() else
+                         f"{p} is not a file (a folder or a pipe?); give a groups CSV file")
+    try:
+        groups = pd.read_csv(p, dtype=str, comment="#", keep_default_na=False)
+    except pd.errors.EmptyDataError:
+        raise InputError(f"the groups file {p} is empty; write a header such as label,group "
+                         "and one row per object") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"the groups file {p} is not a readable CSV table ({first}); save it "
+                         "as CSV (UTF-8) with a header such as label,group") from None
     groups.columns = [str(c).strip().lower() for c in groups.columns]
     keys = [k for k in KEY_COLUMNS if k in groups.columns]
     if "group" not in groups.columns or not keys:
@@ -318,7 +328,15 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
             f"{p} must have a 'group' column and a 'label', 'track_id' and/or 'movie' column "
             f"(it has {list(groups.columns)}), e.g. label,group then 3,multi-axes"
         )
-    groups = groups[keys + ["group"]].dropna()
+    groups = groups[keys + ["group"]]
+    blank = groups.apply(lambda col: col.str.strip() == "").any(axis=1)
+    if blank.any():
+        rows = [str(i + 2) for i in np.flatnonzero(blank.to_numpy())]  # +2: header, from 1
+        warnings.warn(
+            f"the groups file {p.name}: row{'s' if len(rows) > 1 else ''} "
+            f"{', '.join(rows[:10])}{' …' if len(rows) > 10 else ''} (counting the header as "
+            "row 1) left out: a cell is empty", UserWarning, stacklevel=2)
+        groups = groups[~blank.to_numpy()]
     for key in ("label", TRACK_COLUMN):
         if key not in keys:
             continue
@@ -348,4 +366,34 @@ def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
     out = left.merge(right, on=["_key_" + k for k in keys], how="left")
     out = out.drop(columns=["_key_" + k for k in keys])
     out["group"] = out["group"].fillna("")
+    unmatched = unmatched_groups(table, groups)
+    if unmatched:
+        warnings.warn(
+            f"{len(unmatched)} row{'s' if len(unmatched) > 1 else ''} of the groups file "
+            f"match{'es' if len(unmatched) == 1 else ''} no object of the table and "
+            f"{'are' if len(unmatched) > 1 else 'is'} not used: {'; '.join(unmatched[:5])}"
+            f"{' …' if len(unmatched) > 5 else ''} (check the movie names and labels)",
+            UserWarning, stacklevel=2)
     return carry_options(table, out)
+
+
+def unmatched_groups(table: pd.DataFrame, groups: pd.DataFrame) -> list[str]:
+    """The rows of a groups table (:func:`read_groups`) that name no object of ``table``, in
+    words (``"movie e9, label 3 -> single-axis"``).
+
+    Examples
+    --------
+    >>> t = pd.DataFrame({"label": [1, 2]})
+    >>> unmatched_groups(t, pd.DataFrame({"label": ["1", "7"], "group": ["a", "b"]}))
+    ['label 7 -> b']
+    """
+    keys = [k for k in KEY_COLUMNS if k in groups.columns and k in table.columns]
+    if not keys or not len(groups):
+        return []
+    have = set(zip(*(table[k].astype(str) for k in keys), strict=True))
+    out = []
+    for row in groups[keys + ["group"]].itertuples(index=False):
+        if tuple(row[:-1]) not in have:
+            out.append(", ".join(f"{k} {v}" for k, v in zip(keys, row[:-1], strict=True))
+                       + f" -> {row[-1]}")
+    return out

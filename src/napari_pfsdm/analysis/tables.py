@@ -20,6 +20,8 @@ from ..core.distances3d import stack_3d
 from ..core.morphometric import mode_weights
 from ..core.table_options import table_options
 from ..core.table_schema import (
+    NO_TRACK,
+    TRACK_COLUMN,
     check_feature_table,
     feature_columns,
     has_outline,
@@ -66,6 +68,70 @@ def key_rows(frames, labels, at_frames, at_labels) -> np.ndarray:
 def is_table(items: Any) -> bool:
     """True for a DataFrame-like feature table (anything with ``columns``)."""
     return hasattr(items, "columns")
+
+
+def check_table_cells(table, channels: Iterable[str] = ("shape",), *,
+                      where: str = "the table") -> None:
+    """Refuse, in plain words, cells of a feature table that no measurement writes: text in
+    a feature column, a ``frame`` that is not a whole number >= 0, a ``label`` that is not a
+    whole number >= 1, a ``track_id`` below -1, and two rows of the same (movie, frame,
+    label), whose objects would be counted twice. A table edited by hand or by a spreadsheet
+    is the usual cause; rows without features (NaN, an ``error``) are left to
+    :func:`failed_rows`.
+
+    Raises
+    ------
+    InputError
+        Naming the row (0 = the first row under the header), the column and the value.
+    """
+    import pandas as pd
+
+    if not hasattr(table, "columns") or not len(table):
+        return
+    opts = table_options(table) or {}
+
+    def refuse(i: int, col: str, value: Any, must: str) -> None:
+        value = value.item() if isinstance(value, np.generic) else value
+        raise InputError(
+            f"{where}: row {i} (0 = the first row under the header), column {col!r} holds "
+            f"{value!r}, but {must}; the table was edited or damaged. Use the table as "
+            "'pfsdm measure' wrote it, or measure again")
+
+    columns = [c for ch in channels for c in table_feature_columns(opts, ch)
+               if c in table.columns] if opts else []
+    for col in columns:
+        values = table[col]
+        if values.dtype.kind not in "fiu":
+            num = pd.to_numeric(values, errors="coerce")
+            bad = np.flatnonzero(num.isna().to_numpy() & values.notna().to_numpy()
+                                 & (values.astype(str).str.strip() != "").to_numpy())
+            if len(bad):
+                refuse(int(bad[0]), col, values.iloc[bad[0]], "a feature is a number")
+    for col, low, must in (("frame", 0, "a frame is a whole number of at least 0"),
+                           ("label", 1, "a label is a whole number of at least 1 (0 is "
+                                        "background)"),
+                           (TRACK_COLUMN, NO_TRACK, f"a track_id is a whole number of at "
+                                                    f"least {NO_TRACK} (no track)")):
+        if col not in table.columns:
+            continue
+        values = table[col]
+        num = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
+        ok = np.isfinite(num) & (num == np.round(num)) & (num >= low)
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            refuse(i, col, values.iloc[i], must)
+    keys = [k for k in ("movie", "frame", "label") if k in table.columns]
+    if {"frame", "label"} <= set(keys):
+        twice = np.flatnonzero(table.duplicated(keys).to_numpy())
+        if len(twice):
+            i = int(twice[0])
+            row = table.iloc[i]
+            what = ", ".join(f"{k} {row[k]}" for k in keys)
+            raise InputError(
+                f"{where}: {len(twice)} row{'s' if len(twice) > 1 else ''} repeat an object "
+                f"of an earlier row (the first: row {i}, {what}); its features would count "
+                "twice. Use the table as 'pfsdm measure' wrote it (tables of several runs: "
+                "join them with different movie names), or measure again")
 
 
 def embeddings_from_table(table, channel: str = "shape") -> tuple[np.ndarray, np.ndarray]:
@@ -128,6 +194,7 @@ def failed_rows(table, channels: Iterable[str] = ("shape",)) -> list[tuple[Any, 
     """
     channels = list(channels)
     opts, _, _ = check_feature_table(table, channels)
+    check_table_cells(table, channels)
     n = len(table)
     err = (table["error"].fillna("").astype(str).to_numpy() if "error" in table.columns
            else np.full(n, ""))

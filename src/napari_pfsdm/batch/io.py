@@ -4,8 +4,14 @@ Supported inputs (each one movie, 2-D ``(Y, X)`` or 3-D ``(T, Y, X)``):
 
 - TIFF files (``.tif``, ``.tiff``, incl. ImageJ and OME-TIFF), read with tifffile;
 - Zarr arrays (v2 or v3), e.g. ``movie.zarr`` or ``store.zarr/labels``;
-- multiscale OME-Zarr images: the full-resolution level (``datasets[0]``) is used and singleton
-  channel / z axes are dropped.
+- multiscale OME-Zarr images: the full-resolution level (the finest ``scale``, whichever its
+  place in ``datasets``) is used, the axes as the metadata names and orders them, singleton
+  channel / z axes dropped.
+
+What a file declares is obeyed or refused: a TIFF cut short or whose pages do not match its
+metadata, a TIFF of several series without ``series=``, an OME-Zarr level the metadata lists
+but the store lacks, axes in another order than t, z, y, x are refused in plain words
+(:class:`~napari_pfsdm.errors.InputError`), never read as a shorter or different movie.
 
 :func:`open_movie` returns a dask array whose chunks are read only when needed, inside the
 worker that needs them (the file is re-opened there, so nothing big travels through the
@@ -16,8 +22,10 @@ scheduler). :func:`find_movies` expands a file, folder or glob into movie paths,
 from __future__ import annotations
 
 import glob
+import logging
 import os
 import re
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -101,6 +109,12 @@ class _Frames:
             return np.asarray(self._handle[tuple(full)])
         except ImportError:
             raise
+        except MemoryError as exc:
+            size = int(np.prod(self.shape[1:], dtype=np.int64)) * self.dtype.itemsize
+            raise InputError(
+                f"reading {self.path} needs more memory than this machine has free (one frame "
+                f"is {size / 2**20:.0f} MiB); use fewer workers (--workers 1), measure on a "
+                "machine with more memory, or cut the frames into smaller images") from exc
         except Exception as exc:  # noqa: BLE001 - any reader error: name the file
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             raise InputError(
@@ -326,7 +340,12 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
     ndim = len(shape)
     kept = ("t", "z", "y", "x") if keep_z else ("t", "y", "x")
     sizes = (2, 3, 4) if keep_z else (2, 3)
-    if axes is not None and len(axes) == ndim:
+    if axes is not None and len(axes) != ndim:
+        raise InputError(
+            f"{where} has {ndim} dimensions {shape} but its metadata names {len(axes)} axes "
+            f"({', '.join(map(str, axes))}): the file is inconsistent, so which axis is time "
+            "cannot be known; write it again with its axes")
+    if axes is not None:
         axes = [a.lower() for a in axes]
         drop: list[int | None] = []
         for a, n in zip(axes, shape, strict=True):
@@ -336,6 +355,15 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
                 drop.append(0)
             else:
                 raise InputError(_axes_message(where, shape, axes, a))
+        names = [a for a, d in zip(axes, drop, strict=True) if d is None]
+        order = "".join(a for a in "tzyx" if a in names)
+        if len(set(names)) != len(names) or "".join(names) != order or not {"y", "x"} <= set(
+                names):
+            raise InputError(
+                f"{where} stores its axes in the order {', '.join(axes)} (as its metadata "
+                f"says); pfsdm reads {', '.join(order or 'yx')} in the order t, z, y, x with y "
+                "and x both present: save it with its axes in that order (e.g. numpy's "
+                "moveaxis, or 'Re-order Hyperstack' in Fiji)")
         if drop.count(None) in sizes:
             return tuple(drop)
     # No usable axis names: drop leading singleton axes until 3-D (4-D with keep_z).
@@ -351,6 +379,72 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
                else " (for 3-D objects say --axes zyx or tzyx)")
         )
     return tuple(drop)
+
+
+def _scale(dataset: dict) -> list[float] | None:
+    """The ``scale`` of an OME-Zarr dataset's coordinate transformations (None: none given);
+    one that is not positive numbers is refused."""
+    for t in dataset.get("coordinateTransformations") or ():
+        if isinstance(t, dict) and t.get("type") == "scale":
+            try:
+                scale = [float(v) for v in t["scale"]]
+            except (KeyError, TypeError, ValueError):
+                scale = []
+            if not scale or not all(np.isfinite(v) and v > 0 for v in scale):
+                raise InputError(
+                    f"the OME-Zarr level {dataset.get('path')!r} has the scale "
+                    f"{t.get('scale')!r}, not positive numbers (one per axis); write the "
+                    "store again")
+            return scale
+    return None
+
+
+def _ome_level(path: Path, group: Any, multiscales: list) -> tuple[str, list[str] | None]:
+    """The full-resolution level of an OME-Zarr image and its axis names, as its metadata
+    declares them: the level of the finest ``scale`` along every axis (not the first listed),
+    every declared level present, one image per group."""
+    if not isinstance(multiscales, list) or not multiscales:
+        raise InputError(f"{path}: its OME-Zarr 'multiscales' metadata is empty or not a list; "
+                         "write the store again")
+    if len(multiscales) > 1:
+        names = ", ".join(str(m.get("name", i)) for i, m in enumerate(multiscales))
+        raise InputError(
+            f"{path} holds {len(multiscales)} OME-Zarr images ({names}) in one group; pfsdm "
+            "reads one movie per store: save each image in a store of its own")
+    first = multiscales[0]
+    if not isinstance(first, dict):
+        raise InputError(f"{path}: its OME-Zarr 'multiscales' entry is not a set of named "
+                         "fields; write the store again")
+    datasets = first.get("datasets") or []
+    axes_meta = first.get("axes")
+    axes = ([a["name"] if isinstance(a, dict) else str(a) for a in axes_meta]
+            if axes_meta else None)
+    if not datasets or not all(isinstance(d, dict) and "path" in d for d in datasets):
+        raise InputError(f"{path}: its OME-Zarr metadata lists no levels (datasets with a "
+                         "'path'); write the store again")
+    shapes = []
+    for d in datasets:
+        try:
+            shapes.append(tuple(int(n) for n in group[str(d["path"])].shape))
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                f"{path}: its OME-Zarr metadata declares the level {d['path']!r}, which is not "
+                "in the store (a copy that lost files?); copy the store again") from None
+    scales = [_scale(d) for d in datasets]
+    if all(sc is not None for sc in scales):
+        ndim = {len(sc) for sc in scales if sc is not None}
+        finest = [i for i, sc in enumerate(scales)
+                  if all(np.all(np.asarray(sc) <= np.asarray(o)) for o in scales)]
+        if len(ndim) != 1 or not finest:
+            raise InputError(
+                f"{path}: the scales of its OME-Zarr levels ({scales}) name no level finer "
+                "than all the others along every axis; write the store again")
+        index = finest[0]
+    else:  # no scales: the level with the most pixels along every axis
+        finest = [i for i, sh in enumerate(shapes) if all(
+            all(a >= b for a, b in zip(sh, o, strict=False)) for o in shapes)]
+        index = finest[0] if finest else 0
+    return str(datasets[index]["path"]), axes
 
 
 def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
@@ -371,11 +465,7 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
         attrs = dict(node.attrs)
         ms = attrs.get("multiscales") or attrs.get("ome", {}).get("multiscales")
         if ms:
-            first = ms[0]
-            component = first["datasets"][0]["path"]
-            axes_meta = first.get("axes")
-            if axes_meta:
-                axes = [a["name"] if isinstance(a, dict) else str(a) for a in axes_meta]
+            component, axes = _ome_level(path, node, ms)
         else:
             arrays = sorted(name for name, _ in node.arrays())
             if len(arrays) != 1:
@@ -404,33 +494,148 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
     return frames
 
 
-def _open_tiff(path: Path, keep_z: bool = False) -> _TiffFrames:
+#: What tifffile logs when a file is not what it declares (a truncated copy, a broken chain of
+#: pages, metadata that does not fit the pages): such a file is refused, never read shorter.
+_TIFF_DAMAGE = re.compile(
+    r"invalid (page|value|tag) offset|corrupt|truncat|failed to (reshape|read)|"
+    r"metadata invalid|invalid .*metadata", re.IGNORECASE)
+
+
+class _TiffLog(logging.Handler):
+    """Collects what tifffile logs (warnings and errors) while a file is opened."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+def _series_list(tif: Any) -> str:
+    """The series of a TIFF in words: ``0: 16 x 16 x 3 (YXS), 1: 10 x 64 x 64 (QYX)``."""
+    return ", ".join(f"{i}: {' x '.join(str(n) for n in s.shape)} ({s.axes})"
+                     for i, s in enumerate(tif.series))
+
+
+def _declared_images(tif: Any) -> int | None:
+    """How many 2-D images the file's ImageJ metadata says it holds (``images``), None when
+    it says nothing."""
+    ij = tif.imagej_metadata if tif.is_imagej else None
+    if ij and isinstance(ij.get("images"), int):
+        return int(ij["images"])
+    return None
+
+
+def _tiff_damage(path: Path, tif: Any, series: Any, log: list[str]) -> str | None:
+    """Why a TIFF is not what it declares (None: it is): tifffile's own complaints while
+    reading its pages and series, data that lies beyond the end of the file, or fewer
+    images than its ImageJ metadata declares."""
+    bad = [m for m in log if _TIFF_DAMAGE.search(m)]
+    if bad:
+        first = bad[0].strip().splitlines()[0]
+        return f"tifffile says: {first[:160]}"
+    if int(np.prod(series.shape, dtype=np.int64)) == 0:
+        return None  # no pixels at all: refused as such (check_labels)
+    size = path.stat().st_size
+    if series.dataoffset is not None:
+        end = int(series.dataoffset) + int(series.nbytes)
+        if end > size:
+            return (f"its pixels need {end} bytes but the file has {size} (a copy cut short)")
+    else:
+        for page in series.pages:
+            if page is None:
+                return "one of its pages is missing"
+            offsets = getattr(page, "dataoffsets", ()) or ()
+            counts = getattr(page, "databytecounts", ()) or ()
+            for off, n in zip(offsets, counts, strict=False):
+                if int(off) + int(n) > size:
+                    return (f"a page's pixels lie beyond the end of the file ({int(off) + int(n)}"
+                            f" of {size} bytes: a copy cut short)")
+    declared = _declared_images(tif)
+    if declared is not None and len(tif.series) == 1:
+        planes = int(np.prod([n for n, a in zip(series.shape, series.axes, strict=True)
+                              if a not in "YXS"], dtype=np.int64))
+        if planes != declared:
+            return (f"its ImageJ metadata declares {declared} images but {planes} can be read")
+    return None
+
+
+def _open_tiff(path: Path, keep_z: bool = False, series: int | None = None) -> _TiffFrames:
+    """A TIFF's series as frames, after checking that the file holds what it declares
+    (:func:`_tiff_damage`) and that the series to read is known."""
+    with _TIFF_LOG_LOCK:  # the logger is shared: one opening at a time changes it
+        return _open_tiff_logged(path, keep_z, series)
+
+
+#: Held while :func:`_open_tiff` listens to tifffile's logger.
+_TIFF_LOG_LOCK = threading.Lock()
+
+
+def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFrames:
     import tifffile
 
+    handler = _TiffLog()
+    logger = logging.getLogger("tifffile")
+    level, propagate = logger.level, logger.propagate
+    # tifffile's complaints come here only (the error below says them), whatever the level
+    logger.setLevel(logging.WARNING)
+    logger.propagate = False
+    logger.addHandler(handler)
     try:
         with tifffile.TiffFile(str(path)) as tif:
-            series = tif.series[0]
-            shape = tuple(int(n) for n in series.shape)
-            dtype = series.dtype
-            axes = list(series.axes.lower())
+            len(tif.pages)  # the whole chain of pages, so that a broken one is seen
+            listing = _series_list(tif)
+            n_series = len(tif.series)
+            if series is None and n_series > 1:
+                raise InputError(
+                    f"{path} holds {n_series} image series ({listing}); pfsdm reads one "
+                    "movie per file: say which with --series N (series=N in Python)")
+            index = 0 if series is None else int(series)
+            if not -n_series <= index < n_series:
+                raise InputError(f"{path} has no series {index}: it holds {n_series} "
+                                 f"({listing}); give --series from 0 to {n_series - 1}")
+            index %= n_series
+            chosen = tif.series[index]
+            shape = tuple(int(n) for n in chosen.shape)
+            dtype = chosen.dtype
+            axes = list(chosen.axes.lower())
+            damage = _tiff_damage(path, tif, chosen, handler.messages)
+    except InputError:
+        raise
     except Exception as exc:
         raise InputError(f"cannot read {path} as TIFF: {exc}") from exc
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+        logger.propagate = propagate
+    if int(np.prod(shape, dtype=np.int64)) == 0:
+        from ..analysis.features import refuse_zero_size
+
+        refuse_zero_size(shape, str(path))
+    if damage is not None:
+        raise InputError(
+            f"{path} is damaged or truncated: {damage}. It would be read as a shorter or "
+            "wrong movie; copy or export it again")
     # tifffile names a plain stack of pages "q" / "i"; treat it as time. A (3 or 4, Y, X)
     # array saved without photometric="minisblack" is stored as planar RGB(A) ("syx"): these
     # planes are frames too, of labels and of a reporter (integer or float) alike. A colour
     # image is judged by its last axis (interleaved samples, "yxs"), never by its frames.
+    generic = sum(a in ("q", "i") for a in axes)
     axes = ["t" if a in ("q", "i") else a for a in axes]
     if axes[0] == "s" and "t" not in axes:
         axes[0] = "t"
-    drop = _drop_axes(shape, axes, str(path), keep_z)
+    # several unnamed axes (a plain 4-D stack is "QQYX"): the file names none of them, so the
+    # user's --axes decides (no metadata to obey)
+    drop = _drop_axes(shape, None if generic > 1 else axes, str(path), keep_z)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
-    frames = _TiffFrames(str(path), 0, out_shape, dtype, drop)
+    frames = _TiffFrames(str(path), index, out_shape, dtype, drop)
     frames.chunks_t = 1
     return frames
 
 
 def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
-               axes: str | None = None) -> da.Array:
+               axes: str | None = None, series: int | None = None) -> da.Array:
     """Open a TIFF or Zarr movie lazily as a dask array of shape (T, Y, X) or (Y, X); when
     ``axes`` names a z axis (``"zyx"``, ``"tzyx"``), also (Z, Y, X) or (T, Z, Y, X).
 
@@ -442,6 +647,19 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     frames_per_chunk : int, optional
         Frames per dask chunk (whole frames in Y and X). Default: the Zarr chunking along T,
         or 1 for TIFF.
+    axes : str, optional
+        ``"zyx"`` or ``"tzyx"`` for 3-D objects.
+    series : int, optional
+        Which image series of a TIFF to read (``tifffile.TiffFile.series``; negative counts
+        from the end). A TIFF of several series (positions of an OME-TIFF, a thumbnail beside
+        the image) is refused without it.
+
+    Raises
+    ------
+    InputError
+        The file is not what it declares (truncated, pages missing, levels or axes its
+        metadata names but that cannot be obeyed), holds several series and ``series`` is
+        not given, or is not a movie pfsdm reads.
 
     Returns
     -------
@@ -455,7 +673,7 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     if _is_zarr(p):
         frames: _Frames = _open_zarr(p, keep_z)
     elif _is_tiff(p):
-        frames = _open_tiff(p, keep_z)
+        frames = _open_tiff(p, keep_z, series)
     else:
         raise InputError(
             f"{p}: not a TIFF file (.tif/.tiff) or a Zarr store (.zarr folder); "
@@ -531,6 +749,9 @@ def find_movies(spec: str | os.PathLike | list) -> list[Path]:
         raise InputError(f"{p}: no such file or folder")
     if _is_zarr(p) or p.is_file():
         return [p]
+    if not p.is_dir():
+        raise InputError(f"{p} is not a file or a folder (a pipe or a device?); give a TIFF "
+                         "file, a Zarr store or a folder of them")
     movies = sorted(c for c in p.iterdir() if _is_zarr(c) or _is_tiff(c))
     if not movies:
         raise InputError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
@@ -557,6 +778,54 @@ class Movie:
     intensity: Path | None = None
 
 
+def _refuse_twice(paths: list[Path], what: str) -> None:
+    """Refuse the same file (or store) given twice: its rows would be doubled."""
+    seen: dict[Path, Path] = {}
+    for p in paths:
+        key = p.resolve()
+        if key in seen:
+            same = f"{seen[key]}" + (f" and {p}" if str(p) != str(seen[key]) else " twice")
+            raise InputError(
+                f"the same {what} movie is given twice ({same}): its objects would be "
+                "measured and counted twice. Give each movie once")
+        seen[key] = p
+
+
+def unique_names(paths: list[Path]) -> list[str]:
+    """One movie name per path (the ``movie`` column): the file name without its suffix, or,
+    where two files share it in different folders, the path without the suffix.
+
+    Raises
+    ------
+    InputError
+        Two files would still get the same name (``e1.tif``, ``e1.tiff`` and ``e1.zarr`` in
+        one folder): their rows could not be told apart, so they are refused by name.
+    """
+    names = [movie_name(p) for p in paths]
+    if len(set(names)) != len(names):
+        # keep names unique (e.g. same file name in two folders)
+        names = [_path_name(p) for p in paths]
+    groups: dict[str, list[Path]] = {}
+    for n, p in zip(names, paths, strict=True):
+        groups.setdefault(n, []).append(p)
+    clash = {n: ps for n, ps in groups.items() if len(ps) > 1}
+    if clash:
+        n, ps = next(iter(clash.items()))
+        more = f" (and {len(clash) - 1} more such name{'s' if len(clash) > 2 else ''})" \
+            if len(clash) > 1 else ""
+        raise InputError(
+            f"{', '.join(str(p) for p in ps)} would all be the movie {movie_name(ps[0])!r}"
+            f"{more}: their rows "
+            "could not be told apart in the table. Rename them so that their names differ "
+            "before the suffix, or measure them into separate tables")
+    return names
+
+
+def _path_name(path: Path) -> str:
+    """The path without the movie suffix (``.ome.tif``, ``.zarr``, …), with "/"."""
+    return str(path.with_name(movie_name(path))).replace(os.sep, "/")
+
+
 def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list[Movie]:
     """Match label movies with intensity movies.
 
@@ -567,14 +836,15 @@ def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list
     A file that is among the intensity movies is not a label movie, so that a folder holding
     both (``movies/`` with ``movies/*_reporter.tif``) can be given as the labels.
     """
+    labels = [Path(p) for p in labels]
+    _refuse_twice(labels, "label")
     if intensity:
+        intensity = [Path(q) for q in intensity]
+        _refuse_twice(intensity, "intensity")
         given = {Path(q).resolve() for q in intensity}
         kept = [p for p in labels if Path(p).resolve() not in given]
         labels = kept or labels  # the same single file as both: leave it to the checks
-    names = [movie_name(p) for p in labels]
-    if len(set(names)) != len(names):
-        # keep names unique (e.g. same file name in two folders)
-        names = [str(p.with_suffix("")).replace(os.sep, "/") for p in labels]
+    names = unique_names(labels)
     if not intensity:
         return [Movie(n, p) for n, p in zip(names, labels, strict=True)]
     if len(labels) == 1 and len(intensity) == 1:

@@ -26,6 +26,7 @@ from ..analysis.reduction import (
     read_groups,
     row_ids,
 )
+from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
 from ..errors import InputError
 from ..io_csv import read_table_csv, save_figure
@@ -194,6 +195,7 @@ def load_features(path: str | os.PathLike) -> pd.DataFrame:
             "columns); make one with: pfsdm measure LABELS -o features.csv"
         )
     check_feature_table(table, ["shape"], where=str(path))
+    check_table_cells(table, ["shape"], where=str(path))
     if len(table) == 0:
         raise InputError(
             f"{path} holds no objects (0 rows): its labels had only background; measure "

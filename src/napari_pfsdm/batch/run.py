@@ -222,6 +222,7 @@ def measure_dask(
     axes: str | None = None,
     spacing: Any = None,
     allow_missing_chunks: bool = False,
+    series: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, measured in parallel with dask.
@@ -587,7 +588,7 @@ def _have_parquet() -> bool:
 
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
-               spacing: Any = None) -> str:
+               spacing: Any = None, series: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
     (:func:`~napari_pfsdm.batch.io.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
@@ -599,7 +600,8 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
     key = json.dumps(
         [stamp(movie.labels), stamp(movie.intensity), _to_jsonable(params.record())]
         + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
-           if axes is not None and "z" in axes else []),
+           if axes is not None and "z" in axes else [])
+        + ([["series", int(series)]] if series is not None else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -699,6 +701,7 @@ def run_batch(
     axes: str | None = None,
     spacing: Any = None,
     allow_missing_chunks: bool = False,
+    series: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -737,6 +740,9 @@ def run_batch(
         A Zarr movie whose chunk files are not all on disk stops the run before any work
         (its missing frames would read as empty); True measures it as it is, ``log`` warns
         once per such frame and the sidecar lists them (``missing_chunks``).
+    series : int, optional
+        The image series read from every TIFF (:func:`~napari_pfsdm.batch.io.open_movie`);
+        a TIFF of several series is refused without it.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -754,6 +760,7 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    _refuse_collisions(movies)
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         _pyarrow(output, "writing")  # a missing package fails here, not after measuring
     with output_lock(output):  # one run at a time per output; a second one refuses
@@ -761,12 +768,34 @@ def run_batch(
             movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
             frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
-            spacing=spacing, allow_missing_chunks=allow_missing_chunks)
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series)
+
+
+def _refuse_collisions(movies: Sequence[Movie]) -> None:
+    """One name, one movie: refuse two movies of one name, or one label file twice (their
+    rows would be merged under one name, or doubled)."""
+    names: dict[str, Movie] = {}
+    files: dict[Path, Movie] = {}
+    for m in movies:
+        if m.name in names:
+            raise InputError(
+                f"two movies are named {m.name!r} ({names[m.name].labels} and {m.labels}): "
+                "their rows could not be told apart in the table; give them different names")
+        key = Path(m.labels).resolve()
+        if key in files:
+            raise InputError(
+                f"the label movie {m.labels} is given twice (as {files[key].name!r} and "
+                f"{m.name!r}): its objects would be counted twice; give each movie once")
+        names[m.name] = m
+        files[key] = m
 
 
 #: Temporary files a killed run may leave in a parts folder: those of
-#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions.
-_PART_TEMP = re.compile(r"\..+\.(?:parquet|csv|json)(?:\.[a-z0-9_]{8})?\.tmp")
+#: :func:`~napari_pfsdm.io_csv.atomic_write` and the fixed names of earlier versions, for a
+#: part's name only (``movie-0123456789.parquet``, :func:`_part_name`): a user's own file in a
+#: folder given as ``--parts`` is never removed.
+_PART_TEMP = re.compile(
+    r"\..+-[0-9a-f]{10}\.(?:parquet|csv)(?:\.json)?(?:\.[a-z0-9_]{8})?\.tmp")
 
 
 def _remove_part_leftovers(parts: Path) -> None:
@@ -782,7 +811,7 @@ def _run_batch_locked(
     num_workers: int | None, frames_per_task: int | None,
     parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
     say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
-    spacing: Any, allow_missing_chunks: bool,
+    spacing: Any, allow_missing_chunks: bool, series: int | None = None,
 ) -> pd.DataFrame:
     """:func:`run_batch`'s work, holding the output's lock."""
     remove_leftovers(output)
@@ -794,9 +823,9 @@ def _run_batch_locked(
     # Open and check every movie first: a bad file fails the run before any long work.
     opened = []
     for m in movies:
-        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes)
-        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes) \
-            if m.intensity else None
+        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
+        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
+                         series=series) if m.intensity else None
         check_labels(lab, img, where=str(m.labels), axes=axes)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
@@ -814,7 +843,7 @@ def _run_batch_locked(
     with contextlib.ExitStack() as kept, _client_for(kind, obj) as cl:
         pool = None
         for m, lab, img in opened:
-            part = parts / (_part_name(m, p, axes, spacing) + suffix)
+            part = parts / (_part_name(m, p, axes, spacing, series) + suffix)
             table = _resumed(part, m.name, say)
             if table is not None:
                 attrs = attrs or _to_jsonable(table_options(table) or {})

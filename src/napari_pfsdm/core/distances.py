@@ -36,6 +36,7 @@ from ..errors import InputError
 from . import distances3d
 from .boundary import boundary_distance_matrix
 from .embeddings import Embeddings
+from .params import option
 
 __all__ = [
     "BOUNDARY_WEIGHT",
@@ -49,13 +50,14 @@ __all__ = [
 
 INVARIANCES = ("combined", "magnitude", "align")
 
-#: λ, the weight of the boundary term d_B in the default distance. d_B (a sine, in [0, 1]) and
+#: λ, the weight of the boundary term d_B in the default distance, declared with its range in
+#: the option record (``core.params.WEIGHT_OPTIONS``). d_B (a sine, in [0, 1]) and
 #: the default magnitude SDF distance have similar spreads on real and synthetic outlines
 #: (median off-diagonal values: MPEG-7 0.29 and 0.42; five-shape benchmark 0.30 and 0.25);
 #: λ = 1 is the best or within 0.1 point of the best on MPEG-7 (λ = 0.75, 1, 1.25: 79.4,
 #: 79.5, 79.5 % bull's-eye) and beats GPA's silhouette on the five-shape benchmark. A fixed
 #: number, so that a distance never depends on the other objects of a collection.
-BOUNDARY_WEIGHT = 1.0
+BOUNDARY_WEIGHT = option("boundary_weight").default
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -217,6 +219,7 @@ def distance_matrix(
     if invariance is None:
         invariance = "magnitude"
     boundary_weight = _check_boundary_weight(boundary_weight)
+    intensity_weight = _check_weight("intensity_weight", intensity_weight)
     if invariance not in INVARIANCES:
         raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
@@ -284,14 +287,16 @@ def _no_boundary_in_3d(weight: float | None) -> float:
     return 0.0
 
 
+def _check_weight(name: str, weight: float) -> float:
+    """A weight of the distance checked by its record (``core.params.WEIGHT_OPTIONS``: from 0
+    to ``MAX_WEIGHT``, where every distance stays finite)."""
+    return float(option(name).check(weight))
+
+
 def _check_boundary_weight(weight: float | None) -> float:
     if weight is None:
         return BOUNDARY_WEIGHT
-    value = float(weight)
-    if not np.isfinite(value) or value < 0:
-        raise InputError(f"boundary_weight must be a number >= 0 (0: the SDF term alone), "
-                         f"got {weight!r}.")
-    return value
+    return _check_weight("boundary_weight", weight)
 
 
 def outlines_of(items) -> np.ndarray:

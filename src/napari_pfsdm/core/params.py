@@ -242,6 +242,13 @@ class Option:
 #: before anything is allocated.
 _MAX_RINGS = 512
 
+#: The largest weight (of a ring, a Fourier index or degree, a channel or a term of the
+#: distance) that the distances take. Features are bounded (signed distances within a few
+#: object radii, Fourier magnitudes of at most a few hundred), so weights up to this keep every
+#: distance below about 1e60, far from a float's overflow (1.8e308); a weight of 1e308 made
+#: every distance ``inf - inf = NaN`` and is refused instead.
+MAX_WEIGHT = 1e12
+
 #: Every option of the method, in the order of :class:`PFSDMParams`' fields. Defaults were
 #: chosen on the benchmarks (README, "How the defaults were chosen").
 OPTIONS: tuple[Option, ...] = (
@@ -303,13 +310,27 @@ OPTIONS: tuple[Option, ...] = (
            low=1, high=40, dims="3d"),
     Option("surface_weight", float, 4.0,
            "weight of the outer surface's term in distances",
-           low=0.0, dims="3d"),
+           low=0.0, high=MAX_WEIGHT, dims="3d"),
     Option("ball_map", str, "radial",
            "how the unit ball is laid onto the object",
            choices=BALL_MAPS, dims="3d"),
 )
 
-_BY_NAME: dict[str, Option] = {o.name: o for o in OPTIONS}
+#: The weights of the distance's terms: ``pfsdm compare``'s ``--intensity-weight`` and
+#: ``--boundary-weight``, the same keywords of the distance functions, and the entries of a
+#: sidecar that records them. Not options of the measurement (no field of PFSDMParams).
+WEIGHT_OPTIONS: tuple[Option, ...] = (
+    Option("intensity_weight", float, 0.0,
+           "weight of the reporter pattern in the distance (0: shape only)",
+           low=0.0, high=MAX_WEIGHT),
+    # λ = 1: why, at core.distances.BOUNDARY_WEIGHT (which reads it here)
+    Option("boundary_weight", float, 1.0,
+           "weight of the outline (boundary) term in the distance (0: the pushed-forward SDF "
+           "alone)",
+           low=0.0, high=MAX_WEIGHT),
+)
+
+_BY_NAME: dict[str, Option] = {o.name: o for o in (*OPTIONS, *WEIGHT_OPTIONS)}
 
 
 def option(name: str) -> Option:
@@ -508,11 +529,11 @@ def with_option_keywords(func: Callable) -> inspect.Signature:
 
 def _numbers(name: str, value: Any, count: int | None, what: str,
              whats: str) -> np.ndarray:
-    """``value`` as ``count`` finite numbers >= 0, not all 0, one per ``what`` (plural
-    ``whats``), or a plain refusal."""
+    """``value`` as ``count`` finite numbers from 0 to :data:`MAX_WEIGHT`, not all 0, one per
+    ``what`` (plural ``whats``), or a plain refusal."""
     words = f"{count} numbers" if count is not None else "numbers"
-    bad = (f"{name} must be {words} of at least 0, one per {what} (not all 0); got "
-           f"{_shown(value)}.")
+    bad = (f"{name} must be {words} of at least 0 and at most {MAX_WEIGHT:g}, one per {what} "
+           f"(not all 0); got {_shown(value)}.")
     if isinstance(value, str | bytes | Mapping) or value is None:
         raise InputError(bad)
     try:
@@ -526,7 +547,8 @@ def _numbers(name: str, value: Any, count: int | None, what: str,
             f"{name} has {arr.size} numbers but the table has {count} {whats}: its distances "
             "would weigh other columns than those measured."
         )
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0) or not np.any(arr > 0):
+    if (not np.all(np.isfinite(arr)) or np.any(arr < 0) or not np.any(arr > 0)
+            or np.any(arr > MAX_WEIGHT)):
         raise InputError(bad)
     return arr
 
@@ -559,8 +581,8 @@ def check_record(record: Mapping[str, Any], where: str = "the table's options") 
     >>> try:
     ...     check_record({"n_fourier": 2, "weights": [0.5, float("nan")]})
     ... except InputError as exc:
-    ...     print(str(exc)[:63])
-    the table's options: weights must be numbers of at least 0, one
+    ...     print(str(exc)[:62])
+    the table's options: weights must be numbers of at least 0 and
     """
     if not isinstance(record, Mapping):
         raise InputError(f"{where} are not a set of named options; got {_shown(record)}")
@@ -575,6 +597,9 @@ def check_record(record: Mapping[str, Any], where: str = "the table's options") 
 
 def _check_record(record: Mapping[str, Any]) -> None:
     values = {o.name: o.check(record[o.name]) for o in OPTIONS if o.name in record}
+    for o in WEIGHT_OPTIONS:  # a distance's record (compare's sidecar)
+        if record.get(o.name) is not None:
+            o.check(record[o.name])
     if "n_radii" in record:
         values["n_radii"] = option("n_radii").check(record["n_radii"])
     _check_together(values)
@@ -602,3 +627,6 @@ def _check_record(record: Mapping[str, Any]) -> None:
         if sp.size != 3 or not np.all(np.isfinite(sp)) or np.any(sp <= 0):
             raise InputError(f"spacing must be 3 positive numbers (Z, Y, X); got "
                              f"{_shown(spacing)}.")
+        from .volume_sdf import check_spacing  # its range: one rule for every door
+
+        check_spacing(sp, 3)

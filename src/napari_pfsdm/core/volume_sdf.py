@@ -31,13 +31,24 @@ __all__ = ["VolumeInfo", "SurfaceSDF", "check_spacing", "prepare_volume"]
 DEFAULT_MIN_VOLUME = 64
 
 
+#: The voxel sizes taken: each from ``SPACING_RANGE[0]`` to ``SPACING_RANGE[1]`` (in any unit:
+#: the features do not depend on it), the longest side at most :data:`MAX_ANISOTROPY` times
+#: the shortest. The smoothing of the volume spans ``max / min`` voxels along the short axes:
+#: a spacing of (1e308, 1, 1) once stopped the run with an internal error, (1e-300, 1, 1) asked
+#: for an array larger than any memory. Microscopes' voxels are rarely 20 times longer in z.
+SPACING_RANGE = (1e-6, 1e6)
+MAX_ANISOTROPY = 100.0
+
+
 def check_spacing(spacing, ndim: int = 3) -> np.ndarray:
-    """The voxel size per axis as ``ndim`` positive finite floats (``None``: all 1).
+    """The voxel size per axis as ``ndim`` positive finite floats (``None``: all 1), within
+    :data:`SPACING_RANGE` and :data:`MAX_ANISOTROPY`.
 
     Raises
     ------
     ValueError
-        Wrong length, or a value that is not a positive number; the message says what to give.
+        Wrong length, or a value that is not a positive number in range; the message says
+        what to give.
     """
     if spacing is None:
         return np.ones(ndim)
@@ -56,6 +67,13 @@ def check_spacing(spacing, ndim: int = 3) -> np.ndarray:
         )
     if not (np.all(np.isfinite(s)) and np.all(s > 0)):
         raise InputError(f"spacing must be positive numbers, got {tuple(s.tolist())}.")
+    low, high = SPACING_RANGE
+    if np.any(s < low) or np.any(s > high) or s.max() / s.min() > MAX_ANISOTROPY:
+        raise InputError(
+            f"spacing must be numbers from {low:g} to {high:g}, the largest at most "
+            f"{MAX_ANISOTROPY:g} times the smallest (beyond these the volume's smoothing asks "
+            f"for more memory than a machine has, or its coordinates overflow); got "
+            f"{tuple(s.tolist())}. Give the voxel size in one unit, e.g. 2 0.5 0.5 (µm).")
     return s
 
 
