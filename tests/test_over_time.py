@@ -65,3 +65,29 @@ def test_the_drawing_has_a_line_per_object_and_a_band_per_group():
     assert len(grey) == 6 and len(means) == 2 and len(ax.collections) == 2
     np.testing.assert_allclose(red[0].get_ydata(), _table().query("track_id == 5")["area"])
     assert ax.get_ylabel() == "area" and ax.get_xlabel() == "frame"
+
+
+def test_pfsdm_plot_draws_the_column_and_writes_what_it_drew(tmp_path, capsys):
+    from PIL import Image
+
+    from napari_pfsdm.cli import main
+    from napari_pfsdm.io_csv import write_table_csv
+
+    table = _table()
+    path = tmp_path / "t.csv"
+    write_table_csv(table.drop(columns="group"), path, table_type="features")
+    pd.DataFrame({"track_id": [1, 2, 3, 4, 5, 6],
+                  "group": ["up"] * 3 + ["down"] * 3}).to_csv(tmp_path / "g.csv", index=False)
+    png, values = tmp_path / "area.png", tmp_path / "v.csv"
+    assert main(["plot", str(path), "--column", "area", "-o", str(png), "--groups",
+                 str(tmp_path / "g.csv"), "--objects", "track2", "--values", str(values),
+                 "-q"]) == 0
+    assert Image.open(png).size[0] > 400
+    drawn = pd.read_csv(values)
+    np.testing.assert_allclose(drawn.sort_values(["object", "frame"])["value"],
+                               table.sort_values(["track_id", "frame"])["area"])
+    assert main(["plot", str(path), "--column", "volume", "-o", str(tmp_path / "x.png")]) == 2
+    assert "no column of numbers called 'volume'" in capsys.readouterr().err
+    assert main(["plot", str(path), "--column", "area", "-o", str(tmp_path / "y.png"),
+                 "--objects", "track99"]) == 2
+    assert "no object called track99" in capsys.readouterr().err
