@@ -59,9 +59,11 @@ class SimilarPlot(Plot):
         self.result = None  # (selection, k, frames, labels, distances, outlines)
         self.worker = None
         self.thumbs: list = []
+        self.asked = None  # (run, selection, count) of the last drawing
 
     def draw(self) -> None:
         a = self.analysis
+        self.asked = (a.key, a.selection, self.count.value)  # what this drawing is of
         if a.ndim == 3:
             raise ValueError("The gallery is drawn for 2-D objects.")
         if a.selection is None or a.row_of(*a.selection) is None \
@@ -92,8 +94,7 @@ class SimilarPlot(Plot):
     def highlight(self) -> None:
         """A new selection: its own gallery (the selected object is what the tab shows)."""
         a = self.analysis
-        if a is not None and self.result is not None \
-                and self.result[0] != (a.key, a.selection, self.count.value):
+        if a is not None and (a.key, a.selection, self.count.value) != self.asked:
             self.redraw()
 
     def _compute(self, a: Analysis, want) -> None:

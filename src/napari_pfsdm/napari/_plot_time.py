@@ -20,13 +20,11 @@ class OverTimePlot(Plot):
     """One number of every object against time, per object and per group."""
 
     def __init__(self, viewer) -> None:
-        self.column = ComboBox(choices=self._columns, tooltip="The number drawn against time: "
-                               "a classic measure, a PC score, a predicted probability, …")
+        self.column = ComboBox(choices=[], tooltip="The number drawn against time: a classic "
+                               "measure, a PC score, a predicted probability, …")
         super().__init__(viewer, [self.column])
 
-    def _columns(self, _widget=None) -> list[str]:
-        if getattr(self, "analysis", None) is None:
-            return []
+    def _columns(self) -> list[str]:
         columns = numeric_columns(self.analysis.layer_features())
         return [c for c in columns if c not in ("failed",)]
 
@@ -35,7 +33,10 @@ class OverTimePlot(Plot):
         if not a.time_lapse:
             raise ValueError("Measures over time need a time-lapse.")
         with self.column.changed.blocked():  # (a new choice would draw again)
-            self.column.reset_choices()
+            chosen = self.column.value
+            self.column.choices = self._columns()
+            if chosen in self.column.choices:
+                self.column.value = chosen
         column = self.column.value
         if column is None:
             raise ValueError("No numbers to draw against time.")
