@@ -11,6 +11,7 @@ from napari_pfsdm.core.elastic import (
     TURNING_ARCS,
     _mirrored,
     banded_dtw,
+    elastic_distance_between,
     elastic_distance_matrix,
     elastic_distance_pairs,
     outline_signature,
@@ -168,3 +169,75 @@ def test_bad_input_is_refused():
         elastic_distance_pairs(np.zeros((2, N_CHANNELS, 64)), np.zeros((3, N_CHANNELS, 64)))
     with pytest.raises(InputError):
         elastic_distance_matrix(np.zeros((2, 3, 64)))
+
+
+def test_between_is_the_matrix_entries():
+    rng = np.random.default_rng(11)
+    s = rng.normal(size=(8, N_CHANNELS, 32))
+    s[6] = np.nan
+    d = elastic_distance_matrix(s)
+    ii, jj = rng.integers(0, 8, size=(2, 30))
+    got = elastic_distance_between(s, ii, jj)
+    assert np.allclose(got, d[ii, jj], equal_nan=True, atol=0)
+
+
+# --------------------------------------------------------------------------- in the library
+def _labels() -> np.ndarray:
+    yy, xx = np.mgrid[:90, :330]
+    lab = np.zeros((90, 330), int)
+    lab[10:60, 10:60] = 1  # a square
+    lab[20:45, 75:140] = 2  # a bar
+    lab[((yy - 45) / 30) ** 2 + ((xx - 180) / 20) ** 2 < 1] = 3  # an ellipse
+    lab[_shape(yy, xx, 45, 260) & (np.abs(xx - 260) < 55)] = 4  # a lobed shape
+    return lab
+
+
+def test_distance_matrix_adds_the_elastic_term_from_results_and_tables():
+    import napari_pfsdm as P
+    from napari_pfsdm.core.distances import ELASTIC_WEIGHT
+    from napari_pfsdm.core.distances import distance_matrix as core_matrix
+
+    lab = _labels()
+    res = [pfsdm(lab == k) for k in range(1, 5)]
+    sig = np.stack([r.signature for r in res])
+    base = core_matrix(res)
+    mu = 0.3
+    want = base + mu * elastic_distance_matrix(sig)
+    assert ELASTIC_WEIGHT == 0  # opt-in: the default distance is unchanged
+    assert np.allclose(core_matrix(res, elastic_weight=mu), want, atol=1e-12)
+    table = P.measure(lab)
+    assert table.attrs["pfsdm"]["elastic_smoothing"] == res[0].options["elastic_smoothing"]
+    cols = [c for c in table.columns if c.startswith("elastic_")]
+    assert len(cols) == sig[0].size
+    assert np.allclose(table[cols].to_numpy().reshape(sig.shape), sig, atol=1e-12)
+    assert np.allclose(P.distance_matrix(table, elastic_weight=mu), want, atol=1e-9)
+    old = table.drop(columns=cols)
+    with pytest.raises(InputError, match="elastic"):
+        P.distance_matrix(old, elastic_weight=mu)
+    assert np.allclose(P.distance_matrix(old), base, atol=1e-9)
+    with pytest.raises(InputError, match="elastic_weight"):
+        core_matrix(res, elastic_weight=-1)
+
+
+def test_signature_follows_the_smoothing_option():
+    lab = _labels() == 4
+    a, b = pfsdm(lab), pfsdm(lab, elastic_smoothing=0.0)
+    assert b.options["elastic_smoothing"] == 0.0
+    assert np.allclose(b.signature, outline_signature(b.contour.normalized, smoothing=0))
+    assert np.allclose(a.signature, outline_signature(a.contour.normalized, smoothing=4.0))
+    assert not np.allclose(a.signature, b.signature)
+
+
+def test_neighbours_with_the_elastic_term():
+    import napari_pfsdm as P
+
+    lab = _labels()
+    table = P.measure(lab)
+    mu = 0.5
+    d = P.distance_matrix(table, elastic_weight=mu)
+    np.fill_diagonal(d, np.inf)
+    # every other object a candidate: the exact order of the matrix
+    idx, dist = P.nearest_neighbours(table, k=2, elastic_weight=mu, elastic_candidates=3)
+    want = np.argsort(d, axis=1, kind="stable")[:, :2]
+    assert np.array_equal(idx, want)
+    assert np.allclose(dist, np.take_along_axis(d, want, 1), atol=1e-6)

@@ -29,7 +29,7 @@ IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
 #: Text columns kept out of ``layer.features`` (plotters expect numbers).
 TEXT_COLUMNS = ("error", "warnings")
 #: Raw feature columns kept out of ``layer.features`` (hundreds; in the export and the API).
-RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "surface_l")
+RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "elastic_c", "surface_l")
 
 
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
