@@ -20,8 +20,11 @@ Distance (:func:`elastic_distance_pairs`, :func:`elastic_distance_matrix`)
     (``half_steps``; the plain ``‖a(i) − b(j)‖₁`` without; the cost is symmetric either way):
 
     1. for both orientations of b (as is, and reversed: the mirror image), the cyclic start
-       shifts s are scored by the rigid cost Σ_i ‖a(i) − b(i + s)‖² (one FFT correlation);
-       the :data:`N_START_SHIFTS` best over both orientations are kept;
+       shifts s are scored by the rigid cost Σ_i ‖a(i) − b(i + s)‖² (a correlation, from the
+       signatures' FFTs); of its local minima over s, the :data:`N_START_SHIFTS` lowest over
+       both orientations are kept (one start per valley: neighbouring shifts of one valley
+       would refine to the same path), and any other tied with the last of them (a symmetric
+       outline has several equal valleys: rounding must not choose among them);
     2. each is refined by dynamic time warping in a band of ± :data:`BAND` points around the
        rigid diagonal (steps (1, 1), (1, 0), (0, 1), from (0, 0) to (n − 1, n − 1));
     3. the distance is the least warped cost over them, divided by n: the mean L1 cost per
@@ -253,7 +256,8 @@ def _best_shifts(fa: np.ndarray, na: np.ndarray, fb: tuple[np.ndarray, np.ndarra
 
 
 def _kernel():
-    """The compiled DP over pairs (numba, compiled on first use and cached on disk)."""
+    """The compiled DP over pairs and the rigid start-shift search (numba, compiled on first
+    use and cached on disk)."""
     global _KERNEL
     if _KERNEL is None:
         _KERNEL = _compile()
@@ -267,8 +271,9 @@ def _compile():
     import numba
 
     @numba.njit(parallel=True, cache=True, fastmath=True)
-    def dtw_pairs(sig, sig_mirror, ii, jj, mirror, shift, band, half, out):  # pragma: no cover
-        n_pairs, n_cand = shift.shape
+    def dtw_pairs(sig, sig_mirror, ii, jj, mirror, shift, count, band, half,
+                  out):  # pragma: no cover
+        n_pairs = shift.shape[0]
         n_ch, n = sig.shape[1], sig.shape[2]
         width = 2 * band + 1
         inf = np.inf
@@ -287,7 +292,7 @@ def _compile():
                 for ch in range(n_ch):
                     g_t[i, ch] = 0.5 * (a_t[i, ch] + a_t[(i + 1) % n, ch])
             best = inf
-            for k in range(n_cand):
+            for k in range(count[p]):
                 s = shift[p, k]
                 src = sig_mirror if mirror[p, k] else sig
                 for j in range(n):
@@ -334,7 +339,84 @@ def _compile():
                     best = prev[band]
             out[p] = best / n
 
-    return dtw_pairs
+    @numba.njit(parallel=True, cache=True, fastmath=True)
+    def rigid_shifts(fr, fi, fmr, fmi, norm, ii, jj, cos_t, sin_t, n_cand, mirror, shift,
+                     count):  # pragma: no cover
+        """Per pair, the n_cand lowest local minima over cyclic shifts s (both orientations)
+        of Σ_i ‖a(i) − b(i + s)‖², from the signatures' spectra (real and imaginary parts,
+        (objects, C, H)), plus any other minimum tied with the last (to 1e-9): ``count``
+        of them in ``mirror`` and ``shift``."""
+        n_pairs, cap = shift.shape
+        n_ch, n_h = fr.shape[1], fr.shape[2]
+        n = cos_t.shape[1]
+        for p in numba.prange(n_pairs):
+            ia, ib = ii[p], jj[p]
+            xr = np.empty(n_h)
+            xi = np.empty(n_h)
+            vals = np.empty((2, n))
+            for m in range(2):
+                br = fmr if m else fr
+                bi = fmi if m else fi
+                for k in range(n_h):
+                    sr = 0.0
+                    si = 0.0
+                    for ch in range(n_ch):  # conj(A) B
+                        ar, ai = fr[ia, ch, k], fi[ia, ch, k]
+                        sr += ar * br[ib, ch, k] + ai * bi[ib, ch, k]
+                        si += ar * bi[ib, ch, k] - ai * br[ib, ch, k]
+                    xr[k] = sr
+                    xi[k] = si
+                for s_ in range(n):
+                    c = 0.0
+                    for k in range(n_h):
+                        c += xr[k] * cos_t[k, s_] - xi[k] * sin_t[k, s_]
+                    vals[m, s_] = norm[ia] + norm[ib] - 2.0 * c
+            # the local minima over s (neighbouring shifts of one valley: one candidate; on a
+            # flat valley floor, equal to rounding, every shift)
+            flat = 1e-9 * (norm[ia] + norm[ib])
+            v_list = np.empty(2 * n)
+            code = np.empty(2 * n, np.int64)
+            n_min = 0
+            for m in range(2):
+                for s_ in range(n):
+                    v = vals[m, s_]
+                    if v <= vals[m, (s_ - 1) % n] + flat and v <= vals[m, (s_ + 1) % n] + flat:
+                        v_list[n_min] = v
+                        code[n_min] = m * n + s_
+                        n_min += 1
+            order = np.argsort(v_list[:n_min], kind="mergesort")
+            last = v_list[order[min(n_cand, n_min) - 1]]
+            tol = flat + 1e-9 * abs(last)
+            got = 0
+            for q in range(n_min):
+                v = v_list[order[q]]
+                if got >= cap or (q >= n_cand and v > last + tol):
+                    break
+                mirror[p, got] = code[order[q]] // n
+                shift[p, got] = code[order[q]] % n
+                got += 1
+            count[p] = got
+
+    return dtw_pairs, rigid_shifts
+
+
+#: Valleys tied with the last kept one (to 1e-9) refined besides the N_START_SHIFTS: an outline
+#: with a symmetry has several equal valleys, and rounding must not choose among them.
+_EXTRA_TIED = 16
+
+
+@lru_cache(maxsize=4)
+def _irfft_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin tables (H, n) with the inverse real FFT's weights: Σ_t a(t) b(t + s) =
+    Σ_k Re(X_k e^{2πiks/n}) w_k / n for X = conj(A) B, w = 1 at k = 0 and n/2, else 2."""
+    h = n // 2 + 1
+    k = np.arange(h)[:, None]
+    w = np.full((h, 1), 2.0)
+    w[0] = 1.0
+    if n % 2 == 0:
+        w[-1] = 1.0
+    ang = 2 * np.pi * k * np.arange(n)[None, :] / n
+    return w * np.cos(ang) / n, w * np.sin(ang) / n
 
 
 def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, band: int,
@@ -342,28 +424,38 @@ def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, ban
     """d_E(a[ii[p]], b[jj[p]]) for every p (rows of a and b finite).
 
     DTW from a cut of one cyclic sequence is not symmetric in its two arguments; each pair is
-    put in a fixed order first (the signature with the smaller sum first), so that d_E(x, y)
-    = d_E(y, x) exactly, whichever side and call a signature comes from.
+    put in a fixed order first (the signature with the smaller sum of squares first), so that
+    d_E(x, y) = d_E(y, x) exactly, whichever side and call a signature comes from. (Not the
+    plain sum: that of the turning angles is the total turning, and that of the centroid
+    distances n, for every outline.) Two signatures whose sums of squares agree to rounding
+    may be put in either order by copies that differ by rounding (e.g. a table's and its
+    results'), which can move their d_E by about 1 %.
     """
     n = a.shape[2]
     if b is a:
         sig, jb = a, jj
     else:
         sig, jb = np.concatenate([a, b]), jj + len(a)
-    key = sig.sum(axis=(1, 2))
+    key = (sig * sig).sum(axis=(1, 2))
     swap = key[jb] < key[ii]
     first, second = np.where(swap, jb, ii).astype(np.int64), np.where(swap, ii, jb).astype(
         np.int64)
     f, fm, norm = _spectra(sig)
+    parts = [np.ascontiguousarray(x) for x in (f.real, f.imag, fm.real, fm.imag)]
+    cos_t, sin_t = _irfft_tables(n)
     mirror_sig = np.ascontiguousarray(_mirrored(sig))
     sig = np.ascontiguousarray(sig)
-    kernel = _kernel()
+    dtw, rigid = _kernel()
     out = np.empty(len(ii))
     for p0 in range(0, len(ii), chunk):
         i, j = first[p0:p0 + chunk], second[p0:p0 + chunk]
-        mirror, shift = _best_shifts(f, norm, (f, fm), norm, i, j, n, n_shifts)
+        cap = min(2 * n, n_shifts + _EXTRA_TIED)
+        mirror = np.empty((len(i), cap), np.int64)
+        shift = np.empty((len(i), cap), np.int64)
+        count = np.empty(len(i), np.int64)
+        rigid(*parts, norm, i, j, cos_t, sin_t, n_shifts, mirror, shift, count)
         res = np.empty(len(i))
-        kernel(sig, mirror_sig, i, j, mirror, shift, band, half_steps, res)
+        dtw(sig, mirror_sig, i, j, mirror, shift, count, band, half_steps, res)
         out[p0:p0 + len(i)] = res
     return out
 
