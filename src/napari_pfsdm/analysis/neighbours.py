@@ -190,7 +190,7 @@ def nearest_neighbours(
 
 
 #: Candidates per object (× k) that get the elastic term in :func:`nearest_neighbours`.
-ELASTIC_CANDIDATES = 8
+ELASTIC_CANDIDATES = 12
 
 
 def _signatures(items) -> np.ndarray:

@@ -73,7 +73,7 @@ BOUNDARY_WEIGHT = 1.0
 ELASTIC_WEIGHT = 0.0
 #: The weight of d_E chosen by leave-classes-out cross-validation on MPEG-7
 #: (``benchmarks/mpeg7_elastic.py``, docs/benchmarks.md).
-RECOMMENDED_ELASTIC_WEIGHT = 0.375
+RECOMMENDED_ELASTIC_WEIGHT = 0.5
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:

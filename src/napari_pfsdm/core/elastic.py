@@ -76,9 +76,9 @@ N_SIGNATURE_POINTS = 64
 TURNING_ARCS = (1 / 128, 1 / 64, 1 / 32, 1 / 16, 1 / 8)
 #: Numbers per signature point: one turning angle per arc and the relative centroid distance.
 N_CHANNELS = len(TURNING_ARCS) + 1
-#: Half-width of the DTW band, in signature points (1/16 of the outline; MPEG-7's
-#: leave-classes-out study chose 4 over 8 most often, docs/benchmarks.md).
-BAND = 4
+#: Half-width of the DTW band, in signature points (1/8 of the outline; MPEG-7's
+#: leave-classes-out study chose 8 over 4 in 20 of 22 halves, docs/benchmarks.md).
+BAND = 8
 #: Rigid start shifts (over both orientations) refined by DTW.
 N_START_SHIFTS = 3
 #: σ of the Gaussian (in 1/256 of the perimeter) that smooths each channel along the outline
