@@ -136,9 +136,10 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
 #: A value other than the default for every option (consistent with one another).
 CHANGED = {"n_fourier": 7, "n_radii": 5, "n_angles": 40, "sdf": "viscous", "viscosity": 0.2,
            "mapping": "radial", "normalization": "ring", "radii": "boundary",
-           "ring_weighting": "none", "mode_exponent": 0.5, "components": "raise",
-           "min_area": 11, "border_objects": "leave_out", "warned_objects": "leave_out",
-           "sh_degree": 4, "surface_weight": 2.0, "ball_map": "harmonic"}
+           "ring_weighting": "none", "mode_exponent": 0.5, "elastic_smoothing": 2.0,
+           "components": "raise", "min_area": 11, "border_objects": "leave_out",
+           "warned_objects": "leave_out", "sh_degree": 4, "surface_weight": 2.0,
+           "ball_map": "harmonic"}
 
 
 def test_an_option_given_at_any_door_reaches_the_record():

@@ -15,6 +15,7 @@ from scipy import ndimage as ndi
 
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
+from ..core.elastic import N_CHANNELS, N_SIGNATURE_POINTS
 from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.pieces import quietly
 from ..core.table_options import carry_options, set_options
@@ -24,6 +25,7 @@ from ..core.table_schema import (
     base_columns,
     feature_columns,
     outline_columns,
+    signature_columns,
     table_feature_columns,
 )
 from ..core.volume_sdf import check_spacing
@@ -586,10 +588,12 @@ def table_from_objects(
     int_cols = table_feature_columns(opts, "intensity") if with_intensity else []
     # the outline's coefficients (boundary term of the distance): outlines in 2-D only
     out_cols = outline_columns(N_OUTLINE_MODES) if ndim == 2 else []
+    # the outline signature (elastic term of the distance), 2-D only
+    sig_cols = signature_columns(N_CHANNELS, N_SIGNATURE_POINTS) if ndim == 2 else []
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
-    nan_o = np.full(len(out_cols), np.nan)
+    nan_o, nan_e = np.full(len(out_cols), np.nan), np.full(len(sig_cols), np.nan)
     classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)
-    base, classic_rows, shape_rows, int_rows, out_rows = [], [], [], [], []
+    base, classic_rows, shape_rows, int_rows, out_rows, sig_rows = [], [], [], [], [], []
     for obj in objects:
         classic_rows.append([obj.measures.get(c, np.nan) for c in classic_cols])
         res = obj.result
@@ -608,6 +612,8 @@ def table_from_objects(
         if out_cols:
             out_rows.append(np.column_stack([res.outline.real, res.outline.imag]).ravel()
                             if res is not None else nan_o)
+        if sig_cols:
+            sig_rows.append(res.signature.ravel() if res is not None else nan_e)
         if int_cols:
             emb = None if res is None else res.intensity_embedding
             int_rows.append(emb.ravel() if emb is not None else nan_i)
@@ -619,6 +625,8 @@ def table_from_objects(
         blocks.append(pd.DataFrame(_stack_rows(int_rows, len(int_cols)), columns=int_cols))
     if out_cols:
         blocks.append(pd.DataFrame(_stack_rows(out_rows, len(out_cols)), columns=out_cols))
+    if sig_cols:
+        blocks.append(pd.DataFrame(_stack_rows(sig_rows, len(sig_cols)), columns=sig_cols))
     table = pd.concat(blocks, axis=1)
     set_options(table, opts)
     return table
@@ -831,13 +839,14 @@ def measure(
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
         described, whose features are then NaN while the shape's are kept), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
-        coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns, see
-        :mod:`napari_pfsdm.core.table_schema`). ``attrs["pfsdm"]`` holds the options used,
+        coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns) and the outline
+        signature of the elastic term ``elastic_cC_pPP`` (384 columns), see
+        :mod:`napari_pfsdm.core.table_schema`. ``attrs["pfsdm"]`` holds the options used,
         with the rings' ``radii`` and ``weights``, and ``axes``.
         3-D objects: ``volume`` (voxels) instead of ``area``, ``centroid_z``, and
         ``crossing_fraction`` (rays from the centroid crossing the surface more than once), then
         ``shape_rXX_lYY`` (shell, SH degree), ``surface_lYY`` and ``intensity_rXX_lYY``
-        (``core.table_schema``), without outline columns.
+        (``core.table_schema``), without outline or signature columns.
 
     Examples
     --------

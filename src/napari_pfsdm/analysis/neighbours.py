@@ -67,6 +67,8 @@ def nearest_neighbours(
     *,
     intensity_weight: float = 0.0,
     boundary_weight: float | None = None,
+    elastic_weight: float | None = None,
+    elastic_candidates: int | None = None,
     method: str = "bound",
     block: int = 512,
     n_jobs: int | None = None,
@@ -92,6 +94,15 @@ def nearest_neighbours(
         w_I, as in :func:`napari_pfsdm.distance_matrix`.
     boundary_weight : float, optional
         λ (default 1, :data:`napari_pfsdm.core.distances.BOUNDARY_WEIGHT`; 0: SDF term only).
+    elastic_weight : float, optional
+        μ, the weight of the elastic outline term (default 0,
+        :data:`napari_pfsdm.core.distances.ELASTIC_WEIGHT`). With μ > 0 the search is no
+        longer exact: each object's ``elastic_candidates`` nearest under the other terms
+        (found exactly, as above) get the elastic term added, and the k nearest of them are
+        kept (its recall against the full matrix: docs/benchmarks.md).
+    elastic_candidates : int, optional
+        Candidates per object for the elastic term (default
+        :data:`ELASTIC_CANDIDATES` × k, at most n − 1).
     method : {"bound", "brute"}
         ``"bound"`` (default): exact search by a lower bound (below); ``"brute"``: every
         pair, block by block (the reference, ~2 µs per pair).
@@ -152,18 +163,67 @@ def nearest_neighbours(
     >>> idx[:, 0].tolist()
     [1, 0, 1]
     """
+    mu = _dist._check_elastic_weight(elastic_weight)
+    signatures = _signatures(items) if mu else None
     index = neighbour_index(items, intensity_weight, boundary_weight)
     k = check_k(k, len(index))
     if method not in METHODS:
         from ..errors import InputError
 
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    k_search = k
+    if mu:
+        k_search = min(len(index) - 1, max(k, int(elastic_candidates or ELASTIC_CANDIDATES * k)))
     parts = blocks(len(index), max(1, int(block)))
     if scheduler is None and client is None:
-        out = _run_threads(index, parts, k, method, n_jobs)
+        out = _run_threads(index, parts, k_search, method, n_jobs)
     else:
-        out = _run_dask(index, parts, k, method, scheduler, client)
-    return np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out])
+        out = _run_dask(index, parts, k_search, method, scheduler, client)
+    idx, dist = np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out])
+    if mu:
+        idx, dist = _add_elastic(idx, dist, signatures, mu, k)
+    return idx, dist
+
+
+#: Candidates per object (× k) that get the elastic term in :func:`nearest_neighbours`.
+ELASTIC_CANDIDATES = 12
+
+
+def _signatures(items) -> np.ndarray:
+    """The outline signatures of results, :class:`Embeddings` or a table (2-D only)."""
+    if is_table(items):
+        from .tables import signatures_from_table
+
+        if table_ndim(table_options(items)) == 3:
+            _dist._no_elastic_in_3d(1.0)
+        sig = signatures_from_table(items)
+        if sig is None:
+            from ..errors import InputError
+
+            raise InputError("elastic_weight > 0 needs the table's elastic_* columns (a table "
+                             "measured before the elastic term has none): measure again.")
+        return sig
+    if not isinstance(items, Embeddings):
+        items = list(items)
+        if items and distances3d.is_3d(items):
+            _dist._no_elastic_in_3d(1.0)
+    return _dist.signatures_of(items)
+
+
+def _add_elastic(idx: np.ndarray, dist: np.ndarray, signatures: np.ndarray, mu: float,
+                 k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's candidates (idx, dist: the other terms) with μ d_E added, the k nearest kept
+    (nearest first, equal distances by row number)."""
+    from ..core.elastic import elastic_distance_between
+
+    rows, cols = np.nonzero(idx >= 0)
+    total = dist.astype(float).copy()
+    if rows.size:
+        total[rows, cols] += mu * elastic_distance_between(signatures, rows, idx[rows, cols])
+    total = np.where(idx >= 0, total, np.where(np.isnan(dist), np.nan, np.inf))
+    key = np.where(np.isnan(total), np.inf, total)
+    order = np.lexsort((idx, key), axis=1)[:, :k]
+    return np.take_along_axis(idx, order, 1), np.take_along_axis(total, order, 1)
 
 
 def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,

@@ -104,7 +104,8 @@ def row_of(obj: ObjectResult) -> ObjectResult:
     light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
                             intensity_embedding=res.intensity_embedding,
                             surface_embedding=getattr(res, "surface_embedding", None),
-                            outline=getattr(res, "outline", None))
+                            outline=getattr(res, "outline", None),
+                            signature=getattr(res, "signature", None))
     return replace(obj, result=light)
 
 

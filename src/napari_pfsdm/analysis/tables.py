@@ -25,7 +25,9 @@ from ..core.table_schema import (
     check_feature_table,
     feature_columns,
     has_outline,
+    has_signature,
     outline_columns,
+    signature_columns,
     table_feature_columns,
     table_ndim,
 )
@@ -40,6 +42,7 @@ __all__ = [
     "is_table",
     "key_rows",
     "outlines_from_table",
+    "signatures_from_table",
     "weighted_features",
 ]
 
@@ -239,7 +242,8 @@ def embeddings(table, channels: Iterable[str] = ("shape",)) -> Embeddings:
     intensity = embeddings_from_table(table, "intensity")[0] if "intensity" in channels else None
     return Embeddings(shape=shape, weights=weights,
                       mode_weights=_mode_weights(table, shape.shape[2]), intensity=intensity,
-                      outline=outlines_from_table(table))
+                      outline=outlines_from_table(table),
+                      signature=signatures_from_table(table))
 
 
 def outlines_from_table(table) -> np.ndarray | None:
@@ -251,6 +255,15 @@ def outlines_from_table(table) -> np.ndarray | None:
         return None
     values = table[outline_columns(k)].to_numpy(float).reshape(len(table), 2 * k, 2)
     return values[..., 0] + 1j * values[..., 1]
+
+
+def signatures_from_table(table) -> np.ndarray | None:
+    """The elastic term's outline signatures (n, channels, points) from a table's
+    ``elastic_cC_pPP`` columns; None for a table without them (measured before the term)."""
+    n_ch, n_pt = has_signature(table.columns)
+    if not n_ch:
+        return None
+    return table[signature_columns(n_ch, n_pt)].to_numpy(float).reshape(len(table), n_ch, n_pt)
 
 
 def _mode_weights(table, n_modes: int) -> np.ndarray:
@@ -276,7 +289,8 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
 
 def distance_matrix(
     items, intensity_weight: float = 0.0, *, invariance: str | None = None,
-    boundary_weight: float | None = None, chunk: int = 128,
+    boundary_weight: float | None = None, elastic_weight: float | None = None,
+    chunk: int = 128,
 ) -> np.ndarray:
     """All pairwise PF-SDM distances of results or of a feature table's rows.
 
@@ -303,9 +317,10 @@ def distance_matrix(
         volumes = table_ndim(table_options(items)) == 3  # no outline in 3-D
         items = embeddings(items, channels)
         if volumes:
-            from ..core.distances import _no_boundary_in_3d
+            from ..core.distances import _no_boundary_in_3d, _no_elastic_in_3d
 
             boundary_weight = _no_boundary_in_3d(boundary_weight)
+            elastic_weight = _no_elastic_in_3d(elastic_weight)
         elif items.outline is None and boundary_weight is None:
             warnings.warn(
                 "This table has no outline_* columns (it was measured before the boundary "
@@ -313,4 +328,5 @@ def distance_matrix(
                 "Measure again to get the default.", stacklevel=2)
             boundary_weight = 0.0
     return _core.distance_matrix(items, intensity_weight, invariance=invariance,
-                                 boundary_weight=boundary_weight, chunk=chunk)
+                                 boundary_weight=boundary_weight,
+                                 elastic_weight=elastic_weight, chunk=chunk)

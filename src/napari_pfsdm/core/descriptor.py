@@ -12,6 +12,7 @@ from scipy import ndimage as ndi
 from ..errors import InputError
 from .boundary import normalised_modes, outline_coefficients
 from .contour import Contour, MaskInfo, extract_contour, prepare_mask
+from .elastic import SMOOTHING, outline_signature
 from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
@@ -60,6 +61,15 @@ class PFSDMResult:
         if self.options["mapping"] == "harmonic" and isinstance(self.mapping, FourierMap):
             return normalised_modes(self.mapping.coefficients)
         return outline_coefficients(self.contour.normalized)
+
+    @cached_property
+    def signature(self) -> np.ndarray:
+        """The outline signature that the elastic term of the distance compares
+        (:func:`napari_pfsdm.core.elastic.outline_signature`, with the result's
+        ``elastic_smoothing``): (channels, points)."""
+        return outline_signature(self.contour.normalized,
+                                 smoothing=self.options.get("elastic_smoothing",
+                                                            SMOOTHING))
 
     @cached_property
     def skeleton(self):
@@ -246,7 +256,8 @@ def pfsdm(
         "n_fourier": n_fourier, "n_radii": len(r), "n_angles": n_angles, "sdf": p.sdf,
         "viscosity": p.viscosity, "mapping": p.mapping, "normalization": p.normalization,
         "radii": r.tolist(), "ring_weighting": p.ring_weighting,
-        "mode_exponent": p.mode_exponent, "smooth": smooth,
+        "mode_exponent": p.mode_exponent, "elastic_smoothing": p.elastic_smoothing,
+        "smooth": smooth,
     }
     result = PFSDMResult(
         contour=contour, sdf=phi, mapping=pmap, radii=r, angles=theta,

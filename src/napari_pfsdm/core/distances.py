@@ -11,6 +11,12 @@ puts the values, i.e. X on the unit circle, the outline in arc length; it is the
 Procrustes distance of the two outlines with free start point and mirror, in [0, 1].
 ``boundary_weight=0`` gives the SDF term alone.
 
+An elastic outline term is opt-in (``elastic_weight`` μ > 0, :mod:`napari_pfsdm.core.elastic`):
+D + μ · d_E, d_E the mean L1 cost per point of the best elastic correspondence between the
+two outlines' multi-scale signatures (dynamic programming over start point, mirror and local
+stretching). It needs the signatures (results, or a table measured with them) and costs
+about 4 times the default distance's time for all pairs (docs/benchmarks.md).
+
 Three ways to remove rotation and reflection from the SDF term (``invariance``):
 
 ``"magnitude"``
@@ -35,13 +41,17 @@ import numpy as np
 from ..errors import InputError
 from . import distances3d
 from .boundary import boundary_distance_matrix
+from .elastic import elastic_distance_matrix
 from .embeddings import Embeddings
 from .params import option
 
 __all__ = [
     "BOUNDARY_WEIGHT",
+    "ELASTIC_WEIGHT",
     "INVARIANCES",
+    "RECOMMENDED_ELASTIC_WEIGHT",
     "boundary_term",
+    "elastic_term",
     "distance",
     "distance_matrix",
     "Embeddings",
@@ -58,6 +68,14 @@ INVARIANCES = ("combined", "magnitude", "align")
 #: 79.5, 79.5 % bull's-eye) and beats GPA's silhouette on the five-shape benchmark. A fixed
 #: number, so that a distance never depends on the other objects of a collection.
 BOUNDARY_WEIGHT = option("boundary_weight").default
+
+#: μ, the weight of the elastic outline term d_E (:mod:`.elastic`) in the default distance:
+#: 0, the term is opt-in (MPEG-7 and its leave-classes-out study in docs/benchmarks.md give
+#: the weight that retrieves best, ``RECOMMENDED_ELASTIC_WEIGHT``).
+ELASTIC_WEIGHT = 0.0
+#: The weight of d_E chosen by leave-classes-out cross-validation on MPEG-7
+#: (``benchmarks/mpeg7_elastic.py``, docs/benchmarks.md).
+RECOMMENDED_ELASTIC_WEIGHT = 0.5
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -159,6 +177,7 @@ def distance_matrix(
     *,
     invariance: str | None = None,
     boundary_weight: float | None = None,
+    elastic_weight: float | None = None,
     chunk: int = 128,
 ) -> np.ndarray:
     """All pairwise PF-SDM distances.
@@ -177,6 +196,10 @@ def distance_matrix(
         λ, the weight of the boundary term d_B; default :data:`BOUNDARY_WEIGHT` (1). 0: the
         SDF term alone (with ``invariance="combined"``: 72.5 % bull's-eye on MPEG-7, against
         79.5 % for the default).
+    elastic_weight : float, optional
+        μ, the weight of the elastic outline term d_E (module docstring); default
+        :data:`ELASTIC_WEIGHT` (0: off). :data:`RECOMMENDED_ELASTIC_WEIGHT` is the weight
+        chosen on MPEG-7 by leave-classes-out cross-validation.
     chunk : int
         Rows computed at once by ``"align"`` (about chunk × n × 120 float32 numbers at once;
         5,000 objects with the combined distance peak at 1.2 GiB in all, measured).
@@ -210,6 +233,7 @@ def distance_matrix(
             items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
             invariance = "magnitude"
             boundary_weight = _no_boundary_in_3d(boundary_weight)
+            elastic_weight = _no_elastic_in_3d(elastic_weight)
     if hasattr(items, "columns"):
         raise TypeError(
             "core.distances.distance_matrix takes results or Embeddings; for a feature table use "
@@ -220,6 +244,7 @@ def distance_matrix(
         invariance = "magnitude"
     boundary_weight = _check_boundary_weight(boundary_weight)
     intensity_weight = _check_weight("intensity_weight", intensity_weight)
+    elastic_weight = _check_elastic_weight(elastic_weight)
     if invariance not in INVARIANCES:
         raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
@@ -266,16 +291,20 @@ def distance_matrix(
         del d_align
     if boundary_weight:
         out += boundary_weight * boundary_term(items)
+    if elastic_weight:
+        out += elastic_weight * elastic_term(items)
     np.fill_diagonal(out, np.where(np.isnan(np.diag(out)), np.nan, 0.0))
     return out
 
 
 def distance(a, b, intensity_weight: float = 0.0, *, invariance: str | None = None,
-             boundary_weight: float | None = None) -> float:
+             boundary_weight: float | None = None,
+             elastic_weight: float | None = None) -> float:
     """PF-SDM distance between two results (see :func:`distance_matrix`); equal to
     ``distance_matrix([a, b, ...])[0, 1]`` (to ~1e-12: no term depends on the other objects)."""
     return float(distance_matrix([a, b], intensity_weight, invariance=invariance,
-                                 boundary_weight=boundary_weight)[0, 1])
+                                 boundary_weight=boundary_weight,
+                                 elastic_weight=elastic_weight)[0, 1])
 
 
 # --------------------------------------------------------------------------- boundary term
@@ -316,3 +345,39 @@ def outlines_of(items) -> np.ndarray:
 def boundary_term(items) -> np.ndarray:
     """d_B for all pairs of results or :class:`Embeddings` (:mod:`napari_pfsdm.core.boundary`)."""
     return boundary_distance_matrix(outlines_of(items))
+
+
+# --------------------------------------------------------------------------- elastic term
+def _no_elastic_in_3d(weight: float | None) -> float:
+    if weight:
+        raise InputError("elastic_weight is for 2-D outlines; 3-D objects have their surface "
+                         "term instead (the surface_weight option of pfsdm / measure).")
+    return 0.0
+
+
+def _check_elastic_weight(weight: float | None) -> float:
+    if weight is None:
+        return ELASTIC_WEIGHT
+    value = float(weight)
+    if not np.isfinite(value) or value < 0:
+        raise InputError(f"elastic_weight must be a number >= 0 (0: no elastic term), got "
+                         f"{weight!r}.")
+    return value
+
+
+def signatures_of(items) -> np.ndarray:
+    """The outline signatures (n, channels, points) of results or :class:`Embeddings`, for the
+    elastic term; ``ValueError`` when embeddings carry none."""
+    if isinstance(items, Embeddings):
+        if items.signature is None:
+            raise InputError(
+                "elastic_weight > 0 needs the objects' outline signatures, and these "
+                "embeddings carry none (a table measured before the elastic term has no "
+                "elastic_* columns). Measure again, or leave elastic_weight at 0.")
+        return np.asarray(items.signature)
+    return np.stack([r.signature for r in items])
+
+
+def elastic_term(items) -> np.ndarray:
+    """d_E for all pairs of results or :class:`Embeddings` (:mod:`napari_pfsdm.core.elastic`)."""
+    return elastic_distance_matrix(signatures_of(items))

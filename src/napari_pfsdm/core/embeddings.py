@@ -34,6 +34,9 @@ class Embeddings:
     outline : ndarray of complex, shape (n, 2K), optional
         The outline coefficients of the boundary term
         (:func:`napari_pfsdm.core.boundary.outline_coefficients`).
+    signature : ndarray, shape (n, channels, points), optional
+        The outline signatures of the elastic term
+        (:func:`napari_pfsdm.core.elastic.outline_signature`).
     """
 
     shape: np.ndarray
@@ -41,6 +44,7 @@ class Embeddings:
     mode_weights: np.ndarray
     intensity: np.ndarray | None = None
     outline: np.ndarray | None = None
+    signature: np.ndarray | None = None
 
     def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         emb = self.shape if name == "shape" else self.intensity

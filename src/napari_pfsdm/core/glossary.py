@@ -73,6 +73,10 @@ _PATTERNS = [
      lambda m: f"the outline's normalised Fourier coefficient of index {int(m[1]):+d}, "
                f"{'real' if m[2] == 're' else 'imaginary'} part (what the outline term of the "
                "distance compares)"),
+    (re.compile(r"^elastic_c(\d+)_p(\d+)$"),
+     lambda m: f"the outline's elastic signature, channel {int(m[1])} (turning angle over an "
+               "arc of the perimeter, or the centroid distance / its mean), at point "
+               f"{int(m[2])} of the outline (what the opt-in elastic term compares)"),
     (re.compile(r"^(shape|intensity)_PC(\d+)$"),
      lambda m: f"score on principal component {m[2]} of the {m[1]} features (a PCA over "
                "every row)"),

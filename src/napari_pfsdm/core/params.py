@@ -289,6 +289,10 @@ OPTIONS: tuple[Option, ...] = (
            "how much distances stress fine outline detail: they compare (1 + n)^exponent "
            "|c_n|; 0 is the paper's choice",
            low=0.0, high=4.0),
+    Option("elastic_smoothing", float, 4.0,
+           "smoothing of the outline signature that the elastic term of distances compares, "
+           "in 1/256 of the outline's length",
+           low=0.0, high=32.0, dims="2d"),
     Option("components", str, "largest",
            "an object in several pieces: keep the 'largest' or report an error for it "
            "('raise')",

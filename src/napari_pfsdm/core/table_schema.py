@@ -8,7 +8,9 @@ A feature table (from :func:`napari_pfsdm.measure`, or read back from CSV) has o
 outline's normalised Fourier coefficients (what the boundary term of the default distance
 compares, :mod:`napari_pfsdm.core.boundary`) follow as ``outline_n±KK_re`` /
 ``outline_n±KK_im`` (:func:`outline_columns`: 64 columns, 512 bytes per row in memory, about
-1.2 kB per row in a CSV written with exact numbers).
+1.2 kB per row in a CSV written with exact numbers), then the outline signature of the
+elastic term (:mod:`napari_pfsdm.core.elastic`) as ``elastic_cC_pPP`` (channel C, point PP;
+:func:`signature_columns`: 6 × 64 = 384 columns).
 
 A table of 3-D objects (its options say ``ndim: 3``) has :data:`BASE_COLUMNS_3D`, then
 ``shape_rXX_lYY`` (shell ``XX``, spherical-harmonic degree ``YY``: √P_l(r)), ``surface_lYY``
@@ -45,7 +47,9 @@ __all__ = [
     "feature_columns",
     "has_channel",
     "has_outline",
+    "has_signature",
     "outline_columns",
+    "signature_columns",
 ]
 
 #: Columns before the features, in this order.
@@ -249,3 +253,26 @@ def check_feature_table(
                 "to another table. Use the table with its own .json file, or measure again"
             )
     return opts, n_radii, n_modes
+
+
+def signature_columns(n_channels: int, n_points: int) -> list[str]:
+    """Column names of the elastic term's outline signature, channel-major:
+    ``elastic_cC_pPP`` (:func:`napari_pfsdm.core.elastic.outline_signature`).
+
+    Examples
+    --------
+    >>> signature_columns(2, 2)
+    ['elastic_c0_p00', 'elastic_c0_p01', 'elastic_c1_p00', 'elastic_c1_p01']
+    """
+    return [f"elastic_c{c}_p{p:02d}" for c in range(n_channels) for p in range(n_points)]
+
+
+def has_signature(columns: Iterable[str]) -> tuple[int, int]:
+    """(channels, points) when the columns hold a whole outline signature
+    (:func:`signature_columns`), else (0, 0)."""
+    names = {str(c) for c in columns}
+    n_ch = sum(1 for c in names if c.startswith("elastic_c") and c.endswith("_p00"))
+    n_pt = sum(1 for c in names if c.startswith("elastic_c0_p"))
+    if n_ch and n_pt and all(c in names for c in signature_columns(n_ch, n_pt)):
+        return n_ch, n_pt
+    return 0, 0

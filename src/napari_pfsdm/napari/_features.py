@@ -17,7 +17,7 @@ import pandas as pd
 #: Text columns kept out of ``layer.features`` (plotters expect numbers).
 TEXT_COLUMNS = ("error", "warnings")
 #: Raw feature columns kept out of ``layer.features`` (hundreds; in the export and the API).
-RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "surface_l")
+RAW_PREFIXES = ("shape_r", "intensity_r", "outline_", "elastic_c", "surface_l")
 
 
 def layer_features(table: pd.DataFrame, pca: Mapping[str, pd.DataFrame],

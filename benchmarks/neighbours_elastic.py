@@ -1,0 +1,157 @@
+"""Nearest neighbours with the elastic outline term, against the default search, in one run.
+
+A moving-blobs movie (as ``benchmarks/neighbours.py``: 1024², 250 deforming blobs of radius
+10–16 px per frame) with at least n described objects is measured once; then, in this process
+and one after the other (BLAS on one thread, numba on ``--jobs`` threads):
+
+- ``nearest_neighbours(table, k=10)``: the default distance (the anchor);
+- ``nearest_neighbours(table, k=10, elastic_weight=μ)``: the elastic term on each object's
+  ``ELASTIC_CANDIDATES`` × k candidates under the other terms;
+- the recall@10 of that shortcut on ``--sample`` random queries against their exact rows
+  (the default distance of the query to all objects plus μ d_E to all objects);
+- the per-object cost of ``measure`` with and without the signature (its columns computed, or
+  the signature replaced by a stored constant), on the first ``--measure-frames`` frames.
+
+Run (repository root)::
+
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/neighbours_elastic.py \\
+        --sizes 50000
+
+Quote ratios from one run: the machine is shared, absolute times move with its load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+import warnings
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+K = 10
+PER_FRAME = 250
+
+
+def _movie(n: int, seed: int):
+    from napari_pfsdm.data.moving_blobs import make_moving_blobs
+
+    frames = int(np.ceil(n / (0.96 * PER_FRAME)))
+    return make_moving_blobs(n_objects=PER_FRAME, n_frames=frames, size=1024,
+                             radius=(10.0, 16.0), seed=seed)
+
+
+def _measure_cost(labels: np.ndarray) -> tuple[float, float]:
+    """Seconds of ``measure`` on ``labels`` with the signature, and with a constant instead."""
+    import napari_pfsdm as pf
+    from napari_pfsdm.core import descriptor
+
+    pf.measure(labels[:1])  # warm up
+    t0 = time.perf_counter()
+    pf.measure(labels)
+    with_sig = time.perf_counter() - t0
+    prop = descriptor.PFSDMResult.signature
+    fixed = np.zeros((6, 64))
+    try:
+        descriptor.PFSDMResult.signature = property(lambda self: fixed)
+        t0 = time.perf_counter()
+        pf.measure(labels)
+        without = time.perf_counter() - t0
+    finally:
+        descriptor.PFSDMResult.signature = prop
+    return with_sig, without
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[50000])
+    ap.add_argument("--weight", type=float, default=None,
+                    help="μ (default: RECOMMENDED_ELASTIC_WEIGHT)")
+    ap.add_argument("--sample", type=int, default=50)
+    ap.add_argument("--candidates", type=int, nargs="+", default=[8, 12],
+                    help="candidates per object, as multiples of k")
+    ap.add_argument("--measure-frames", type=int, default=8)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+
+    import numba
+
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis.neighbours import ELASTIC_CANDIDATES
+    from napari_pfsdm.analysis.tables import signatures_from_table
+    from napari_pfsdm.core.distances import RECOMMENDED_ELASTIC_WEIGHT
+    from napari_pfsdm.core.elastic import elastic_distance_between
+
+    numba.set_num_threads(args.jobs)
+    mu = RECOMMENDED_ELASTIC_WEIGHT if args.weight is None else args.weight
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; k = {K}; "
+          f"mu = {mu}; candidates {ELASTIC_CANDIDATES} x k; numba threads {args.jobs}")
+    print("| n | measure per object, with / without signature | nn default | candidates "
+          "| nn + elastic | ratio | recall@10 of the shortcut |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    for n in args.sizes:
+        movie = _movie(n, args.seed)
+        w, wo = _measure_cost(movie.labels[: args.measure_frames])
+        per = args.measure_frames * PER_FRAME
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            table = pf.drop_failed(pf.measure(movie.labels))
+        kept = table.iloc[:n].reset_index(drop=True)
+        kept.attrs = table.attrs
+        sig = signatures_from_table(kept)
+        elastic_distance_between(sig, np.arange(20), np.arange(20)[::-1])  # compiled here
+        t0 = time.perf_counter()
+        pf.nearest_neighbours(kept, K, n_jobs=args.jobs)
+        t_default = time.perf_counter() - t0
+        found = {}
+        for mult in args.candidates:
+            t0 = time.perf_counter()
+            idx, _ = pf.nearest_neighbours(kept, K, n_jobs=args.jobs, elastic_weight=mu,
+                                           elastic_candidates=mult * K)
+            found[mult] = (idx, time.perf_counter() - t0)
+        # exact rows of the sampled queries: default distance to all + μ d_E to all
+        rng = np.random.default_rng(args.seed)
+        queries = rng.choice(len(kept), args.sample, replace=False)
+        features, outline = _default_terms(kept)
+        truth = {}
+        for q in queries:
+            row = _default_row(features, outline, q)
+            row += mu * elastic_distance_between(sig, np.full(len(kept), q),
+                                                 np.arange(len(kept)))
+            row[q] = np.inf
+            truth[q] = set(np.argsort(row, kind="stable")[:K])
+        for mult, (idx, t_elastic) in found.items():
+            recall = sum(len(truth[q] & set(idx[q])) for q in queries) / (K * len(queries))
+            print(f"| {n:,} | {1e3 * w / per:.2f} / {1e3 * wo / per:.2f} ms "
+                  f"({w / wo:.2f}x) | {t_default:.1f} s | {mult} k | {t_elastic:.1f} s | "
+                  f"{t_elastic / t_default:.2f} | {recall:.4f} ({len(queries)} rows) |",
+                  flush=True)
+    return 0
+
+
+def _default_terms(table) -> tuple[np.ndarray, np.ndarray]:
+    """The weighted magnitude features and the outline coefficients of a table."""
+    from napari_pfsdm.analysis.tables import embeddings
+    from napari_pfsdm.core.distances import weighted_features
+
+    emb = embeddings(table)
+    return weighted_features(emb), emb.outline
+
+
+def _default_row(features: np.ndarray, outline: np.ndarray, q: int) -> np.ndarray:
+    """The default distance of row q to every row: the weighted features' Euclidean distance
+    plus the boundary term (:func:`napari_pfsdm.core.boundary.boundary_distance_matrix`)."""
+    from napari_pfsdm.core.boundary import boundary_distance_matrix
+    from napari_pfsdm.core.distances import BOUNDARY_WEIGHT
+
+    row = np.sqrt(((features - features[q]) ** 2).sum(axis=1))
+    row += BOUNDARY_WEIGHT * boundary_distance_matrix(outline[q:q + 1], outline)[0]
+    return row
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,573 @@
+"""The elastic outline term: a multi-scale outline signature compared by dynamic programming.
+
+The boundary term (:mod:`.boundary`) lines two outlines up by one rigid start shift; detail that
+is stretched or articulated differently along the outline (a longer leg, a shifted notch) then
+falls out of phase and is lost. This term lets the correspondence bend.
+
+Signature (:func:`outline_signature`)
+    At :data:`N_SIGNATURE_POINTS` points equally spaced in arc length along the normalised
+    outline (counter-clockwise, uniform in arc length, centroid at the origin), one column of
+    :data:`N_CHANNELS` numbers: the turning angle of the outline over arcs of
+    :data:`TURNING_ARCS` (fractions of the perimeter: the signed angle between the chord that
+    arrives at the point and the chord that leaves it), and the distance to the centroid
+    divided by its mean along the outline. Each is invariant to translation, rotation and
+    scale; moving the start point shifts the columns cyclically; a mirror image, traced
+    counter-clockwise again, reverses their order.
+
+Distance (:func:`elastic_distance_pairs`, :func:`elastic_distance_matrix`)
+    With the L1 cost between columns, ``c(i, j) = min(‖a(i) − b(j)‖₁, ‖a(i) − b(j + ½)‖₁,
+    ‖a(i + ½) − b(j)‖₁)``, where ``x(i + ½)`` is the midpoint of two neighbouring columns
+    (``half_steps``; the plain ``‖a(i) − b(j)‖₁`` without; the cost is symmetric either way):
+
+    1. for both orientations of b (as is, and reversed: the mirror image), the cyclic start
+       shifts s are scored by the rigid cost Σ_i ‖a(i) − b(i + s)‖² (a correlation, from the
+       signatures' FFTs); of its local minima over s, the :data:`N_START_SHIFTS` lowest over
+       both orientations are kept (one start per valley: neighbouring shifts of one valley
+       would refine to the same path), and any other tied with the last of them (a symmetric
+       outline has several equal valleys: rounding must not choose among them);
+    2. each is refined by dynamic time warping in a band of ± :data:`BAND` points around the
+       rigid diagonal (steps (1, 1), (1, 0), (0, 1), from (0, 0) to (n − 1, n − 1));
+    3. the distance is the least warped cost over them, divided by n: the mean L1 cost per
+       point along the best elastic correspondence.
+
+    It is 0 between a signature and itself started elsewhere by whole points or mirrored
+    (exactly), symmetric (each pair is put in a fixed order, :func:`_distances`), and never
+    above the rigid mean cost at the shifts it refines (the diagonal is a path in the band).
+    It is no metric (DTW breaks the triangle inequality).
+
+    Between an outline and a copy of it rotated, rescaled or translated as a raster, it is
+    small but not 0: besides the pixel staircase, the copy's start point falls between the
+    signature's points, and a half-point offset costs about the signature's total variation
+    / 2n per point, which no correspondence between the same n points removes. The channels
+    are smoothed (:data:`SMOOTHING`) before they are sampled, and the half-point matches of
+    the cost take up most of the offset (a lobed shape of ``tests/test_elastic.py`` turned by
+    0.6 rad is at 6 % of its distance to a rectangle; 19 % without the half-point matches).
+
+The DP is vectorised with numpy over many pairs at once: within one row of the band the
+horizontal steps form a min-plus prefix scan, ``D = S + minimum.accumulate(t − S)`` with S the
+row's cumulative cost, so each of the n rows is a handful of array operations.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy import ndimage as ndi
+
+from ..errors import InputError
+
+__all__ = [
+    "BAND",
+    "N_CHANNELS",
+    "N_SIGNATURE_POINTS",
+    "N_START_SHIFTS",
+    "TURNING_ARCS",
+    "banded_dtw",
+    "elastic_distance_between",
+    "elastic_distance_matrix",
+    "elastic_distance_pairs",
+    "outline_signature",
+]
+
+#: Points of the signature along the outline.
+N_SIGNATURE_POINTS = 64
+#: Arcs (fractions of the perimeter) over which the turning angle is measured: 1/128 … 1/8.
+TURNING_ARCS = (1 / 128, 1 / 64, 1 / 32, 1 / 16, 1 / 8)
+#: Numbers per signature point: one turning angle per arc and the relative centroid distance.
+N_CHANNELS = len(TURNING_ARCS) + 1
+#: Half-width of the DTW band, in signature points (1/8 of the outline; MPEG-7's
+#: leave-classes-out study chose 8 over 4 in 20 of 22 halves, docs/benchmarks.md).
+BAND = 8
+#: Rigid start shifts (over both orientations) refined by DTW.
+N_START_SHIFTS = 3
+#: σ of the Gaussian (in 1/256 of the perimeter) that smooths each channel along the outline
+#: before it is sampled at the signature's points: the ``elastic_smoothing`` option's
+#: default (chosen on MPEG-7 by leave-classes-out cross-validation among 0, 2, 4, 8).
+SMOOTHING = 4.0
+#: Whether a point may also be matched to the midpoint of two neighbours of the other
+#: signature (half-point offsets of the start point then cost little).
+HALF_STEPS = True
+#: Points the outline is resampled to before the turning angles are measured.
+_RESAMPLED = 256
+
+
+def _resample(points: np.ndarray, m: int) -> np.ndarray:
+    """A closed polyline resampled to m points equally spaced in arc length, from point 0."""
+    closed = np.vstack([points, points[:1]])
+    seg = np.hypot(*np.diff(closed, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    t = np.arange(m) * (s[-1] / m)
+    return np.column_stack([np.interp(t, s, closed[:, 0]), np.interp(t, s, closed[:, 1])])
+
+
+def outline_signature(points: np.ndarray, n_points: int = N_SIGNATURE_POINTS, *,
+                      smoothing: float = SMOOTHING) -> np.ndarray:
+    """The elastic term's signature of one closed outline (module docstring).
+
+    Parameters
+    ----------
+    points : ndarray, shape (M, 2)
+        The outline, counter-clockwise (in the array's (row, col) axes, as
+        ``result.contour.normalized``), M ≥ 8. It is resampled to 256 points uniformly in
+        arc length (256 points are taken as they are: ``contour.normalized`` is already
+        uniform); the centroid is that of the enclosed area.
+    n_points : int
+        Columns of the signature (a divisor of 256).
+    smoothing : float
+        σ of the Gaussian that smooths each channel along the outline before it is sampled,
+        in 1/256 of the perimeter (0: none).
+
+    Returns
+    -------
+    ndarray of float, shape (N_CHANNELS, n_points)
+        Rows: turning angles (radians, in (−π, π]) over each arc of :data:`TURNING_ARCS`, then
+        the centroid distance over its mean.
+
+    Examples
+    --------
+    >>> t = 2 * np.pi * np.arange(200) / 200
+    >>> circle = np.column_stack([np.cos(t), np.sin(t)])
+    >>> sig = outline_signature(circle, 16)
+    >>> np.round(sig[:, 0], 4).tolist()  # turning over an arc a: 2π a
+    [0.0491, 0.0982, 0.1963, 0.3927, 0.7854, 1.0]
+    """
+    pts = np.asarray(points, float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 8 or not np.isfinite(pts).all():
+        raise InputError(f"an outline of at least 8 finite points (M, 2) is needed; got shape "
+                         f"{pts.shape}")
+    if n_points < 8 or _RESAMPLED % n_points:
+        raise InputError(f"n_points must divide {_RESAMPLED} and be at least 8, got {n_points}")
+    p = pts if len(pts) == _RESAMPLED else _resample(pts, _RESAMPLED)
+    x, y = p[:, 0], p[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    area = cross.sum() / 2
+    if not abs(area) > 0:
+        raise InputError("the outline encloses no area")
+    centre = np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * area)
+    p = p - centre
+    out = np.empty((N_CHANNELS, _RESAMPLED))
+    before, after = _arc_index()
+    u = p - p[before]  # (arcs, points, 2): the chord arriving at each point
+    v = p[after] - p  # the chord leaving it
+    np.arctan2(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
+               u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1], out=out[:-1])
+    radius = np.hypot(p[:, 0], p[:, 1])
+    out[-1] = radius / radius.mean()
+    if smoothing > 0:
+        out = ndi.gaussian_filter1d(out, smoothing, axis=-1, mode="wrap")
+    return out[:, :: _RESAMPLED // n_points]
+    return out
+
+
+@lru_cache(maxsize=1)
+def _arc_index() -> tuple[np.ndarray, np.ndarray]:
+    """For each arc of :data:`TURNING_ARCS` and each resampled point, the indices of the
+    points that far behind and ahead: two (arcs, points) arrays (read-only)."""
+    k = np.array([max(1, int(round(a * _RESAMPLED))) for a in TURNING_ARCS])[:, None]
+    idx = np.arange(_RESAMPLED)[None, :]
+    out = ((idx - k) % _RESAMPLED, (idx + k) % _RESAMPLED)
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
+def _mirrored(sig: np.ndarray) -> np.ndarray:
+    """The signature of the mirror image traced counter-clockwise: the columns reversed
+    (column 0 stays first). Reversing the direction of travel and reflecting each flip the
+    sign of a turning angle, so the angles keep theirs."""
+    return np.roll(sig[..., ::-1], 1, axis=-1)
+
+
+def banded_dtw(cost: np.ndarray) -> np.ndarray:
+    """Least cost of a monotone path from (0, 0) to (n − 1, n − 1) through banded costs.
+
+    Parameters
+    ----------
+    cost : ndarray, shape (..., n, 2B + 1)
+        ``cost[..., i, B + d]`` is the cost of matching point i to point i + d; entries with
+        i + d outside 0 … n − 1 are ignored.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The least sum of costs along a path of steps (1, 1), (1, 0), (0, 1) that stays in the
+        band (each visited cell counted once).
+
+    Examples
+    --------
+    >>> c = np.array([[[np.inf, 0, 5], [1, 0, 5], [1, 0, np.inf]]])  # n = 3, B = 1
+    >>> float(banded_dtw(c)[0])
+    0.0
+    """
+    c = np.asarray(cost, float)
+    n, w = c.shape[-2], c.shape[-1]
+    b = (w - 1) // 2
+    d = np.arange(w) - b
+    inf = np.inf
+    prev = np.full(c.shape[:-2] + (w,), inf)
+    for i in range(n):
+        row = np.where(((i + d) >= 0) & ((i + d) < n), c[..., i, :], inf)
+        if i == 0:
+            # from (0, 0) rightwards only
+            s = np.cumsum(np.where(d >= 0, row, 0.0), axis=-1)
+            cur = np.where(d >= 0, s, inf)
+        else:
+            # diagonal: (i−1, j−1) is the same d; vertical: (i−1, j) is d + 1
+            up = np.concatenate([prev[..., 1:], np.full(prev.shape[:-1] + (1,), inf)], -1)
+            t = row + np.minimum(prev, up)
+            # horizontal steps within the row: D[d] = min_{e ≤ d} t[e] + Σ_{e<f≤d} row[f]
+            finite = np.where(np.isfinite(row), row, 0.0)
+            s = np.cumsum(finite, axis=-1)
+            cur = s + np.minimum.accumulate(t - s, axis=-1)
+            cur = np.where(np.isfinite(row), cur, inf)
+        prev = cur
+    return prev[..., b]
+
+
+def _check_signatures(sig: np.ndarray, name: str) -> np.ndarray:
+    a = np.asarray(sig, float)
+    if a.ndim != 3 or a.shape[1] != N_CHANNELS or a.shape[2] < 8:
+        raise InputError(f"{name} must be outline signatures (n, {N_CHANNELS}, points ≥ 8); "
+                         f"got shape {a.shape}")
+    return a
+
+
+def _spectra(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per object: the signature's FFT along the points, that of its mirror image, and its
+    squared norm (what the rigid start-shift scores need)."""
+    return (np.fft.rfft(sig, axis=-1), np.fft.rfft(_mirrored(sig), axis=-1),
+            (sig * sig).sum(axis=(1, 2)))
+
+
+def _best_shifts(fa: np.ndarray, na: np.ndarray, fb: tuple[np.ndarray, np.ndarray],
+                 nb: np.ndarray, ii: np.ndarray, jj: np.ndarray, n: int,
+                 n_shifts: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n_shifts`` cyclic start shifts (and orientations) of the least rigid cost
+    Σ_i ‖a(i) − b(i + s)‖² for the pairs (ii, jj), both orientations of b: (P, S) each."""
+    a = np.conj(fa[ii])
+    scores = np.concatenate(
+        [np.fft.irfft((a * f[jj]).sum(axis=1), n=n, axis=-1) for f in fb], axis=1)
+    scores *= -2.0
+    scores += (na[ii] + nb[jj])[:, None]
+    best = np.argpartition(scores, n_shifts - 1, axis=1)[:, :n_shifts]
+    return (best // n).astype(np.int64), (best % n).astype(np.int64)
+
+
+def _kernel():
+    """The compiled DP over pairs and the rigid start-shift search (numba, compiled on first
+    use and cached on disk)."""
+    global _KERNEL
+    if _KERNEL is None:
+        _KERNEL = _compile()
+    return _KERNEL
+
+
+_KERNEL = None
+
+
+def _compile():
+    import numba
+
+    @numba.njit(parallel=True, cache=True, fastmath=True)
+    def dtw_pairs(sig, sig_mirror, ii, jj, mirror, shift, count, band, half,
+                  out):  # pragma: no cover
+        n_pairs = shift.shape[0]
+        n_ch, n = sig.shape[1], sig.shape[2]
+        width = 2 * band + 1
+        inf = np.inf
+        for p in numba.prange(n_pairs):
+            prev = np.empty(width)
+            cur = np.empty(width)
+            a_t = np.empty((n, n_ch))
+            g_t = np.empty((n, n_ch))
+            b_t = np.empty((n, n_ch))
+            h_t = np.empty((n, n_ch))
+            ia, ib = ii[p], jj[p]
+            for i in range(n):
+                for ch in range(n_ch):
+                    a_t[i, ch] = sig[ia, ch, i]
+            for i in range(n):
+                for ch in range(n_ch):
+                    g_t[i, ch] = 0.5 * (a_t[i, ch] + a_t[(i + 1) % n, ch])
+            best = inf
+            for k in range(count[p]):
+                s = shift[p, k]
+                src = sig_mirror if mirror[p, k] else sig
+                for j in range(n):
+                    jb = (j + s) % n
+                    for ch in range(n_ch):
+                        b_t[j, ch] = src[ib, ch, jb]
+                for j in range(n):
+                    for ch in range(n_ch):
+                        h_t[j, ch] = 0.5 * (b_t[j, ch] + b_t[(j + 1) % n, ch])
+                for i in range(n):
+                    lo = max(0, band - i)
+                    hi = min(width, n + band - i)
+                    for w in range(lo):
+                        cur[w] = inf
+                    for w in range(hi, width):
+                        cur[w] = inf
+                    for w in range(lo, hi):
+                        j = i + w - band
+                        c = 0.0
+                        for ch in range(n_ch):
+                            c += abs(a_t[i, ch] - b_t[j, ch])
+                        if half:
+                            c_b = 0.0
+                            c_a = 0.0
+                            for ch in range(n_ch):
+                                c_b += abs(a_t[i, ch] - h_t[j, ch])
+                                c_a += abs(g_t[i, ch] - b_t[j, ch])
+                            if c_b < c:
+                                c = c_b
+                            if c_a < c:
+                                c = c_a
+                        if i == 0:
+                            m = 0.0 if j == 0 else cur[w - 1]
+                        else:
+                            m = prev[w]
+                            if w + 1 < width and prev[w + 1] < m:
+                                m = prev[w + 1]
+                            if w > lo and cur[w - 1] < m:
+                                m = cur[w - 1]
+                        cur[w] = c + m
+                    for w in range(width):
+                        prev[w] = cur[w]
+                if prev[band] < best:
+                    best = prev[band]
+            out[p] = best / n
+
+    @numba.njit(parallel=True, cache=True, fastmath=True)
+    def rigid_shifts(fr, fi, fmr, fmi, norm, ii, jj, cos_t, sin_t, n_cand, mirror, shift,
+                     count):  # pragma: no cover
+        """Per pair, the n_cand lowest local minima over cyclic shifts s (both orientations)
+        of Σ_i ‖a(i) − b(i + s)‖², from the signatures' spectra (real and imaginary parts,
+        (objects, C, H)), plus any other minimum tied with the last (to 1e-9): ``count``
+        of them in ``mirror`` and ``shift``."""
+        n_pairs, cap = shift.shape
+        n_ch, n_h = fr.shape[1], fr.shape[2]
+        n = cos_t.shape[1]
+        for p in numba.prange(n_pairs):
+            ia, ib = ii[p], jj[p]
+            xr = np.empty(n_h)
+            xi = np.empty(n_h)
+            vals = np.empty((2, n))
+            for m in range(2):
+                br = fmr if m else fr
+                bi = fmi if m else fi
+                for k in range(n_h):
+                    sr = 0.0
+                    si = 0.0
+                    for ch in range(n_ch):  # conj(A) B
+                        ar, ai = fr[ia, ch, k], fi[ia, ch, k]
+                        sr += ar * br[ib, ch, k] + ai * bi[ib, ch, k]
+                        si += ar * bi[ib, ch, k] - ai * br[ib, ch, k]
+                    xr[k] = sr
+                    xi[k] = si
+                for s_ in range(n):
+                    c = 0.0
+                    for k in range(n_h):
+                        c += xr[k] * cos_t[k, s_] - xi[k] * sin_t[k, s_]
+                    vals[m, s_] = norm[ia] + norm[ib] - 2.0 * c
+            # the local minima over s (neighbouring shifts of one valley: one candidate; on a
+            # flat valley floor, equal to rounding, every shift)
+            flat = 1e-9 * (norm[ia] + norm[ib])
+            v_list = np.empty(2 * n)
+            code = np.empty(2 * n, np.int64)
+            n_min = 0
+            for m in range(2):
+                for s_ in range(n):
+                    v = vals[m, s_]
+                    if v <= vals[m, (s_ - 1) % n] + flat and v <= vals[m, (s_ + 1) % n] + flat:
+                        v_list[n_min] = v
+                        code[n_min] = m * n + s_
+                        n_min += 1
+            order = np.argsort(v_list[:n_min], kind="mergesort")
+            last = v_list[order[min(n_cand, n_min) - 1]]
+            tol = flat + 1e-9 * abs(last)
+            got = 0
+            for q in range(n_min):
+                v = v_list[order[q]]
+                if got >= cap or (q >= n_cand and v > last + tol):
+                    break
+                mirror[p, got] = code[order[q]] // n
+                shift[p, got] = code[order[q]] % n
+                got += 1
+            count[p] = got
+
+    return dtw_pairs, rigid_shifts
+
+
+#: Valleys tied with the last kept one (to 1e-9) refined besides the N_START_SHIFTS: an outline
+#: with a symmetry has several equal valleys, and rounding must not choose among them.
+_EXTRA_TIED = 16
+
+
+@lru_cache(maxsize=4)
+def _irfft_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin tables (H, n) with the inverse real FFT's weights: Σ_t a(t) b(t + s) =
+    Σ_k Re(X_k e^{2πiks/n}) w_k / n for X = conj(A) B, w = 1 at k = 0 and n/2, else 2."""
+    h = n // 2 + 1
+    k = np.arange(h)[:, None]
+    w = np.full((h, 1), 2.0)
+    w[0] = 1.0
+    if n % 2 == 0:
+        w[-1] = 1.0
+    ang = 2 * np.pi * k * np.arange(n)[None, :] / n
+    return w * np.cos(ang) / n, w * np.sin(ang) / n
+
+
+def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, band: int,
+               n_shifts: int, half_steps: bool, chunk: int) -> np.ndarray:
+    """d_E(a[ii[p]], b[jj[p]]) for every p (rows of a and b finite).
+
+    DTW from a cut of one cyclic sequence is not symmetric in its two arguments; each pair is
+    put in a fixed order first (the signature with the smaller sum of squares first), so that
+    d_E(x, y) = d_E(y, x) exactly, whichever side and call a signature comes from. (Not the
+    plain sum: that of the turning angles is the total turning, and that of the centroid
+    distances n, for every outline.) Two signatures whose sums of squares agree to rounding
+    may be put in either order by copies that differ by rounding (e.g. a table's and its
+    results'), which can move their d_E by about 1 %.
+    """
+    n = a.shape[2]
+    if b is a:
+        sig, jb = a, jj
+    else:
+        sig, jb = np.concatenate([a, b]), jj + len(a)
+    key = (sig * sig).sum(axis=(1, 2))
+    swap = key[jb] < key[ii]
+    first, second = np.where(swap, jb, ii).astype(np.int64), np.where(swap, ii, jb).astype(
+        np.int64)
+    f, fm, norm = _spectra(sig)
+    parts = [np.ascontiguousarray(x) for x in (f.real, f.imag, fm.real, fm.imag)]
+    cos_t, sin_t = _irfft_tables(n)
+    mirror_sig = np.ascontiguousarray(_mirrored(sig))
+    sig = np.ascontiguousarray(sig)
+    dtw, rigid = _kernel()
+    out = np.empty(len(ii))
+    for p0 in range(0, len(ii), chunk):
+        i, j = first[p0:p0 + chunk], second[p0:p0 + chunk]
+        cap = min(2 * n, n_shifts + _EXTRA_TIED)
+        mirror = np.empty((len(i), cap), np.int64)
+        shift = np.empty((len(i), cap), np.int64)
+        count = np.empty(len(i), np.int64)
+        rigid(*parts, norm, i, j, cos_t, sin_t, n_shifts, mirror, shift, count)
+        res = np.empty(len(i))
+        dtw(sig, mirror_sig, i, j, mirror, shift, count, band, half_steps, res)
+        out[p0:p0 + len(i)] = res
+    return out
+
+
+def _check_search(a: np.ndarray, band: int, n_shifts: int) -> None:
+    if not 0 <= band < a.shape[2] // 2 or not 1 <= n_shifts <= 2 * a.shape[2]:
+        raise InputError(f"band must be in 0 … {a.shape[2] // 2 - 1} and n_shifts in 1 … "
+                         f"{2 * a.shape[2]}; got {band} and {n_shifts}")
+
+
+def elastic_distance_pairs(signatures: np.ndarray, others: np.ndarray, *, band: int = BAND,
+                           n_shifts: int = N_START_SHIFTS, half_steps: bool = HALF_STEPS,
+                           chunk: int = 16384) -> np.ndarray:
+    """The elastic distance of aligned pairs: ``d_E(signatures[p], others[p])`` per row p.
+
+    Parameters
+    ----------
+    signatures, others : ndarray, shape (P, N_CHANNELS, n)
+        :func:`outline_signature` of both sides of each pair (rows with NaN give NaN).
+    band : int
+        Half-width of the DTW band, in points.
+    n_shifts : int
+        Rigid start shifts (over both orientations) refined by DTW.
+    half_steps : bool
+        Let a point match the midpoint of two neighbours of the other signature (module
+        docstring); False: the plain L1 cost.
+    chunk : int
+        Pairs whose start shifts are scored at once (memory about chunk × 6 kB).
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        Mean L1 cost per point of the best elastic correspondence (module docstring).
+    """
+    a = _check_signatures(signatures, "signatures")
+    b = _check_signatures(others, "others")
+    if a.shape != b.shape:
+        raise InputError(f"pairs of signatures must have the same shape, got {a.shape} and "
+                         f"{b.shape}")
+    _check_search(a, band, n_shifts)
+    ok = np.flatnonzero(np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2)))
+    out = np.full(len(a), np.nan)
+    if ok.size:
+        a, b = np.ascontiguousarray(a[ok]), np.ascontiguousarray(b[ok])
+        idx = np.arange(len(ok))
+        out[ok] = _distances(a, b, idx, idx, band, n_shifts, half_steps, chunk)
+    return out
+
+
+def elastic_distance_between(signatures: np.ndarray, ii: np.ndarray, jj: np.ndarray, *,
+                             band: int = BAND, n_shifts: int = N_START_SHIFTS,
+                             half_steps: bool = HALF_STEPS, chunk: int = 16384) -> np.ndarray:
+    """d_E(signatures[ii[p]], signatures[jj[p]]) for every p, without copying the pairs'
+    signatures (what a nearest-neighbour search needs for its candidates).
+
+    Returns
+    -------
+    ndarray, shape (len(ii),)
+        The entries ``elastic_distance_matrix(signatures)[ii, jj]`` (NaN where either row has
+        NaN; 0 where ii == jj).
+    """
+    a = _check_signatures(signatures, "signatures")
+    _check_search(a, band, n_shifts)
+    ii, jj = np.asarray(ii, np.int64).ravel(), np.asarray(jj, np.int64).ravel()
+    if ii.shape != jj.shape:
+        raise InputError(f"ii and jj must have the same length, got {ii.size} and {jj.size}")
+    ok = np.isfinite(a).all(axis=(1, 2))
+    a0 = np.ascontiguousarray(np.where(ok[:, None, None], a, 0.0))
+    out = _distances(a0, a0, ii, jj, band, n_shifts, half_steps, chunk)
+    out[ii == jj] = 0.0
+    out[~(ok[ii] & ok[jj])] = np.nan
+    return out
+
+
+def elastic_distance_matrix(signatures: np.ndarray, others: np.ndarray | None = None, *,
+                            band: int = BAND, n_shifts: int = N_START_SHIFTS,
+                            half_steps: bool = HALF_STEPS, chunk: int = 16384) -> np.ndarray:
+    """The elastic distance for all pairs (module docstring).
+
+    Parameters
+    ----------
+    signatures : ndarray, shape (n, N_CHANNELS, points)
+        :func:`outline_signature` of n objects (NaN rows give NaN).
+    others : ndarray, shape (m, N_CHANNELS, points), optional
+        A second set: distances of every row to every row of ``others``.
+    band, n_shifts, half_steps, chunk
+        As :func:`elastic_distance_pairs`.
+
+    Returns
+    -------
+    ndarray, shape (n, n) or (n, m)
+        Symmetric with zero diagonal when ``others`` is None (the upper triangle is computed,
+        ``d(i, j)`` with i < j, and mirrored).
+    """
+    a = _check_signatures(signatures, "signatures")
+    same = others is None
+    b = a if same else _check_signatures(others, "others")
+    if b.shape[1:] != a.shape[1:]:
+        raise InputError(f"signatures of different shapes: {a.shape} and {b.shape}")
+    _check_search(a, band, n_shifts)
+    ok_a = np.isfinite(a).all(axis=(1, 2))
+    ok_b = ok_a if same else np.isfinite(b).all(axis=(1, 2))
+    a0 = np.ascontiguousarray(np.where(ok_a[:, None, None], a, 0.0))
+    b0 = a0 if same else np.ascontiguousarray(np.where(ok_b[:, None, None], b, 0.0))
+    if same:
+        ii, jj = np.triu_indices(len(a), 1)
+    else:
+        ii, jj = (x.ravel() for x in np.indices((len(a), len(b))))
+    out = np.zeros((len(a), len(b)))
+    out[ii, jj] = _distances(a0, b0, ii, jj, band, n_shifts, half_steps, chunk)
+    if same:
+        out += out.T
+    out[~ok_a] = np.nan
+    out[:, ~ok_b] = np.nan
+    return out
