@@ -367,3 +367,31 @@ def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_t
 
     gallery._on_click(Click)
     assert viewer.dims.current_step[0] == frame and labels.selected_label == label
+
+
+def test_an_analysis_saved_and_opened_again_is_the_same_and_changed_data_are_refused(
+        qtbot, viewer_widget, tmp_path):
+    viewer, w = viewer_widget
+    analysis = run_and_wait(qtbot, w)
+    analysis.set_groups({1: "left", 2: "left", 3: "right", 4: "right"})
+    assert w.save(tmp_path) is not None
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=60_000)
+    assert "Saved the analysis" in w.status.value
+    analysis.set_groups({})
+    assert w.open(tmp_path) is not None
+    qtbot.waitUntil(lambda: w.worker is None, timeout=60_000)
+    again = w.bound[1]
+    assert again is not analysis and again.run == analysis.run + 1
+    assert again.groups == {1: "left", 2: "left", 3: "right", 4: "right"}
+    np.testing.assert_allclose(again.table.filter(like="shape_r").to_numpy(),
+                               analysis.table.filter(like="shape_r").to_numpy())
+    np.testing.assert_allclose(again.pca["shape"]["shape_PC1"], analysis.pca["shape"]["shape_PC1"])
+    assert "Opened the analysis" in w.status.value
+    labels = viewer.layers["gastruloids"]
+    data = np.asarray(labels.data).copy()
+    data[0][data[0] == 1] = 0  # an object erased
+    labels.data = data
+    assert w.open(tmp_path) is not None
+    qtbot.waitUntil(lambda: w.worker is None, timeout=60_000)
+    assert "changed since the analysis was saved" in w.status.value
+    assert w.bound[1] is again  # nothing replaced

