@@ -7,7 +7,7 @@ imports no scipy or scikit-image: those modules are loaded when an object is mea
 
 from __future__ import annotations
 
-__all__ = ["BALL_MAPS", "DEFAULT_MIN_AREA", "MAPPINGS", "SDF_KINDS"]
+__all__ = ["ANTERIOR_RULES", "BALL_MAPS", "DEFAULT_MIN_AREA", "MAPPINGS", "SDF_KINDS"]
 
 #: Push-forward maps of the unit disk (:func:`~napari_pfsdm.core.pushforward.make_map`).
 MAPPINGS = ("harmonic", "bijective", "radial")
@@ -17,3 +17,7 @@ BALL_MAPS = ("radial", "harmonic")
 SDF_KINDS = ("exact", "viscous")
 #: Objects with fewer pixels than this are refused: their outline is mostly rasterisation.
 DEFAULT_MIN_AREA = 20
+#: Which end of an object's midline is "anterior", where its profiles start
+#: (:func:`~napari_pfsdm.core.midline.midline`): the reporter's high or low end, or the end
+#: nearer the image's top (left when the midline runs more left-right) or the other one.
+ANTERIOR_RULES = ("reporter", "reporter_low", "first", "last")
