@@ -136,7 +136,8 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
 CHANGED = {"n_fourier": 7, "n_radii": 5, "n_angles": 40, "sdf": "viscous", "viscosity": 0.2,
            "mapping": "radial", "normalization": "ring", "radii": "boundary",
            "ring_weighting": "none", "mode_exponent": 0.5, "components": "raise",
-           "min_area": 11, "sh_degree": 4, "surface_weight": 2.0, "ball_map": "harmonic"}
+           "min_area": 11, "sh_degree": 4, "surface_weight": 2.0, "ball_map": "harmonic",
+           "profile_bins": 6, "anterior": "first"}
 
 
 def test_an_option_given_at_any_door_reaches_the_record():
