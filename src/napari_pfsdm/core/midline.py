@@ -56,10 +56,10 @@ __all__ = ["ANTERIOR_RULES", "MIDLINE_SAMPLES_ACROSS", "Midline", "main_path", "
 SAMPLES_PER_BIN = 10
 #: Default grid of the midline's skeleton: at most this many samples along the longer side of
 #: the object's box (:func:`~napari_pfsdm.core.medial_axis.grid_step`). Coarser than the
-#: pictures' skeleton (512): the midline is smoothed over two grid steps anyway, and on bent
-#: capsules and ellipses 184 to 1,000 px long its length then stays within 0.25 % (2.7 px of
-#: 1,160) and its widths within 1 px of the closed forms, at a fifth to a tenth of the cost.
-MIDLINE_SAMPLES_ACROSS = 128
+#: pictures' skeleton (512) for objects over 256 px: the midline is smoothed over two grid
+#: steps anyway. On bent capsules and ellipses 184 to 1,440 px long the length stays within
+#: 1 px and the widths within 1 px of the closed forms (128 samples: 2.9 px and 2 px).
+MIDLINE_SAMPLES_ACROSS = 256
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,9 @@ class Midline:
         Direction of the reporter's centre of mass from the object's centre, degrees (module
         docstring); NaN without a reporter.
     pixel_size : float
+    sides : ndarray, shape (M + 1, 2)
+        Pixels from each point to the outline along ``+normals`` and ``-normals`` (their sum is
+        the width in pixels); for drawing the cross-sections (:meth:`cross_sections`).
     """
 
     points: np.ndarray
@@ -100,6 +103,26 @@ class Midline:
     polarity_angle_image: float = np.nan
     polarity_angle_midline: float = np.nan
     pixel_size: float = 1.0
+    sides: np.ndarray | None = None
+
+    def cross_sections(self) -> np.ndarray:
+        """The cross-section at the middle of each bin, outline to outline along the normal:
+        segments ``(bins, 2, 2)`` in image ``(row, col)`` pixels, anterior bin first (for
+        drawing, e.g. as a napari Shapes layer of lines).
+
+        Examples
+        --------
+        >>> from napari_pfsdm.core.descriptor import pfsdm
+        >>> yy, xx = np.mgrid[:61, :101]
+        >>> m = midline(pfsdm(((yy - 30) / 20) ** 2 + ((xx - 50) / 40) ** 2 <= 1), bins=2)
+        >>> np.round(m.cross_sections()[:, :, 1]).tolist()  # columns of the two sections' ends
+        [[30.0, 30.0], [70.0, 70.0]]
+        """
+        if self.sides is None:
+            return np.zeros((0, 2, 2))
+        at = SAMPLES_PER_BIN * np.arange(len(self.width_bins)) + SAMPLES_PER_BIN // 2
+        p, n, s = self.points[at], self.normals[at], self.sides[at]
+        return np.stack([p + s[:, :1] * n, p - s[:, 1:] * n], axis=1)
 
     @property
     def length(self) -> float:
@@ -251,22 +274,23 @@ def _crossings(origins: np.ndarray, directions: np.ndarray,
     return ahead, behind
 
 
-def _end_tangent(pts: np.ndarray, reach: float, trim: float) -> tuple[int, np.ndarray]:
-    """Where the path's end is extended from (an index into ``pts``) and the unit direction
-    out of it: the straight line fitted (principal direction) to the ``reach`` pixels of the
-    path before its last ``trim`` pixels, continued from there. The last pixels of a raster
-    skeleton often hook to one side (a pruned fork, a grid step): the fit skips them."""
+def _trim(path: np.ndarray, cut: float) -> np.ndarray:
+    """The path without its first and last ``cut`` pixels (of arc length)."""
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    keep = (s >= cut) & (s <= s[-1] - cut)
+    return path[keep] if keep.sum() >= 2 else path
+
+
+def _end_tangent(pts: np.ndarray, reach: float) -> np.ndarray:
+    """The unit direction out of the path's last point: the straight line fitted (principal
+    direction) to its last ``reach`` pixels."""
     seg = np.linalg.norm(np.diff(pts[::-1], axis=0), axis=1)
     back = np.concatenate([[0.0], np.cumsum(seg)])[::-1]  # distance to the end, per point
-    start = int(np.searchsorted(-back, -trim))  # the first point within trim of the end
-    start = min(max(start, 1), len(pts) - 1)
-    window = pts[(back <= trim + reach) & (back >= trim)]
+    window = pts[back <= reach]
     if len(window) < 2:
         window = pts[-2:]
     d = _principal_direction(window)
-    if d @ (pts[-1] - window[0]) < 0:
-        d = -d
-    return start - 1, d
+    return -d if d @ (pts[-1] - window[0]) < 0 else d
 
 
 def _principal_direction(pixels: np.ndarray) -> np.ndarray:
@@ -376,12 +400,14 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
         path = np.vstack([centre - 1e-3 * d, centre + 1e-3 * d])
         head_dir, tail_dir = -d, d
     else:
+        # the last pixels of a raster skeleton often hook to one side (a pruned fork, a grid
+        # step): cut them before smoothing, the straight extension replaces them
+        path = _trim(path, min(1.0 * step, plen / 4))
         path = _smooth(path, sigma_px=2.0 * step, spacing=0.5 * step)
+        plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
         reach = float(np.clip(depth, 3.0 * step, plen / 3))
-        trim = min(reach / 2, 2.0 * step)
-        tail, tail_dir = _end_tangent(path, reach, trim)
-        head, head_dir = _end_tangent(path[::-1], reach, trim)
-        path = path[len(path) - 1 - head:tail + 1]
+        tail_dir = _end_tangent(path, reach)
+        head_dir = _end_tangent(path[::-1], reach)
     ends = np.vstack([path[0], path[-1]])
     t, _ = _crossings(ends, np.vstack([head_dir, tail_dir]), polygon)
     t = np.where(np.isfinite(t), t, 0.0)
@@ -393,9 +419,10 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
     normals = np.column_stack([tangent[:, 1], -tangent[:, 0]])
     ahead, behind = _crossings(points, normals, polygon)
-    width = ahead + behind
-    width[[0, -1]] = 0.0
-    width = np.where(np.isfinite(width), width, 0.0)
+    sides = np.column_stack([ahead, behind])
+    sides[[0, -1]] = 0.0
+    sides = np.where(np.isfinite(sides), sides, 0.0)
+    width = sides.sum(axis=1)
 
     values = None
     if intensity is not None:
@@ -420,7 +447,7 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     if rule in ("first", "last"):
         keep = _first_is_anterior(points) == (rule == "first")
     if not keep:
-        points, normals, width = points[::-1], normals[::-1], width[::-1]
+        points, normals, width, sides = points[::-1], normals[::-1], width[::-1], sides[::-1]
         arc = arc[-1] - arc[::-1]
         if reporter_bins is not None:
             reporter_bins = reporter_bins[::-1]
@@ -445,4 +472,4 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     return Midline(points=points, arc=arc, width=width, normals=normals, width_bins=width_bins,
                    reporter_bins=reporter_bins, anterior=rule,
                    polarity_angle_image=angle_image, polarity_angle_midline=angle_midline,
-                   pixel_size=scale)
+                   pixel_size=scale, sides=sides)
