@@ -805,7 +805,11 @@ def measure(
         ``error`` (empty when fine, otherwise the reason, with NaN features), ``warnings``
         (plain-words reasons to look twice: border contact, folding above
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
-        described, whose features are then NaN while the shape's are kept), then
+        described, whose features are then NaN while the shape's are kept), the classic
+        measures (:mod:`napari_pfsdm.analysis.classic`), the midline's ``midline_length``,
+        ``width_mean``, ``width_max``, ``width_bXX`` and, with an intensity, ``reporter_bXX``,
+        ``polarity_angle_image``, ``polarity_angle_midline`` (:mod:`napari_pfsdm.core.midline`:
+        pixels, degrees; NaN for 3-D objects), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
         coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns, see
         :mod:`napari_pfsdm.core.table_schema`). ``attrs["pfsdm"]`` holds the options used,
