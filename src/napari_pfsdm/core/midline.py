@@ -43,7 +43,6 @@ import numpy as np
 from scipy import ndimage as ndi
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
-from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from .choices import ANTERIOR_RULES
@@ -307,20 +306,35 @@ def _first_is_anterior(points: np.ndarray) -> bool:
     return bool(d[0] > 0) if abs(d[0]) >= abs(d[1]) else bool(d[1] > 0)
 
 
+def _nearest_points(points: np.ndarray, cells: np.ndarray, shape: tuple[int, int],
+                    origin: np.ndarray, every: int) -> np.ndarray:
+    """For each grid cell (``cells``, indices into a grid of ``shape`` whose cell (i, j) is
+    the image pixel ``origin + every · (i, j)``), the index of the nearest of ``points``
+    rounded to the grid: one Euclidean distance transform (its feature transform) instead of
+    a nearest-neighbour query per pixel, a tenth of the cost on a 40,000-pixel object."""
+    local = np.rint((points - origin) / every).astype(int)
+    local = np.clip(local, 0, np.array(shape) - 1)
+    index = np.full(shape, -1, np.intp)
+    index[local[:, 0], local[:, 1]] = np.arange(len(points))
+    _, (rows, cols) = ndi.distance_transform_edt(index < 0, return_indices=True)
+    return index[rows[cells[:, 0], cells[:, 1]], cols[cells[:, 0], cells[:, 1]]]
+
+
 def _reporter_profile(points: np.ndarray, arc: np.ndarray, pixels: np.ndarray,
-                      values: np.ndarray, bins: int) -> tuple[np.ndarray, float, float]:
-    """Mean reporter in ``bins`` pieces of the midline (each pixel to its nearest midline
+                      values: np.ndarray, bins: int,
+                      nearest: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Mean reporter in ``bins`` pieces of the midline (each pixel to its ``nearest`` midline
     point), and the mean over the first and the second half of the length (NaN: no finite
     pixel there)."""
     ok = np.isfinite(values)
     if not ok.any():
         return np.full(bins, np.nan), np.nan, np.nan
-    _, nearest = cKDTree(points).query(pixels[ok])
+    pixels, nearest = pixels[ok], nearest[ok]
     # the pixel's own position along the midline: its nearest point's, plus its offset along
     # the midline there (exact on a straight midline; the points are a tenth of a bin apart)
     tangent = np.gradient(points, axis=0)
     tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
-    along = arc[nearest] + np.einsum("ij,ij->i", pixels[ok] - points[nearest], tangent[nearest])
+    along = arc[nearest] + np.einsum("ij,ij->i", pixels - points[nearest], tangent[nearest])
     where = np.clip(along / max(float(arc[-1]), 1e-12), 0.0, 1.0)
     piece = np.minimum((where * bins).astype(int), bins - 1)
     v = values[ok]
@@ -390,7 +404,9 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     depth = float(np.median(sk.depth)) if len(sk.depth) else 1.0
     # the object's pixels: every one up to 512 across, as the pictures' skeleton samples them
     every = grid_step(info.mask.shape, SAMPLES_ACROSS)
-    pixels = np.argwhere(info.mask[::every, ::every]) * every + np.asarray(info.offset, float)
+    sampled = info.mask[::every, ::every]
+    cells = np.argwhere(sampled)
+    pixels = cells * every + np.asarray(info.offset, float)
 
     path = main_path(sk)
     plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
@@ -436,8 +452,10 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     # which end is anterior; the profiles then run from it
     rule, keep, reporter_bins = anterior, True, None
     if values is not None:
+        nearest = _nearest_points(points, cells, sampled.shape,
+                                  np.asarray(info.offset, float), every)
         reporter_bins, first_mean, last_mean = _reporter_profile(points, arc, pixels, values,
-                                                                 bins)
+                                                                 bins, nearest)
         if rule in ("reporter", "reporter_low") and first_mean != last_mean \
                 and np.isfinite(first_mean) and np.isfinite(last_mean):
             keep = (first_mean > last_mean) == (rule == "reporter")
