@@ -19,7 +19,6 @@ __getattr__, __dir__, __all__ = lazy_names(__name__, {
     "distances": ["INVARIANCES", "Embeddings", "distance", "distance_matrix",
                   "weighted_features"],
     "medial_axis": ["Skeleton", "skeleton"],
-    "midline": ["Midline", "midline"],
 })
 
 if TYPE_CHECKING:  # pragma: no cover - the same names, for type checkers and IDEs
@@ -33,4 +32,3 @@ if TYPE_CHECKING:  # pragma: no cover - the same names, for type checkers and ID
         weighted_features,
     )
     from .medial_axis import Skeleton, skeleton  # noqa: F401
-    from .midline import Midline, midline  # noqa: F401
