@@ -131,6 +131,10 @@ def test_a_round_object_still_has_an_axis_across_it():
     m = midline(pfsdm(disk))
     assert abs(m.length - 60.0) < 1.5
     assert abs(m.width_max - 60.0) < 1.5
+    # a small box whose skeleton is shorter than its half-width: the pixels' major axis
+    box = np.pad(np.ones((6, 10), bool), 3)
+    m = midline(pfsdm(box))
+    assert abs(m.length - 10.0) < 0.5 and abs(m.width_max - 6.0) < 0.5
 
 
 def test_the_columns_follow_the_names():

@@ -9,6 +9,9 @@ half-axes a, b; arc length + 2 × half-width for a bent capsule.
 
 Along the midline, resampled uniformly by arc length:
 
+A round or roundish object, whose skeleton is no longer than its median half-width, takes the
+major axis of its pixels through their centre instead.
+
 - **width**: the chord of the object across the midline, along the local normal, from outline
   to outline (rays cast to the sub-pixel outline polygon); 2b·√(1 − s²) at s = x/a on an
   ellipse's axis, 0 at both ends. ``width_mean`` is its mean over the length (area / length for
@@ -410,8 +413,10 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
 
     path = main_path(sk)
     plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
-    if plen < step:  # a round object: its axis is its longest direction through the centre
-        centre = path.mean(axis=0) if len(path) else pixels.mean(axis=0)
+    if plen < max(2.0 * step, depth):
+        # a round or roundish object (its skeleton no longer than its half-width): its axis is
+        # the pixels' major axis through their centre
+        centre = pixels.mean(axis=0)
         d = _principal_direction(pixels)
         path = np.vstack([centre - 1e-3 * d, centre + 1e-3 * d])
         head_dir, tail_dir = -d, d
