@@ -323,6 +323,17 @@ def _nearest_points(points: np.ndarray, cells: np.ndarray, shape: tuple[int, int
     return index[rows[cells[:, 0], cells[:, 1]], cols[cells[:, 0], cells[:, 1]]]
 
 
+def _anterior_first(points: np.ndarray, rule: str, first_half: float,
+                    second_half: float) -> tuple[str, bool]:
+    """The rule applied and whether the midline's first point is its anterior end, given the
+    mean reporter over its first and second half (NaN: no reporter)."""
+    if rule in ("reporter", "reporter_low"):
+        if np.isfinite(first_half) and np.isfinite(second_half) and first_half != second_half:
+            return rule, (first_half > second_half) == (rule == "reporter")
+        rule = "first"  # nothing to go by
+    return rule, _first_is_anterior(points) == (rule == "first")
+
+
 def _reporter_profile(points: np.ndarray, arc: np.ndarray, pixels: np.ndarray,
                       values: np.ndarray, bins: int,
                       nearest: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -455,20 +466,12 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
         values[~np.isfinite(values)] = np.nan
 
     # which end is anterior; the profiles then run from it
-    rule, keep, reporter_bins = anterior, True, None
+    reporter_bins, halves = None, (np.nan, np.nan)
     if values is not None:
         nearest = _nearest_points(points, cells, sampled.shape,
                                   np.asarray(info.offset, float), every)
-        reporter_bins, first_mean, last_mean = _reporter_profile(points, arc, pixels, values,
-                                                                 bins, nearest)
-        if rule in ("reporter", "reporter_low") and first_mean != last_mean \
-                and np.isfinite(first_mean) and np.isfinite(last_mean):
-            keep = (first_mean > last_mean) == (rule == "reporter")
-    if rule in ("reporter", "reporter_low") and (values is None or not (
-            np.isfinite(first_mean) and np.isfinite(last_mean) and first_mean != last_mean)):
-        rule = "first"
-    if rule in ("first", "last"):
-        keep = _first_is_anterior(points) == (rule == "first")
+        reporter_bins, *halves = _reporter_profile(points, arc, pixels, values, bins, nearest)
+    rule, keep = _anterior_first(points, anterior, *halves)
     if not keep:
         points, normals, width, sides = points[::-1], normals[::-1], width[::-1], sides[::-1]
         arc = arc[-1] - arc[::-1]
