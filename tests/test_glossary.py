@@ -31,5 +31,7 @@ def test_the_words_name_the_numbers_in_the_column():
         describe_column("intensity_r03_n12")
     assert "index -5, real part" in describe_column("outline_n-05_re")
     assert "group 'multi-axes'" in describe_column("p_multi-axes")
+    assert "piece 3 of" in describe_column("width_b03") and "pixels" in describe_column("width_b03")
+    assert "piece 12 of" in describe_column("reporter_b12")
     assert "component 2 of the intensity" in describe_column("intensity_PC2")
     assert describe_column("someone's own column") == ""

@@ -139,7 +139,7 @@ CHANGED = {"n_fourier": 7, "n_radii": 5, "n_angles": 40, "sdf": "viscous", "visc
            "ring_weighting": "none", "mode_exponent": 0.5, "elastic_smoothing": 2.0,
            "components": "raise", "min_area": 11, "border_objects": "leave_out",
            "warned_objects": "leave_out", "sh_degree": 4, "surface_weight": 2.0,
-           "ball_map": "harmonic"}
+           "ball_map": "harmonic", "profile_bins": 6, "anterior": "first"}
 
 
 def test_an_option_given_at_any_door_reaches_the_record():

@@ -22,6 +22,14 @@ With a reporter image, on the labelled pixels whose intensity is finite:
   0 when the reporter is spread evenly or symmetrically, towards 0.5–1 when it sits at one
   pole (a gastruloid's Brachyury at its posterior end). NaN when the object has no finite
   positive intensity.
+
+After them, the object's own axis (:func:`midline_measures`, :mod:`napari_pfsdm.core.midline`,
+2-D objects; NaN for 3-D ones and for objects without features): ``midline_length``,
+``width_mean``, ``width_max`` and the width profile ``width_bXX`` (``profile_bins`` pieces of
+the midline from its anterior end), in pixels; with a reporter, its profile ``reporter_bXX``
+(the image's units) and the direction of its polarity, ``polarity_angle_image`` and
+``polarity_angle_midline`` (degrees). Unlike the measures above they are taken on the analysed
+object (the largest piece, holes filled), whose skeleton they follow.
 """
 
 from __future__ import annotations
@@ -29,7 +37,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D", "REPORTER_MEASURES", "classic_columns",
-           "classic_measures", "convex_area", "perimeter_4", "shape_measures_2d"]
+           "classic_measures", "convex_area", "midline_measures", "perimeter_4",
+           "shape_measures_2d"]
 
 #: regionprops properties of 2-D objects (plus circularity, from area and perimeter).
 SHAPE_MEASURES_2D = ("perimeter", "eccentricity", "solidity", "axis_major_length",
@@ -274,3 +283,32 @@ def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:
     radius = np.sqrt(n / np.pi) if mask.ndim == 2 else np.cbrt(3 * n / (4 * np.pi))
     out["intensity_polarity"] = float(np.linalg.norm(weighted - centre) / max(radius, 1e-12))
     return out
+
+
+def midline_measures(result, image: np.ndarray | None = None, *,
+                     offset: tuple[float, ...] = (0.0, 0.0), bins: int = 10,
+                     anterior: str = "reporter") -> dict[str, float]:
+    """The midline's columns of one object (:func:`napari_pfsdm.core.midline.midline_columns`):
+    NaN for a 3-D object, an object without features (``result`` None) or a midline that
+    cannot be traced (a numerical failure costs these columns, never the row).
+
+    Parameters
+    ----------
+    result : PFSDMResult, PFSDM3DResult or None
+    image : ndarray, optional
+        The reporter, raw, over the pixels whose ``[0, 0]`` is at ``offset`` in the result's
+        image coordinates (the crop :func:`~napari_pfsdm.core.descriptor.pfsdm` was given).
+    bins, anterior
+        The options ``profile_bins`` and ``anterior``.
+    """
+    from ..core.descriptor import PFSDMResult
+    from ..core.midline import midline, midline_columns
+
+    names = midline_columns(bins, image is not None)
+    if not isinstance(result, PFSDMResult):
+        return dict.fromkeys(names, np.nan)
+    try:
+        return midline(result, image, bins=bins, anterior=anterior,
+                       intensity_offset=tuple(offset)).columns()
+    except (ValueError, RuntimeError, ArithmeticError, IndexError):
+        return dict.fromkeys(names, np.nan)

@@ -16,6 +16,7 @@ from scipy import ndimage as ndi
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
 from ..core.elastic import N_CHANNELS, N_SIGNATURE_POINTS
+from ..core.midline import midline_columns
 from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.pieces import quietly
 from ..core.table_options import carry_options, set_options
@@ -30,7 +31,7 @@ from ..core.table_schema import (
 )
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
-from .classic import classic_columns, classic_measures
+from .classic import classic_columns, classic_measures, midline_measures
 from .tables import failed_rows
 
 __all__ = [
@@ -471,6 +472,9 @@ def _object_in_crop(labels_crop, crop, t: int, label: int, box, big, shape,
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, shape, strict=True))
     res, error, int_error = _describe(mask, crop, tuple(start), options)
     measures = classic_measures(mask, crop, spacing=options.get("spacing"))
+    measures.update(midline_measures(res, crop, offset=tuple(start),
+                                     bins=options.get("profile_bins", _BINS),
+                                     anterior=options.get("anterior", _ANTERIOR)))
     return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,
                         touches_border=touches, result=res, error=error,
                         intensity_error=int_error, measures=measures)
@@ -520,6 +524,10 @@ def describe_object(
     crop = None if intensity is None else _frame(intensity, t, timelapse)[big].astype(float)
     with _one_blas_thread():
         return _object_in_crop(plane[big], crop, t, int(label), box, big, plane.shape, opts)
+
+
+#: The midline's options at their defaults (``options`` holds none when all are).
+_BINS, _ANTERIOR = PFSDMParams().profile_bins, PFSDMParams().anterior  # type: ignore
 
 
 def _pfsdm_options(p: PFSDMParams) -> dict[str, Any]:
@@ -593,6 +601,8 @@ def table_from_objects(
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
     nan_o, nan_e = np.full(len(out_cols), np.nan), np.full(len(sig_cols), np.nan)
     classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)
+    # the object's own axis (core.midline), after the classic measures; NaN in 3-D
+    classic_cols += midline_columns(int(opts["profile_bins"]), with_intensity)
     base, classic_rows, shape_rows, int_rows, out_rows, sig_rows = [], [], [], [], [], []
     for obj in objects:
         classic_rows.append([obj.measures.get(c, np.nan) for c in classic_cols])
@@ -837,7 +847,11 @@ def measure(
         ``error`` (empty when fine, otherwise the reason, with NaN features), ``warnings``
         (plain-words reasons to look twice: border contact, folding above
         :data:`FOLDED_WARNING`, holes filled, several pieces, an intensity that could not be
-        described, whose features are then NaN while the shape's are kept), then
+        described, whose features are then NaN while the shape's are kept), the classic
+        measures (:mod:`napari_pfsdm.analysis.classic`), the midline's ``midline_length``,
+        ``width_mean``, ``width_max``, ``width_bXX`` and, with an intensity, ``reporter_bXX``,
+        ``polarity_angle_image``, ``polarity_angle_midline`` (:mod:`napari_pfsdm.core.midline`:
+        pixels, degrees; NaN for 3-D objects), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
         coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns) and the outline
         signature of the elastic term ``elastic_cC_pPP`` (384 columns), see

@@ -24,8 +24,8 @@ import numpy as np
 
 from ..core.params import PFSDMParams
 
-__all__ = ["ObjectPictures", "VolumePictures", "object_pictures", "disk_pixels", "sdf_square",
-           "SHELL_RADII"]
+__all__ = ["ObjectPictures", "VolumePictures", "object_pictures", "object_midline",
+           "disk_pixels", "sdf_square", "SHELL_RADII"]
 
 #: Margin around an object's bounding box (fraction of its larger side) in the SDF picture.
 SDF_MARGIN = 0.25
@@ -212,3 +212,55 @@ def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMP
                           intensity_disk=idisk, sdf=sdf, sdf_corner=corner, sdf_step=step,
                           outline=np.vstack([outline, outline[:1]]).astype(np.float32),
                           skeleton_image=sk_img, skeleton_disk=sk_disk, notes=notes)
+
+
+def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMParams,
+                   axes: str, box=None):
+    """The midline of the object ``label`` in ``frame``, as its table row measured it, for
+    drawing (:class:`~napari_pfsdm.core.midline.Midline`).
+
+    The same object (:func:`~napari_pfsdm.analysis.features.describe_object`: the run's crop
+    and options), the same reporter pixels and the same ``profile_bins`` and ``anterior``, so
+    ``object_midline(...).columns()`` equals the row's midline columns. Draw
+    ``.points`` (image ``(row, col)`` pixels, anterior end first, both ends on the outline) as
+    a path, ``.points[0]`` as the anterior end, ``.cross_sections()`` (one segment per bin,
+    outline to outline) as lines, and ``.width`` against ``.arc`` (or ``.width_bins``, and
+    ``.reporter_bins`` with a reporter) as profiles.
+
+    Parameters
+    ----------
+    labels, intensity, frame, label, params, axes, box
+        As for :func:`object_pictures`.
+
+    Raises
+    ------
+    KeyError
+        When there is no such object.
+    ValueError
+        When the object has no features, or is 3-D (the midline is measured on 2-D objects).
+
+    Examples
+    --------
+    >>> labels = np.zeros((64, 96), np.uint8)
+    >>> yy, xx = np.mgrid[:64, :96]
+    >>> labels[((yy - 32) / 20) ** 2 + ((xx - 48) / 40) ** 2 <= 1] = 2
+    >>> m = object_midline(labels, None, 0, 2, params=PFSDMParams(), axes="yx")
+    >>> round(m.length), m.points.shape, m.cross_sections().shape
+    (80, (101, 2), (10, 2, 2))
+    """
+    from ..core.midline import midline
+    from .features import _crop_of, describe_object
+
+    if "z" in axes:
+        raise ValueError("the midline is measured on 2-D objects only")
+    t = int(frame) if axes.startswith("t") else 0
+    obj = describe_object(labels, intensity, t, int(label), params=params, box=box, axes=axes)
+    if obj.result is None:
+        raise ValueError(obj.error or "the object could not be described")
+    big = _crop_of(obj.bbox, tuple(labels.shape[-2:]))
+    crop = None
+    if intensity is not None:
+        plane = intensity[t] if axes.startswith("t") else intensity
+        crop = np.asarray(plane[big], float)
+    return midline(obj.result, crop, bins=params.profile_bins, anterior=params.anterior,
+                   intensity_offset=tuple(float(s.start) for s in big))

@@ -23,7 +23,7 @@ import pandas as pd
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.decomposition import PCA
 
-from ..core.params import OPTIONS, SELECTION_OPTIONS
+from ..core.params import MIDLINE_OPTIONS, OPTIONS, SELECTION_OPTIONS
 from ..core.table_options import table_options
 from ..core.table_schema import TRACK_COLUMN, pc_column, table_ndim
 from ..errors import InputError
@@ -38,9 +38,10 @@ HARMONIC_WORDS = ("thickness", "off-centre", "elongation", "triangularity", "squ
 _SCORE_KEYS = ("movie", "frame", "label", TRACK_COLUMN, "group")
 
 #: The options two tables must share to live in one shape space: the method's (core.params,
-#: without those that only choose which objects are measured) and the objects' dimension, not
-#: the run's bookkeeping such as ``intensity_weight``.
-_METHOD_KEYS = tuple(o.name for o in OPTIONS if o.name not in SELECTION_OPTIONS) + ("ndim",)
+#: without those that only choose which objects are measured or how the midline is measured)
+#: and the objects' dimension, not the run's bookkeeping such as ``intensity_weight``.
+_METHOD_KEYS = tuple(o.name for o in OPTIONS
+                     if o.name not in SELECTION_OPTIONS + MIDLINE_OPTIONS) + ("ndim",)
 
 
 def _method_options(table: pd.DataFrame) -> dict:

@@ -7,7 +7,8 @@ imports no scipy or scikit-image: those modules are loaded when an object is mea
 
 from __future__ import annotations
 
-__all__ = ["BALL_MAPS", "DEFAULT_MIN_AREA", "KEEP_OR_LEAVE_OUT", "MAPPINGS", "SDF_KINDS"]
+__all__ = ["ANTERIOR_RULES", "BALL_MAPS", "DEFAULT_MIN_AREA", "KEEP_OR_LEAVE_OUT", "MAPPINGS",
+           "SDF_KINDS"]
 
 #: Push-forward maps of the unit disk (:func:`~napari_pfsdm.core.pushforward.make_map`).
 MAPPINGS = ("harmonic", "bijective", "radial")
@@ -20,3 +21,7 @@ DEFAULT_MIN_AREA = 20
 #: What happens to objects of a kind (on the border, with warnings) in shape spaces: kept, or
 #: left out of PCA, comparison and prediction (their rows stay in the table).
 KEEP_OR_LEAVE_OUT = ("keep", "leave_out")
+#: Which end of an object's midline is "anterior", where its profiles start
+#: (:func:`~napari_pfsdm.core.midline.midline`): the reporter's high or low end, or the end
+#: nearer the image's top (left when the midline runs more left-right) or the other one.
+ANTERIOR_RULES = ("reporter", "reporter_low", "first", "last")

@@ -2,7 +2,8 @@
 
 :func:`describe_column` explains a column from its name: the named columns of
 :data:`MEANINGS`, and the families whose names carry numbers (``shape_r03_n02``,
-``outline_n+16_im``, ``surface_l04``, ``shape_PC1``, ``p_<group>``). The napari plugin's export
+``outline_n+16_im``, ``surface_l04``, ``width_b03``, ``reporter_b03``, ``shape_PC1``,
+``p_<group>``). The napari plugin's export
 writes the glossary of its features table beside it (``<prefix>_columns.csv``); docs/columns.md
 shows the same text.
 
@@ -53,6 +54,17 @@ MEANINGS = {
     "intensity_integrated": "summed reporter intensity on the object",
     "intensity_polarity": "how far the reporter's centre of mass lies from the object's "
                           "centre, in object radii (0: even; towards 1: at one pole)",
+    "midline_length": "length of the object along its own axis: the skeleton's main path "
+                      "extended to the outline at both ends, in pixels (NaN in 3-D)",
+    "width_mean": "mean width of the object across its midline, over its length, in pixels "
+                  "(area / length for a straight axis)",
+    "width_max": "largest width of the object across its midline, in pixels",
+    "polarity_angle_image": "direction of the reporter's centre of mass from the object's "
+                            "centre, degrees in the image (0: towards +x, the columns; "
+                            "counter-clockwise as shown, 90: up)",
+    "polarity_angle_midline": "angle (0 to 180 degrees) between the reporter's centre-of-mass "
+                              "offset and the midline's anterior-to-posterior direction (0: "
+                              "towards the posterior end, 180: the anterior one)",
 }
 _HARMONIC = {0: "mean: thickness", 1: "shift", 2: "elongation", 3: "triangularity",
              4: "squareness"}
@@ -77,6 +89,13 @@ _PATTERNS = [
      lambda m: f"the outline's elastic signature, channel {int(m[1])} (turning angle over an "
                "arc of the perimeter, or the centroid distance / its mean), at point "
                f"{int(m[2])} of the outline (what the opt-in elastic term compares)"),
+    (re.compile(r"^width_b(\d+)$"),
+     lambda m: f"mean width across the midline (pixels) on piece {int(m[1])} of its "
+               "profile_bins equal pieces, counted from the anterior end (0)"),
+    (re.compile(r"^reporter_b(\d+)$"),
+     lambda m: f"mean reporter (the image's units) of the object's pixels nearest piece "
+               f"{int(m[1])} of the midline's profile_bins equal pieces, counted from the "
+               "anterior end (0)"),
     (re.compile(r"^(shape|intensity)_PC(\d+)$"),
      lambda m: f"score on principal component {m[2]} of the {m[1]} features (a PCA over "
                "every row)"),

@@ -248,7 +248,8 @@ def prune_branches(skel: np.ndarray, min_length: float, rounds: int = 3) -> np.n
 
 
 def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
-             prune: float = 0.5, samples_across: int | None = SAMPLES_ACROSS) -> Skeleton:
+             prune: float = 0.5, samples_across: int | None = SAMPLES_ACROSS,
+             disk: bool = True) -> Skeleton:
     """Thin, pruned medial axis of a :class:`~napari_pfsdm.core.descriptor.PFSDMResult`.
 
     Parameters
@@ -266,6 +267,10 @@ def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
         At most this many grid samples along the longer side of the object's box: a bigger
         object is traced every ``step`` pixels (:func:`grid_step`), which costs ``step``²
         times less and moves the skeleton by about a step at most. None traces every pixel.
+    disk : bool
+        Push the points onto the unit disk (``disk_points``). False leaves ``disk_points`` NaN
+        and saves about three quarters of the cost on small objects (the midline measures,
+        :mod:`napari_pfsdm.core.midline`, need the image points only).
 
     Returns
     -------
@@ -304,5 +309,6 @@ def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
     thin = prune_branches(thin, prune * depth_px.max() / step)
     local = np.argwhere(thin)
     points = (local * step + info.offset).astype(int)
-    disk = push_to_disk(result, to_normalized(local.astype(float)))
-    return Skeleton(points=points, disk_points=disk, depth=depth_px[tuple(local.T)], step=step)
+    on_disk = (push_to_disk(result, to_normalized(local.astype(float))) if disk
+               else np.full((len(local), 2), np.nan))
+    return Skeleton(points=points, disk_points=on_disk, depth=depth_px[tuple(local.T)], step=step)

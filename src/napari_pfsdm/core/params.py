@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .choices import BALL_MAPS, DEFAULT_MIN_AREA, KEEP_OR_LEAVE_OUT, MAPPINGS, SDF_KINDS
+from .choices import (
+    ANTERIOR_RULES,
+    BALL_MAPS,
+    DEFAULT_MIN_AREA,
+    KEEP_OR_LEAVE_OUT,
+    MAPPINGS,
+    SDF_KINDS,
+)
 from .morphometric import (
     NORMALIZATIONS,
     RADII_PLACEMENTS,
@@ -41,6 +48,7 @@ from .morphometric import (
 __all__ = [
     "CHOICES",
     "DERIVED",
+    "MIDLINE_OPTIONS",
     "ONLY_2D",
     "ONLY_3D",
     "OPTIONS",
@@ -318,6 +326,15 @@ OPTIONS: tuple[Option, ...] = (
     Option("ball_map", str, "radial",
            "how the unit ball is laid onto the object",
            choices=BALL_MAPS, dims="3d"),
+    Option("profile_bins", int, 10,
+           "pieces of the object's midline over which the table gives its width and reporter "
+           "profiles (width_bXX, reporter_bXX)",
+           low=1, high=100, dims="2d"),
+    Option("anterior", str, "reporter",
+           "which end of the midline its profiles start from: 'reporter' (the reporter's high "
+           "end), 'reporter_low', 'first' (the top end, or the left one for a left-right "
+           "axis) or 'last'",
+           choices=ANTERIOR_RULES, dims="2d"),
 )
 
 #: The weights of the distance's terms: ``pfsdm compare``'s ``--intensity-weight`` and
@@ -362,6 +379,10 @@ ONLY_3D = tuple(o.name for o in OPTIONS if o.dims == "3d")
 #: Options that choose which objects are measured, not how: tables measured with different
 #: values of them still share one shape space.
 SELECTION_OPTIONS = ("components", "min_area", "border_objects", "warned_objects")
+
+#: Options of the midline measures (:mod:`napari_pfsdm.core.midline`), not of the features:
+#: tables measured with different values of them still share one shape space.
+MIDLINE_OPTIONS = ("profile_bins", "anterior")
 
 
 def _check_together(values: Mapping[str, Any]) -> None:
