@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from skimage.measure import regionprops
 
@@ -208,3 +209,15 @@ def test_the_picture_of_the_midline_is_what_the_table_measured():
     assert m.points.shape == (5 * 10 + 1, 2) and m.cross_sections().shape == (5, 2, 2)
     sections = np.linalg.norm(np.diff(m.cross_sections(), axis=1)[:, 0], axis=1)
     assert sections == pytest.approx(m.width[5::10])
+
+
+def test_no_bins_means_no_midline_measures_and_the_same_other_columns():
+    import napari_pfsdm as pf
+
+    labels = np.zeros((2, 64, 96), np.uint8)
+    yy, xx = np.mgrid[:64, :96]
+    labels[:, ((yy - 32) / 20) ** 2 + ((xx - 48) / 40) ** 2 <= 1] = 2
+    full, bare = pf.measure(labels), pf.measure(labels, profile_bins=0)
+    gone = [c for c in full.columns if c not in bare.columns]
+    assert gone[:3] == ["midline_length", "width_mean", "width_max"] and len(gone) == 13
+    pd.testing.assert_frame_equal(full[list(bare.columns)], bare, check_like=True)

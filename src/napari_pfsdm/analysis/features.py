@@ -472,9 +472,10 @@ def _object_in_crop(labels_crop, crop, t: int, label: int, box, big, shape,
     touches = any(s.start == 0 or s.stop == n for s, n in zip(box, shape, strict=True))
     res, error, int_error = _describe(mask, crop, tuple(start), options)
     measures = classic_measures(mask, crop, spacing=options.get("spacing"))
-    measures.update(midline_measures(res, crop, offset=tuple(start),
-                                     bins=options.get("profile_bins", _BINS),
-                                     anterior=options.get("anterior", _ANTERIOR)))
+    bins = options.get("profile_bins", _BINS)
+    if bins:  # 0: no midline measures
+        measures.update(midline_measures(res, crop, offset=tuple(start), bins=bins,
+                                         anterior=options.get("anterior", _ANTERIOR)))
     return ObjectResult(frame=int(t), label=int(label), bbox=box, area=area, centroid=centroid,
                         touches_border=touches, result=res, error=error,
                         intensity_error=int_error, measures=measures)
@@ -602,7 +603,8 @@ def table_from_objects(
     nan_o, nan_e = np.full(len(out_cols), np.nan), np.full(len(sig_cols), np.nan)
     classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)
     # the object's own axis (core.midline), after the classic measures; NaN in 3-D
-    classic_cols += midline_columns(int(opts["profile_bins"]), with_intensity)
+    if int(opts["profile_bins"]):
+        classic_cols += midline_columns(int(opts["profile_bins"]), with_intensity)
     base, classic_rows, shape_rows, int_rows, out_rows, sig_rows = [], [], [], [], [], []
     for obj in objects:
         classic_rows.append([obj.measures.get(c, np.nan) for c in classic_cols])
