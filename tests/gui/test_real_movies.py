@@ -163,6 +163,18 @@ def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widg
         assert not layer.colorbar.visible  # napari's would stack in one corner
         assert f"{hi:.3g}" in texts and f"{lo:.3g}" in texts
     assert any(t.startswith("SDF") for t in texts) and any("reporter" in t for t in texts)
+    # the object's own axis: its midline drawn on the object, as its row measured it
+    from napari_pfsdm.analysis.pictures import object_midline
+
+    a = w.bound[1]
+    frame, label = a.selection
+    m = object_midline(a.labels, a.intensity, frame, label, params=a.params, axes=a.axes,
+                       box=a.boxes.get((frame, label)))
+    lines = viewer.layers["gastruloids outline and skeleton"]
+    drawn = [d for d in lines.data if d.shape == m.points.shape
+             and np.allclose(d, m.points * lines.scale[-2:] + lines.translate[-2:])]
+    assert len(drawn) == 1
+    assert any(f"midline {m.length:.0f} px" in t for t in texts)
 
 
 def test_every_dock_and_the_clusters_plotter_fit_1280_by_800(qtbot, make_napari_viewer,

@@ -19,6 +19,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -55,6 +56,8 @@ class ObjectPictures:
         The skeleton's branches: frame pixels, and pixels of the disk picture.
     notes : list of str
         Why a part is missing, in plain words.
+    midline : Midline or None
+        The object's own axis (:func:`object_midline`), when asked for.
     """
 
     frame: int
@@ -68,6 +71,7 @@ class ObjectPictures:
     skeleton_image: list = field(default_factory=list)
     skeleton_disk: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    midline: Any = None
 
 
 @dataclass
@@ -143,7 +147,7 @@ def _volume_pictures(res, frame: int, label: int) -> VolumePictures:
 
 def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMParams,
                     axes: str, spacing=None, box=None, size: int = 128,
-                    skeleton_samples: int | None = 512
+                    skeleton_samples: int | None = 512, midline: bool = False
                     ) -> ObjectPictures | VolumePictures:
     """The pictures of the object ``label`` in ``frame``, made with its run's options.
 
@@ -169,6 +173,9 @@ def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMP
         a big object's skeleton then costs about what a 512-pixel one does and lies within
         about a grid step of the one traced at every pixel. None traces every pixel. The
         default is :data:`~napari_pfsdm.core.medial_axis.SAMPLES_ACROSS`, the result's own.
+    midline : bool
+        Also the object's midline (:func:`object_midline`, 2-D objects), as its row measured
+        it; a note says why when it cannot be traced.
 
     Raises
     ------
@@ -208,10 +215,18 @@ def object_pictures(labels, intensity, frame: int, label: int, *, params: PFSDMP
         sk_disk = [disk_pixels(p, size).astype(np.float32) for p in sk.paths("disk")]
     except Exception as err:  # noqa: BLE001 - the other pictures are still worth showing
         notes.append(f"no skeleton ({type(err).__name__}: {err})")
+    axis = None
+    if midline:
+        try:
+            axis = object_midline(labels, intensity, frame, label, params=params, axes=axes,
+                                  box=box)
+        except Exception as err:  # noqa: BLE001 - the other pictures are still worth showing
+            notes.append(f"no midline ({type(err).__name__}: {err})")
     return ObjectPictures(frame=t, label=int(label), disk=disks["sdf"].astype(np.float32),
                           intensity_disk=idisk, sdf=sdf, sdf_corner=corner, sdf_step=step,
                           outline=np.vstack([outline, outline[:1]]).astype(np.float32),
-                          skeleton_image=sk_img, skeleton_disk=sk_disk, notes=notes)
+                          skeleton_image=sk_img, skeleton_disk=sk_disk, notes=notes,
+                          midline=axis)
 
 
 def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMParams,

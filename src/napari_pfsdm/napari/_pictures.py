@@ -30,6 +30,8 @@ BAR, BAR_GAP = 8, 4
 #: Pictures of this many objects are kept.
 CACHE = 64
 SKELETON, OUTLINE = "#ffd000", "#202020"
+#: The midline (anterior end first) and its cross-sections (one per profile bin).
+MIDLINE, SECTIONS = "#00e5ff", "#7fd8e6"
 #: Points of the captions layer: five texts, the two ends of three colour bars, and a point
 #: right of them (the view made to fit the layers then holds the texts too).
 SLOTS = 12
@@ -181,6 +183,12 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     on_object = [np.asarray(q) * scale + shift for q in p.skeleton_image]
     paths = on_sdf + on_disk + on_object
     colors = [OUTLINE] + [SKELETON] * (len(paths) - 1)
+    if p.midline is not None:  # the object's own axis, on the object and on its SDF
+        axis = [p.midline.points, *p.midline.cross_sections()]
+        paths += [np.asarray(q) * scale + shift for q in axis]
+        paths += [(np.asarray(q) - p.sdf_corner) / p.sdf_step * side / SIZE + (top, left)
+                  for q in axis]
+        colors += ([MIDLINE] + [SECTIONS] * (len(axis) - 1)) * 2
     name = n["lines"]
     width = 0.004 * layer_shape(layer)[-2] * layer.scale[-2]
     lines = _layer(viewer, name, Shapes, lambda: viewer.add_shapes(
@@ -190,7 +198,9 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
     _set(lines, visible=True, opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
+    axis = (f" · midline {p.midline.length:.0f} px, anterior: {p.midline.anterior}"
+            if p.midline is not None else "")
+    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}{axis}",
              "reporter (× mean)" if p.intensity_disk is not None else "", "; ".join(p.notes)]
     spots = _spots_2d(layer)
     for key, lim in limits.items():
@@ -268,7 +278,7 @@ def _make(analysis: Analysis, frame: int, label: int):
     return object_pictures(analysis.labels, analysis.intensity, t, label,
                            params=analysis.params, axes=analysis.axes,
                            spacing=analysis.spacing, box=analysis.boxes.get((t, label)),
-                           size=SIZE)
+                           size=SIZE, midline=True)
 
 
 class PictureView:
