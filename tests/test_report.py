@@ -121,6 +121,32 @@ def test_without_labels_the_report_says_the_outlines_need_them(run, tmp_path):
     assert '<section id="prediction">' not in text  # none given: no section
 
 
+def test_several_movies_tracks_and_left_out_rows(run):
+    """A linked table of two movies (one named with markup), objects left out by min_area:
+    the counts say why (one line per kind of reason), the outlines come from each movie."""
+    import pandas as pd
+
+    from napari_pfsdm.analysis.report import report_html
+    from napari_pfsdm.analysis.tracking import link
+    from napari_pfsdm.core.table_options import carry_options
+
+    labels = run[0][:4]
+    one = measure(labels, min_area=300)
+    one.insert(0, "movie", "<m>&")
+    two = carry_options(one, pd.concat([one, one.assign(movie="plain")], ignore_index=True))
+    two = link(two, method="centroid")
+    text = report_html(two, labels={"<m>&": labels, "plain": labels})
+    _check_self_contained(text)
+    assert "<m>&" not in text and "&lt;m&gt;&amp;: frame" in text  # gallery captions
+    counts = text.split('<section id="counts">')[1].split("</section>")[0]
+    n_small = int((one["error"] != "").sum())
+    assert n_small > 1
+    assert "<td>tracks</td><td>12</td>" in counts  # 6 per movie, not 6 ids
+    assert counts.count("The object is too small to describe its shape</td>") == 1
+    assert f'<td class="num">{2 * n_small}</td>' in counts
+    assert text.count('alt="real objects at') == 3
+
+
 def test_it_rewrites_its_own_report_and_never_a_foreign_file(run, tmp_path):
     labels, table, _ = run
     small = table[table["frame"] < 3]
@@ -233,7 +259,5 @@ def test_the_report_opens_in_a_real_browser(library_report, tmp_path):
         grey = np.asarray(im.convert("L"), dtype=float)
         assert grey.std() > 10  # not a blank page
         if os.environ.get("PFSDM_DOCS_SCREENSHOTS") == "1":
-            # 256 colours without dithering: a third of the size, the colour maps kept
-            im.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE,
-                                       dither=Image.Dither.NONE).save(DOCS / "report.png",
-                                                                      optimize=True)
+            # full colour: a 256-colour palette loses either viridis or the faint loadings
+            im.convert("RGB").save(DOCS / "report.png", optimize=True)

@@ -48,6 +48,10 @@ DPI = 100
 GALLERY = 3
 #: Components explained, drawn and shown in the gallery.
 N_PCS = 3
+#: At most this many objects' trajectories per panel (every k-th beyond).
+MAX_LINES = 200
+#: At most this many groups get a trajectory panel (the first, by name).
+MAX_PANELS = 9
 
 _MEANING_OF_DERIVED = {
     "weights": "quadrature weight of each ring in the distance (from the options)",
@@ -185,9 +189,12 @@ class _Masks:
     """The mask of (movie, frame, label) from the label movie(s), or None."""
 
     def __init__(self, labels, table: pd.DataFrame):
+        from ..core.table_schema import table_ndim
+
         self.labels = labels
         self.movies = (sorted(set(table["movie"].astype(str))) if "movie" in table.columns
                        else [])
+        self.ndim = table_ndim(table_options(table))  # 3: volumes, drawn projected along z
 
     def __bool__(self) -> bool:
         return self.labels is not None
@@ -211,15 +218,18 @@ class _Masks:
         if arr is None:
             return None
         frame = int(row["frame"])
-        if getattr(arr, "ndim", 0) == 3:
+        ndim = getattr(arr, "ndim", 0)
+        if ndim == self.ndim + 1:  # a movie
             if not 0 <= frame < arr.shape[0]:
                 return None
             image = np.asarray(arr[frame])
-        elif getattr(arr, "ndim", 0) == 2:
+        elif ndim == self.ndim:  # one image (or volume)
             image = np.asarray(arr)
         else:
             return None
         mask = image == int(row["label"])
+        if mask.ndim == 3:
+            mask = mask.any(axis=0)  # a volume: its projection along z
         if not mask.any():
             return None
         rows, cols = np.nonzero(mask)
@@ -271,8 +281,8 @@ def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFr
     if "movie" in table.columns:
         rows.append(("movies", f"{table['movie'].nunique():,}"))
     if TRACK_COLUMN in table.columns:
-        tracks = table.loc[table[TRACK_COLUMN] != NO_TRACK, TRACK_COLUMN]
-        rows.append(("tracks", f"{tracks.nunique():,}"))
+        tracked = (table[TRACK_COLUMN] != NO_TRACK).to_numpy()
+        rows.append(("tracks", f"{object_ids(table)[tracked].nunique():,}"))
     groups = _group_names(table)
     if groups:
         per = table.assign(_o=object_ids(table)).groupby("group")["_o"].nunique()
@@ -281,9 +291,14 @@ def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFr
     rows.append(("rows left out", f"{len(left):,}"))
     out = _table_html(rows, ("", "count"))
     if len(left):
-        why = left["reason"].astype(str).value_counts()
+        # one line per kind of reason ("The object is too small …: 276 pixels" and
+        # "…: 311 pixels" are one kind), with the first one in full
+        reasons = left["reason"].astype(str)
+        kinds = reasons.str.split(":", n=1).str[0]
+        why = [(kind, reasons[kinds == kind].iloc[0], int(n))
+               for kind, n in kinds.value_counts().items()]
         out += "<h3>Why rows were left out</h3>" + _table_html(
-            [(r, int(n)) for r, n in why.items()], ("reason", "rows"), numeric=(1,))
+            why, ("reason", "for example", "rows"), numeric=(2,))
         first = left.head(10).to_dict("records")
         cols = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "reason") if c in left]
         out += ("<p class=\"note\">The first rows left out:</p>"
@@ -299,6 +314,7 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
         scores = scores.assign(group="")
     scores = scores.assign(group=scores["group"].fillna("").astype(str))
     panels = names + (["(no group)"] if names != [""] and (scores["group"] == "").any() else [])
+    panels = panels[:MAX_PANELS]
     n = len(panels)
     ncols = min(n, 3)
     nrows = -(-n // ncols)
@@ -313,7 +329,12 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
         ax.scatter(x, y, s=4, color="0.88", zorder=0)  # every object, for reference
         key = "" if name == "(no group)" else name
         sub = scores[scores["group"] == key]
-        for oid in pd.unique(ids[sub.index]):
+        objects = pd.unique(ids[sub.index])
+        every = -(-len(objects) // MAX_LINES) if len(objects) else 1
+        if every > 1:
+            ax.text(0.01, 0.99, f"every {every}th of {len(objects):,} objects", fontsize=7,
+                    va="top", transform=ax.transAxes, color="0.4")
+        for oid in objects[::every]:
             obj = sub[ids[sub.index] == oid].sort_values("frame")
             ax.plot(obj["shape_PC1"], obj["shape_PC2"], "-", color="0.45", lw=0.8, zorder=1)
             sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=obj["frame"], s=12,
@@ -330,6 +351,8 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
 
 
 def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
+    from matplotlib.ticker import MaxNLocator
+
     from .over_time import numeric_columns, plot_over_time
 
     have = set(numeric_columns(table))
@@ -343,6 +366,7 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, col in zip(axes, cols, strict=False):
         plot_over_time(ax, table, col)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
         ax.set_title(col, fontsize=10)
     for ax in axes[len(cols):]:
         ax.set_visible(False)
@@ -353,25 +377,29 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
             "object; bands: each group's mean ± sd.</p>" f"<ul class=\"note\">{notes}</ul>")
 
 
-def _loadings_figure(space, k: int) -> str:
+def _loadings_figure(space, k: int, ndim: int = 2) -> str:
     from .shape_space import HARMONIC_WORDS
 
     lo = space.loadings(k)
+    index = "Fourier index n" if ndim == 2 else "spherical-harmonic degree l"
     fig = _figure(4.2, 3.2)
     ax = fig.subplots()
     v = float(np.abs(lo).max()) or 1.0
     im = ax.imshow(lo, cmap="RdBu_r", vmin=-v, vmax=v, aspect="auto", origin="lower",
                    interpolation="nearest")
-    ax.set_xlabel("Fourier index n")
-    ax.set_ylabel("ring (0 = centre)")
+    ax.set_xlabel(index)
+    ax.set_ylabel("ring (0 = centre)" if ndim == 2 else "shell (0 = centre)")
     ticks = range(lo.shape[1]) if lo.shape[1] <= 12 else range(0, lo.shape[1], 2)
     ax.set_xticks(list(ticks))
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title(f"PC{k} loadings", fontsize=10)
     fig.colorbar(im, ax=ax, label="loading")
     n_max = int(np.abs(lo).sum(axis=0).argmax())
-    word = f" ({HARMONIC_WORDS[n_max]})" if n_max < len(HARMONIC_WORDS) else ""
-    return (_img(fig, f"PC{k} loadings, ring by Fourier index"),
-            f"its largest loadings are at Fourier index {n_max}{word}")
+    word = f" ({HARMONIC_WORDS[n_max]})" if ndim == 2 and n_max < len(HARMONIC_WORDS) else ""
+    return (_img(fig, f"PC{k} loadings, ring by {index}"),
+            f"its largest loadings are at {index.rsplit(' ', 1)[0]} {n_max}{word}")
 
 
 def _modes_figure(scores: pd.DataFrame, k: int, masks: _Masks, several: bool) -> str:
@@ -410,7 +438,7 @@ def _pc_section(table: pd.DataFrame, measured: pd.DataFrame, space, scores: pd.D
         elif not classic <= set(measured.columns):
             out.append('<p class="note">The table has no classic measures (circularity, '
                        "solidity, axis lengths) to compare the PC with.</p>")
-        img, words = _loadings_figure(space, k)
+        img, words = _loadings_figure(space, k, masks.ndim)
         out.append(f'<div class="row">{img}')
         if masks:
             out.append(_modes_figure(scores, k, masks, several))
