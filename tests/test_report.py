@@ -161,6 +161,8 @@ def test_it_rewrites_its_own_report_and_never_a_foreign_file(run, tmp_path):
     write_report(mine, small, force=True)
     assert "PF-SDM report" in mine.read_text(encoding="utf-8")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.html", "r.html"]  # no temp
+    with pytest.raises(InputError, match="is a folder"):
+        write_report(tmp_path, small)
 
 
 def test_pfsdm_report_writes_the_page_from_files(files, capsys):

@@ -18,6 +18,7 @@ from typing import Any
 import pandas as pd
 
 from .analysis.report import REPORT_COLUMNS, report_html
+from .errors import InputError
 from .io_csv import atomic_write, check_overwrite
 
 __all__ = ["write_report"]
@@ -67,6 +68,9 @@ def write_report(
     'report.html'
     """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"the report {path} is a folder; give a file name such as "
+                         f"{path / 'report.html'}")
     check_overwrite(path, force=force, what="report", table=False)
     text = report_html(table, groups=groups, predictions=predictions,
                        prediction_info=prediction_info, labels=labels, title=title,
