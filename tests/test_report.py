@@ -52,6 +52,7 @@ def files(run, tmp_path_factory):
     pd.DataFrame({"label": list(groups), "group": list(groups.values())}).to_csv(
         d / "groups.csv", index=False)
     tifffile.imwrite(d / "labels.tif", labels)
+    tifffile.imwrite(d / "reporter.tif", labels.astype(np.float32))  # an image, not labels
     assert main(["predict", str(d / "features.csv"), "--groups", str(d / "groups.csv"),
                  "--splits", "3", "--repeats", "1", "-q",
                  "-o", str(d / "predictions.csv")]) == 0
@@ -188,6 +189,7 @@ def test_pfsdm_report_writes_the_page_from_files(files, capsys):
     ("foreign", "not written by pfsdm"),
     ("predictions_without_p", "no p_<group> columns"),
     ("labels_twice", "same movie name"),
+    ("reporter_as_labels", "not whole numbers"),
 ])
 def test_pfsdm_report_refuses_in_plain_words(files, tmp_path, capsys, case, message):
     features = str(files / "features.csv")
@@ -201,6 +203,8 @@ def test_pfsdm_report_refuses_in_plain_words(files, tmp_path, capsys, case, mess
         out.write_text("notes", encoding="utf-8")
     elif case == "predictions_without_p":
         args += ["--predictions", str(files / "groups.csv")]
+    elif case == "reporter_as_labels":
+        args += ["--labels", str(files / "reporter.tif")]
     elif case == "labels_twice":
         args += ["--labels", str(files / "labels.tif"), str(files / "labels.tif")]
     assert main(args) == 2

@@ -706,7 +706,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     table = _follow_objects(table, args.link, args.quiet, command="report")
     if args.groups:
         table, _ = _with_groups(table, args.groups, args.quiet)
-    labels = _report_labels(args.labels, table, args.quiet) if args.labels else None
+    labels = None
+    if args.labels:
+        from .analysis.report import check_labels
+
+        labels = _report_labels(args.labels, table, args.quiet)
+        check_labels(labels, table)
     predictions = info = None
     if args.predictions:
         if not Path(args.predictions).is_file():

@@ -35,7 +35,7 @@ from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 
-__all__ = ["GENERATOR", "REPORT_COLUMNS", "report_html"]
+__all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
 #: The ``<meta name="generator">`` a report carries: how napari-pfsdm recognises a report it
 #: wrote (``io_csv.written_by_pfsdm``), so that writing it again needs no ``--force``.
@@ -199,6 +199,29 @@ class _Masks:
     def __bool__(self) -> bool:
         return self.labels is not None
 
+    def check(self, table: pd.DataFrame) -> None:
+        """Refuse, in plain words, label arrays that cannot be the table's segmentation."""
+        if self.labels is None:
+            return
+        arrays = (self.labels.items() if isinstance(self.labels, Mapping)
+                  else [("", self.labels)])
+        for movie, arr in arrays:
+            name = f"the labels of {movie}" if movie else "the labels"
+            dtype = np.dtype(getattr(arr, "dtype", np.asarray(arr).dtype))
+            if dtype.kind not in "iub":  # signed, unsigned, boolean
+                raise InputError(f"{name} hold {dtype} values, not whole numbers: give the "
+                                 "segmentation (one whole number per object), not an image")
+            ndim = getattr(arr, "ndim", 0)
+            if ndim not in (self.ndim, self.ndim + 1):
+                raise InputError(f"{name} have {ndim} axes; the table's objects need "
+                                 f"{self.ndim} (one image) or {self.ndim + 1} (a movie)")
+            rows = table[table["movie"].astype(str) == movie] if movie and "movie" in table \
+                else table
+            if ndim == self.ndim + 1 and len(rows) and int(rows["frame"].max()) >= arr.shape[0]:
+                raise InputError(f"{name} have {arr.shape[0]} frames but the table has frame "
+                                 f"{int(rows['frame'].max())}: give the label movie the table "
+                                 "was measured from")
+
     def movie_array(self, movie: str | None):
         labels = self.labels
         if isinstance(labels, Mapping):
@@ -237,6 +260,14 @@ class _Masks:
         r0, r1 = max(rows.min() - pad, 0), min(rows.max() + pad + 1, mask.shape[0])
         c0, c1 = max(cols.min() - pad, 0), min(cols.max() + pad + 1, mask.shape[1])
         return np.pad(mask[r0:r1, c0:c1], 1)
+
+
+def check_labels(labels, table: pd.DataFrame) -> None:
+    """Refuse, in plain words (:class:`~napari_pfsdm.errors.InputError`), label arrays that
+    cannot be the table's segmentation: not whole numbers (an image given by mistake), the
+    wrong number of axes, fewer frames than the table has. ``labels`` as for
+    :func:`report_html`; None passes."""
+    _Masks(labels, table).check(table)
 
 
 def _draw_mask(ax, mask: np.ndarray | None, colour="0.25") -> None:
@@ -585,6 +616,7 @@ def report_html(
     title = title or "PF-SDM report"
     several = "movie" in table.columns and table["movie"].nunique() > 1
     masks = _Masks(labels, table)
+    masks.check(table)
     sections: list[tuple[str, str, str]] = []
     sections.append(("options", "The run's options", _options_section(table)))
     sections.append(("counts", "Counts", _counts_section(table, measured, left)))
