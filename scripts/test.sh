@@ -17,7 +17,8 @@ say() { printf '\n== %s (%ds)\n' "$*" "$(( $(date +%s) - START ))"; }
 
 APT_PACKAGES=(xvfb xauth libgl1 libegl1 libgl1-mesa-dri libglib2.0-0 libfontconfig1
   libdbus-1-3 libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0
-  libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 libxcb-shape0 libxcb-xkb1)
+  libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 libxcb-shape0 libxcb-xkb1
+  chromium)  # the browser tests/test_report.py opens the HTML report in (driven by Playwright)
 
 # wait for another apt-get or unattended upgrade instead of failing at once on its lock
 APT_WAIT=(-o DPkg::Lock::Timeout=600)

@@ -101,6 +101,9 @@ HEADER_PREFIX = "# pfsdm: "
 SIDECAR_SUFFIX = ".json"
 #: Marker written into PNG files (metadata ``Software``) so that a re-run may replace them.
 PNG_SOFTWARE = "napari-pfsdm"
+#: What marks an HTML report napari-pfsdm wrote (napari_pfsdm.analysis.report.GENERATOR), in
+#: its first few kilobytes.
+HTML_GENERATOR = b'<meta name="generator" content="napari-pfsdm'
 
 _UMASK_LOCK = threading.Lock()
 
@@ -655,7 +658,8 @@ def _read_parquet(path: Path, strict: bool = False) -> pd.DataFrame:
 
 def written_by_pfsdm(path: str | os.PathLike) -> bool:
     """True when ``path`` is a file this program wrote: a table with a napari-pfsdm sidecar
-    (or the comment line of older tables), or a PNG marked by :func:`save_figure`."""
+    (or the comment line of older tables), a PNG marked by :func:`save_figure`, or an HTML
+    report whose head names napari-pfsdm as its generator."""
     path = Path(path)
     if not path.is_file():
         return False
@@ -669,6 +673,8 @@ def written_by_pfsdm(path: str | os.PathLike) -> bool:
         head = handle.read(4096)
     if head.startswith(HEADER_PREFIX.encode()):
         return True
+    if head.lstrip().lower().startswith(b"<!doctype html") and HTML_GENERATOR in head:
+        return True  # a report (napari_pfsdm.report.write_report)
     return head[:8] == b"\x89PNG\r\n\x1a\n" and PNG_SOFTWARE.encode() in head
 
 

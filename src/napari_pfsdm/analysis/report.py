@@ -1,0 +1,665 @@
+"""A report to share: one self-contained HTML page of a run, readable offline in any browser.
+
+:func:`report_html` turns a feature table (with its options record) into one HTML text: the
+run's options with their meaning, the counts (objects, frames, tracks, rows left out and why),
+the trajectories per group in the PCA plane, a few measures over time (each group's mean ± sd),
+what each of PC1 … PC3 means (the classic measure it follows, its loadings as a ring × Fourier
+index map, the real objects at −2σ … +2σ), the prediction curve when predictions are given,
+and a gallery of the most extreme objects per PC. Figures are inline PNGs
+(``data:image/png;base64``), the style is inline CSS, there are no links out and no script:
+the file can be mailed, archived, and opened offline. Every text that comes from the user
+(movie and group names, the title) is HTML-escaped.
+
+Headless: figures are drawn with :class:`matplotlib.figure.Figure` (no pyplot, no GUI
+backend). Writing the file (atomically, never over a file napari-pfsdm did not write) is
+:func:`napari_pfsdm.report.write_report`, the function the command line (``pfsdm report``) and
+the napari plugin call: this module only builds the text, since the layers below the file
+layer write no files (tests/test_layering.py).
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime
+import html
+import io
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._version import __version__
+from ..core.params import DERIVED, WEIGHT_OPTIONS, option
+from ..core.table_options import carry_options, table_options
+from ..core.table_schema import NO_TRACK, TRACK_COLUMN
+from ..errors import InputError
+
+__all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
+
+#: The ``<meta name="generator">`` a report carries: how napari-pfsdm recognises a report it
+#: wrote (``io_csv.written_by_pfsdm``), so that writing it again needs no ``--force``.
+GENERATOR = "napari-pfsdm"
+#: The measures drawn over time by default (those the table has).
+REPORT_COLUMNS = ("area", "circularity", "solidity", "intensity_mean")
+#: Resolution of the inline figures: small files, sharp enough on a screen.
+DPI = 100
+#: Objects per end of each PC in the gallery.
+GALLERY = 3
+#: Components explained, drawn and shown in the gallery.
+N_PCS = 3
+#: At most this many objects' trajectories per panel (every k-th beyond).
+MAX_LINES = 200
+#: At most this many groups get a trajectory panel (the first, by name).
+MAX_PANELS = 9
+
+_MEANING_OF_DERIVED = {
+    "weights": "quadrature weight of each ring in the distance (from the options)",
+    "mode_weights": "weight of each Fourier index in the distance (from the options)",
+    "ndim": "dimension of the objects (2: masks in images, 3: volumes)",
+    "axes": "the axes of the labels (T: time, Z, Y, X)",
+    "spacing": "pixel (voxel) size along each axis",
+}
+
+_CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',Helvetica,Arial,sans-serif;margin:0 auto;
+max-width:1180px;padding:16px 24px;color:#222;line-height:1.4}
+h1{font-size:1.6em;margin:.2em 0}h2{font-size:1.25em;border-bottom:2px solid #ddd;
+margin-top:1.6em;padding-bottom:.2em}h3{font-size:1.05em;margin:1.1em 0 .3em}
+table{border-collapse:collapse;font-size:.88em;margin:.4em 0}
+td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
+th{background:#f3f3f3}td.num{text-align:right;font-variant-numeric:tabular-nums}
+img{max-width:100%;height:auto}.note{color:#555;font-size:.9em}
+.toc a{margin-right:1em}.gallery{display:flex;flex-wrap:wrap;gap:10px;margin:.3em 0 1em}
+figure{margin:0;text-align:center;font-size:.8em;color:#444}
+figure img{border:1px solid #ddd;background:#fff}.row{margin:.2em 0 .6em}
+.muted{color:#888}.end{writing-mode:vertical-rl;transform:rotate(180deg);
+text-align:center;color:#555;font-size:.85em;margin-left:8px}
+"""
+
+
+# ------------------------------------------------------------------------------- helpers
+def _e(value: Any) -> str:
+    """``value`` as text safe inside HTML (quotes too)."""
+    return html.escape(str(value), quote=True)
+
+
+def _png(fig) -> str:
+    """A matplotlib figure as an ``<img>`` of an inline PNG (``data:`` URI)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": GENERATOR})
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return f'<img src="data:image/png;base64,{data}" alt="">'
+
+
+def _img(fig, alt: str) -> str:
+    return _png(fig).replace('alt=""', f'alt="{_e(alt)}"')
+
+
+def _figure(w: float, h: float):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(w, h), layout="constrained")
+
+
+def _table_html(rows: Sequence[Sequence[Any]], header: Sequence[str],
+                numeric: Sequence[int] = ()) -> str:
+    head = "".join(f"<th>{_e(h)}</th>" for h in header)
+    body = []
+    for row in rows:
+        cells = "".join(f'<td class="num">{_e(v)}</td>' if i in numeric else f"<td>{_e(v)}</td>"
+                        for i, v in enumerate(row))
+        body.append(f"<tr>{cells}</tr>")
+    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _shown(value: Any, limit: int = 80) -> str:
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, list | tuple):
+        text = ", ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in value)
+        text = f"[{text}]"
+    else:
+        text = str(value)
+    return text if len(text) <= limit else text[: limit - 2] + " …"
+
+
+def _meaning(name: str) -> str:
+    try:
+        return option(name).help
+    except KeyError:
+        pass
+    if name in _MEANING_OF_DERIVED:
+        return _MEANING_OF_DERIVED[name]
+    if name in DERIVED:
+        return "derived from the options"
+    return ""
+
+
+def _group_names(table: pd.DataFrame) -> list[str]:
+    if "group" not in table.columns:
+        return []
+    return sorted(set(table["group"].fillna("").astype(str)) - {""})
+
+
+def _with_groups(table: pd.DataFrame, groups) -> pd.DataFrame:
+    """The table with a ``group`` column ("" for an object without one).
+
+    ``groups``: None (the table's own ``group`` column, if any), a mapping object → group (the
+    object is the ``track_id`` of a linked table, else the ``label``; keys as numbers or
+    text), or a groups table as :func:`~napari_pfsdm.analysis.reduction.read_groups` reads.
+    """
+    if groups is None:
+        if "group" in table.columns:
+            out = table.copy()
+            out["group"] = out["group"].fillna("").astype(str)
+            return carry_options(table, out)
+        return table
+    if isinstance(groups, pd.DataFrame):
+        from .reduction import attach_groups
+
+        return attach_groups(table, groups)
+    if not isinstance(groups, Mapping):
+        raise InputError("groups must be a mapping object → group or a groups table")
+    known = {str(k): str(v) for k, v in groups.items()}
+    key = TRACK_COLUMN if TRACK_COLUMN in table.columns else "label"
+    out = table.copy()
+    out["group"] = [known.get(str(k), "") for k in table[key].to_numpy()]
+    return carry_options(table, out)
+
+
+def _colours(names: Sequence[str]) -> dict[str, Any]:
+    from matplotlib import colormaps
+
+    tab = colormaps["tab10"]
+    return {n: tab(i % 10) for i, n in enumerate(names)}
+
+
+def _where(row: Mapping[str, Any], several_movies: bool) -> str:
+    text = f"frame {int(row['frame'])}, label {int(row['label'])}"
+    if several_movies and "movie" in row:
+        text = f"{row['movie']}: {text}"
+    return text
+
+
+# ------------------------------------------------------------------------------- outlines
+class _Masks:
+    """The mask of (movie, frame, label) from the label movie(s), or None."""
+
+    def __init__(self, labels, table: pd.DataFrame):
+        from ..core.table_schema import table_ndim
+
+        self.labels = labels
+        self.movies = (sorted(set(table["movie"].astype(str))) if "movie" in table.columns
+                       else [])
+        self.ndim = table_ndim(table_options(table))  # 3: volumes, drawn projected along z
+
+    def __bool__(self) -> bool:
+        return self.labels is not None
+
+    def check(self, table: pd.DataFrame) -> None:
+        """Refuse, in plain words, label arrays that cannot be the table's segmentation."""
+        if self.labels is None:
+            return
+        arrays = (self.labels.items() if isinstance(self.labels, Mapping)
+                  else [("", self.labels)])
+        for movie, arr in arrays:
+            name = f"the labels of {movie}" if movie else "the labels"
+            dtype = np.dtype(getattr(arr, "dtype", np.asarray(arr).dtype))
+            if dtype.kind not in "iub":  # signed, unsigned, boolean
+                raise InputError(f"{name} hold {dtype} values, not whole numbers: give the "
+                                 "segmentation (one whole number per object), not an image")
+            ndim = getattr(arr, "ndim", 0)
+            if ndim not in (self.ndim, self.ndim + 1):
+                raise InputError(f"{name} have {ndim} axes; the table's objects need "
+                                 f"{self.ndim} (one image) or {self.ndim + 1} (a movie)")
+            rows = table[table["movie"].astype(str) == movie] if movie and "movie" in table \
+                else table
+            if ndim == self.ndim + 1 and len(rows) and int(rows["frame"].max()) >= arr.shape[0]:
+                raise InputError(f"{name} have {arr.shape[0]} frames but the table has frame "
+                                 f"{int(rows['frame'].max())}: give the label movie the table "
+                                 "was measured from")
+
+    def movie_array(self, movie: str | None):
+        labels = self.labels
+        if isinstance(labels, Mapping):
+            if movie is None:
+                if len(labels) != 1:
+                    return None
+                return next(iter(labels.values()))
+            return labels.get(movie)
+        if len(self.movies) > 1:
+            return None  # one array for several movies: which one is unknown
+        return labels
+
+    def mask(self, row: Mapping[str, Any]) -> np.ndarray | None:
+        if self.labels is None:
+            return None
+        arr = self.movie_array(str(row["movie"]) if "movie" in row else None)
+        if arr is None:
+            return None
+        frame = int(row["frame"])
+        ndim = getattr(arr, "ndim", 0)
+        if ndim == self.ndim + 1:  # a movie
+            if not 0 <= frame < arr.shape[0]:
+                return None
+            image = np.asarray(arr[frame])
+        elif ndim == self.ndim:  # one image (or volume)
+            image = np.asarray(arr)
+        else:
+            return None
+        mask = image == int(row["label"])
+        if mask.ndim == 3:
+            mask = mask.any(axis=0)  # a volume: its projection along z
+        if not mask.any():
+            return None
+        rows, cols = np.nonzero(mask)
+        pad = 3
+        r0, r1 = max(rows.min() - pad, 0), min(rows.max() + pad + 1, mask.shape[0])
+        c0, c1 = max(cols.min() - pad, 0), min(cols.max() + pad + 1, mask.shape[1])
+        return np.pad(mask[r0:r1, c0:c1], 1)
+
+
+def check_labels(labels, table: pd.DataFrame) -> None:
+    """Refuse, in plain words (:class:`~napari_pfsdm.errors.InputError`), label arrays that
+    cannot be the table's segmentation: not whole numbers (an image given by mistake), the
+    wrong number of axes, fewer frames than the table has. ``labels`` as for
+    :func:`report_html`; None passes."""
+    _Masks(labels, table).check(table)
+
+
+def _draw_mask(ax, mask: np.ndarray | None, colour="0.25") -> None:
+    ax.set_axis_off()
+    if mask is None:
+        ax.text(0.5, 0.5, "not in\nthe labels", ha="center", va="center", fontsize=7,
+                color="0.5", transform=ax.transAxes)
+        return
+    ax.imshow(mask, cmap="Greys", vmin=0, vmax=2.5, interpolation="nearest")
+    ax.contour(mask.astype(float), levels=[0.5], colors=[colour], linewidths=1.2)
+    ax.set_aspect("equal")
+
+
+# ------------------------------------------------------------------------------- sections
+def _options_section(table: pd.DataFrame) -> str:
+    opts = table_options(table)
+    if not opts:
+        return ('<p class="note">The table carries no options record (it was not read with '
+                "its .csv.json sidecar).</p>")
+    weight_names = {o.name for o in WEIGHT_OPTIONS}
+    other = "3d" if int(opts.get("ndim", 2)) == 2 else "2d"
+
+    def applies(name: str) -> bool:  # not the options of the other dimension's objects
+        try:
+            return option(name).dims != other
+        except KeyError:
+            return True
+
+    rows = [(k, _shown(v), _meaning(k)) for k, v in opts.items()
+            if k not in weight_names and applies(k)]
+    rows += [(k, _shown(v), _meaning(k)) for k, v in opts.items() if k in weight_names]
+    return _table_html(rows, ("option", "value", "what it means"))
+
+
+def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFrame) -> str:
+    from .reduction import object_ids
+
+    frames = sorted(int(f) for f in table["frame"].unique()) if len(table) else []
+    rows = [("rows (one per frame and object)", f"{len(table):,}"),
+            ("objects (followed through time)", f"{object_ids(table).nunique():,}"),
+            ("frames", f"{len(frames):,}" + (f" ({frames[0]} … {frames[-1]})" if frames else ""))]
+    if "movie" in table.columns:
+        rows.append(("movies", f"{table['movie'].nunique():,}"))
+    if TRACK_COLUMN in table.columns:
+        tracked = (table[TRACK_COLUMN] != NO_TRACK).to_numpy()
+        rows.append(("tracks", f"{object_ids(table)[tracked].nunique():,}"))
+    groups = _group_names(table)
+    if groups:
+        per = table.assign(_o=object_ids(table)).groupby("group")["_o"].nunique()
+        rows.append(("groups", "; ".join(f"{g}: {int(per.get(g, 0))} objects" for g in groups)))
+    rows.append(("rows with features (in the analysis)", f"{len(measured):,}"))
+    rows.append(("rows left out", f"{len(left):,}"))
+    out = _table_html(rows, ("", "count"))
+    if len(left):
+        # one line per kind of reason ("The object is too small …: 276 pixels" and
+        # "…: 311 pixels" are one kind), with the first one in full
+        reasons = left["reason"].astype(str)
+        kinds = reasons.str.split(":", n=1).str[0]
+        why = [(kind, reasons[kinds == kind].iloc[0], int(n))
+               for kind, n in kinds.value_counts().items()]
+        out += "<h3>Why rows were left out</h3>" + _table_html(
+            why, ("reason", "for example", "rows"), numeric=(2,))
+        first = left.head(10).to_dict("records")
+        cols = [c for c in ("movie", "frame", "label", TRACK_COLUMN, "reason") if c in left]
+        out += ("<p class=\"note\">The first rows left out:</p>"
+                + _table_html([[r[c] for c in cols] for r in first], cols))
+    return out
+
+
+def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
+    from .reduction import object_ids
+
+    names = _group_names(scores) or [""]
+    if "group" not in scores.columns:
+        scores = scores.assign(group="")
+    scores = scores.assign(group=scores["group"].fillna("").astype(str))
+    panels = names + (["(no group)"] if names != [""] and (scores["group"] == "").any() else [])
+    panels = panels[:MAX_PANELS]
+    n = len(panels)
+    ncols = min(n, 3)
+    nrows = -(-n // ncols)
+    fig = _figure(4.0 * ncols, 3.6 * nrows)
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
+                         ).ravel()
+    ids = object_ids(scores)
+    x, y = scores["shape_PC1"].to_numpy(float), scores["shape_PC2"].to_numpy(float)
+    fmin, fmax = float(scores["frame"].min()), float(scores["frame"].max())
+    sc = None
+    for ax, name in zip(axes, panels, strict=False):
+        ax.scatter(x, y, s=4, color="0.88", zorder=0)  # every object, for reference
+        key = "" if name == "(no group)" else name
+        sub = scores[scores["group"] == key]
+        objects = pd.unique(ids[sub.index])
+        every = -(-len(objects) // MAX_LINES) if len(objects) else 1
+        if every > 1:
+            ax.text(0.01, 0.99, f"every {every}th of {len(objects):,} objects", fontsize=7,
+                    va="top", transform=ax.transAxes, color="0.4")
+        for oid in objects[::every]:
+            obj = sub[ids[sub.index] == oid].sort_values("frame")
+            ax.plot(obj["shape_PC1"], obj["shape_PC2"], "-", color="0.45", lw=0.8, zorder=1)
+            sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=obj["frame"], s=12,
+                            cmap="viridis", vmin=fmin, vmax=fmax, zorder=2)
+        ax.set_title(name or "all objects", fontsize=10)
+        ax.set_xlabel(f"PC1 ({100 * explained[0]:.2g} %)")
+        if len(explained) > 1:
+            ax.set_ylabel(f"PC2 ({100 * explained[1]:.2g} %)")
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    if sc is not None:
+        fig.colorbar(sc, ax=axes[:n].tolist(), label="frame", shrink=0.8)
+    return _img(fig, "trajectories per group in the PC1-PC2 plane")
+
+
+def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
+    from matplotlib.ticker import MaxNLocator
+
+    from .over_time import numeric_columns, plot_over_time
+
+    have = set(numeric_columns(table))
+    cols = [c for c in columns if c in have]
+    if not cols:
+        return ('<p class="note">None of the measures asked for ('
+                f"{_e(', '.join(columns))}) is in the table.</p>")
+    ncols = min(len(cols), 2)
+    nrows = -(-len(cols) // ncols)
+    fig = _figure(5.4 * ncols, 3.2 * nrows)
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
+    for ax, col in zip(axes, cols, strict=False):
+        plot_over_time(ax, table, col)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
+        ax.set_title(col, fontsize=10)
+    for ax in axes[len(cols):]:
+        ax.set_visible(False)
+    from ..core.glossary import describe_column
+
+    notes = "".join(f"<li><b>{_e(c)}</b>: {_e(describe_column(c))}</li>" for c in cols)
+    return (_img(fig, "measures over time") + "<p class=\"note\">Thin grey lines: each "
+            "object; bands: each group's mean ± sd.</p>" f"<ul class=\"note\">{notes}</ul>")
+
+
+def _loadings_figure(space, k: int, ndim: int = 2) -> str:
+    from .shape_space import HARMONIC_WORDS
+
+    lo = space.loadings(k)
+    index = "Fourier index n" if ndim == 2 else "spherical-harmonic degree l"
+    fig = _figure(4.2, 3.2)
+    ax = fig.subplots()
+    v = float(np.abs(lo).max()) or 1.0
+    im = ax.imshow(lo, cmap="RdBu_r", vmin=-v, vmax=v, aspect="auto", origin="lower",
+                   interpolation="nearest")
+    ax.set_xlabel(index)
+    ax.set_ylabel("ring (0 = centre)" if ndim == 2 else "shell (0 = centre)")
+    ticks = range(lo.shape[1]) if lo.shape[1] <= 12 else range(0, lo.shape[1], 2)
+    ax.set_xticks(list(ticks))
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_title(f"PC{k} loadings", fontsize=10)
+    fig.colorbar(im, ax=ax, label="loading")
+    n_max = int(np.abs(lo).sum(axis=0).argmax())
+    word = f" ({HARMONIC_WORDS[n_max]})" if ndim == 2 and n_max < len(HARMONIC_WORDS) else ""
+    return (_img(fig, f"PC{k} loadings, ring by {index}"),
+            f"its largest loadings are at {index.rsplit(' ', 1)[0]} {n_max}{word}")
+
+
+def _modes_figure(scores: pd.DataFrame, k: int, masks: _Masks, several: bool) -> str:
+    from .shape_space import shape_modes
+
+    modes = shape_modes(scores, k)
+    fig = _figure(6.4, 1.9)
+    axes = fig.subplots(1, len(modes))
+    for ax, row in zip(axes, modes.to_dict("records"), strict=True):
+        _draw_mask(ax, masks.mask(row))
+        ax.set_title(f"{row['sigma']:+g}σ\n{_where(row, several)}", fontsize=7)
+    return _img(fig, f"real objects at -2 sigma to +2 sigma along PC{k}")
+
+
+def _pc_section(table: pd.DataFrame, measured: pd.DataFrame, space, scores: pd.DataFrame,
+                masks: _Masks, several: bool) -> str:
+    sentences: list[str] = []
+    classic = {"axis_major_length", "axis_minor_length", "circularity", "solidity"}
+    if classic <= set(measured.columns):
+        from .interpretation import explain_components, table_measures
+
+        plain = scores.rename(columns={f"shape_PC{i}": f"PC{i}"
+                                       for i in range(1, len(space.components_) + 1)})
+        try:
+            sentences = explain_components(plain, table_measures(measured),
+                                           None, n=N_PCS)
+        except (KeyError, ValueError):
+            sentences = []
+    out = []
+    for k in range(1, min(N_PCS, len(space.components_)) + 1):
+        share = 100 * space.explained_variance_ratio_[k - 1]
+        out.append(f"<h3>PC{k} ({share:.2g} % of the variance)</h3>")
+        said = [s for s in sentences if s.startswith(f"PC{k} ")]
+        if said:
+            out.append(f"<p>{_e(said[0])}.</p>")
+        elif not classic <= set(measured.columns):
+            out.append('<p class="note">The table has no classic measures (circularity, '
+                       "solidity, axis lengths) to compare the PC with.</p>")
+        img, words = _loadings_figure(space, k, masks.ndim)
+        out.append(f'<div class="row">{img}')
+        if masks:
+            out.append(_modes_figure(scores, k, masks, several))
+        out.append(f'</div><p class="note">Left: the loadings ({_e(words)}); red: features '
+                   "that grow along the PC. " + ("Right: the real objects nearest to the "
+                                                 "mean −2σ … +2σ along it."
+                                                 if masks else "The outlines of the objects "
+                                                 "along the PC need the labels (the label "
+                                                 "movie): give them to draw the objects.")
+                   + "</p>")
+    return "".join(out)
+
+
+def _gallery_section(scores: pd.DataFrame, masks: _Masks, several: bool, n_pcs: int) -> str:
+    if not masks:
+        return ('<p class="note">The gallery needs the labels (the label movie) to draw the '
+                "objects' outlines; give them (``--labels LABELS.tif``, or ``labels=`` in "
+                "Python).</p>")
+    out = []
+    for k in range(1, n_pcs + 1):
+        col = f"shape_PC{k}"
+        order = np.argsort(scores[col].to_numpy(float), kind="stable")
+        ends = (("lowest", order[:GALLERY]), ("highest", order[::-1][:GALLERY]))
+        out.append(f"<h3>PC{k}</h3><div class=\"gallery\">")
+        for name, idx in ends:
+            out.append(f'<div class="end"><b>{name}</b></div>')
+            for i in idx:
+                row = scores.iloc[int(i)].to_dict()
+                fig = _figure(1.3, 1.3)
+                _draw_mask(fig.subplots(), masks.mask(row),
+                           colour="tab:blue" if name == "lowest" else "tab:red")
+                where = _where(row, several)
+                group = f"<br>{_e(row['group'])}" if row.get("group") else ""
+                out.append(f"<figure>{_img(fig, where)}<figcaption>{_e(where)}<br>"
+                           f"PC{k} = {row[col]:+.3g}{group}</figcaption></figure>")
+        out.append("</div>")
+    return "".join(out)
+
+
+def _prediction_parts(predictions, info: Mapping[str, Any] | None):
+    """(curve, summary, probabilities, groups) from a Prediction or a predictions table."""
+    if predictions is None:
+        return None
+    if isinstance(predictions, pd.DataFrame):
+        info = dict(info or {})
+        curve = pd.DataFrame(info.get("curve") or [])
+        summary = pd.DataFrame(info.get("balanced_accuracy") or [])
+        if len(summary) and "method" in summary.columns:
+            summary = summary.set_index("method")
+        groups = [c[2:] for c in predictions.columns if str(c).startswith("p_")]
+        return curve, summary, predictions, groups, info.get("frames")
+    curve = getattr(predictions, "curve", None)
+    if curve is None:
+        raise InputError("predictions must be a Prediction (predict_outcome) or a "
+                         "predictions table with p_<group> columns")
+    return (predictions.curve, predictions.summary, predictions.probabilities,
+            list(predictions.groups), predictions.frames)
+
+
+def _prediction_section(parts) -> str:
+    curve, summary, probs, groups, frames = parts
+    out = []
+    if len(summary):
+        rows = [(m, f"{r['mean']:.2f}", f"{r['std']:.2f}" if pd.notna(r["std"]) else "")
+                for m, r in summary.iterrows()]
+        out.append(_table_html(rows, ("method", "balanced accuracy", "sd"), numeric=(1, 2)))
+    if len(curve) and {"last_frame", "mean"} <= set(curve.columns):
+        fig = _figure(5.4, 3.2)
+        ax = fig.subplots()
+        x = curve["last_frame"].to_numpy(float)
+        m = curve["mean"].to_numpy(float)
+        s = curve["std"].fillna(0).to_numpy(float) if "std" in curve else np.zeros_like(m)
+        ax.fill_between(x, m - s, m + s, alpha=0.25, color="tab:blue", lw=0)
+        ax.plot(x, m, "-o", color="tab:blue", ms=4, label="fused model (mean ± sd)")
+        ax.axhline(0.5, color="0.5", ls="--", lw=1, label="chance")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("last frame used")
+        ax.set_ylabel("balanced accuracy")
+        ax.legend(fontsize=8, loc="lower right")
+        ax.set_title("How early the outcome can be predicted", fontsize=10)
+        out.append(_img(fig, "prediction curve: balanced accuracy against the last frame"))
+        out.append('<p class="note">Each point: the balanced accuracy over repeated '
+                   "stratified splits, using the frames up to that one; the fusion weights "
+                   "are chosen inside each training split only.</p>")
+    else:
+        out.append('<p class="note">No accuracy curve (one frame used, or the predictions '
+                   "file has no sidecar).</p>")
+    if frames:
+        out.append(f'<p class="note">Frames used: {_e(", ".join(map(str, frames)))}; '
+                   f"groups: {_e(' vs '.join(map(str, groups)))}; "
+                   f"{len(probs):,} objects scored.</p>")
+    return "".join(out)
+
+
+# ------------------------------------------------------------------------------- the page
+def report_html(
+    table: pd.DataFrame,
+    *,
+    groups: Mapping | pd.DataFrame | None = None,
+    predictions=None,
+    prediction_info: Mapping[str, Any] | None = None,
+    labels=None,
+    title: str | None = None,
+    columns: Sequence[str] = REPORT_COLUMNS,
+    source: str | None = None,
+) -> str:
+    """The report of a run as one self-contained HTML text (no links out, no script).
+
+    Parameters
+    ----------
+    table : DataFrame
+        A feature table with its options (:func:`napari_pfsdm.measure`,
+        :func:`napari_pfsdm.read_table`).
+    groups : mapping or DataFrame, optional
+        Object → group (the ``track_id`` of a linked table, else the label), or a groups
+        table (:func:`~napari_pfsdm.analysis.reduction.read_groups`); default: the table's
+        own ``group`` column, if any.
+    predictions : Prediction or DataFrame, optional
+        What :func:`~napari_pfsdm.analysis.prediction.predict_outcome` returned, or a
+        predictions table (``p_<group>`` columns) with ``prediction_info``, its sidecar (the
+        ``curve`` and ``balanced_accuracy`` that ``pfsdm predict`` writes there).
+    labels : ndarray or mapping, optional
+        The label movie (T, Y, X) or image (Y, X); a mapping movie → array for a table of
+        several movies. Without it the report says the outlines need it.
+    title : str, optional
+    columns : sequence of str
+        Measures drawn over time (those the table has).
+    source : str, optional
+        Where the table came from (a file name), shown under the title.
+
+    Returns
+    -------
+    str
+        The HTML page.
+    """
+    from .features import split_failed
+    from .shape_space import ShapePCA
+
+    if not {"frame", "label"} <= set(table.columns):
+        raise InputError("the table has no frame and label columns: give a feature table "
+                         "from measure (pfsdm measure)")
+    table = _with_groups(table, groups)
+    measured, left = split_failed(table)
+    title = title or "PF-SDM report"
+    several = "movie" in table.columns and table["movie"].nunique() > 1
+    masks = _Masks(labels, table)
+    masks.check(table)
+    sections: list[tuple[str, str, str]] = []
+    sections.append(("options", "The run's options", _options_section(table)))
+    sections.append(("counts", "Counts", _counts_section(table, measured, left)))
+    if len(measured) >= 2:
+        space = ShapePCA(n_components=N_PCS, channel="shape")
+        scores = space.fit_transform(measured)
+        if "group" in measured.columns and "group" not in scores.columns:
+            scores["group"] = measured["group"].to_numpy()
+        n_pcs = min(N_PCS, len(space.components_))
+        if n_pcs >= 2:
+            traj = _trajectories_figure(scores, space.explained_variance_ratio_)
+        else:
+            traj = '<p class="note">Only one principal component: no plane to draw.</p>'
+        sections.append(("trajectories", "Trajectories per group",
+                         traj + '<p class="note">Each object\'s path through the PC1–PC2 '
+                         "plane of the shape features (weighted as the PF-SDM distance), "
+                         "points coloured by frame; grey dots: every object.</p>"))
+        sections.append(("over-time", "Measures over time", _over_time_section(measured,
+                                                                               columns)))
+        sections.append(("pcs", "What each PC means",
+                         _pc_section(table, measured, space, scores, masks, several)))
+    else:
+        no = (f'<p class="note">Only {len(measured)} row(s) have features: no PCA.</p>')
+        sections.append(("trajectories", "Trajectories per group", no))
+        sections.append(("over-time", "Measures over time", _over_time_section(measured,
+                                                                               columns)))
+        sections.append(("pcs", "What each PC means", no))
+    parts = _prediction_parts(predictions, prediction_info)
+    if parts is not None:
+        sections.append(("prediction", "Prediction", _prediction_section(parts)))
+    if len(measured) >= 2:
+        sections.append(("gallery", "Gallery: the most extreme objects per PC",
+                         _gallery_section(scores, masks, several, n_pcs)))
+    when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    toc = "".join(f'<a href="#{a}">{_e(h)}</a>' for a, h, _ in sections)
+    body = "".join(f'<section id="{a}"><h2>{_e(h)}</h2>{content}</section>'
+                   for a, h, content in sections)
+    src = f" from <code>{_e(source)}</code>" if source else ""
+    return ("<!DOCTYPE html>\n"
+            '<html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="generator" content="{GENERATOR} {_e(__version__)}">'
+            '<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>"
+            f"<h1>{_e(title)}</h1>"
+            f'<p class="note">Written by napari-pfsdm {_e(__version__)} on {when}{src}.</p>'
+            f'<p class="toc">{toc}</p>{body}</body></html>\n')
