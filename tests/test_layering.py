@@ -24,10 +24,14 @@ ALLOWED = {
     "io_csv": {"core", "errors"},
     "batch": {"core", "analysis", "data", "io_csv", "errors"},
     "experiments": {"core", "analysis", "data", "io_csv", "errors"},
-    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments", "report", "errors"},
-    "napari": {"core", "analysis", "data", "io_csv", "report", "errors"},
+    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments", "report", "saved",
+            "errors"},
+    "napari": {"core", "analysis", "data", "io_csv", "report", "saved", "errors"},
     # the HTML report's file: the analysis' page (analysis.report) written as io_csv writes
     "report": {"core", "analysis", "io_csv", "errors"},
+    # an analysis kept in a folder: its tables written as io_csv writes them, its labels read
+    # back from their file as batch reads movies
+    "saved": {"core", "analysis", "io_csv", "batch", "errors"},
     "__main__": {"cli"},
     "__init__": {"core", "analysis", "io_csv", "errors"},
     "_version": set(),

@@ -407,3 +407,19 @@ def test_an_analysis_saved_and_opened_again_is_the_same_and_changed_data_are_ref
     qtbot.waitUntil(lambda: w.worker is None, timeout=60_000)
     assert "changed since the analysis was saved" in w.status.value
     assert w.bound[1] is again  # nothing replaced
+
+
+def test_the_report_button_writes_the_runs_page(qtbot, viewer_widget, tmp_path):
+    import base64
+    import re
+
+    viewer, w = viewer_widget
+    run_and_wait(qtbot, w)
+    assert w.report_button.enabled
+    assert w.report(tmp_path / "run.html") is not None
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=120_000)
+    assert "opens in any browser" in w.status.value
+    page = (tmp_path / "run.html").read_text(encoding="utf-8")
+    assert "gastruloids" in page and "http://" not in page and "https://" not in page
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', page)
+    assert len(images) > 5 and all(base64.b64decode(i)[:4] == b"\x89PNG" for i in images)

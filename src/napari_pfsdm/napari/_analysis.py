@@ -11,7 +11,6 @@ selected object's row and its pictures (:mod:`._pictures`).
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
@@ -24,7 +23,7 @@ from qtpy.QtWidgets import QFileDialog, QSizePolicy
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams
-from . import _pictures
+from . import _pictures, _saving
 from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
 from ._results import (
     FIRST_AXIS,
@@ -61,6 +60,9 @@ TIPS = {
                         "the shape (0 = shape only).",
     "save": "Keep this analysis in a folder (tables, PCA, groups, predictions, the data's "
             "fingerprints) to open it again later, here or on another computer.",
+    "report": "Write one HTML file to share (it opens offline in any browser): the options, "
+              "trajectories per group, measures over time, what each PC means, the "
+              "prediction, the most extreme objects.",
     "open": "Open an analysis saved with Save analysis… on the layer it was made from (or "
             "its file); refused in words when the data changed.",
     "objects": "Add '<layer> objects', a Labels layer with one number per object and frame and "
@@ -139,42 +141,6 @@ def store_run(viewer, labels, seconds: float | None, fields: dict) -> Analysis |
 
 
 @thread_worker(start_thread=False)
-def _save_worker(analysis, folder, labels):
-    from ..analysis.saved import save_analysis
-
-    yield "saving"
-    source = getattr(getattr(labels, "source", None), "path", None)
-    return save_analysis(folder, analysis.table, labels=analysis.labels,
-                         intensity=analysis.intensity, pca=analysis.pca,
-                         groups=analysis.groups, boxes=analysis.boxes,
-                         names={"labels": labels.name,
-                                "reporter": analysis.sources.get("reporter")},
-                         paths={"labels": str(source) if source else None})
-
-
-@thread_worker(start_thread=False)
-def _open_worker(folder, labels, saved_labels: dict, intensity):
-    """Read a saved analysis and check it against ``labels`` (or its file when ``labels`` is
-    None); the fields of the :class:`Analysis` made from it, and the labels' path."""
-    from ..analysis.saved import open_analysis
-    from ._results import saved_fields
-
-    yield "opening"
-    path = saved_labels.get("path")
-    if labels is None:
-        if not path or not Path(path).exists():
-            raise ValueError(
-                f"no Labels layer called '{saved_labels.get('name')}' is open and its file "
-                f"({path or 'not recorded'}) cannot be found: open the labels first, then Open "
-                "analysis… again")
-        from ..batch.io import open_movie
-
-        labels = np.asarray(open_movie(path))
-    saved = open_analysis(folder, labels=labels, intensity=intensity)
-    return saved, saved_fields(saved, labels, intensity), path
-
-
-@thread_worker(start_thread=False)
 def _export_worker(analysis, folder, prefix):
     from ._export import export
 
@@ -218,6 +184,7 @@ class AnalysisWidget(PluginDock):
         self.save_button = PushButton(text="Save analysis…", enabled=False,
                                       tooltip=TIPS["save"])
         self.open_button = PushButton(text="Open analysis…", tooltip=TIPS["open"])
+        self.report_button = PushButton(text="Report…", enabled=False, tooltip=TIPS["report"])
         self.status = Label(value="Choose a Labels layer and press Run.")
         self.status.native.setToolTip(
             "What the Run found. Select a label or move the time slider: the object's "
@@ -230,8 +197,8 @@ class AnalysisWidget(PluginDock):
                             layout="horizontal", labels=False)
         after = Container(widgets=[self.plots_button, self.objects_button],
                           layout="horizontal", labels=False)
-        kept = Container(widgets=[self.save_button, self.open_button], layout="horizontal",
-                         labels=False)
+        kept = Container(widgets=[self.save_button, self.open_button, self.report_button],
+                         layout="horizontal", labels=False)
         for c in (buttons, after, kept):
             c.margins = (0, 0, 0, 0)
         self.status.native.setContentsMargins(6, 0, 6, 0)
@@ -255,6 +222,7 @@ class AnalysisWidget(PluginDock):
         self.objects_button.changed.connect(self.add_objects_layer)
         self.save_button.changed.connect(self._save_dialog)
         self.open_button.changed.connect(self._open_dialog)
+        self.report_button.changed.connect(self._report_dialog)
         self.labels.changed.connect(self._on_labels_choice)
         self.identity.changed.connect(self._on_identity)
         self.options["sdf"].changed.connect(self._show_relevant_options)
@@ -489,7 +457,8 @@ class AnalysisWidget(PluginDock):
         analysis = REGISTRY.get(labels.unique_id) if labels is not None else None
         if self.bound is None or self.bound[1] is not analysis:
             self._bind(labels, analysis)
-            self.export_button.enabled = self.save_button.enabled = analysis is not None
+            for button in (self.export_button, self.save_button, self.report_button):
+                button.enabled = analysis is not None
             self.objects_button.enabled = analysis is not None and analysis.time_lapse
 
     def _on_registry(self, layer_id: str) -> None:
@@ -590,23 +559,22 @@ class AnalysisWidget(PluginDock):
             self.save(folder)
 
     def save(self, folder):
-        """Save the bound layer's analysis into ``folder`` in a worker."""
-        if self.bound is None or self.export_worker is not None:
-            return None
-        labels, analysis = self.bound
-        self.export_worker = worker = _save_worker(analysis, folder, labels,
-                                                   _ignore_errors=True)
-        self.say(f"Saving the analysis into {folder}…")
-        worker.returned.connect(lambda path: self.say(
-            f"Saved the analysis into {path}: Open analysis… brings it back."))
-        worker.errored.connect(lambda err: self.say(f"Nothing was saved: {err}", True))
-        worker.finished.connect(self._export_finished)
-        worker.start()
-        return worker
+        """Save the bound layer's analysis into ``folder`` (in a worker)."""
+        return _saving.save(self, folder)
 
     def _export_finished(self) -> None:
         self.export_worker = None
         self.cancel_button.enabled = self.worker is not None
+
+    def _report_dialog(self, *args) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Write the report", "report.html",
+                                              "HTML (*.html)")
+        if path:
+            self.report(path)
+
+    def report(self, path):
+        """Write the HTML report of the bound layer's analysis (in a worker)."""
+        return _saving.report(self, path)
 
     def _open_dialog(self, *args) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Open a saved analysis")
@@ -614,57 +582,9 @@ class AnalysisWidget(PluginDock):
             self.open(folder)
 
     def open(self, folder):
-        """Open the analysis saved in ``folder`` on the layer it was made from (found by its
-        name, or read from its file), in a worker; refused in words when the data changed."""
-        import json
-
-        from ..analysis.saved import ANALYSIS_FILE
-
-        if self.worker is not None:
-            return None
-        try:
-            manifest = json.loads((Path(folder) / ANALYSIS_FILE).read_text(encoding="utf-8"))
-            sources = manifest.get("sources", {})
-        except (OSError, ValueError) as err:
-            self.say(f"{folder} is not a saved analysis ({err}): choose the folder that Save "
-                     "analysis wrote.", error=True)
-            return None
-        layer = self._saved_layer(sources.get("labels", {}))
-        reporter = sources.get("reporter", {}).get("name")
-        image = self.viewer.layers[reporter] if reporter in self.viewer.layers else None
-        self.worker = worker = _open_worker(
-            folder, None if layer is None else _data(layer), sources.get("labels", {}),
-            None if image is None else _data(image), _ignore_errors=True)
-
-        def opened(result):
-            saved, fields, path = result
-            target = layer
-            if target is None:  # read from its file
-                target = self.viewer.add_labels(fields["labels"], name=sources["labels"].get(
-                    "name") or Path(path).stem)
-            fields["message"] = f"Opened the analysis saved in {folder}."
-            store_run(self.viewer, target, None, fields)
-            self.labels.value = target.name
-
-        worker.returned.connect(opened)
-        worker.errored.connect(lambda err: self.say(f"The analysis was not opened: {err}",
-                                                    True))
-        worker.finished.connect(self._run_finished)
-        self.run_button.enabled = False
-        self.say(f"Opening the analysis saved in {folder}…")
-        worker.start()
-        return worker
-
-    def _saved_layer(self, saved: dict):
-        """The viewer's Labels layer a saved analysis names (by name, then by shape)."""
-        layers = [lay for lay in self.viewer.layers if isinstance(lay, Labels)
-                  and not is_picture(lay)]
-        for lay in layers:
-            if lay.name == saved.get("name"):
-                return lay
-        shape = list(saved.get("shape") or [])
-        same = [lay for lay in layers if list(layer_shape(lay)) == shape]
-        return same[0] if len(same) == 1 else None
+        """Open the analysis saved in ``folder`` (in a worker); refused in words when the
+        data changed."""
+        return _saving.open_saved(self, folder)
 
     def open_plots(self, *args) -> None:
         """Open the plots (trajectories, comparison, components) as a tab beside this panel."""

@@ -380,7 +380,7 @@ def object_ids(labels, analysis: Analysis) -> np.ndarray:
 
 def saved_fields(saved, labels, intensity=None) -> dict:
     """The fields of an :class:`~._model.Analysis` from a saved analysis
-    (:func:`napari_pfsdm.analysis.saved.open_analysis`) and the arrays it was checked
+    (:func:`napari_pfsdm.saved.open_analysis`) and the arrays it was checked
     against: the table, options, PCA, groups and boxes as saved; the classic measures made
     again from the table."""
     from ..analysis.interpretation import table_measures
@@ -394,9 +394,14 @@ def saved_fields(saved, labels, intensity=None) -> dict:
                                        and k in PFSDMParams.__dataclass_fields__})
     axes = str(options.get("axes") or ("tyx" if labels.ndim == 3 else "yx"))
     spacing = options.get("spacing")
+    pca = {}
+    for channel, scores in saved.pca.items():
+        scores = scores.copy()
+        scores.attrs = {"explained_variance_ratio": saved.explained.get(channel, [])}
+        pca[channel] = scores
     return {"table": table, "options": options, "params": params, "axes": axes,
             "spacing": tuple(spacing) if spacing else None, "labels": labels,
-            "intensity": intensity, "boxes": saved.boxes, "pca": saved.pca,
+            "intensity": intensity, "boxes": saved.boxes, "pca": pca,
             "measures": None if "z" in axes else table_measures(table),
             "groups": dict(saved.groups),
             "sources": {k: v.get("name") for k, v in saved.sources.items()}}

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from .errors import InputError
 
 __all__ = ["ANALYSIS_FILE", "SavedAnalysis", "fingerprint", "open_analysis", "save_analysis"]
 
@@ -80,6 +80,10 @@ class SavedAnalysis:
         ``(frame, label)`` → bounding box (tuple of slices).
     manifest : dict
         ``analysis.json``: sources (names, paths, fingerprints), what was saved.
+    explained : dict
+        Channel → the fraction of the variance each PC explains.
+    labels : array or None
+        The labels the analysis was checked against (given, or read from their file).
     """
 
     table: pd.DataFrame
@@ -87,6 +91,8 @@ class SavedAnalysis:
     groups: dict = field(default_factory=dict)
     boxes: dict = field(default_factory=dict)
     manifest: dict = field(default_factory=dict)
+    explained: dict = field(default_factory=dict)
+    labels: Any = None
 
     @property
     def sources(self) -> dict:
@@ -131,7 +137,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
     ValueError
         A file of the folder exists and napari-pfsdm did not write it (without ``force``).
     """
-    from ..io_csv import _version, atomic_write, check_overwrite, write_table_csv
+    from .io_csv import _version, atomic_write, check_overwrite, write_table_csv
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -176,7 +182,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
 
 
 def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
-                  intensity: Any = None) -> SavedAnalysis:
+                  intensity: Any = None, read_labels: bool = False) -> SavedAnalysis:
     """Read an analysis saved by :func:`save_analysis`.
 
     Parameters
@@ -184,6 +190,8 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
     folder : str or PathLike
     labels, intensity : array_like, optional
         The data to reopen it on: refused when they are not the data it was made from.
+    read_labels : bool
+        Without ``labels``, read them from the file the analysis names (and check them).
 
     Raises
     ------
@@ -191,7 +199,7 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         Not an analysis folder, a file of it missing, or data that changed (what differs and
         what to do, in words).
     """
-    from ..io_csv import read_table_csv
+    from .io_csv import read_table_csv
 
     folder = Path(folder)
     manifest_path = folder / ANALYSIS_FILE
@@ -206,6 +214,14 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
     if not _written_by_us(manifest_path) or manifest.get("format") != FORMAT:
         raise InputError(f"{manifest_path} was not written by this napari-pfsdm (format "
                          f"{manifest.get('format')!r}); save the analysis again")
+    if labels is None and read_labels:
+        path = manifest.get("sources", {}).get("labels", {}).get("path")
+        if not path or not Path(path).exists():
+            raise InputError(f"the labels' file ({path or 'not recorded'}) cannot be found: "
+                             "open the labels first, then open the analysis on them")
+        from .batch.io import open_movie
+
+        labels = np.asarray(open_movie(path))
     for key, array in (("labels", labels), ("reporter", intensity)):
         saved = manifest.get("sources", {}).get(key)
         if array is None or saved is None:
@@ -228,12 +244,12 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         raise InputError(f"{folder} lacks {', '.join(missing)}: the analysis is incomplete; "
                          "save it again")
     table = read_table_csv(folder / files["features"])
-    pca = {}
+    pca, explained = {}, {}
     for key, name in files.items():
         if key.startswith("pca_"):
             scores = read_table_csv(folder / name)
             ratios = (scores.attrs.get("pfsdm") or {}).get("explained_variance_ratio", [])
-            scores.attrs = {"explained_variance_ratio": [float(r) for r in ratios]}
+            explained[key[4:]] = [float(r) for r in ratios]
             pca[key[4:]] = scores
     g = read_table_csv(folder / files["groups"])
     groups = {int(o): str(v) for o, v in zip(g["object"], g["group"], strict=True)} \
@@ -248,4 +264,4 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         key = (int(values["frame"]), int(values["label"]))
         boxes[key] = None if not first or first[0] < 0 else tuple(
             slice(a, z) for a, z in zip(first, last, strict=True))
-    return SavedAnalysis(table, pca, groups, boxes, manifest)
+    return SavedAnalysis(table, pca, groups, boxes, manifest, explained, labels)
