@@ -14,8 +14,9 @@ napari-clusters-plotter (when installed) is docked below the plugin's tab group,
 ``<layer> objects`` layer (Layer for plotters): PC1 against area. Writes ``docs/screenshot.png``
 (1600 × 1000, the plots' Trajectories tab in front) and, at 1280 × 800,
 ``docs/screenshot_1280x800.png`` (the analysis dock in front: its status line),
-``docs/screenshot_components.png`` (the plots' PCs tab) and ``docs/screenshot_prediction.png``
-(the prediction dock). Look at them before committing.
+``docs/screenshot_components.png`` (the plots' PCs tab), ``docs/screenshot_prediction.png``
+(the prediction dock), ``docs/screenshot_over_time.png`` (Over time: circularity) and
+``docs/screenshot_similar.png`` (Similar). Look at them before committing.
 """
 
 from __future__ import annotations
@@ -29,14 +30,16 @@ import time
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
-TABS = ("trajectories", "comparison", "components")
+TABS = ("trajectories", "comparison", "components", "over time", "similar")
 #: What is in front of the plugin's tab group: a dock, or a tab of the plots.
 FRONT = ("analysis", "prediction", *TABS)
 #: (width, height, what is in front) → file in docs/
 JOBS = {(1600, 1000, "trajectories"): "screenshot.png",
         (1280, 800, "analysis"): "screenshot_1280x800.png",
         (1280, 800, "components"): "screenshot_components.png",
-        (1280, 800, "prediction"): "screenshot_prediction.png"}
+        (1280, 800, "prediction"): "screenshot_prediction.png",
+        (1280, 800, "over time"): "screenshot_over_time.png",
+        (1280, 800, "similar"): "screenshot_similar.png"}
 FRAME, LABEL = 9, 5
 
 
@@ -99,11 +102,15 @@ def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None
     dock_of(front).raise_()
     if tab in TABS:
         plots.tabs.setCurrentIndex(TABS.index(tab))
+        if tab == "over time":
+            plots.made[3].column.value = "circularity"
 
     def shown() -> bool:
         key = widget.pictures.shown
+        similar = plots.made[4]
         return (key is not None and key[1:] == (FRAME, LABEL) and widget.pictures.worker is None
-                and plots.comparison.worker is None and plots.components.worker is None)
+                and plots.comparison.worker is None and plots.components.worker is None
+                and (similar is None or similar.worker is None))
 
     wait(shown, "pictures and plots")
     spin(2000)
