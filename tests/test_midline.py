@@ -176,19 +176,21 @@ def test_measure_appends_the_midline_columns_after_the_classic_measures():
     turned = (table.loc[1, "polarity_angle_image"] - table.loc[0, "polarity_angle_image"]) % 360
     assert abs(turned - 90.0) < 1.0
     # the shape features do not depend on the midline's options
-    plain = pf.measure(labels)
+    plain = pf.measure(labels, profile_bins=10)
     assert "reporter_b00" not in plain.columns and "width_b09" in plain.columns
     shape = [c for c in cols if c.startswith("shape_")]
     assert np.array_equal(plain[shape].to_numpy(), table[shape].to_numpy())
 
 
-def test_a_3d_table_has_the_midline_columns_empty():
+def test_a_3d_table_has_no_midline_columns_and_refuses_their_option():
     import napari_pfsdm as pf
     from napari_pfsdm.data.volumes import blob_volume
 
-    volume = blob_volume("tetrahedron", size=(20, 32, 32), radius=8)
-    table = pf.measure(volume.astype(np.uint8), axes="zyx")
-    assert table[midline_columns(10)].isna().all().all()
+    volume = blob_volume("tetrahedron", size=(20, 32, 32), radius=8).astype(np.uint8)
+    table = pf.measure(volume, axes="zyx")
+    assert not set(midline_columns(10)) & set(table.columns)
+    with pytest.raises(ValueError, match="profile_bins was set, but the objects are 3-D"):
+        pf.measure(volume, axes="zyx", profile_bins=10)
 
 
 def test_the_picture_of_the_midline_is_what_the_table_measured():
@@ -217,7 +219,7 @@ def test_no_bins_means_no_midline_measures_and_the_same_other_columns():
     labels = np.zeros((2, 64, 96), np.uint8)
     yy, xx = np.mgrid[:64, :96]
     labels[:, ((yy - 32) / 20) ** 2 + ((xx - 48) / 40) ** 2 <= 1] = 2
-    full, bare = pf.measure(labels), pf.measure(labels, profile_bins=0)
+    full, bare = pf.measure(labels, profile_bins=10), pf.measure(labels)  # 0: the default
     gone = [c for c in full.columns if c not in bare.columns]
     assert gone[:3] == ["midline_length", "width_mean", "width_max"] and len(gone) == 13
     pd.testing.assert_frame_equal(full[list(bare.columns)], bare, check_like=True)

@@ -129,7 +129,7 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
     assert CHOICES == {o.name: o.choices for o in OPTIONS if o.choices}
     assert DEFAULTS_3D == {o.name: o.default for o in OPTIONS if o.dims == "3d"}
     assert sorted(o.name for o in OPTIONS if o.basic) == [
-        "border_objects", "mapping", "min_area", "n_fourier", "n_radii", "sdf",
+        "border_objects", "mapping", "min_area", "n_fourier", "n_radii", "profile_bins", "sdf",
         "warned_objects"]
 
 

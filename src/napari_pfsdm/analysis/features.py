@@ -602,7 +602,7 @@ def table_from_objects(
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
     nan_o, nan_e = np.full(len(out_cols), np.nan), np.full(len(sig_cols), np.nan)
     classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)
-    # the object's own axis (core.midline), after the classic measures; NaN in 3-D
+    # the object's own axis (core.midline), after the classic measures (profile_bins > 0)
     if int(opts["profile_bins"]):
         classic_cols += midline_columns(int(opts["profile_bins"]), with_intensity)
     base, classic_rows, shape_rows, int_rows, out_rows, sig_rows = [], [], [], [], [], []

@@ -30,6 +30,8 @@ __all__ = ["ObjectPictures", "VolumePictures", "object_pictures", "object_midlin
 
 #: Margin around an object's bounding box (fraction of its larger side) in the SDF picture.
 SDF_MARGIN = 0.25
+#: Profile pieces of the midline drawn for a run measured without midline measures.
+PICTURE_BINS = 10
 #: The shells of the unit ball shown for a 3-D object.
 SHELL_RADII = (0.25, 0.5, 0.75, 0.95)
 
@@ -277,5 +279,6 @@ def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMPa
     if intensity is not None:
         plane = intensity[t] if axes.startswith("t") else intensity
         crop = np.asarray(plane[big], float)
-    return midline(obj.result, crop, bins=params.profile_bins, anterior=params.anterior,
+    return midline(obj.result, crop, bins=params.profile_bins or PICTURE_BINS,
+                   anterior=params.anterior,
                    intensity_offset=tuple(float(s.start) for s in big))

@@ -326,11 +326,12 @@ OPTIONS: tuple[Option, ...] = (
     Option("ball_map", str, "radial",
            "how the unit ball is laid onto the object",
            choices=BALL_MAPS, dims="3d"),
-    Option("profile_bins", int, 10,
-           "pieces of the object's midline over which the table gives its width and reporter "
-           "profiles (width_bXX, reporter_bXX); 0: no midline measures (each costs about "
-           "2 ms per object)",
-           low=0, high=100, dims="2d"),
+    Option("profile_bins", int, 0,
+           "the object's own axis (midline length, widths, reporter profile, polarity "
+           "direction): pieces of the midline for its width and reporter profiles, e.g. 10 "
+           "for gastruloids; 0 (default): no midline measures (each object costs about 2 ms "
+           "more with them)",
+           low=0, high=100, dims="2d", basic=True),
     Option("anterior", str, "reporter",
            "which end of the midline its profiles start from: 'reporter' (the reporter's high "
            "end), 'reporter_low', 'first' (the top end, or the left one for a left-right "
