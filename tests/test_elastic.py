@@ -209,7 +209,7 @@ def test_distance_matrix_adds_the_elastic_term_from_results_and_tables():
     want = base + mu * elastic_distance_matrix(sig)
     assert ELASTIC_WEIGHT == 0  # opt-in: the default distance is unchanged
     assert np.allclose(core_matrix(res, elastic_weight=mu), want, atol=1e-12)
-    table = P.measure(lab)
+    table = P.measure(lab, elastic_signature="table")
     assert table.attrs["pfsdm"]["elastic_smoothing"] == res[0].options["elastic_smoothing"]
     cols = [c for c in table.columns if c.startswith("elastic_")]
     assert len(cols) == sig[0].size
@@ -236,7 +236,7 @@ def test_neighbours_with_the_elastic_term():
     import napari_pfsdm as P
 
     lab = _labels()
-    table = P.measure(lab)
+    table = P.measure(lab, elastic_signature="table")
     mu = 0.5
     d = P.distance_matrix(table, elastic_weight=mu)
     np.fill_diagonal(d, np.inf)

@@ -59,9 +59,9 @@ def test_features_are_plain_csv_with_a_sidecar_readable_by_others(coins):
     table = pd.read_csv(folder / "features.csv")  # no arguments
     n_objects = len(np.unique(labels)) - 1
     # movie, 11 base columns, 6 + 3 classic measures (shape, reporter), 2 channels of 8 rings
-    # x 7 harmonics, 64 outline coefficients, the elastic term's outline signature (6
-    # channels x 64 points); no midline measures (profile_bins 0, the default)
-    assert table.shape == (n_objects, 1 + 11 + 9 + 2 * 8 * 7 + 64 + 6 * 64)
+    # x 7 harmonics, 64 outline coefficients; no midline measures (profile_bins 0) nor
+    # elastic signature (elastic_signature 'none'): the defaults
+    assert table.shape == (n_objects, 1 + 11 + 9 + 2 * 8 * 7 + 64)
     assert list(table.columns[:4]) == ["movie", "frame", "label", "area"]
     side = json.loads((folder / "features.csv.json").read_text())
     assert side["table"] == "features" and side["options"]["n_fourier"] == 6

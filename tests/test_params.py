@@ -137,6 +137,7 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
 CHANGED = {"n_fourier": 7, "n_radii": 5, "n_angles": 40, "sdf": "viscous", "viscosity": 0.2,
            "mapping": "radial", "normalization": "ring", "radii": "boundary",
            "ring_weighting": "none", "mode_exponent": 0.5, "elastic_smoothing": 2.0,
+           "elastic_signature": "table",
            "components": "raise", "min_area": 11, "border_objects": "leave_out",
            "warned_objects": "leave_out", "sh_degree": 4, "surface_weight": 2.0,
            "ball_map": "harmonic", "profile_bins": 6, "anterior": "first"}

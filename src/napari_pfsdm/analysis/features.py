@@ -598,7 +598,8 @@ def table_from_objects(
     # the outline's coefficients (boundary term of the distance): outlines in 2-D only
     out_cols = outline_columns(N_OUTLINE_MODES) if ndim == 2 else []
     # the outline signature (elastic term of the distance), 2-D only
-    sig_cols = signature_columns(N_CHANNELS, N_SIGNATURE_POINTS) if ndim == 2 else []
+    sig_cols = signature_columns(N_CHANNELS, N_SIGNATURE_POINTS) \
+        if ndim == 2 and opts.get("elastic_signature") == "table" else []
     nan_s, nan_i = np.full(len(shape_cols), np.nan), np.full(len(int_cols), np.nan)
     nan_o, nan_e = np.full(len(out_cols), np.nan), np.full(len(sig_cols), np.nan)
     classic_cols = classic_columns(ndim, with_intensity)  # regionprops (analysis.classic)

@@ -372,8 +372,9 @@ def signatures_of(items) -> np.ndarray:
         if items.signature is None:
             raise InputError(
                 "elastic_weight > 0 needs the objects' outline signatures, and these "
-                "embeddings carry none (a table measured before the elastic term has no "
-                "elastic_* columns). Measure again, or leave elastic_weight at 0.")
+                "embeddings carry none (a table has elastic_* columns only when measured with "
+                "elastic_signature='table'). Measure again with it, or leave elastic_weight "
+                "at 0.")
         return np.asarray(items.signature)
     return np.stack([r.signature for r in items])
 

@@ -301,6 +301,11 @@ OPTIONS: tuple[Option, ...] = (
            "smoothing of the outline signature that the elastic term of distances compares, "
            "in 1/256 of the outline's length",
            low=0.0, high=32.0, dims="2d"),
+    Option("elastic_signature", str, "none",
+           "'table': each row carries the outline signature (384 elastic_* columns) that the "
+           "opt-in elastic term of distances (elastic_weight) compares; 'none' keeps tables "
+           "small",
+           choices=("none", "table"), dims="2d"),
     Option("components", str, "largest",
            "an object in several pieces: keep the 'largest' or report an error for it "
            "('raise')",
