@@ -113,6 +113,7 @@ def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None
                 and (similar is None or similar.worker is None))
 
     wait(shown, "pictures and plots")
+    viewer.reset_view()  # napari's Home: the view made when the first pictures came was narrower
     spin(2000)
     img = viewer.screenshot(canvas_only=False, flash=False)
     imwrite(out, img[..., :3])

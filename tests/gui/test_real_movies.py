@@ -174,7 +174,7 @@ def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widg
     drawn = [d for d in lines.data if d.shape == m.points.shape
              and np.allclose(d, m.points * lines.scale[-2:] + lines.translate[-2:])]
     assert len(drawn) == 1
-    assert any(f"midline {m.length:.0f} px" in t for t in texts)
+    assert any(f"midline (cyan) {m.length:.0f} px" in t for t in texts)
 
 
 def test_every_dock_and_the_clusters_plotter_fit_1280_by_800(qtbot, make_napari_viewer,

@@ -22,7 +22,7 @@ from ..analysis.pictures import ObjectPictures, VolumePictures, object_pictures
 from ._model import PICTURE_SUFFIXES, Analysis, layer_shape, picture_names
 
 #: Side of a picture cell as a fraction of the labels' height, and the gap between cells.
-CELL, GAP = 0.45, 0.12
+CELL, GAP = 0.45, 0.3
 SIZE = 128
 #: Each picture's colour bar: columns of the picture array right of the picture (the same
 #: colour map and limits), after a gap of this many columns.
@@ -102,12 +102,12 @@ def _symmetric(a: np.ndarray) -> tuple[float, float]:
 
 
 def _bar_ends(cell, limits, rows: int = SIZE, height: float = 1.0) -> tuple[list, list]:
-    """Where the numbers at the two ends of a cell's colour bar go (over its top, under its
-    bottom), and their texts. ``rows``: the picture's longer side in pixels; ``height``: the
-    picture's height over its longer side."""
+    """Where the numbers at the two ends of a cell's colour bar go (right of its top and of
+    its bottom, in the gap before the next cell), and their texts. ``rows``: the picture's
+    longer side in pixels; ``height``: the picture's height over its longer side."""
     top, left, side = cell
-    x = left + side * (1 + BAR_GAP / rows)
-    return ([_above(cell)[:1] + (x,), (top + height * side + 0.1 * side, x)],
+    x = left + side * (1 + (BAR_GAP + BAR) / rows) + 0.02 * side
+    return ([(top + 0.08 * side, x), (top + height * side, x)],
             [f"{limits[1]:.3g}", f"{limits[0]:.3g}"])
 
 
@@ -198,10 +198,11 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
     _set(lines, visible=True, opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    axis = (f" · midline {p.midline.length:.0f} px, anterior: {p.midline.anterior}"
-            if p.midline is not None else "")
-    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}{axis}",
-             "reporter (× mean)" if p.intensity_disk is not None else "", "; ".join(p.notes)]
+    axis = ([f"midline (cyan) {p.midline.length:.0f} px, anterior end by {p.midline.anterior}"]
+            if p.midline is not None else [])
+    texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
+             "reporter (× mean)" if p.intensity_disk is not None else "",
+             "; ".join(axis + p.notes)]
     spots = _spots_2d(layer)
     for key, lim in limits.items():
         ends, numbers = _bar_ends(cells[key], lim)
