@@ -274,7 +274,7 @@ def test_export_writes_plain_csv_with_sidecars_equal_to_the_run(qtbot, viewer_wi
     assert columns["column"].tolist() == list(features.columns)
     assert columns["meaning"].notna().all()
     d = pd.read_csv(tmp_path / "gastruloids_distances.csv", index_col=0)
-    expected = pf.distance_matrix(pf.drop_failed(analysis.table), intensity_weight=1.0)
+    expected = pf.distance_matrix(pf.drop_failed(analysis.table))  # the record's weight: 0
     np.testing.assert_allclose(d.to_numpy(), expected, rtol=1e-9)
     other = tmp_path / "other"
     other.mkdir()
@@ -446,14 +446,14 @@ def test_the_plots_follow_the_model(qtbot, viewer_widget):
     viewer.dims.set_current_step(0, 3)
     qtbot.waitUntil(lambda: len(plots.comparison.keys) == 6, timeout=60_000)
     sub = pf.drop_failed(analysis.table[analysis.table["frame"] == 3])
-    np.testing.assert_allclose(analysis.comparison[(3, 1.0, False)]["d"],
-                               pf.distance_matrix(sub, intensity_weight=1.0), rtol=1e-9)
+    np.testing.assert_allclose(analysis.comparison[(3, 0.0, False)]["d"],
+                               pf.distance_matrix(sub), rtol=1e-9)
 
 
 def test_the_form_is_the_option_record(qtbot, viewer_widget):
     """Every method option has a control with the record's default, range, choices and
     words; what the form gives reaches the run as PFSDMParams."""
-    from napari_pfsdm.core.params import OPTIONS, PFSDMParams
+    from napari_pfsdm.core.params import OPTIONS, PFSDMParams, option
 
     _viewer, w = viewer_widget
     for o in OPTIONS:
@@ -464,6 +464,13 @@ def test_the_form_is_the_option_record(qtbot, viewer_widget):
         elif o.high is not None:
             assert control.max == o.high
     assert w.params() == PFSDMParams()
+    # the distance's weight and the "only with" rules come from the record too
+    weight = option("intensity_weight")
+    assert (w.intensity_weight.value, w.intensity_weight.tooltip) == (weight.default, weight.help)
+    assert not w.relevant(option("viscosity"))
+    w.options["sdf"].value = "viscous"
+    assert w.relevant(option("viscosity"))
+    w.options["sdf"].value = "exact"
     w.options["n_fourier"].value = 6
     w.options["mapping"].value = "bijective"
     w.options["sh_degree"].value = 12  # a 3-D option: not for this 2-D time-lapse
@@ -560,7 +567,7 @@ def test_cancelled_distances_say_so_and_a_new_request_computes_them(qtbot, shown
     comp.cancel()
     qtbot.waitUntil(lambda: comp.worker is None, timeout=60_000)
     assert "Cancelled" in comp.info.value and not comp.cancel_button.visible
-    assert (None, 1.0, False) not in analysis.comparison
+    assert (None, 0.0, False) not in analysis.comparison
     comp.rerank.value = True  # something else asked: computed
     qtbot.waitUntil(lambda: len(comp.keys) == 72, timeout=60_000)
     assert not comp.cancel_button.visible and "72 objects" in comp.info.value

@@ -364,7 +364,7 @@ def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_t
     qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 8,
                     timeout=60_000)
     measured = pf.drop_failed(analysis.table)
-    d = pf.distance_matrix(measured, intensity_weight=1.0)
+    d = pf.distance_matrix(measured)  # the record's intensity weight: 0
     me = int(np.flatnonzero((measured["frame"] == 3) & (measured["label"] == 2))[0])
     order = np.argsort(d[me])[:8]  # itself first (distance 0), then the 7 nearest
     want = list(zip(measured["frame"].to_numpy()[order], measured["label"].to_numpy()[order],

@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D", "REPORTER_MEASURES", "classic_columns",
-           "classic_measures", "convex_area", "midline_measures", "perimeter_4",
+__all__ = ["FORM_MEASURES_2D", "SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D", "REPORTER_MEASURES",
+           "classic_columns", "classic_measures", "convex_area", "midline_measures", "perimeter_4",
            "shape_measures_2d"]
 
 #: regionprops properties of 2-D objects (plus circularity, from area and perimeter).
@@ -45,6 +45,10 @@ SHAPE_MEASURES_2D = ("perimeter", "eccentricity", "solidity", "axis_major_length
                      "axis_minor_length", "circularity")
 #: regionprops properties of 3-D objects.
 SHAPE_MEASURES_3D = ("solidity", "axis_major_length", "axis_minor_length")
+#: Size and form of a 2-D object by classic measures: what a shape space "beyond the classic
+#: measures" regresses out (``ShapePCA(regress_out=FORM_MEASURES_2D)``; the plugin's PCs tab).
+FORM_MEASURES_2D = ("area", "circularity", "eccentricity", "solidity", "axis_major_length",
+                    "axis_minor_length")
 #: The reporter's measures (tables measured with an intensity image).
 REPORTER_MEASURES = ("intensity_mean", "intensity_integrated", "intensity_polarity")
 

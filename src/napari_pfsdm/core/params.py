@@ -106,6 +106,9 @@ class Option:
     numbers : bool
         A choice option that also takes a list of numbers in (``low``, ``high``) instead
         (``radii``: the rings' radii given explicitly).
+    only_with : (str, str) or None
+        The option applies only when another option has a value (``viscosity`` with
+        ``sdf="viscous"``): a form shows it only then.
     """
 
     name: str
@@ -120,6 +123,18 @@ class Option:
     dims: str = "both"
     basic: bool = False
     numbers: bool = False
+    only_with: tuple[str, str] | None = None
+
+    def applies(self, values: Mapping[str, Any]) -> bool:
+        """Whether the option applies, given the other options' ``values`` (:attr:`only_with`).
+
+        >>> option("viscosity").applies({"sdf": "exact"}), option("viscosity").applies({})
+        (False, False)
+        """
+        if self.only_with is None:
+            return True
+        name, value = self.only_with
+        return values.get(name, option(name).default) == value
 
     def __post_init__(self) -> None:
         if self.kind not in (int, float, str) or self.dims not in DIMS:
@@ -275,7 +290,7 @@ OPTIONS: tuple[Option, ...] = (
            choices=SDF_KINDS, dims="2d", basic=True),
     Option("viscosity", float, 0.05,
            "smoothing of the viscous distance, in object sizes",
-           low=0.0, high=1.0, low_inclusive=False, dims="2d"),
+           low=0.0, high=1.0, low_inclusive=False, dims="2d", only_with=("sdf", "viscous")),
     Option("mapping", str, "harmonic",
            "how the unit disk is laid onto the object: 'harmonic' (fast), 'bijective' (never "
            "folds; for snake-like or branched objects), 'radial' (the paper's; round, "

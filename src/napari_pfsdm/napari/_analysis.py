@@ -22,7 +22,7 @@ from qtpy.QtCore import Qt
 from qtpy.QtWidgets import QFileDialog, QSizePolicy
 from superqt import QCollapsible
 
-from ..core.params import OPTIONS, PFSDMParams
+from ..core.params import OPTIONS, PFSDMParams, option
 from . import _pictures, _saving
 from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
 from ._results import (
@@ -58,8 +58,6 @@ TIPS = {
                 "their label ids do not follow them (per-frame segmentation, e.g. cellpose): by "
                 "overlap where objects touch (packed cells), else by centroids; 'label ids' "
                 "trusts the ids; or link by centroids or overlap; or follow a Tracks layer.",
-    "intensity_weight": "When comparing objects: how much the reporter pattern counts next to "
-                        "the shape (0 = shape only).",
     "save": "Keep this analysis in a folder (tables, PCA, groups, predictions, the data's "
             "fingerprints) to open it again later, here or on another computer.",
     "report": "Write one HTML file to share (it opens offline in any browser): the options, "
@@ -79,17 +77,17 @@ def _whole_numbers(layer) -> bool:
 
 
 def option_widget(option) -> object:
-    """The magicgui widget of one method option (its type, range, default and help)."""
+    """The magicgui widget of one option of the record (its type, range, default and help;
+    an exclusive bound is the record's to refuse, in its own words, at Run)."""
     # labelled by the option's own name: the one messages, the API and --help use
     kw = {"name": option.name, "label": option.name, "tooltip": option.help}
     if option.choices:
         return ComboBox(choices=list(option.choices), value=option.default, **kw)
+    high = option.high if option.high is not None else 10**6
     if option.kind is int:
-        return SpinBox(value=option.default, min=int(option.low or 0),
-                       max=int(option.high if option.high is not None else 10**6), **kw)
-    low = float(option.low or 0.0) + (0.0 if option.low_inclusive else 0.001)
-    return FloatSpinBox(value=option.default, min=low, step=0.01,
-                        max=float(option.high if option.high is not None else 1e6), **kw)
+        return SpinBox(value=option.default, min=int(option.low or 0), max=int(high), **kw)
+    return FloatSpinBox(value=option.default, min=float(option.low or 0.0), step=0.01,
+                        max=float(min(high, 1e6)), **kw)
 
 
 @thread_worker(start_thread=False)
@@ -141,9 +139,7 @@ class AnalysisWidget(PluginDock):
         self.identity = ComboBox(label="Identity", choices=self._identity_choices,
                                  tooltip=TIPS["identity"])
         self.options = {o.name: option_widget(o) for o in OPTIONS}
-        self.intensity_weight = FloatSpinBox(label="intensity weight", value=1.0, min=0.0,
-                                             max=10.0, step=0.1,
-                                             tooltip=TIPS["intensity_weight"])
+        self.intensity_weight = option_widget(option("intensity_weight"))
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
         more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
         self.form = Container(widgets=[self.labels, self.first_axis, self.reporter,
@@ -278,7 +274,7 @@ class AnalysisWidget(PluginDock):
         labels = self.labels_layer
         three_d = labels is not None and (labels.ndim == 4 or (
             labels.ndim == 3 and self.first_axis.value == "z"))
-        if option.name == "viscosity" and self.options["sdf"].value != "viscous":
+        if not option.applies({o.name: self.options[o.name].value for o in OPTIONS}):
             return False
         return option.dims == "both" or (option.dims == "3d") == three_d
 

@@ -19,6 +19,7 @@ from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 # above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
 # map of that graph instead of an n × n matrix (the library's limits)
+from ..analysis.classic import FORM_MEASURES_2D
 from ..analysis.reduction import FULL_MATRIX_LIMIT as GRAPH_ROWS
 from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
@@ -344,9 +345,7 @@ def _components(analysis: Analysis, kind: str, component: int):
 KINDS = {
     "weighted (PF-SDM distances)": {},
     "standardised (each feature)": {"standardize": True},
-    "beyond the classic measures": {"regress_out": ("area", "circularity", "eccentricity",
-                                                    "solidity", "axis_major_length",
-                                                    "axis_minor_length")},
+    "beyond the classic measures": {"regress_out": FORM_MEASURES_2D},
 }
 
 
