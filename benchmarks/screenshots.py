@@ -11,8 +11,11 @@ repository root on a (virtual) X screen at least as large::
     xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python benchmarks/screenshots.py
 
 napari-clusters-plotter (when installed) is docked below the plugin's tab group, showing the
-``<layer> objects`` layer (Layer for plotters): PC1 against area. Writes ``docs/screenshot.png``
-(1600 × 1000, the plots' Trajectories tab in front) and, at 1280 × 800,
+``<layer> objects`` layer (Layer for plotters), in the pictures with the analysis or prediction
+dock in front and in the 1600 × 1000 one; the pictures of a plots tab at 1280 × 800 have the
+plugin alone (beside the plotter the plots keep only their least height; Float enlarges them).
+Writes ``docs/screenshot.png`` (1600 × 1000, the plots' Trajectories tab in front) and, at
+1280 × 800,
 ``docs/screenshot_1280x800.png`` (the analysis dock in front: its status line),
 ``docs/screenshot_components.png`` (the plots' PCs tab), ``docs/screenshot_prediction.png``
 (the prediction dock), ``docs/screenshot_over_time.png`` (Over time: circularity) and
@@ -84,14 +87,17 @@ def shoot(width: int, height: int, out: Path, tab: str = "trajectories") -> None
     wait(lambda: predictor.worker is None, "prediction")
     objects = widget.add_objects_layer()
     objects.visible = False
-    try:  # the plotter biologists already use, docked below the plugin
-        _d, plotter = window.add_plugin_dock_widget("napari-clusters-plotter",
-                                                    "Plot & select features")
-        viewer.layers.selection.active = objects
-        spin(500)
-        plotter.x_axis, plotter.y_axis = "shape_PC1", "area"
-    except Exception as err:  # noqa: BLE001 - not installed: the plugin alone
-        print(f"no napari-clusters-plotter: {err}")
+    widget.say(widget.bound[1].message)  # the status line says what the Run found
+    # the plotter biologists already use, docked below the plugin (not for the pictures of
+    # a plots tab: beside it the plots keep their least height, and Float enlarges them)
+    if tab not in TABS[2:] and not (width == 1280 and tab in TABS):
+        try:
+            _d, plotter = window.add_plugin_dock_widget("napari-clusters-plotter",
+                                                        "Plot & select features")
+            viewer.layers.selection.active = objects
+            spin(500)
+        except Exception as err:  # noqa: BLE001 - not installed: the plugin alone
+            print(f"no napari-clusters-plotter: {err}")
     viewer.layers.selection.active = labels
     viewer.layers["gastruloids reporter"].visible = False
     viewer.dims.set_current_step(0, FRAME)

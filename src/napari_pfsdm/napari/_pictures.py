@@ -198,8 +198,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         lines.add_paths(paths, edge_color=colors, edge_width=width)
     _set(lines, visible=True, opacity=1.0)
     where = f"frame {p.frame} · " if analysis.time_lapse else ""
-    axis = ([f"midline (cyan) {p.midline.length:.0f} px, anterior end by {p.midline.anterior}"]
-            if p.midline is not None else [])
+    axis = [f"midline (cyan) {p.midline.length:.0f} px"] if p.midline is not None else []
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
              "reporter (× mean)" if p.intensity_disk is not None else "",
              "; ".join(axis + p.notes)]
@@ -209,7 +208,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
         spots += ends
         texts += numbers
     top, left, side = cells["disk"]
-    spots.append((top, left + 1.45 * side))  # no text: room for the texts in napari's view
+    spots.append((top, left + 1.7 * side))  # no text: room for the texts in napari's view
     texts.append("")
     caption(viewer, layer, spots, texts)
 
