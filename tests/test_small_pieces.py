@@ -258,7 +258,7 @@ def test_a_negative_or_missing_surface_weight_is_refused(weight):
     infinite weight is refused in the record's words."""
     from napari_pfsdm.core.descriptor3d import pfsdm3d
 
-    with pytest.raises(InputError, match="surface_weight must be a number of at least 0; got"):
+    with pytest.raises(InputError, match=r"surface_weight must be a number from 0 to 1e\+12; got"):
         pfsdm3d(_ball(), n_radii=4, sh_degree=4, surface_weight=weight)
 
 
