@@ -87,7 +87,7 @@ def option_widget(option) -> object:
     if option.kind is int:
         return SpinBox(value=option.default, min=int(option.low or 0), max=int(high), **kw)
     return FloatSpinBox(value=option.default, min=float(option.low or 0.0), step=0.01,
-                        max=float(min(high, 1e6)), **kw)
+                        max=float(high), **kw)
 
 
 @thread_worker(start_thread=False)
