@@ -1135,6 +1135,16 @@ def _series_index(text: str) -> int:
             f"--series must be a whole number (0 = the first series); got {text!r}") from None
 
 
+def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
+    """``--groups``, ``--link``, ``--force`` and ``-q`` as the table-reading commands take them."""
+    p.add_argument("--groups", metavar="GROUPS.csv",
+                   help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
+    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
+                   help="as for 'pfsdm trajectories'")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+
+
 def _add_force(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true",
                    help="replace output files even when pfsdm did not write them (by default "
@@ -1412,16 +1422,11 @@ examples:
     p.add_argument("table", metavar="TABLE.csv", help="table with frame, label and the column")
     p.add_argument("--column", required=True, help="the column drawn (a column of numbers)")
     p.add_argument("-o", "--output", required=True, metavar="PNG")
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
     p.add_argument("--objects", nargs="+", metavar="OBJECT",
                    help="objects drawn in red, named as the table's tracks (track3, or "
                         "movie/track3 with several movies; a label without track_id)")
     p.add_argument("--values", metavar="CSV", help="also write the values drawn")
-    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
-                   help="as for 'pfsdm trajectories'")
-    _add_force(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    _add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_plot)
 
     p = sub.add_parser(
@@ -1442,8 +1447,6 @@ examples:
 """)
     p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("-o", "--output", required=True, metavar="REPORT.html")
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
     p.add_argument("--labels", nargs="+", metavar="LABELS.tif",
                    help="the label movie(s) the table was measured from (TIFF or Zarr), to "
                         "draw the objects' outlines; several movies are matched by file name")
@@ -1451,10 +1454,7 @@ examples:
                    help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
                         "curve)")
     p.add_argument("--title", metavar="TEXT", help="the report's title")
-    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
-                   help="as for 'pfsdm trajectories'")
-    _add_force(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    _add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser(

@@ -47,11 +47,19 @@ def save(dock, folder):
     if dock.bound is None or dock.export_worker is not None:
         return None
     labels, analysis = dock.bound
-    dock.export_worker = worker = _save_worker(analysis, folder, labels, _ignore_errors=True)
-    dock.say(f"Saving the analysis into {folder}…")
-    worker.returned.connect(lambda path: dock.say(
-        f"Saved the analysis into {path}: Open analysis… brings it back."))
-    worker.errored.connect(lambda err: dock.say(f"Nothing was saved: {err}", True))
+    return _start(dock, _save_worker(analysis, folder, labels, _ignore_errors=True),
+                  f"Saving the analysis into {folder}…",
+                  "Saved the analysis into {}: Open analysis… brings it back.",
+                  "Nothing was saved")
+
+
+def _start(dock, worker, doing: str, done: str, failed: str):
+    """Start a worker that writes files for ``dock`` (its export slot), saying what it does,
+    what it did (``done.format(result)``) or why it failed."""
+    dock.export_worker = worker
+    dock.say(doing)
+    worker.returned.connect(lambda out: dock.say(done.format(out)))
+    worker.errored.connect(lambda err: dock.say(f"{failed}: {err}", True))
     worker.finished.connect(dock._export_finished)
     worker.start()
     return worker
@@ -119,12 +127,8 @@ def report(dock, path):
     if dock.bound is None or dock.export_worker is not None:
         return None
     labels, analysis = dock.bound
-    dock.export_worker = worker = _report_worker(analysis, path, f"PF-SDM: {labels.name}",
-                                                 _ignore_errors=True)
-    dock.say(f"Writing the report {path}…")
-    worker.returned.connect(lambda out: dock.say(
-        f"Wrote {out}: one HTML file that opens in any browser, offline."))
-    worker.errored.connect(lambda err: dock.say(f"No report was written: {err}", True))
-    worker.finished.connect(dock._export_finished)
-    worker.start()
-    return worker
+    return _start(dock, _report_worker(analysis, path, f"PF-SDM: {labels.name}",
+                                       _ignore_errors=True),
+                  f"Writing the report {path}…",
+                  "Wrote {}: one HTML file that opens in any browser, offline.",
+                  "No report was written")
