@@ -18,7 +18,7 @@ from sklearn.base import clone
 import napari_pfsdm as P
 from napari_pfsdm.analysis.transformer import PFSDMTransformer
 from napari_pfsdm.cli import _measure_options, build_parser, main
-from napari_pfsdm.core.descriptor3d import DEFAULTS_3D
+from napari_pfsdm.core.descriptor3d import DEFAULTS_3D, pfsdm3d
 from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, OPTIONS, PFSDMParams, check_record, option
 from napari_pfsdm.errors import InputError
@@ -111,14 +111,15 @@ def test_every_door_shows_the_records_default_help_and_choices(capsys):
     transformer = PFSDMTransformer().get_params()
     signature = inspect.signature(P.pfsdm).parameters
     for_measure = inspect.signature(P.measure).parameters
+    for_volumes = inspect.signature(pfsdm3d).parameters  # 3-D objects: the same record
     record_fields = {f.name: f for f in fields(PFSDMParams)}
     with pytest.raises(SystemExit):
         main(["measure", "--help"])
     shown = _words(capsys.readouterr().out)
     for o in OPTIONS:
         assert (P.DEFAULTS[o.name] == transformer[o.name] == signature[o.name].default
-                == for_measure[o.name].default == getattr(PFSDMParams(), o.name)
-                == o.default), o.name
+                == for_measure[o.name].default == for_volumes[o.name].default
+                == getattr(PFSDMParams(), o.name) == o.default), o.name
         assert record_fields[o.name].metadata["option"] is o
         action = actions[o.name]
         assert action.option_strings == [o.flag] == ["--" + o.name.replace("_", "-")]

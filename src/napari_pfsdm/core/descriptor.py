@@ -205,11 +205,7 @@ def pfsdm(
     if mask.ndim == 3:
         from .descriptor3d import pfsdm3d
 
-        return pfsdm3d(mask, intensity, spacing=spacing, n_radii=p.n_radii, radii=radii,
-                       ring_weighting=p.ring_weighting, mode_exponent=p.mode_exponent,
-                       sh_degree=p.sh_degree, ball_map=p.ball_map,
-                       surface_weight=p.surface_weight, components=p.components,
-                       min_volume=p.min_area, smooth=smooth,
+        return pfsdm3d(mask, intensity, spacing=spacing, smooth=smooth, params=p,
                        offset=(0.0, 0.0, 0.0) if not any(offset) else offset)
     if spacing is not None:
         sp = np.asarray(spacing, float).ravel()

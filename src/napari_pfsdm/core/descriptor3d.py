@@ -20,9 +20,9 @@ from ..errors import InputError
 from .ball import HarmonicBallMap, RadialBallMap, make_ball_map
 from .intensity import intensity_crop
 from .morphometric import mode_weights, ring_radii, ring_weights
-from .params import OPTIONS, params_of
+from .params import OPTIONS, PFSDMParams, params_of, with_option_keywords
 from .sph_harm import SphereGrid, power_spectrum, sh_analysis, sphere_grid
-from .volume_sdf import DEFAULT_MIN_VOLUME, SurfaceSDF, VolumeInfo, prepare_volume
+from .volume_sdf import SurfaceSDF, VolumeInfo, prepare_volume
 
 __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3D"]
 
@@ -30,7 +30,6 @@ __all__ = ["PFSDM3DResult", "pfsdm3d", "shell_maps", "surface_mesh", "DEFAULTS_3
 #: options).
 DEFAULTS_3D: dict[str, Any] = {o.name: o.default for o in OPTIONS if o.dims == "3d"}
 
-_DEFAULT: dict[str, Any] = {o.name: o.default for o in OPTIONS}
 
 
 @dataclass(eq=False)
@@ -123,17 +122,10 @@ def pfsdm3d(
     intensity: np.ndarray | None = None,
     *,
     spacing=None,
-    n_radii: int = _DEFAULT["n_radii"],
-    radii: str | np.ndarray = _DEFAULT["radii"],
-    ring_weighting: str = _DEFAULT["ring_weighting"],
-    mode_exponent: float = _DEFAULT["mode_exponent"],
-    sh_degree: int = _DEFAULT["sh_degree"],
-    ball_map: str = _DEFAULT["ball_map"],
-    surface_weight: float = _DEFAULT["surface_weight"],
-    components: str = _DEFAULT["components"],
-    min_volume: int = DEFAULT_MIN_VOLUME,
     smooth: float = 1.0,
     offset=(0.0, 0.0, 0.0),
+    params: PFSDMParams | None = None,
+    **options: Any,
 ) -> PFSDM3DResult:
     """Push-Forward Signed Distance Morphometric of one 3-D object.
 
@@ -147,22 +139,22 @@ def pfsdm3d(
     spacing : sequence of 3 floats, optional
         Voxel size along Z, Y, X (e.g. ``(2.0, 0.5, 0.5)`` µm); default isotropic 1. Distances
         are physical; the descriptor is scale-invariant (divided by the equal-volume radius).
-    n_radii, radii, ring_weighting, mode_exponent
-        Shells and their weights, as the rings of the 2-D :func:`~.descriptor.pfsdm`.
-    sh_degree : int
-        Highest spherical-harmonic degree L per shell (the embedding has L + 1 columns).
-    ball_map : {"radial", "harmonic"}
-        The map from the ball to the object (:mod:`.ball`): ``"radial"`` (default; rays from
-        the centroid to the outermost surface crossing: star-shaped objects) or ``"harmonic"``
-        (streamlines of a point source's potential: never folds, for objects that are not
-        star-shaped, about twice the cost).
-    surface_weight : float
-        Weight of the surface term (the SH power of R(ω)/scale − 1, ``surface_embedding``) in
-        the distance, next to the shells' (docs/design.md §6.5: on the benchmark the surface
-        term separates classes better than the interior shells, and the two together best).
-    components : {"largest", "raise"}
-    min_volume : int
-        Smaller objects (voxels) raise ``ValueError``.
+    params : PFSDMParams, optional
+        The options as one record; or give them as keywords (``**options``).
+    **options
+        The options of :data:`~napari_pfsdm.core.params.OPTIONS` that apply to volumes (the
+        signature is generated from the record, with its defaults, ranges and words; a
+        2-D-only option set to another value is refused): ``n_radii``, ``radii``,
+        ``ring_weighting``, ``mode_exponent`` (shells and their weights, as the rings of the
+        2-D :func:`~.descriptor.pfsdm`); ``sh_degree`` (the highest spherical-harmonic degree L
+        per shell: the embedding has L + 1 columns); ``ball_map`` (the map from the ball to the
+        object, :mod:`.ball`: ``"radial"``, rays from the centroid to the outermost surface
+        crossing, for star-shaped objects; ``"harmonic"``, streamlines of a point source's
+        potential, never folds, about twice the cost); ``surface_weight`` (weight of the
+        surface term, the SH power of R(ω)/scale − 1, next to the shells', docs/design.md
+        §6.5); ``components`` (several pieces: keep the largest or refuse); ``min_area``
+        (smaller objects, in voxels, are refused: the same setting, and default, as for 2-D
+        objects).
     smooth : float
         Gaussian smoothing of the mask before the surface, in finest-voxel widths.
     offset : 3 floats
@@ -185,11 +177,12 @@ def pfsdm3d(
     """
     mask = np.asarray(mask)
     # the options checked as from any other door (core.params; same messages)
-    p = params_of({"n_radii": n_radii, "radii": radii, "ring_weighting": ring_weighting,
-                   "mode_exponent": mode_exponent, "sh_degree": sh_degree,
-                   "ball_map": ball_map, "surface_weight": surface_weight,
-                   "components": components, "min_area": min_volume})
-    info = prepare_volume(mask, spacing, components=components, min_volume=min_volume)
+    p = params if params is not None else params_of(options)
+    p.check_dimension(3)
+    radii = np.asarray(p.radii) if isinstance(p.radii, tuple) else p.radii
+    n_radii, ring_weighting, mode_exponent = p.n_radii, p.ring_weighting, p.mode_exponent
+    ball_map, components = p.ball_map, p.components
+    info = prepare_volume(mask, spacing, components=components, min_volume=p.min_area)
     if intensity is not None:
         intensity = np.asarray(intensity)
         if intensity.shape != mask.shape:
@@ -244,6 +237,9 @@ def pfsdm3d(
         result.volume_info = replace(info, offset=info.offset + np.asarray(offset, float))
     return result
 
+
+
+pfsdm3d.__signature__ = with_option_keywords(pfsdm3d)  # type: ignore[attr-defined]
 
 def shell_maps(
     result: PFSDM3DResult,

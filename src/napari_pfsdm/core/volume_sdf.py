@@ -23,12 +23,11 @@ from scipy.spatial import cKDTree
 from skimage.measure import marching_cubes
 
 from ..errors import InputError
+from .choices import DEFAULT_MIN_AREA
 from .pieces import fill_holes, largest_piece
 
 __all__ = ["VolumeInfo", "SurfaceSDF", "check_spacing", "prepare_volume"]
 
-#: Objects with fewer voxels than this are refused (below it, the surface is the voxel grid).
-DEFAULT_MIN_VOLUME = 64
 
 
 #: The voxel sizes taken: each from ``SPACING_RANGE[0]`` to ``SPACING_RANGE[1]`` (in any unit:
@@ -113,7 +112,7 @@ def prepare_volume(
     spacing=None,
     *,
     components: str = "largest",
-    min_volume: int = DEFAULT_MIN_VOLUME,
+    min_volume: int = DEFAULT_MIN_AREA,
     pad: int = 3,
 ) -> VolumeInfo:
     """Validate a 3-D object mask, crop it, keep one piece and fill its cavities.
@@ -126,7 +125,8 @@ def prepare_volume(
     components : {"largest", "raise"}
         Several pieces: keep the largest with a warning, or refuse.
     min_volume : int
-        Smaller objects (in voxels) raise ``ValueError``.
+        Smaller objects (in voxels) raise ``ValueError`` (default: the record's ``min_area``,
+        the one smallest size of 2-D and 3-D objects).
     pad : int
         Background voxels added around the bounding box.
 
