@@ -1278,7 +1278,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                         "install \"napari-pfsdm[umap]\"), 'spectral' (fastest, mixes kinds)")
     p.add_argument("--frames", metavar="RANGE",
                    help="only these frames, e.g. 0, 0-10 or 0,5,10 (default: all rows)")
-    from .analysis.rerank import RERANK_METHODS
+    from .analysis.rerank import RERANK_K, RERANK_METHODS
     from .core.params import option
 
     for name in ("intensity_weight", "boundary_weight"):  # ranges: core.params.WEIGHT_OPTIONS
@@ -1291,11 +1291,11 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                    help="re-rank the distances (and the map) by the collection's "
                         f"neighbourhoods: {', '.join(RERANK_METHODS)} (default when given: "
                         "diffusion); for large collections, see 'pfsdm compare -h'")
-    p.add_argument("--rerank-k", dest="rerank_k", type=_whole("--rerank-k", 1), default=10,
-                   metavar="K",
-                   help="neighbours per object for --rerank (default 10: about the number "
-                        "of objects per kind, at most); with --neighbours the graph holds "
-                        "3 K")
+    p.add_argument("--rerank-k", dest="rerank_k", type=_whole("--rerank-k", 1),
+                   default=RERANK_K, metavar="K",
+                   help=f"neighbours per object for --rerank (default {RERANK_K}: about the "
+                        "number of objects per kind, at most); with --neighbours the graph "
+                        "holds 3 K")
     p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
     p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
                    help="refuse larger matrices (default 5000; --neighbours has no limit)")

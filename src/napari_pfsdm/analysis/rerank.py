@@ -118,6 +118,11 @@ def _mutual(d: np.ndarray, k: int) -> np.ndarray:
     return 1.0 - inter / (2.0 - inter)
 
 
+#: Neighbours per object of a re-ranking by default: about the number of objects of a kind, at
+#: most (docs/benchmarks.md); the command line's ``--rerank-k`` and the plugin's re-rank.
+RERANK_K = 10
+
+
 def _transduction(d: np.ndarray, k: int, alpha: float) -> np.ndarray:
     w = _knn_affinities(d, k)
     np.fill_diagonal(w, 0.0)
@@ -128,7 +133,7 @@ def _transduction(d: np.ndarray, k: int, alpha: float) -> np.ndarray:
     return 1.0 - np.clip(f / np.outer(diag, diag), 0.0, 1.0)
 
 
-def rerank(d: np.ndarray, method: str = "diffusion", *, k: int = 10, steps: int = 2,
+def rerank(d: np.ndarray, method: str = "diffusion", *, k: int = RERANK_K, steps: int = 2,
            alpha: float = 0.9) -> np.ndarray:
     """Re-rank a distance matrix by the neighbourhoods of the collection.
 
@@ -311,7 +316,7 @@ def _sparse_mutual(idx, dist, k: int):
 
 
 def rerank_neighbours(
-    indices, distances, method: str = "diffusion", *, k: int = 10, steps: int = 2,
+    indices, distances, method: str = "diffusion", *, k: int = RERANK_K, steps: int = 2,
     scale: float | None = None, n_neighbours: int | None = None, return_exact: bool = False,
 ):
     """Re-rank a neighbour graph: :func:`rerank` without the n x n matrix.

@@ -204,15 +204,15 @@ def _distances(table, rows, weight: float, reranked: bool):
         if reranked:
             from ..analysis.rerank import rerank_neighbours
 
-            idx, dist = rerank_neighbours(idx, dist, "diffusion", k=10)[:2]
+            idx, dist = rerank_neighbours(idx, dist, "diffusion")[:2]
         yield "map"
         return {"graph": (idx, dist), "xy": graph_coordinates(idx, dist, "spectral")}
     d = np.asarray(distance_matrix(sub, intensity_weight=weight))
     yield "distances"
     if reranked and len(d) >= 3:
-        from ..analysis.rerank import rerank
+        from ..analysis.rerank import RERANK_K, rerank
 
-        d = rerank(d, "diffusion", k=min(10, len(d) - 1))
+        d = rerank(d, "diffusion", k=min(RERANK_K, len(d) - 1))
     return {"d": d, "xy": mds_coordinates(d, 2)}
 
 
