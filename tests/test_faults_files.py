@@ -568,7 +568,7 @@ def test_a_frame_too_big_for_memory_is_not_called_damaged(tmp_path, monkeypatch)
     path = tmp_path / "m.tif"
     tifffile.imwrite(path, movie(2))
     arr = open_movie(path)
-    source = arr._pfsdm_source
+    source = io.movie_source(arr)
 
     def no_memory(*args, **kwargs):
         raise MemoryError("Unable to allocate 40.0 GiB")

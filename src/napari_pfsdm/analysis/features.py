@@ -37,6 +37,9 @@ from .tables import failed_rows
 __all__ = [
     "AXES",
     "ObjectResult",
+    "crop_of",
+    "one_blas_thread",
+    "voxel_spacing",
     "looks_like_colour",
     "refuse_colour",
     "refuse_zero_size",
@@ -66,7 +69,7 @@ _BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None, "controller": None}
 
 
 @contextmanager
-def _one_blas_thread():
+def one_blas_thread():
     """Limit BLAS to one thread while objects are computed: one object's matrices are small,
     threads only add overhead and, with several workers, oversubscribe the cores (parallelism
     comes from frames: the dask batch). Reference-counted, so that concurrent threads restore
@@ -164,7 +167,7 @@ def refuse_colour(shape: tuple[int, ...], what: str = "The labels") -> None:
         )
 
 
-def _spacing(axes: str, spacing) -> np.ndarray | None:
+def voxel_spacing(axes: str, spacing) -> np.ndarray | None:
     """The voxel size of a 3-D axis order (None for 2-D, where only square pixels exist)."""
     if "z" in axes:
         return check_spacing(spacing, 3)
@@ -386,14 +389,14 @@ def iter_objects(
         While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
     n_frames, timelapse, axes = _validate(labels, intensity, axes)
-    voxel = _spacing(axes, spacing)
+    voxel = voxel_spacing(axes, spacing)
     p = as_params(params, options)  # a bad option fails here, before any work
     p.check_dimension(3 if "z" in axes else 2)
     opts = _pfsdm_options(p)
     if voxel is not None:
         opts["spacing"] = voxel
     frames = None if frames is None else check_frames(frames, n_frames if timelapse else 1)
-    with _one_blas_thread():
+    with one_blas_thread():
         yield from _iter_frames(labels, intensity, n_frames, timelapse, frames, opts)
 
 
@@ -443,7 +446,7 @@ def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
             yield _object_in_frame(frame, image, int(t), label, box, options)
 
 
-def _crop_of(box, shape) -> tuple[slice, ...]:
+def crop_of(box, shape) -> tuple[slice, ...]:
     """The crop an object is measured in: its bounding box ``box`` one pixel wider on every
     side, within a frame of ``shape``."""
     return tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
@@ -453,7 +456,7 @@ def _crop_of(box, shape) -> tuple[slice, ...]:
 def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectResult:
     """The :class:`ObjectResult` of ``label`` in one frame, 2-D or 3-D (``box``: its
     bounding box)."""
-    big = _crop_of(box, frame.shape)
+    big = crop_of(box, frame.shape)
     return _object_in_crop(frame[big], None if image is None else image[big], t, label, box,
                            big, frame.shape, options)
 
@@ -462,7 +465,7 @@ def _object_in_crop(labels_crop, crop, t: int, label: int, box, big, shape,
                     options) -> ObjectResult:
     """What :func:`_object_in_frame` computes, from the object's crop alone: ``labels_crop``
     and ``crop`` (the reporter, or None) are the frame's and the image's pixels in ``big``
-    (:func:`_crop_of` of ``box`` in a frame of ``shape``). A worker process is sent the crops
+    (:func:`crop_of` of ``box`` in a frame of ``shape``). A worker process is sent the crops
     of the objects of one large frame, not the frame for each task."""
     mask = labels_crop == label
     start = [s.start for s in big]
@@ -505,7 +508,7 @@ def describe_object(
         When ``label`` is not in that frame.
     """
     n_frames, timelapse, axes = _validate(labels, intensity, axes)
-    voxel = _spacing(axes, spacing)
+    voxel = voxel_spacing(axes, spacing)
     p = as_params(params, {})
     opts = _pfsdm_options(p)
     if voxel is not None:
@@ -521,9 +524,9 @@ def describe_object(
         if where[0].size == 0:
             raise KeyError(f"label {label} is not in frame {frame}")
         box = tuple(slice(int(w.min()), int(w.max()) + 1) for w in where)
-    big = _crop_of(box, plane.shape)
+    big = crop_of(box, plane.shape)
     crop = None if intensity is None else _frame(intensity, t, timelapse)[big].astype(float)
-    with _one_blas_thread():
+    with one_blas_thread():
         return _object_in_crop(plane[big], crop, t, int(label), box, big, plane.shape, opts)
 
 
@@ -877,7 +880,7 @@ def measure(
     """
     p = as_params(params, options)  # before counting: a bad option fails at once
     axes = resolve_axes(tuple(labels.shape), axes)
-    voxel = _spacing(axes, spacing)
+    voxel = voxel_spacing(axes, spacing)
     p.check_dimension(3 if "z" in axes else 2)
     counted = progress is not None and isinstance(labels, np.ndarray)
     total = count_objects(labels, axes) if counted else None

@@ -229,9 +229,9 @@ def _add_elastic(idx: np.ndarray, dist: np.ndarray, signatures: np.ndarray, mu: 
 def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,
                   method: str) -> tuple[np.ndarray, np.ndarray]:
     """One dask task / thread: a block of queries with BLAS on one thread."""
-    from .features import _one_blas_thread
+    from .features import one_blas_thread
 
-    with _one_blas_thread():
+    with one_blas_thread():
         return search_rows(index, rows, k, method)
 
 
@@ -244,7 +244,7 @@ def _run_threads(index, parts, k, method, n_jobs):
 
 
 def _run_dask(index, parts, k, method, scheduler, client):
-    from .schedulers import _client_for, process_pool, resolve_scheduler
+    from .schedulers import client_for, process_pool, resolve_scheduler
 
     kind, obj = resolve_scheduler(scheduler, client)
     if kind == "local":
@@ -258,7 +258,7 @@ def _run_dask(index, parts, k, method, scheduler, client):
         # worker processes that do not run the caller's script again
         with process_pool(max(1, min(len(parts), os.cpu_count() or 1))) as pool:
             return list(dask.compute(*tasks, scheduler=obj, pool=pool))
-    with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
+    with client_for(kind, obj) as handle:  # opens a client for a scheduler address
         shared = handle.scatter(index, broadcast=True)
         tag = os.urandom(4).hex()
         futures = [handle.submit(_search_block, shared, rows, k, method, pure=False,

@@ -40,16 +40,16 @@ import numpy as np
 from ..core.params import PFSDMParams
 from .features import (
     ObjectResult,
-    _crop_of,
     _frame,
     _object_in_crop,
     _object_in_frame,
-    _one_blas_thread,
-    _spacing,
     _validate,
+    crop_of,
     iter_objects,
     object_boxes,
+    one_blas_thread,
     present_ids,
+    voxel_spacing,
 )
 from .row_blocks import RowBlock, block_of
 
@@ -186,7 +186,7 @@ def _measure_task(entries: list[tuple], options: dict) -> list[ObjectResult]:
     """Worker process: the rows of a task's entries (:func:`_task_args`): ``("frame", frame
     index, frame, image, labels)`` or ``("crops", frame index, frame shape, crops)``."""
     rows: list[ObjectResult] = []
-    with _one_blas_thread():
+    with one_blas_thread():
         for entry in entries:
             if entry[0] == "crops":
                 _, t, shape, crops = entry
@@ -383,7 +383,7 @@ def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray
                boxes: dict) -> list[tuple]:
     """What a worker process is sent for one task (:func:`_measure_task`): each whole frame
     it measures, with the labels wanted, or, for a block of the labels of a frame split
-    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.features._crop_of`).
+    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.features.crop_of`).
     Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its reporter (29 MB,
     64 tasks) made the Run slower than one process (11.2 s against measure's 10.0 s).
     ``counts``: the labels of each frame; ``boxes``: the bounding boxes of the last split
@@ -401,7 +401,7 @@ def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray
         crops = []
         for label in wanted:
             box = boxes[t][int(label)]
-            big = _crop_of(box, frame.shape)
+            big = crop_of(box, frame.shape)
             crops.append((int(label), box, big, np.array(frame[big]),
                           None if image is None else np.array(image[big])))
         out.append(("crops", t, frame.shape, crops))
@@ -412,7 +412,7 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     n_frames, timelapse, axes = _validate(labels, intensity, axes)
     params.check_dimension(3 if "z" in axes else 2)
     options = params.options()
-    voxel = _spacing(axes, spacing)
+    voxel = voxel_spacing(axes, spacing)
     if voxel is not None:
         options["spacing"] = voxel
     counts = _labels_per_frame(labels, n_frames, timelapse)

@@ -266,7 +266,7 @@ def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMPa
     (80, (101, 2), (10, 2, 2))
     """
     from ..core.midline import midline
-    from .features import _crop_of, describe_object
+    from .features import crop_of, describe_object
 
     if "z" in axes:
         raise ValueError("the midline is measured on 2-D objects only")
@@ -274,7 +274,7 @@ def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMPa
     obj = describe_object(labels, intensity, t, int(label), params=params, box=box, axes=axes)
     if obj.result is None:
         raise ValueError(obj.error or "the object could not be described")
-    big = _crop_of(obj.bbox, tuple(labels.shape[-2:]))
+    big = crop_of(obj.bbox, tuple(labels.shape[-2:]))
     crop = None
     if intensity is not None:
         plane = intensity[t] if axes.startswith("t") else intensity

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "process_pool", "resolve_scheduler"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "client_for", "process_pool", "resolve_scheduler"]
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
@@ -50,7 +50,7 @@ def resolve_scheduler(scheduler: Any = None, client: Any = None) -> tuple[str, A
 
 
 @contextlib.contextmanager
-def _client_for(kind: str, obj: Any) -> Iterator[Any]:
+def client_for(kind: str, obj: Any) -> Iterator[Any]:
     if kind == "address":
         try:
             from distributed import Client

@@ -178,11 +178,11 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         self.scale_ = np.where(sd > 0, sd, 1.0)
         z = (x - self.mean_) / self.scale_
         k = int(min(self.n_components, z.shape[0], z.shape[1]))
-        from .features import _one_blas_thread
+        from .features import one_blas_thread
 
         # one BLAS thread: as fast on the tables met here, and many times faster while other
         # work (the measuring processes, napari's drawing) holds a core
-        with np.errstate(invalid="ignore", divide="ignore"), _one_blas_thread():
+        with np.errstate(invalid="ignore", divide="ignore"), one_blas_thread():
             self.pca_ = PCA(n_components=k, svd_solver="full").fit(z)
         loadings = self.pca_.components_
         signs = np.sign(loadings[np.arange(k), np.abs(loadings).argmax(axis=1)])

@@ -26,6 +26,7 @@ import logging
 import os
 import re
 import threading
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -689,15 +690,28 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     name = "pfsdm-read-" + tokenize(str(p.resolve()), frames.identity, frames.shape)
     meta = np.empty((0,) * frames.ndim, dtype=frames.dtype)
     arr = da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
-    # lets the batch read a task's frames in one call (see napari_pfsdm.batch.run._Slice)
-    arr._pfsdm_source = frames
+    # lets the batch read a task's frames in one call (napari_pfsdm.batch.run._Reader)
+    _SOURCES[arr.name] = frames
     return arr
+
+
+#: The file reader behind each movie :func:`open_movie` made, by the dask array's name (its
+#: graph's key); weakly: a reader lives as long as a graph that reads through it.
+_SOURCES: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+
+def movie_source(movie: Any):
+    """The file reader behind a movie from :func:`open_movie` (its frames are read straight
+    from the file, a task's frames in one call), or None for any other array (a slice of that
+    movie included)."""
+    name = getattr(movie, "name", None)
+    return _SOURCES.get(name) if isinstance(name, str) else None
 
 
 def missing_frames(movie: Any) -> dict[int, int]:
     """``{frame: missing chunk files}`` of a movie from :func:`open_movie` (Zarr only; empty
     for TIFF, numpy arrays and complete stores)."""
-    return dict(getattr(getattr(movie, "_pfsdm_source", None), "missing", None) or {})
+    return dict(getattr(movie_source(movie), "missing", None) or {})
 
 
 def refuse_missing_chunks(movie: Any, where: str) -> None:
@@ -721,7 +735,7 @@ def refuse_missing_chunks(movie: Any, where: str) -> None:
 
 def missing_warning(movie: Any, name: str) -> list[str]:
     """One warning line per frame of a movie read with missing chunk files."""
-    fill = getattr(getattr(movie, "_pfsdm_source", None), "fill_value", 0)
+    fill = getattr(movie_source(movie), "fill_value", 0)
     return [f"warning: {name}: frame {t}: {n} chunk file{'s' if n > 1 else ''} missing, read "
             f"as the fill value ({fill})" for t, n in sorted(missing_frames(movie).items())]
 

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.row_blocks import RowBlock, block_of, join_blocks
-from ..analysis.schedulers import _client_for, process_pool, resolve_scheduler
+from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -58,6 +58,7 @@ from .io import (
     data_fingerprint,
     missing_frames,
     missing_warning,
+    movie_source,
     open_movie,
     refuse_missing_chunks,
 )
@@ -71,13 +72,14 @@ class _Reader:
     """Frames ``start:stop`` of a movie, read where the task runs (in the worker).
 
     A movie from :func:`~napari_pfsdm.batch.io.open_movie` travels as its file's path (its
-    ``_pfsdm_source``) and is read straight from the file; a dask array travels as the graph
-    of its slice and is computed in the worker with the synchronous scheduler; another array
-    (zarr, h5py, ...) as its slice. Frames never travel through the scheduler or the client.
+    :func:`~napari_pfsdm.batch.io.movie_source`) and is read straight from the file; a dask
+    array travels as the graph of its slice and is computed in the worker with the
+    synchronous scheduler; another array (zarr, h5py, ...) as its slice. Frames never travel
+    through the scheduler or the client.
     """
 
     def __init__(self, array: Any, start: int, stop: int):
-        self.source = getattr(array, "_pfsdm_source", None)
+        self.source = movie_source(array)
         self.start = int(start)
         self.array = array[start:stop] if self.source is None else None
 
@@ -166,11 +168,11 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
     (:func:`napari_pfsdm.analysis.parallel._measure_task`: whole frames, or the crops of the
     objects wanted, as the pool sends them); the rows as one block."""
     from ..analysis import parallel
-    from ..analysis.features import _crop_of, _one_blas_thread, object_boxes
+    from ..analysis.features import crop_of, object_boxes, one_blas_thread
 
     rows: list = []
     wanted = dict(parts)
-    with _one_blas_thread():  # once per task (about 1 ms), not once per frame
+    with one_blas_thread():  # once per task (about 1 ms), not once per frame
         for a, b in _runs([t for t, _ in parts], frame_bytes):
             key = _recent_key(labels, intensity, a) if b - a == 1 else None
             with _RECENT_LOCK:
@@ -201,7 +203,7 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
                 crops = []
                 for label in wanted[t]:
                     box = boxes[int(label)]
-                    big = _crop_of(box, frame.shape)
+                    big = crop_of(box, frame.shape)
                     crops.append((int(label), box, big, np.array(frame[big]),
                                   None if image is None else np.array(image[big])))
                 rows += parallel._measure_task([("crops", t, frame.shape, crops)], options)
@@ -359,11 +361,11 @@ def _measure_planned(
     """The row blocks of a movie (``labels`` with a time axis first), measured where
     ``kind``/``obj`` say, in tasks planned as the process pool plans them."""
     from ..analysis import parallel
-    from ..analysis.features import _spacing
+    from ..analysis.features import voxel_spacing
 
     n_frames = int(labels.shape[0])
     options = p.options()
-    voxel = _spacing(axes, spacing)
+    voxel = voxel_spacing(axes, spacing)
     if voxel is not None:
         options["spacing"] = voxel
     frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
@@ -371,7 +373,7 @@ def _measure_planned(
         frame_bytes += int(np.prod(intensity.shape[1:])) * np.dtype(intensity.dtype).itemsize
     in_memory = isinstance(labels, np.ndarray) and (
         intensity is None or isinstance(intensity, np.ndarray))
-    with _client_for(kind, obj) as handle:  # opens a client for a scheduler address
+    with client_for(kind, obj) as handle:  # opens a client for a scheduler address
         kind = "local" if kind == "local" else "distributed"
         run = _Runner(kind, handle, num_workers, pool)
         workers = _workers(kind, handle, num_workers)
@@ -652,7 +654,8 @@ def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
     """Check and link one movie's table (see :func:`run_batch`'s ``link``)."""
     from ..analysis.tracking import link_movie
 
-    source = getattr(lab, "_pfsdm_source", lab)  # read frames straight from the file
+    source = movie_source(lab)  # read frames straight from the file
+    source = lab if source is None else source
     if len(lab.shape) == 2:  # one frame
         source = np.asarray(source[:])[None]
     out, check, used = link_movie(table, source, how)
@@ -840,7 +843,7 @@ def _run_batch_locked(
     attrs: dict = {}
     linked = False
     empty: dict[str, list[int]] = {}
-    with contextlib.ExitStack() as kept, _client_for(kind, obj) as cl:
+    with contextlib.ExitStack() as kept, client_for(kind, obj) as cl:
         pool = None
         for m, lab, img in opened:
             part = parts / (_part_name(m, p, axes, spacing, series) + suffix)
