@@ -476,7 +476,7 @@ def measure_dataset(name: str, repeats: int, run_repeats: int) -> dict:
     anchor_plot: list = []
 
     def open_plots_repeats() -> None:
-        plots_size = PlotsWidget.sizeHint(None)
+        plots_size = PlotsWidget.SIZE_HINT  # what the dock asks for (PluginDock)
         scores = widget.bound[1].pca["shape"]
         for i in range(repeats):
             focus(alone)
