@@ -52,7 +52,13 @@ import pandas as pd  # noqa: E402
 
 import napari_pfsdm as P  # noqa: E402
 from napari_pfsdm.analysis.pictures import object_pictures  # noqa: E402
-from napari_pfsdm.core.medial_axis import grid_step, ridge_mask, skeleton  # noqa: E402
+from napari_pfsdm.core.medial_axis import (  # noqa: E402
+    distance_to_paths,
+    grid_step,
+    paths_distance,
+    ridge_mask,
+    skeleton,
+)
 from napari_pfsdm.core.params import PFSDMParams  # noqa: E402
 from napari_pfsdm.data.shapes import bent_capsule_mask  # noqa: E402
 
@@ -73,28 +79,6 @@ def capsule_labels(radius: float) -> tuple[np.ndarray, tuple[slice, slice]]:
     rows, cols = np.nonzero(labels)
     return labels, (slice(int(rows.min()), int(rows.max()) + 1),
                     slice(int(cols.min()), int(cols.max()) + 1))
-
-
-def to_polylines(points: np.ndarray, paths: list[np.ndarray]) -> np.ndarray:
-    """Distance from each of ``points`` (K, 2) to the nearest segment of ``paths``."""
-    segs = np.concatenate([np.stack([p[:-1], p[1:]], axis=1) for p in
-                           (np.asarray(q, float) for q in paths)])
-    a, e = segs[:, 0], segs[:, 1] - segs[:, 0]
-    length2 = np.maximum((e ** 2).sum(axis=1), 1e-12)
-    best = np.full(len(points), np.inf)
-    for i in range(0, len(segs), 256):
-        g = points[:, None, :] - a[None, i:i + 256]
-        t = np.clip((g * e[None, i:i + 256]).sum(-1) / length2[i:i + 256], 0, 1)
-        d = np.linalg.norm(g - t[..., None] * e[None, i:i + 256], axis=-1)
-        best = np.minimum(best, d.min(axis=1))
-    return best
-
-
-def skeleton_distance(a: list[np.ndarray], b: list[np.ndarray]) -> tuple[float, float]:
-    """Mean (the larger of both ways) and Hausdorff distance between two sets of branches."""
-    pa, pb = np.concatenate(a).astype(float), np.concatenate(b).astype(float)
-    ab, ba = to_polylines(pa, b), to_polylines(pb, a)
-    return float(max(ab.mean(), ba.mean())), float(max(ab.max(), ba.max()))
 
 
 def time_object(radius: float, reps: int) -> dict[str, float]:
@@ -124,7 +108,7 @@ def time_object(radius: float, reps: int) -> dict[str, float]:
             fn()
             best[name] = min(best[name], time.process_time() - start)
     full, grid = skeleton(res, samples_across=None), skeleton(res)
-    mean, hausdorff = skeleton_distance(grid.paths(), full.paths())
+    mean, hausdorff = paths_distance(grid.paths(), full.paths())
     return row | best | {"step": grid.step, "mean_px": mean, "hausdorff_px": hausdorff}
 
 
@@ -180,9 +164,9 @@ def silhouettes(folder: Path, upscale: int) -> pd.DataFrame:
             warnings.simplefilter("ignore")  # a few silhouettes have specks: the largest piece
             res = P.pfsdm(mask)
         full, grid = skeleton(res, samples_across=None), skeleton(res)
-        mean, hausdorff = skeleton_distance(grid.paths(), full.paths())
+        mean, hausdorff = paths_distance(grid.paths(), full.paths())
         pieces, share = ridge_pieces(res, None)
-        covered = to_polylines(full.points.astype(float), grid.paths()).max()
+        covered = distance_to_paths(full.points.astype(float), grid.paths()).max()
         rows.append({"shape": path.stem, "side_px": max(res.mask_info.mask.shape),
                      "step": grid.step, "full_pieces": pieces, "full_largest_share": share,
                      "mean_px": mean, "hausdorff_px": hausdorff, "full_to_grid_px": covered})

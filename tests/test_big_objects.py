@@ -19,7 +19,7 @@ import pytest
 
 import napari_pfsdm as P
 from napari_pfsdm.analysis.pictures import object_pictures
-from napari_pfsdm.core.medial_axis import SAMPLES_ACROSS, grid_step, skeleton
+from napari_pfsdm.core.medial_axis import SAMPLES_ACROSS, grid_step, paths_distance, skeleton
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.shapes import bent_capsule_mask, three_armed_mask
 
@@ -40,28 +40,6 @@ SHAPES = {
     "bent capsule": lambda: bent_capsule_mask(500.0, angle=0.7),
     "three arms": lambda: three_armed_mask((1100, 1100), radius=500.0, angle=0.2),
 }
-
-
-def _to_polylines(points: np.ndarray, paths: list[np.ndarray]) -> np.ndarray:
-    """Distance from each of ``points`` (K, 2) to the nearest segment of ``paths``."""
-    segs = np.concatenate([np.stack([p[:-1], p[1:]], axis=1) for p in
-                           (np.asarray(q, float) for q in paths)])
-    a, e = segs[:, 0], segs[:, 1] - segs[:, 0]
-    length2 = np.maximum((e ** 2).sum(axis=1), 1e-12)
-    best = np.full(len(points), np.inf)
-    for i in range(0, len(segs), 256):
-        g = points[:, None, :] - a[None, i:i + 256]
-        t = np.clip((g * e[None, i:i + 256]).sum(-1) / length2[i:i + 256], 0, 1)
-        d = np.linalg.norm(g - t[..., None] * e[None, i:i + 256], axis=-1)
-        best = np.minimum(best, d.min(axis=1))
-    return best
-
-
-def _distances(a: list[np.ndarray], b: list[np.ndarray]) -> tuple[float, float]:
-    """Mean (of both ways) and Hausdorff distance between two sets of polylines."""
-    pa, pb = np.concatenate(a).astype(float), np.concatenate(b).astype(float)
-    ab, ba = _to_polylines(pa, b), _to_polylines(pb, a)
-    return max(ab.mean(), ba.mean()), max(ab.max(), ba.max())
 
 
 @pytest.fixture(scope="module", params=list(SHAPES))
@@ -85,7 +63,7 @@ def test_big_skeleton_lies_within_two_pixels_of_the_full_resolution_one(big):
     name, mask, res, full = big
     sk = res.skeleton  # the default grid
     assert sk.step == grid_step(res.mask_info.mask.shape) > 1, name
-    mean, hausdorff = _distances(sk.paths("image"), full.paths("image"))
+    mean, hausdorff = paths_distance(sk.paths("image"), full.paths("image"))
     assert mean <= MEAN_PX, (name, mean)
     assert hausdorff <= HAUSDORFF_PX, (name, hausdorff)
     assert sk.n_end_points == full.n_end_points, name
@@ -134,7 +112,7 @@ def test_pictures_of_a_big_object_match_the_full_resolution_ones():
         assert np.nanmax(np.abs(a - b)) <= 1e-3
     assert np.abs(new.outline - old.outline).max() / size <= 1e-3
     assert (new.sdf_corner, new.sdf_step) == (old.sdf_corner, old.sdf_step)
-    mean, hausdorff = _distances(new.skeleton_image, old.skeleton_image)
+    mean, hausdorff = paths_distance(new.skeleton_image, old.skeleton_image)
     assert mean <= MEAN_PX and hausdorff <= HAUSDORFF_PX
-    assert _distances(new.skeleton_disk, old.skeleton_disk)[0] <= 1.0  # disk-picture pixels
+    assert paths_distance(new.skeleton_disk, old.skeleton_disk)[0] <= 1.0  # disk-picture pixels
     assert not new.notes

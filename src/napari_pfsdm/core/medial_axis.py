@@ -31,7 +31,7 @@ from .pushforward import push_to_disk
 from .sdf import ViscousSDF
 
 __all__ = ["Skeleton", "skeleton", "ridge_mask", "prune_branches", "end_points", "branch_paths",
-           "grid_step", "SAMPLES_ACROSS"]
+           "grid_step", "SAMPLES_ACROSS", "distance_to_paths", "paths_distance"]
 
 #: Default of :func:`skeleton`'s ``samples_across``: at most this many grid samples along the
 #: longer side of the object's box (4× the plugin's 128-pixel pictures).
@@ -312,3 +312,37 @@ def skeleton(result, *, threshold: float = 0.7, min_depth: float = 1.5,
     on_disk = (push_to_disk(result, to_normalized(local.astype(float))) if disk
                else np.full((len(local), 2), np.nan))
     return Skeleton(points=points, disk_points=on_disk, depth=depth_px[tuple(local.T)], step=step)
+
+
+def distance_to_paths(points: np.ndarray, paths: list[np.ndarray]) -> np.ndarray:
+    """Distance from each of ``points`` (K, 2) to the nearest segment of the polylines
+    ``paths`` (e.g. a skeleton's branches).
+
+    >>> distance_to_paths(np.array([[1.0, 5.0], [0.0, 12.0]]), [np.array([[0, 0], [0, 10]])])
+    array([1., 2.])
+    """
+    points = np.asarray(points, float)
+    segs = np.concatenate([np.stack([p[:-1], p[1:]], axis=1) for p in
+                           (np.asarray(q, float) for q in paths)])
+    a, e = segs[:, 0], segs[:, 1] - segs[:, 0]
+    length2 = np.maximum((e ** 2).sum(axis=1), 1e-12)
+    best = np.full(len(points), np.inf)
+    for i in range(0, len(segs), 256):  # 256 segments at a time: memory stays small
+        g = points[:, None, :] - a[None, i:i + 256]
+        t = np.clip((g * e[None, i:i + 256]).sum(-1) / length2[i:i + 256], 0, 1)
+        d = np.linalg.norm(g - t[..., None] * e[None, i:i + 256], axis=-1)
+        best = np.minimum(best, d.min(axis=1))
+    return best
+
+
+def paths_distance(a: list[np.ndarray], b: list[np.ndarray]) -> tuple[float, float]:
+    """How far two sets of polylines (two skeletons' branches) lie from each other: the mean
+    distance of one's vertices to the other (the larger of both ways) and the Hausdorff
+    distance.
+
+    >>> paths_distance([np.array([[0, 0], [0, 10]])], [np.array([[3, 0], [3, 10]])])
+    (3.0, 3.0)
+    """
+    pa, pb = np.concatenate(a).astype(float), np.concatenate(b).astype(float)
+    ab, ba = distance_to_paths(pa, b), distance_to_paths(pb, a)
+    return float(max(ab.mean(), ba.mean())), float(max(ab.max(), ba.max()))
