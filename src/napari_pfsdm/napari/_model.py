@@ -197,7 +197,7 @@ class Analysis:
         self._errors = (self.table["error"].fillna("").astype(str).to_numpy(object)
                         if "error" in self.table else np.full(len(self.table), "", object))
         self._left = left_out_reasons(self.table, self.options)
-        objects = self.objects()
+        self._objects = objects = self.objects()
         self._where = {(int(f), int(o)): int(lab) for f, o, lab in zip(frames, objects, labels,
                                                                          strict=True) if o >= 0}
 
@@ -233,8 +233,7 @@ class Analysis:
     def object_of(self, frame: int, label: int) -> int | None:
         """The object (track id, or label) of the (frame, label) row; None when absent."""
         i = self.row_of(frame, label)
-        return None if i is None else int(self.objects()[i]) if "track_id" in self.table \
-            else int(label)
+        return None if i is None else int(self._objects[i])
 
     def label_of(self, obj: int, frame: int) -> int | None:
         """The label that object ``obj`` has in ``frame`` (None when it is not there)."""
@@ -316,7 +315,7 @@ class Analysis:
             self.table, self.features = scored.table, scored.features
             self.sentences = scored.sentences
             self._rows, self._errors, self._where = scored._rows, scored._errors, scored._where
-            self._left = scored._left
+            self._left, self._objects = scored._left, scored._objects
         self.events.prediction.emit(prediction)
 
 
