@@ -304,26 +304,25 @@ def escape_formulas(df: pd.DataFrame) -> pd.DataFrame:
     >>> escape_formulas(pd.DataFrame({"movie": ["=1+1", "e1"], "x": [-1.5, 2.0]})).values.tolist()
     [["'=1+1", -1.5], ['e1', 2.0]]
     """
-    out = df.copy(deep=False)  # the numbers are not copied: only text columns change
-    for col in out.columns:
-        if _text_like(out[col]):
-            out[col] = out[col].map(_escape_cell)
-    out.columns = pd.Index([_escape_cell(c) for c in out.columns], name=out.columns.name)
-    if _text_like(out.index) and not isinstance(out.index, pd.MultiIndex):
-        out.index = pd.Index([_escape_cell(v) for v in out.index], name=out.index.name)
-    return out
+    # the numbers are not copied: only text columns change
+    return _map_text(df.copy(deep=False), _escape_cell)
 
 
 def unescape_formulas(df: pd.DataFrame) -> pd.DataFrame:
     """Undo :func:`escape_formulas` (in place; returns ``df``): one leading quote removed from
     text cells, column names and index labels that start with quotes and then ``= + - @``,
     a tab or a carriage return."""
+    return _map_text(df, _unescape_cell)
+
+
+def _map_text(df: pd.DataFrame, cell) -> pd.DataFrame:
+    """``cell`` applied to ``df``'s text columns, column names and text index (in place)."""
     for col in df.columns:
         if _text_like(df[col]):
-            df[col] = df[col].map(_unescape_cell)
-    df.columns = pd.Index([_unescape_cell(c) for c in df.columns], name=df.columns.name)
+            df[col] = df[col].map(cell)
+    df.columns = pd.Index([cell(c) for c in df.columns], name=df.columns.name)
     if _text_like(df.index) and not isinstance(df.index, pd.MultiIndex):
-        df.index = pd.Index([_unescape_cell(v) for v in df.index], name=df.index.name)
+        df.index = pd.Index([cell(v) for v in df.index], name=df.index.name)
     return df
 
 

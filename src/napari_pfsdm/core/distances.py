@@ -72,7 +72,7 @@ BOUNDARY_WEIGHT = option("boundary_weight").default
 #: μ, the weight of the elastic outline term d_E (:mod:`.elastic`) in the default distance:
 #: 0, the term is opt-in (MPEG-7 and its leave-classes-out study in docs/benchmarks.md give
 #: the weight that retrieves best, ``RECOMMENDED_ELASTIC_WEIGHT``).
-ELASTIC_WEIGHT = 0.0
+ELASTIC_WEIGHT = option("elastic_weight").default
 #: The weight of d_E chosen by leave-classes-out cross-validation on MPEG-7
 #: (``benchmarks/mpeg7_elastic.py``, docs/benchmarks.md).
 RECOMMENDED_ELASTIC_WEIGHT = 0.5
@@ -358,11 +358,7 @@ def _no_elastic_in_3d(weight: float | None) -> float:
 def _check_elastic_weight(weight: float | None) -> float:
     if weight is None:
         return ELASTIC_WEIGHT
-    value = float(weight)
-    if not np.isfinite(value) or value < 0:
-        raise InputError(f"elastic_weight must be a number >= 0 (0: no elastic term), got "
-                         f"{weight!r}.")
-    return value
+    return _check_weight("elastic_weight", weight)
 
 
 def signatures_of(items) -> np.ndarray:

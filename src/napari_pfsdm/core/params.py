@@ -371,6 +371,10 @@ WEIGHT_OPTIONS: tuple[Option, ...] = (
            "weight of the outline (boundary) term in the distance (0: the pushed-forward SDF "
            "alone)",
            low=0.0, high=MAX_WEIGHT),
+    Option("elastic_weight", float, 0.0,
+           "weight of the opt-in elastic outline term in the distance (0: off; 0.5 retrieves "
+           "best on MPEG-7); needs the objects' outline signatures",
+           low=0.0, high=MAX_WEIGHT),
 )
 
 _BY_NAME: dict[str, Option] = {o.name: o for o in (*OPTIONS, *WEIGHT_OPTIONS)}
