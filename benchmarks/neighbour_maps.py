@@ -1,8 +1,8 @@
 """2-D maps drawn from a neighbour graph, and re-ranking on it, scored on MPEG-7.
 
-Above :data:`napari_pfsdm.cli.FULL_MATRIX_LIMIT` objects ``pfsdm compare --mds`` does not
-compute the n x n matrix: it draws its map from the k-nearest-neighbour graph. Which embedding
-of that graph keeps the kinds of shapes apart best? Run from the repository root::
+Above :data:`napari_pfsdm.analysis.reduction.FULL_MATRIX_LIMIT` objects ``pfsdm compare --mds``
+does not compute the n x n matrix: it draws its map from the k-nearest-neighbour graph. Which
+embedding of that graph keeps the kinds of shapes apart best? Run from the repository root::
 
     .venv/bin/python benchmarks/neighbour_maps.py              # MPEG-7 at ../shared/data/mpeg7
     .venv/bin/python benchmarks/neighbour_maps.py FOLDER --k 10 15 30

@@ -13,7 +13,7 @@ number changed, a negation or a minus sign dropped, a wrong exponent; plus curat
 (:data:`CURATED`): those that once survived the suite, issue 43's guards undone, and the
 four sorts of bug a reviewer planted (a linking gate dropped, a sign in the per-object
 diagnostics, a word in the explanations, a table check forgetting a channel's columns).
-They are drawn from core, analysis, batch/io.py, io_csv.py and cli.py (the napari plugin is
+They are drawn from core, analysis, batch/io.py, io_csv.py and cli/ (the napari plugin is
 tested under Qt, not here; tests/gui never runs). Code that only builds
 messages (``raise``, f-strings, ``help=``) is not mutated.
 
@@ -53,7 +53,7 @@ PKG = Path("src/napari_pfsdm")
 
 #: The modules mutated (relative to src/napari_pfsdm): core and analysis whole, the readers
 #: and writers, the command line.
-TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io_csv.py", "cli.py")
+TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io_csv.py", "cli/*.py")
 
 #: Keyword arguments whose values only shape messages or pictures.
 COSMETIC_KEYWORDS = {"help", "metavar", "figsize", "fontsize", "lw", "alpha", "zorder", "dpi",
@@ -108,7 +108,7 @@ CURATED = [
      "local scale from the 1st instead of the k-th neighbour"),
     ("io_csv.py", 'TEXT_COLUMNS = ("movie", "group", "error", "warnings")',
      'TEXT_COLUMNS = ("group", "error", "warnings")', '"001" movie names read as numbers'),
-    ("cli.py", "boundary_weight=args.boundary_weight)",
+    ("cli/compare.py", "boundary_weight=args.boundary_weight)",
      "boundary_weight=None)", "compare --boundary-weight ignored", "cmd_compare"),
     # what issue 43 added: each guard undone (tests/test_faults.py must kill them)
     ("core/intensity.py", "bad = ~np.isfinite(values)", "bad = np.isnan(values)",

@@ -319,7 +319,7 @@ def _command_raising(monkeypatch, exc: BaseException):
     ModuleNotFoundError("No module named 'napari_pfsdm.gone'", name="napari_pfsdm.gone"),
 ])
 def test_a_bug_says_it_is_a_bug_and_where_to_report_it(tmp_path, capsys, monkeypatch, exc):
-    from napari_pfsdm.cli import BUG_REPORT
+    from napari_pfsdm.cli.common import BUG_REPORT
 
     _command_raising(monkeypatch, exc)
     assert main(["compare", "x.csv", "-o", str(tmp_path / "d.csv")]) == 1
@@ -352,7 +352,7 @@ def test_an_input_error_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch, ex
 
 
 def test_the_bug_report_words_are_the_readmes():
-    from napari_pfsdm.cli import BUG_REPORT
+    from napari_pfsdm.cli.common import BUG_REPORT
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     assert " ".join(BUG_REPORT.split()) in " ".join(readme.split())

@@ -120,19 +120,30 @@ def test_importing_a_layer_stays_light(module, heavy):
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []
 
 
-def test_no_import_circle_in_core():
-    """core's modules import each other without a cycle (descriptor <-> medial_axis was one)."""
+@pytest.mark.parametrize("package", ["core", "cli"])
+def test_no_import_circle_inside(package):
+    """A package's modules import each other without a cycle (core: descriptor <-> medial_axis
+    was one; cli: the parser imports the commands, a command never imports the parser)."""
+    modules = {path.stem for path in (SRC / package).glob("*.py")}
     graph = {}
-    for path in (SRC / "core").glob("*.py"):
+    for path in (SRC / package).glob("*.py"):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         deps = set()
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and node.level == 1:
                 if node.module:  # from .sdf import ...
                     deps.add(node.module.split(".")[0])
-                else:  # from . import distances3d (an import cycle can hide in this form)
-                    deps.update(alias.name for alias in node.names)
-        graph[path.stem] = deps
+                else:  # from . import distances3d (an import cycle can hide in this form);
+                    # a name that is no module is the package's own (its __init__)
+                    deps.update(a.name if a.name in modules else "__init__" for a in node.names)
+            elif isinstance(node, ast.ImportFrom | ast.Import):
+                names = [node.module or ""] if isinstance(node, ast.ImportFrom) else [
+                    a.name for a in node.names]
+                for name in names:  # the absolute form: napari_pfsdm.cli(.module)
+                    parts = name.split(".")
+                    if parts[:2] == ["napari_pfsdm", package]:
+                        deps.add(parts[2] if len(parts) > 2 else "__init__")
+        graph[path.stem] = deps - {path.stem}
 
     def visit(node, stack):
         assert node not in stack, " -> ".join([*stack, node])

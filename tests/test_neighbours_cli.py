@@ -12,8 +12,8 @@ import pytest
 import tifffile
 
 import napari_pfsdm as P
-from napari_pfsdm import cli
 from napari_pfsdm.analysis.rerank import rerank
+from napari_pfsdm.cli import compare as compare_command
 from napari_pfsdm.cli import main
 from napari_pfsdm.io_csv import read_table_csv
 from test_cli_options import three_objects
@@ -149,8 +149,8 @@ def test_neighbours_refuses_what_it_cannot_do(features, tmp_path, capsys):
 
 def test_the_map_comes_from_the_graph_above_the_limit(features, tmp_path, capsys,
                                                       monkeypatch):
-    monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 5)
-    monkeypatch.setattr(cli, "TSNE_SLOW", 10)  # 12 objects: "slow", suggest UMAP
+    monkeypatch.setattr(compare_command, "FULL_MATRIX_LIMIT", 5)
+    monkeypatch.setattr(compare_command, "TSNE_SLOW", 10)  # 12 objects: "slow", suggest UMAP
     png = tmp_path / "map.png"
     assert main(["compare", str(features), "--neighbours", "3", "-o",
                  str(tmp_path / "e.csv"), "--mds", str(png)]) == 0
@@ -164,7 +164,7 @@ def test_the_map_comes_from_the_graph_above_the_limit(features, tmp_path, capsys
     said = capsys.readouterr()
     assert "spectral embedding map of the 11-nearest-neighbour graph, not MDS" in said.out
     assert "--map umap" not in said.err
-    monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 2000)
+    monkeypatch.setattr(compare_command, "FULL_MATRIX_LIMIT", 2000)
     assert main(["compare", str(features), "--neighbours", "3", "-o",
                  str(tmp_path / "e2.csv"), "--mds", str(tmp_path / "m3.png")]) == 0
     assert "classical MDS of the full matrix" in capsys.readouterr().out
@@ -194,7 +194,7 @@ def test_umap_map_without_umap_learn_says_what_to_install(monkeypatch, features,
     import sys
 
     monkeypatch.setitem(sys.modules, "umap", None)
-    monkeypatch.setattr(cli, "FULL_MATRIX_LIMIT", 5)
+    monkeypatch.setattr(compare_command, "FULL_MATRIX_LIMIT", 5)
     assert main(["compare", str(features), "--neighbours", "3", "-o", str(tmp_path / "e.csv"),
                  "--mds", str(tmp_path / "m.png"), "--map", "umap"]) == 2
     assert 'pip install "napari-pfsdm[umap]"' in capsys.readouterr().err

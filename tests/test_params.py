@@ -17,7 +17,8 @@ from sklearn.base import clone
 
 import napari_pfsdm as P
 from napari_pfsdm.analysis.transformer import PFSDMTransformer
-from napari_pfsdm.cli import _measure_options, build_parser, main
+from napari_pfsdm.cli import build_parser, main
+from napari_pfsdm.cli.measure import _measure_options
 from napari_pfsdm.core.descriptor3d import DEFAULTS_3D, pfsdm3d
 from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, OPTIONS, PFSDMParams, check_record, option

@@ -1,0 +1,175 @@
+"""``pfsdm demo``: the whole analysis on bundled synthetic data.
+
+It starts with two reports of :mod:`napari_pfsdm.experiments` (the five-shape benchmark, the
+gastruloid axis-number report), then runs ``pfsdm measure``, ``pfsdm trajectories`` and
+``pfsdm compare`` on a synthetic time-lapse through the commands' own functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+from pathlib import Path
+from types import ModuleType
+
+from . import compare, trajectories
+from .common import UserError, _check_output, _say
+
+#: The reports the demo runs first: (title, module of napari_pfsdm.experiments).
+EXAMPLES = (
+    ("synthetic five-shape benchmark", "synthetic_five_shapes"),
+    ("gastruloid axis-number report", "gastruloid_report"),
+)
+
+
+def load_example(name: str) -> ModuleType:
+    """Import the module ``napari_pfsdm.experiments.<name>``."""
+    return importlib.import_module(f"..experiments.{name}", __package__)
+
+
+def _run_examples(out: Path) -> list[str]:
+    """Run the reports of :data:`EXAMPLES` (quick) into ``out``; the titles of those that
+    failed (the demo goes on without them)."""
+    failed = []
+    for title, name in EXAMPLES:
+        try:
+            mod = load_example(name)
+        except ImportError as exc:
+            _say(f"== {title} ==")
+            _say(f"   skipped: experiments.{name} is not available ({exc})")
+            continue
+        _say(f"== {title} ({mod.__name__}.run) ==")
+        try:
+            mod.run(out, quick=True)
+        except Exception as exc:  # keep going: the other parts of the demo still run
+            print(f"pfsdm: warning: {title} failed: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
+            failed.append(title)
+    return failed
+
+
+def _command_args(module: ModuleType, argv: list[str]) -> argparse.Namespace:
+    """``argv`` (the command's name first) parsed by the parser the command's module
+    declares: its defaults and checks, as on the command line."""
+    parser = argparse.ArgumentParser(prog="pfsdm")
+    module.add_parser(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Run ``pfsdm demo``: the reports, then the time-lapse measured, traced and compared."""
+    import pandas as pd
+    import tifffile
+
+    out = Path(args.output)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
+    from ..io_csv import written_by_pfsdm
+
+    # a folder an earlier demo filled (its features.csv is pfsdm's): the demo may replace its
+    # own outputs there, plots of older versions (written without pfsdm's PNG mark) included
+    own_folder = written_by_pfsdm(out / "features.csv")
+    _check_output(out / "features.csv")
+    _check_output(out / "mds.png", force=own_folder)  # drawn by the demo itself, below
+    failed = [] if args.quick_only else _run_examples(out)
+
+    _say("== synthetic gastruloid time-lapse: measure, trajectories, distances ==")
+    try:
+        from ..data.gastruloids import make_timelapse_montage
+    except ImportError as exc:
+        raise UserError(f"the bundled synthetic data is not available ({exc})") from exc
+    labels, intensity, groups = make_timelapse_montage(seed=0)
+    tifffile.imwrite(out / "montage_labels.tif", labels, compression="zlib")
+    tifffile.imwrite(out / "montage_intensity.tif", intensity, compression="zlib")
+    pd.DataFrame({"label": list(groups), "group": list(groups.values())}).to_csv(
+        out / "groups.csv", index=False)
+    _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
+         f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
+    common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
+    # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
+    # bar that counts objects as their frames are measured (every frame holds all objects)
+    from ..batch.io import Movie
+    from ..batch.run import run_batch
+
+    n_frames, per_frame = int(labels.shape[0]), len(groups)
+    _say(f"measuring {out / 'montage_labels.tif'} with its reporter -> {out / 'features.csv'}",
+         args.quiet)
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_frames * per_frame, desc="measuring", unit="object",
+                   file=sys.stderr, dynamic_ncols=True)
+
+    def objects_done(name: str, done: int, total: int) -> None:
+        if bar is not None:
+            bar.update(done * per_frame - bar.n)
+            if done >= total:
+                bar.close()  # before the messages about the finished movie
+
+    t0 = time.perf_counter()
+    try:
+        table = run_batch([Movie("montage", out / "montage_labels.tif",
+                                 out / "montage_intensity.tif")], out / "features.csv",
+                          scheduler=args.scheduler, frames_per_task=2, progress=objects_done,
+                          log=lambda m: _say("  " + m, args.quiet), link="auto")
+    finally:
+        if bar is not None:
+            bar.close()
+    _say(f"wrote {out / 'features.csv'} (options in features.csv.json): {len(table)} objects "
+         f"in {time.perf_counter() - t0:.1f} s", args.quiet)
+    last = n_frames - 1
+    rc = trajectories.cmd_trajectories(_command_args(trajectories, [
+        "trajectories", str(out / "features.csv"), "-o", str(out / "pca.csv"),
+        "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"), *common]))
+    rc = rc or compare.cmd_compare(_command_args(compare, [
+        "compare", str(out / "features.csv"), "-o", str(out / "distances.csv"),
+        "--frames", str(last), "--groups", str(out / "groups.csv"),
+        "--intensity-weight", "0.5", *common]))
+    if rc:
+        return rc
+    # the map of the last frame, titled with what it shows
+    from ..analysis.features import drop_failed
+    from ..analysis.reduction import attach_groups, mds_coordinates, read_groups
+    from ..analysis.tables import distance_matrix
+    from ..batch.reports import load_features, plot_mds
+
+    table = load_features(out / "features.csv")
+    shown = attach_groups(drop_failed(table[table["frame"] == last]).reset_index(drop=True),
+                          read_groups(out / "groups.csv"))
+    plot_mds(mds_coordinates(distance_matrix(shown, intensity_weight=0.5)), shown,
+             out / "mds.png",
+             title=f"PF-SDM distances (shape + 0.5 × intensity), 2-D MDS\n"
+                   f"frame {last} (the last) of the time-lapse, {len(shown)} objects")
+    _say(f"wrote {out / 'mds.png'} (classical MDS of frame {last}'s distances)", args.quiet)
+    files = sorted(p.name for p in out.iterdir() if p.is_file())
+    _say(f"demo done: {out} holds {', '.join(files)}")
+    if failed:
+        print(f"pfsdm: error: demo parts failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pfsdm demo``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = sub.add_parser(
+        "demo", formatter_class=fmt,
+        help="run everything on bundled synthetic data (no display needed)",
+        description="""\
+Run the whole analysis on bundled synthetic data and write tables and plots into a folder:
+the five-shape benchmark, the gastruloid axis-number report, and a synthetic gastruloid
+time-lapse measured from TIFF files -> features.csv, pca.csv/pca.png, distances.csv/mds.png.
+""")
+    p.add_argument("-o", "--output", default="results", metavar="DIR",
+                   help="output folder (default: results)")
+    p.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="as for 'pfsdm measure' (default processes)")
+    p.add_argument("--quick-only", action="store_true",
+                   help="skip the two benchmark reports; only the time-lapse part")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_demo)

@@ -1,0 +1,233 @@
+"""``pfsdm measure``: every object of every frame of label movies into one table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from .common import (
+    UserError,
+    _add_force,
+    _check_output,
+    _check_parts,
+    _option_type,
+    _say,
+    _whole,
+)
+from .tables import _warn_untracked
+
+
+def _progress_printer(quiet: bool):
+    """A ``progress(movie, done, total)`` callback drawing one tqdm bar per movie on stderr
+    (redrawn at most every 0.2 s on a terminal, every 5 s in a log file); None when quiet."""
+    if quiet:
+        return None
+    from tqdm import tqdm
+
+    bars: dict = {}
+    interval = 0.2 if sys.stderr.isatty() else 5.0
+
+    def show(name: str, done: int, total: int) -> None:
+        bar = bars.get(name)
+        if bar is None:
+            bar = bars[name] = tqdm(total=total, desc=name[:28], unit="frame", file=sys.stderr,
+                                    mininterval=interval, dynamic_ncols=True)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+
+    return show
+
+
+def _measure_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The method options given on the command line (those left out take the defaults)."""
+    from ..core.params import OPTIONS
+
+    return {o.name: getattr(args, o.name) for o in OPTIONS
+            if getattr(args, o.name, None) is not None}
+
+
+def _add_method_options(p: argparse.ArgumentParser) -> None:
+    """One ``--name`` per option of the record (core.params.OPTIONS): its help, choices and
+    default, generated."""
+    from ..core.params import OPTIONS
+
+    g = p.add_argument_group(
+        "method options (the same as in the napari widget; leave them out for the defaults)"
+    )
+    only = {"2d": "2-D only: ", "3d": "3-D only: ", "both": ""}
+    for opt in OPTIONS:
+        kw: dict[str, Any] = {"dest": opt.name, "type": _option_type(opt),
+                              "help": f"{only[opt.dims]}{opt.help} (default {opt.default})"}
+        if opt.choices:
+            kw["choices"] = opt.choices
+        else:
+            kw["metavar"] = "N" if opt.kind is int else "X"
+        g.add_argument(opt.flag, **kw)
+
+
+def _add_compute_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("where the work runs")
+    g.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="'processes' (default: one process per core of this machine), "
+                        "'threads', 'sync' (one at a time, for debugging), or the address of a "
+                        "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
+    g.add_argument("--workers", type=_whole("--workers", 1), metavar="N",
+                   help="local workers (default: the number of cores)")
+    g.add_argument("--frames-per-task", dest="frames_per_task",
+                   type=_whole("--frames-per-task", 1), metavar="N",
+                   help="whole frames measured per task (default: tasks planned by objects, "
+                        "as the local process pool plans them)")
+
+
+def cmd_measure(args: argparse.Namespace) -> int:
+    """Run ``pfsdm measure``: the label movies measured into one feature table."""
+    from ..analysis.features import warnings_summary
+    from ..batch.io import find_movies, pair_movies
+    from ..batch.run import default_parts_dir, run_batch
+
+    if not args.labels:
+        if args.intensity and len(args.intensity) > 1:
+            raise UserError(
+                f"no label movie given: -i/--intensity took all of {' '.join(args.intensity)}. "
+                "Put the labels first, e.g.: pfsdm measure labels.tif -i reporter.tif "
+                "-o features.csv"
+            )
+        raise UserError("give the label movie(s) to measure, e.g.: pfsdm measure labels.tif "
+                        "-o features.csv")
+    from ..core.params import PFSDMParams
+
+    params = PFSDMParams.from_options(_measure_options(args))  # fails before any file opens
+    if args.axes is not None and args.axes.lower() not in ("yx", "tyx", "zyx", "tzyx"):
+        raise UserError(f"--axes must be yx, tyx, zyx or tzyx (t time, z y x space); got "
+                        f"{args.axes!r}")
+    if args.axes is not None:
+        args.axes = args.axes.lower()
+    if args.spacing is not None and args.axes not in ("zyx", "tzyx"):
+        raise UserError("--spacing is for 3-D objects: say which axes the files have, "
+                        "--axes zyx (a Z-stack) or --axes tzyx (a time-lapse of Z-stacks)")
+    if args.axes is not None:
+        params.check_dimension(3 if "z" in args.axes else 2)
+    labels = find_movies(args.labels)
+    intensity = find_movies(args.intensity) if args.intensity else None
+    out = _check_output(args.output, force=args.force,
+                        inputs=[*labels, *(intensity or [])])
+    _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
+    movies = pair_movies(labels, intensity)
+    _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
+    t0 = time.perf_counter()
+    table = run_batch(
+        movies, out,
+        scheduler=args.scheduler, num_workers=args.workers,
+        frames_per_task=args.frames_per_task,
+        parts_dir=args.parts,
+        progress=_progress_printer(args.quiet),
+        log=lambda m: _say("  " + m, args.quiet),
+        allow_empty=args.allow_empty,
+        params=params,
+        link=args.link,
+        axes=args.axes,
+        spacing=args.spacing,
+        allow_missing_chunks=args.allow_missing_chunks,
+        series=args.series,
+    )
+    dt = time.perf_counter() - t0
+    _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
+         f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
+    summary = warnings_summary(table)
+    if summary:
+        _say(summary[0].upper() + summary[1:], args.quiet)
+    if args.link == "none":
+        _warn_untracked(table, args.quiet)
+    parts = Path(args.parts) if args.parts else default_parts_dir(out)
+    _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
+    return 0
+
+
+def _series_index(text: str) -> int:
+    """``--series``: a whole number (negative counts from the last series)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--series must be a whole number (0 = the first series); got {text!r}") from None
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pfsdm measure``: its options, those of the method from the one record."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = sub.add_parser(
+        "measure", formatter_class=fmt,
+        help="measure the shape (and reporter) of every object in label movies",
+        description="""\
+Measure every object of every frame of label movies into one CSV table.
+
+LABELS are segmentations: each object one whole number, 0 = background; a 2-D image (Y, X) or
+a time-lapse (T, Y, X). Give TIFF files (.tif/.tiff), Zarr arrays (.zarr) or OME-Zarr images
+(the full-resolution level is read), a folder of these, or a glob such as 'plate1/*.tif'
+(quote it). Several movies give one table with a 'movie' column (the file name).
+
+The optional --intensity images (e.g. a Brachyury::mCherry reporter) must have the same size
+as the labels; with several movies they pair by name: movie01_labels.tif <-> movie01_intensity.tif.
+
+Long runs can be resumed: each finished movie is saved in FEATURES.csv.parts/; run the same
+command again after an interruption and finished movies are skipped.
+
+Objects are followed over time: labels from per-frame segmentation (cellpose, StarDist), whose
+ids change between frames, are detected and linked by their centroids into a track_id
+column (--link; 'pfsdm trajectories' follows it). Labels that already follow the
+objects (from a tracker) are kept as they are.
+
+examples:
+  pfsdm measure embryo01_labels.tif --intensity embryo01_reporter.tif -o features.csv
+  pfsdm measure 'plate1/*_labels.zarr' --intensity 'plate1/*_reporter.zarr' -o plate1.csv
+  pfsdm measure archive/ -o archive.csv --scheduler tcp://10.0.0.5:8786
+""")
+    # "*" rather than "+": a labels file swallowed by -i gets a message that says so
+    p.add_argument("labels", nargs="*", metavar="LABELS",
+                   help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
+    p.add_argument("-i", "--intensity", nargs="+", metavar="IMAGE",
+                   help="reporter movie(s) of the same size as the labels")
+    p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
+                   help="the feature table to write (plain CSV; the options go into "
+                        "FEATURES.csv.json beside it: keep the two together). A name "
+                        "ending in .parquet writes Parquet (faster for large tables; pip "
+                        "install \"napari-pfsdm[parquet]\"), which every command reads too")
+    p.add_argument("--allow-empty", dest="allow_empty", action="store_true",
+                   help="write an empty table when the labels hold no object (default: an "
+                        "error, as labels with only background are usually the wrong file)")
+    p.add_argument("--allow-missing-chunks", dest="allow_missing_chunks", action="store_true",
+                   help="measure Zarr movies whose chunk files are not all on disk, reading "
+                        "the missing ones as the fill value (empty), with a warning per frame "
+                        "(default: an error, as a store that lost files in a copy looks "
+                        "just the same)")
+    p.add_argument("--series", type=_series_index, metavar="N",
+                   help="the image series to read from TIFF files that hold several (OME-TIFF "
+                        "positions, a thumbnail beside the image; 0 = the first); such a file "
+                        "is refused without it")
+    _add_force(p)
+    p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
+                   default="auto",
+                   help="follow objects over time (a track_id column): 'auto' (default) "
+                        "checks each movie and, only when its label ids do not follow the "
+                        "objects (per-frame segmentation), links them by their centroids "
+                        "('centroid'); 'centroid', 'overlap' (of the label masks) or "
+                        "'laptrack' (pip install laptrack) always link; 'none' never (a "
+                        "warning says when the labels look untracked)")
+    p.add_argument("--parts", metavar="DIR",
+                   help="folder for per-movie results (default: FEATURES.csv.parts)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    g3 = p.add_argument_group("3-D objects (Z-stacks)")
+    g3.add_argument("--axes", metavar="AXES",
+                    help="which axes the label files have: yx, tyx (a time-lapse of 2-D "
+                         "frames: the default for 3-D files), zyx (one Z-stack of 3-D objects) "
+                         "or tzyx (a time-lapse of Z-stacks; 4-D files must say so)")
+    g3.add_argument("--spacing", nargs=3, type=float, metavar=("Z", "Y", "X"),
+                    help="voxel size along Z, Y and X, e.g. --spacing 2 0.5 0.5 (µm); only "
+                         "with --axes zyx or tzyx (default 1 1 1)")
+    _add_method_options(p)
+    _add_compute_options(p)
+    p.set_defaults(func=cmd_measure)

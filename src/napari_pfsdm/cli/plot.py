@@ -1,0 +1,83 @@
+"""``pfsdm plot``: one column of a table against time."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .common import UserError, _add_groups_link_force_quiet, _check_output, _say
+from .tables import _follow_objects, _with_groups
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    """Draw one column of a table against time: each object's line, each group's mean ± sd."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..analysis.over_time import numeric_columns, plot_over_time
+    from ..io_csv import read_table_csv, save_figure, write_table_csv
+
+    out = _check_output(args.output, "plot", force=args.force, inputs=[args.table])
+    if args.values:
+        _check_output(args.values, force=args.force, inputs=[args.table])
+    if not Path(args.table).is_file():
+        raise UserError(f"{args.table}: no such table")
+    try:
+        table = read_table_csv(args.table)
+    except ValueError as exc:
+        raise UserError(f"{args.table}: {exc}") from None
+    if "frame" not in table.columns or "label" not in table.columns:
+        raise UserError(f"{args.table} has no frame and label columns: give a table from "
+                        "'pfsdm measure' or 'pfsdm trajectories'")
+    if args.column not in numeric_columns(table, raw=True):
+        raise UserError(f"{args.table} has no column of numbers called {args.column!r}; "
+                        f"columns that can be drawn: {', '.join(numeric_columns(table)[:25])}")
+    table = _follow_objects(table, args.link, args.quiet, command="plot")
+    if args.groups:
+        table, _groups = _with_groups(table, args.groups, args.quiet)
+    fig = plt.figure(figsize=(7, 4.5))
+    ax = fig.add_subplot()
+    lines = plot_over_time(ax, table, args.column, selected=args.objects or ())
+    unknown = sorted(set(args.objects or ()) - set(lines["object"]))
+    if unknown:
+        raise UserError(f"no object called {', '.join(unknown)}; objects are named as in "
+                        f"the table's tracks, e.g. {', '.join(lines['object'].unique()[:3])}")
+    ax.set_title(f"{args.column} over time ({lines['object'].nunique():,} objects)", fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, out, dpi=120)
+    plt.close(fig)
+    _say(f"wrote {out}", args.quiet)
+    if args.values:
+        write_table_csv(lines, args.values, table_type="over_time",
+                        extra={"table": str(args.table), "column": args.column})
+        _say(f"wrote {args.values}: {len(lines):,} rows", args.quiet)
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pfsdm plot``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = sub.add_parser(
+        "plot", formatter_class=fmt,
+        help="any measure against time: each object's line, each group's mean ± sd",
+        description="""\
+Draw one column of a table (from 'pfsdm measure', or the PC scores of 'pfsdm trajectories')
+against the frame: one thin line per object (its track), with --groups each group's mean ± sd
+as a band, and the objects named with --objects in red. --values writes what is drawn as a
+CSV (object, frame, label, value, group).
+
+examples:
+  pfsdm plot features.csv --column area -o area.png --groups groups.csv
+  pfsdm plot pca.csv --column shape_PC1 -o pc1.png --objects track3 track7
+""")
+    p.add_argument("table", metavar="TABLE.csv", help="table with frame, label and the column")
+    p.add_argument("--column", required=True, help="the column drawn (a column of numbers)")
+    p.add_argument("-o", "--output", required=True, metavar="PNG")
+    p.add_argument("--objects", nargs="+", metavar="OBJECT",
+                   help="objects drawn in red, named as the table's tracks (track3, or "
+                        "movie/track3 with several movies; a label without track_id)")
+    p.add_argument("--values", metavar="CSV", help="also write the values drawn")
+    _add_groups_link_force_quiet(p)
+    p.set_defaults(func=cmd_plot)

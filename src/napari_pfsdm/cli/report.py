@@ -1,0 +1,116 @@
+"""``pfsdm report``: one self-contained HTML report of a feature table."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+from .common import UserError, _add_groups_link_force_quiet, _check_output, _note, _say, _Step
+from .tables import _follow_objects, _with_groups
+
+
+def _report_labels(paths: Sequence[str], table, quiet: bool):
+    """The label movie(s) of ``pfsdm report --labels``: one array (a table of one movie), or
+    movie name -> array (the file names give the movies' names, as 'pfsdm measure' does)."""
+    from ..batch.io import movie_name, open_movie
+
+    movies = sorted(set(table["movie"].astype(str))) if "movie" in table.columns else []
+    opened = {movie_name(p): open_movie(p) for p in paths}
+    if len(opened) < len(paths):
+        raise UserError("two --labels files have the same movie name; give each movie once")
+    if len(movies) > 1 or (movies and len(paths) > 1):
+        unknown = sorted(set(opened) - set(movies))
+        if unknown:
+            raise UserError(f"--labels {', '.join(unknown)}: no such movie in the table (its "
+                            f"movies: {', '.join(movies[:5])}{' …' if len(movies) > 5 else ''})"
+                            "; give the label movies the table was measured from")
+        missing = sorted(set(movies) - set(opened))
+        if missing:
+            _note(f"no --labels for {len(missing)} movie(s) ({', '.join(missing[:3])}"
+                  f"{' …' if len(missing) > 3 else ''}): their objects are drawn as "
+                  "'not in the labels'", quiet)
+        return opened
+    if len(paths) > 1:
+        raise UserError(f"{len(paths)} --labels files for a table of one movie; give one")
+    return next(iter(opened.values()))
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Write one self-contained HTML report of a feature table."""
+    from ..batch.reports import load_features
+    from ..io_csv import read_sidecar, read_table_csv
+    from ..report import write_report
+
+    inputs = [args.features, *(args.labels or ()),
+              *([args.groups] if args.groups else []),
+              *([args.predictions] if args.predictions else [])]
+    out = _check_output(args.output, "report", force=args.force, inputs=inputs)
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise UserError(f"the report {out} is one HTML file: give a name ending in .html, "
+                        "e.g. -o report.html")
+    table = load_features(args.features)
+    table = _follow_objects(table, args.link, args.quiet, command="report")
+    if args.groups:
+        table, _ = _with_groups(table, args.groups, args.quiet)
+    labels = None
+    if args.labels:
+        from ..analysis.report import check_labels
+
+        labels = _report_labels(args.labels, table, args.quiet)
+        check_labels(labels, table)
+    predictions = info = None
+    if args.predictions:
+        if not Path(args.predictions).is_file():
+            raise UserError(f"{args.predictions}: no such predictions file")
+        try:
+            predictions = read_table_csv(args.predictions)
+        except ValueError as exc:
+            raise UserError(f"{args.predictions}: {exc}") from None
+        if not any(str(c).startswith("p_") for c in predictions.columns):
+            raise UserError(f"{args.predictions} has no p_<group> columns: give the table "
+                            "written by 'pfsdm predict'")
+        info = read_sidecar(args.predictions) or {}
+        if not info.get("curve"):
+            _note(f"{args.predictions} has no accuracy curve in its .json sidecar: the "
+                  "report shows the probabilities' summary only", args.quiet)
+    with _Step(f"writing the report of {len(table):,} rows", args.quiet):
+        write_report(out, table, labels=labels, predictions=predictions,
+                     prediction_info=info, title=args.title, source=str(args.features),
+                     force=args.force)
+    size = out.stat().st_size
+    _say(f"wrote {out} ({size / 1e6:.1f} MB; one file, opens offline in any browser)",
+         args.quiet)
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pfsdm report``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = sub.add_parser(
+        "report", formatter_class=fmt,
+        help="one self-contained HTML report of a run, to share",
+        description="""\
+Write one HTML file that opens offline in any browser and can be mailed as it is: the run's
+options (with what each means), the counts (objects, frames, tracks, rows left out and why),
+each object's trajectory in the PCA plane per group, a few measures over time (each group's
+mean ± sd), what PC1 … PC3 mean (the classic measure each follows, their loadings, the real
+objects at -2σ … +2σ), the prediction curve with --predictions, and a gallery of the most
+extreme objects per PC. Figures are inside the file; nothing is fetched from the internet.
+The outlines of objects need the label movie (--labels).
+
+examples:
+  pfsdm report features.csv -o report.html --groups groups.csv --labels labels.tif
+  pfsdm report features.csv -o report.html --predictions predictions.csv --title "Batch 3"
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("-o", "--output", required=True, metavar="REPORT.html")
+    p.add_argument("--labels", nargs="+", metavar="LABELS.tif",
+                   help="the label movie(s) the table was measured from (TIFF or Zarr), to "
+                        "draw the objects' outlines; several movies are matched by file name")
+    p.add_argument("--predictions", metavar="PREDICTIONS.csv",
+                   help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
+                        "curve)")
+    p.add_argument("--title", metavar="TEXT", help="the report's title")
+    _add_groups_link_force_quiet(p)
+    p.set_defaults(func=cmd_report)

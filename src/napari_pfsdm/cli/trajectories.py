@@ -1,0 +1,119 @@
+"""``pfsdm trajectories``: the PCA of every row, each object a trajectory through shape
+space."""
+
+from __future__ import annotations
+
+import argparse
+
+from .common import UserError, _add_force, _check_output, _say, _Step, _whole
+from .tables import _follow_objects, _measured, _with_groups
+
+
+def cmd_trajectories(args: argparse.Namespace) -> int:
+    """Run ``pfsdm trajectories``: the PC scores of every row, and their plot."""
+    import pandas as pd
+
+    from ..analysis.shape_space import ShapePCA
+    from ..batch.reports import load_features, plot_trajectories
+    from ..core.table_options import table_options
+    from ..core.table_schema import has_channel, pc_columns
+    from ..io_csv import write_table_csv
+
+    out = _check_output(args.output, force=args.force, inputs=[args.features])
+    if args.plot:
+        _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
+        if max(args.show) > args.components:
+            raise UserError(f"--show {args.show[0]} {args.show[1]} names a component above "
+                            f"--components {args.components}; show components from 1 to "
+                            f"{args.components}, or raise --components")
+    table = load_features(args.features)
+    table = _follow_objects(table, args.link, args.quiet)
+    if args.groups:
+        table, _ = _with_groups(table, args.groups, args.quiet)
+    has_int = has_channel(table.columns, "intensity")
+    channels = {"shape": ["shape"], "intensity": ["intensity"],
+                "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
+    if "intensity" in channels and not has_int:
+        raise UserError("the table has no intensity features; measure with --intensity IMAGE")
+    table, left = _measured(table, list(dict.fromkeys(["shape", *channels])), "rows",
+                            args.quiet)
+    scores = None
+    explained = {}
+    reference = None
+    if args.reference:  # a fitted shape space: the reference's axes (analysis.shape_space)
+        reference = load_features(args.reference)
+        reference, _ = _measured(reference, list(dict.fromkeys(["shape", *channels])),
+                                 "reference rows", args.quiet)
+    what = f" in the space of {args.reference}" if args.reference else ""
+    with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)}){what}", args.quiet):
+        for ch in channels:
+            space = ShapePCA(n_components=args.components, channel=ch).fit(
+                table if reference is None else reference)
+            s, ev = space.transform(table), space.explained_variance_ratio_
+            explained[ch] = ev
+            scores = s if scores is None else pd.concat(
+                [scores, s[pc_columns(s.columns, ch)]], axis=1)
+    opts = table_options(table)
+    write_table_csv(scores, out, opts, table_type="pca", extra={
+        "features": str(args.features),
+        **({"reference": str(args.reference)} if args.reference else {}),
+        "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
+        "left_out": left.to_dict("records")})
+    ev_txt = ", ".join(
+        f"{ch}: " + " ".join(f"{100 * v:.2g}%" for v in ev) for ch, ev in explained.items()
+    )
+    _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
+    if args.plot:
+        with _Step(f"drawing {args.plot}", args.quiet):
+            plot_trajectories(scores, args.plot, components=tuple(args.show),
+                              explained=explained)
+        _say(f"wrote {args.plot}", args.quiet)
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pfsdm trajectories``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = sub.add_parser(
+        "trajectories", formatter_class=fmt,
+        help="PCA of all objects over time: one trajectory per object",
+        description="""\
+Principal component analysis of every (movie, frame, object) row. Each object becomes a
+trajectory through shape space over time. Writes the PC scores (CSV) and, with --plot, a
+figure with one line per object, coloured by time or by --groups (shape and reporter side by
+side when the table has reporter features). Rings are weighted as in the distance, so
+distances in the PCA space are PF-SDM distances.
+
+An object is its track (the table's track_id column, from 'pfsdm measure --link') or, without
+one, its label. Labels that do not follow objects between frames (each frame segmented and
+numbered anew) are refused with a message: link them with --link centroid (as 'pfsdm
+measure' does by default).
+
+examples:
+  pfsdm trajectories features.csv -o pca.csv --plot pca.png --groups groups.csv
+  pfsdm trajectories cellpose_features.csv --link centroid -o pca.csv --plot pca.png
+  pfsdm trajectories treated_features.csv --reference control_features.csv -o pca.csv
+""")
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
+    p.add_argument("--plot", metavar="PNG", help="draw the trajectories")
+    p.add_argument("--groups", metavar="GROUPS.csv",
+                   help="CSV with a 'group' column and 'label' and/or 'movie' columns")
+    p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
+                   help="features to analyse (default both when the table has reporter ones)")
+    p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
+                   help="principal components to keep (default 3)")
+    p.add_argument("--reference", metavar="REFERENCE.csv",
+                   help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
+                        "FEATURES.csv is projected into that space; both must be measured "
+                        "with the same options")
+    p.add_argument("--show", type=_whole("--show", 1), nargs=2, default=(1, 2), metavar=("X", "Y"),
+                   help="components drawn on the plot (default 1 2)")
+    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
+                   help="link untracked labels from the table's centroids first "
+                        "('centroid', or 'laptrack' when installed); 'none' draws by label "
+                        "anyway. Default: follow the table's track_id, or its labels when "
+                        "they follow the objects; refuse untracked labels")
+    _add_force(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=cmd_trajectories)
