@@ -41,7 +41,7 @@ Scores
 MPEG-7 CE-Shape-1 (``benchmarks/mpeg7.py``'s loader and preprocessing; read from
 ``../shared/data/mpeg7``, never copied): bull's-eye in % (40 nearest, query included), spread =
 standard deviation of the per-class bull's-eye over the 70 classes (how uneven it is, not an
-uncertainty). Five shapes (``napari_pfsdm.experiments.synthetic_five_shapes``, exact and
+uncertainty). Five shapes (``examples/synthetic_five_shapes.py``, exact and
 perturbed sets, 10 per class): silhouette with the five classes and leave-one-out 1-NN
 accuracy, as the five-shape benchmark reports them (no spread). Gastruloids (the generator as
 ``gastruloid_report`` uses it: 78 objects × 25 frames of 128², seed 0, frames 0–9):
@@ -70,6 +70,7 @@ import pandas as pd  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "examples"))  # the paper's reproductions
 
 #: The scale-free classic measures used where size must not matter (MPEG-7, five shapes).
 SCALE_FREE = ("eccentricity", "solidity", "circularity", "axis_ratio")
@@ -247,7 +248,7 @@ def run_mpeg7(folder: Path, n_classes: int, processes: int) -> list[dict]:
 
 # =========================================================================== five shapes
 def _five_shape_matrices(set_name: str, n_per_class: int, seed: int):
-    from napari_pfsdm.experiments import synthetic_five_shapes as s5
+    import synthetic_five_shapes as s5
 
     masks, labels, _ = s5.build_set(set_name, n_per_class=n_per_class, seed=seed)
     t0 = time.perf_counter()
@@ -278,7 +279,7 @@ def run_five_shapes(n_per_class: int, seed: int) -> list[dict]:
     list of dict
         Two rows (silhouette, 1-NN) per set and method.
     """
-    from napari_pfsdm.experiments import synthetic_five_shapes as s5
+    import synthetic_five_shapes as s5
 
     rows = []
     for set_name in s5.SETS:

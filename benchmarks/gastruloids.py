@@ -7,10 +7,16 @@ downsampled pixels; a small CNN when torch is installed), on the same splits, ti
     python benchmarks/gastruloids.py --out results/gastruloids          # full run
     python benchmarks/gastruloids.py --out results/gastruloids --quick  # smoke run
 
-Writes gastruloid_results.csv, gastruloid_accuracy.png and gastruloid_pca.png in --out.
+Writes gastruloid_results.csv, gastruloid_accuracy.png and gastruloid_pca.png in --out: the
+report of ``examples/gastruloid_report.py``.
 """
 
-from napari_pfsdm.experiments.gastruloid_report import main
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+
+from gastruloid_report import main  # noqa: E402
 
 if __name__ == "__main__":
     main()

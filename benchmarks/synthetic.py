@@ -10,7 +10,7 @@ Five base shapes (circle, elongated, folded, rounded square, branched), each und
 copies and as mildly perturbed copies. Prints the silhouette (5 true classes) and the
 leave-one-out 1-NN accuracy of every distance matrix, and writes
 ``synthetic_benchmark.csv`` and ``synthetic_mds.png`` to ``--out``. The work is done by
-:func:`napari_pfsdm.experiments.synthetic_five_shapes.run` (also what ``pfsdm demo`` runs).
+:func:`run` of ``examples/synthetic_five_shapes.py`` (also what ``pfsdm demo`` runs).
 """
 
 from __future__ import annotations
@@ -23,9 +23,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
-from napari_pfsdm.experiments.synthetic_five_shapes import run  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+
+from synthetic_five_shapes import run  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -72,6 +72,7 @@ import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "examples"))  # the paper's reproductions
 
 import mpeg7  # noqa: E402
 import mpeg7_peers as peers  # noqa: E402
@@ -452,7 +453,7 @@ def five_shapes(viscous: bool) -> list[dict]:
     """The five-shape benchmark's sets (random rotation, reflection, scale; exact and
     perturbed copies): silhouette and 1-NN, to see the exterior rings on data that took no
     part in choosing them."""
-    from napari_pfsdm.experiments.synthetic_five_shapes import build_set, scores
+    from synthetic_five_shapes import build_set, scores
 
     rows = []
     for set_name in ("exact", "perturbed"):

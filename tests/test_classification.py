@@ -4,9 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import pixel_baseline as pb
 from napari_pfsdm.analysis import classification as cl
 from napari_pfsdm.data.gastruloids import make_gastruloids
-from napari_pfsdm.experiments import pixel_baseline as pb
 
 
 @pytest.fixture(scope="module")
@@ -204,7 +204,7 @@ def test_cnn_baseline_runs(small_set):
 
 
 def test_report_writes_table_and_plots(tmp_path):
-    from napari_pfsdm.experiments.gastruloid_report import run
+    from gastruloid_report import run
 
     results = run(tmp_path, n_objects=20, n_frames=6, size=80, frames="3-5", quick=True,
                   pixel=False, cnn=False, verbose=False)
@@ -220,7 +220,7 @@ def test_report_writes_table_and_plots(tmp_path):
 
 
 def test_report_over_seeds_summarises_each_seed(tmp_path):
-    from napari_pfsdm.experiments.gastruloid_report import run_seeds
+    from gastruloid_report import run_seeds
 
     summary = run_seeds(tmp_path, [3, 4], n_objects=20, n_frames=6, size=80, frames="3-5",
                         quick=True, pixel=False, cnn=False, verbose=False)
@@ -236,7 +236,7 @@ def test_report_over_seeds_summarises_each_seed(tmp_path):
 
 
 def test_speed_summary_names_the_ratios():
-    from napari_pfsdm.experiments.gastruloid_report import speed_summary
+    from gastruloid_report import speed_summary
 
     res = pd.DataFrame({"method": ["PF-SDM + logistic", "size + contrast (ref.)", "pixels + CNN"],
                         "time_s": [2.0, 0.5, 30.0]})

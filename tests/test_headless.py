@@ -1,11 +1,12 @@
-"""The library, the analysis, the experiments, the data, the batch and the CLI import no Qt,
-napari or magicgui."""
+"""The library, the analysis, the data, the batch, the CLI and the paper's reproductions
+(``examples/``, imported as ``pfsdm demo`` imports them) import no Qt, napari or magicgui."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -17,7 +18,6 @@ MODULES = [
     "napari_pfsdm.core",
     "napari_pfsdm.analysis",
     "napari_pfsdm.analysis.features",
-    "napari_pfsdm.experiments",
     "napari_pfsdm.data",
     "napari_pfsdm.data.shapes",
     "napari_pfsdm.data.gastruloids",
@@ -26,12 +26,17 @@ MODULES = [
     "napari_pfsdm.io_csv",
 ]
 
+#: The folder of the paper's reproductions, and their modules (outside the package).
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLE_MODULES = sorted(p.stem for p in EXAMPLES.glob("*.py"))
+
 SCRIPT = """
 import importlib, json, pkgutil, sys
+sys.path.insert(0, {examples!r})
 import napari_pfsdm
 names = {names!r}
 # every submodule outside the napari plugin subpackage, too
-for pkg in ("napari_pfsdm.core", "napari_pfsdm.analysis", "napari_pfsdm.experiments",
+for pkg in ("napari_pfsdm.core", "napari_pfsdm.analysis", "napari_pfsdm.cli",
             "napari_pfsdm.data", "napari_pfsdm.batch"):
     mod = importlib.import_module(pkg)
     names += [m.name for m in pkgutil.walk_packages(mod.__path__, pkg + ".")]
@@ -43,12 +48,16 @@ print(json.dumps({{"imported": sorted(set(names)), "bad": bad}}))
 
 
 def test_headless_modules_import_no_gui_toolkit():
-    code = SCRIPT.format(names=MODULES, forbidden=set(FORBIDDEN))
+    code = SCRIPT.format(names=MODULES + EXAMPLE_MODULES, forbidden=set(FORBIDDEN),
+                         examples=str(EXAMPLES))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300, env={"PATH": "/usr/bin:/bin", "QT_API": "pyqt6"})
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert "napari_pfsdm.cli" in result["imported"]
+    assert "napari_pfsdm.cli.demo" in result["imported"]
+    assert {"gastruloid_report", "synthetic_five_shapes", "pixel_baseline"} <= set(
+        result["imported"])
     assert "napari_pfsdm.core" in result["imported"]
     assert result["bad"] == [], f"GUI modules imported headless: {result['bad'][:10]}"
 
@@ -56,7 +65,8 @@ def test_headless_modules_import_no_gui_toolkit():
 def test_the_check_would_notice_a_gui_import():
     """The subprocess check itself works: importing the plugin pulls in napari and Qt."""
     pytest.importorskip("napari")  # without napari there is nothing to show (skipped, said so)
-    code = SCRIPT.format(names=["napari_pfsdm.napari._analysis"], forbidden=set(FORBIDDEN))
+    code = SCRIPT.format(names=["napari_pfsdm.napari._analysis"], forbidden=set(FORBIDDEN),
+                         examples=str(EXAMPLES))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
@@ -69,7 +79,7 @@ def test_the_plugins_model_imports_no_gui_toolkit():
     Python: they run and are tested without Qt or napari."""
     pytest.importorskip("psygnal")
     code = SCRIPT.format(names=["napari_pfsdm.napari._model", "napari_pfsdm.napari._results"],
-                         forbidden=set(FORBIDDEN))
+                         forbidden=set(FORBIDDEN), examples=str(EXAMPLES))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300, env={"PATH": "/usr/bin:/bin", "QT_API": "pyqt6"})
     assert out.returncode == 0, out.stderr

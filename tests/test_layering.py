@@ -23,9 +23,7 @@ ALLOWED = {
     "analysis": {"core", "data", "errors"},
     "io_csv": {"core", "errors"},
     "batch": {"core", "analysis", "data", "io_csv", "errors"},
-    "experiments": {"core", "analysis", "data", "io_csv", "errors"},
-    "cli": {"core", "analysis", "data", "io_csv", "batch", "experiments", "report", "saved",
-            "errors"},
+    "cli": {"core", "analysis", "data", "io_csv", "batch", "report", "saved", "errors"},
     "napari": {"core", "analysis", "data", "io_csv", "report", "saved", "errors"},
     # the HTML report's file: the analysis' page (analysis.report) written as io_csv writes
     "report": {"core", "analysis", "io_csv", "errors"},
@@ -84,12 +82,37 @@ def _violations(path: Path) -> list[tuple[int, str]]:
 MODULES = sorted(p for p in SRC.rglob("*.py"))
 
 
+#: The paper's reproductions, outside the package (``pfsdm demo`` runs two of them from a
+#: checkout): they use the library, as any script would, and nothing of its command line,
+#: batch runs or plugin.
+EXAMPLES = SRC.parents[1] / "examples"
+EXAMPLES_ALLOWED = {"core", "analysis", "data", "io_csv", "errors"}
+
+
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(SRC)))
 def test_imports_follow_the_layers(path):
     assert _layer(path) in ALLOWED, f"{path.relative_to(SRC)}: a new layer, add it to ALLOWED"
     bad = _violations(path)
     assert not bad, (f"{path.relative_to(SRC)} ({_layer(path)}) imports "
                      + ", ".join(f"{t} (line {n})" for n, t in bad))
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.py")), ids=lambda p: p.name)
+def test_examples_use_the_library_only(path):
+    text = path.read_text(encoding="utf-8")
+    tree = ast.parse(text)
+    relative = [node.lineno for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.level]
+    assert not relative, f"examples/{path.name}: a script has no package (lines {relative})"
+    bad = [(line, target) for line, target in _package_imports(text, ("examples", path.name))
+           if target not in EXAMPLES_ALLOWED]
+    assert not bad, f"examples/{path.name} imports " + ", ".join(
+        f"{t} (line {n})" for n, t in bad)
+
+
+def test_the_examples_are_found():
+    assert {p.stem for p in EXAMPLES.glob("*.py")} >= {
+        "synthetic_five_shapes", "gastruloid_report", "pixel_baseline"}
 
 
 def test_the_checker_sees_forbidden_imports():
@@ -158,9 +181,8 @@ def test_no_import_circle_inside(package):
         visit("a_", [])
 
 
-#: Code that may write ``DataFrame.attrs``: the one carrier of a table's options, and the
-#: five-shape benchmark's distance matrices (a report's own side channel, not options).
-ATTRS_WRITERS = {("core", "table_options.py"), ("experiments", "synthetic_five_shapes.py")}
+#: Code that may write ``DataFrame.attrs``: the one carrier of a table's options.
+ATTRS_WRITERS = {("core", "table_options.py")}
 
 
 def _attrs_writes(text: str) -> list[int]:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from napari_pfsdm.experiments import synthetic_five_shapes as SB
+import synthetic_five_shapes as SB
 
 pytest.importorskip("pyefd")
 

@@ -17,7 +17,7 @@ paper's choice on the test split, labelled as such.
 
 A model is the protocol's ``fit_predict(train_idx, predict_idx) -> (p_shape, p_intensity)``
 (:data:`~napari_pfsdm.analysis.prediction.FitPredict`); the pixel baselines in
-:mod:`napari_pfsdm.experiments.pixel_baseline` plug into the same splits.
+``examples/pixel_baseline.py`` plug into the same splits.
 """
 
 from __future__ import annotations

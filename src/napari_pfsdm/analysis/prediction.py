@@ -19,7 +19,7 @@ The protocol, the paper's with one correction:
 A model is any callable ``fit_predict(train_idx, predict_idx)`` that trains on the objects
 ``train_idx`` (and may read their labels only) and returns each channel's class-1
 probabilities for ``predict_idx``; :func:`channel_model` is the logistic one, and the pixel
-baselines of :mod:`napari_pfsdm.experiments.pixel_baseline` plug into the same splits.
+baselines of ``examples/pixel_baseline.py`` plug into the same splits.
 :mod:`napari_pfsdm.analysis.classification` builds the paper's two-channel evaluation on it.
 
 :func:`predict_outcome` runs the protocol on a feature table with a third channel, the classic

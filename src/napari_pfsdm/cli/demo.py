@@ -1,8 +1,11 @@
 """``pfsdm demo``: the whole analysis on bundled synthetic data.
 
-It starts with two reports of :mod:`napari_pfsdm.experiments` (the five-shape benchmark, the
-gastruloid axis-number report), then runs ``pfsdm measure``, ``pfsdm trajectories`` and
-``pfsdm compare`` on a synthetic time-lapse through the commands' own functions.
+The two reports it starts with (the five-shape benchmark, the gastruloid axis-number report)
+are the paper's reproductions in the ``examples/`` folder of a napari-pfsdm checkout, which is
+not installed with the package: the demo runs them when the package runs from a checkout (an
+editable install, as ``scripts/demo.sh`` makes) and says it skipped them otherwise. The
+time-lapse part runs ``pfsdm measure``, ``pfsdm trajectories`` and ``pfsdm compare`` through
+the commands' own functions.
 """
 
 from __future__ import annotations
@@ -17,16 +20,55 @@ from types import ModuleType
 from . import compare, trajectories
 from .common import UserError, _check_output, _say
 
-#: The reports the demo runs first: (title, module of napari_pfsdm.experiments).
+#: The reports the demo runs first: (title, module of the checkout's ``examples/`` folder).
 EXAMPLES = (
     ("synthetic five-shape benchmark", "synthetic_five_shapes"),
     ("gastruloid axis-number report", "gastruloid_report"),
 )
 
 
+def examples_folder() -> Path | None:
+    """The ``examples/`` folder of the checkout the package runs from.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The folder beside ``src/`` when the package is imported from a checkout (an editable
+        install); None for an installed copy of the package, which has none.
+    """
+    folder = Path(__file__).resolve().parents[3] / "examples"
+    return folder if folder.is_dir() else None
+
+
 def load_example(name: str) -> ModuleType:
-    """Import the module ``napari_pfsdm.experiments.<name>``."""
-    return importlib.import_module(f"..experiments.{name}", __package__)
+    """Import the module ``examples/<name>.py`` of the checkout.
+
+    Parameters
+    ----------
+    name : str
+        The module's name, e.g. ``"gastruloid_report"``.
+
+    Returns
+    -------
+    types.ModuleType
+        The module (its folder is on ``sys.path`` while it is imported, so that it finds the
+        modules beside it).
+
+    Raises
+    ------
+    ImportError
+        When the package does not run from a checkout with that module.
+    """
+    folder = examples_folder()
+    if folder is None or not (folder / f"{name}.py").is_file():
+        raise ImportError("the package does not run from a napari-pfsdm checkout, whose "
+                          "examples/ folder holds it; run the demo from a checkout: bash "
+                          "scripts/demo.sh", name=name)
+    sys.path.insert(0, str(folder))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(folder))
 
 
 def _run_examples(out: Path) -> list[str]:
@@ -38,9 +80,9 @@ def _run_examples(out: Path) -> list[str]:
             mod = load_example(name)
         except ImportError as exc:
             _say(f"== {title} ==")
-            _say(f"   skipped: experiments.{name} is not available ({exc})")
+            _say(f"   skipped: examples/{name}.py is not available ({exc})")
             continue
-        _say(f"== {title} ({mod.__name__}.run) ==")
+        _say(f"== {title} (examples/{name}.py) ==")
         try:
             mod.run(out, quick=True)
         except Exception as exc:  # keep going: the other parts of the demo still run

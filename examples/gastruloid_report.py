@@ -2,7 +2,7 @@
 
 Generate gastruloid movies, measure PF-SDM shape and intensity features on the chosen (early)
 frames, predict single- vs multi-axes with the paper's protocol
-(:mod:`napari_pfsdm.analysis.classification`), do the same from pixels (:mod:`.pixel_baseline`:
+(:mod:`napari_pfsdm.analysis.classification`), do the same from pixels (:mod:`pixel_baseline`:
 scikit-learn always, a small CNN when ``torch`` is installed) on the very same splits, and write
 
 * ``gastruloid_results.csv``: accuracy and balanced accuracy (mean, std over splits) per method
@@ -44,8 +44,8 @@ reporter is divided by the object's mean. The outline difference itself appears 
 (the protrusions reach their length at s = 1), so PF-SDM's shape channel is near chance on the
 early frames.
 
-Run it with ``python -m napari_pfsdm.experiments.gastruloid_report --out DIR`` or
-``python benchmarks/gastruloids.py --out DIR``.
+Run it from the repository root with ``python examples/gastruloid_report.py --out DIR``
+(``--quick``: the short run of ``pfsdm demo``) or ``python benchmarks/gastruloids.py --out DIR``.
 """
 
 from __future__ import annotations
@@ -60,12 +60,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..analysis import classification as cl
-from ..core.table_options import carry_options
-from ..core.table_schema import pc_column
-from ..data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
-from ..io_csv import save_figure
-from . import pixel_baseline as pb
+import pixel_baseline as pb
+from napari_pfsdm.analysis import classification as cl
+from napari_pfsdm.core.table_options import carry_options
+from napari_pfsdm.core.table_schema import pc_column
+from napari_pfsdm.data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
+from napari_pfsdm.io_csv import save_figure
 
 __all__ = [
     "build_data", "explain_ranking", "format_seeds_table", "format_table", "main",
@@ -195,7 +195,7 @@ def plot_pca(
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-    from ..analysis.reduction import pca_scores
+    from napari_pfsdm.analysis.reduction import pca_scores
 
     frames = sorted(table["frame"].unique())
     if marks is None:
@@ -454,7 +454,7 @@ def score_fused(
         (predict_outcome scores the balanced accuracy only); ``time_s`` end to end
         (measure and all fits).
     """
-    from ..analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.prediction import predict_outcome
 
     t0 = time.perf_counter()
     table = cl.measure_movies(data.labels, data.intensity, frames=sel, **(measure_options or {}))
@@ -776,7 +776,7 @@ def run_seeds(out_dir: str | Path, seeds: Sequence[int], **kwargs) -> pd.DataFra
 
 
 def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
-    """Command line: ``python -m napari_pfsdm.experiments.gastruloid_report --out DIR``."""
+    """Command line: ``python examples/gastruloid_report.py --out DIR``."""
     p = argparse.ArgumentParser(
         description="Synthetic gastruloids: predict single vs multiple body axes from early "
         "frames with PF-SDM features, against pixel-space baselines."

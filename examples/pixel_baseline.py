@@ -28,8 +28,8 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from ..analysis.classification import FitPredict, parse_frames
-from ..errors import InputError
+from napari_pfsdm.analysis.classification import FitPredict, parse_frames
+from napari_pfsdm.errors import InputError
 
 __all__ = ["augment", "cnn_model", "pixel_stacks", "sklearn_pixel_model", "torch_available"]
 
