@@ -80,7 +80,7 @@ def _check_output(
     inputs: Sequence[str | os.PathLike] = (),
 ) -> Path:
     """Fail early (before any long work) when ``path`` cannot or must not be written."""
-    from .io_csv import check_overwrite
+    from .io import check_overwrite
 
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
@@ -95,9 +95,9 @@ def _check_output(
             raise UserError(f"the {what} {p} is also an input; choose another output name")
     check_overwrite(p, force=force, what=what, table=what not in ("plot", "report"))
     if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
-        from .io_csv import _pyarrow
+        from .io import require_pyarrow
 
-        _pyarrow(p, "writing")
+        require_pyarrow(p, "writing")
     return p
 
 
@@ -443,7 +443,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from .analysis.tables import distance_matrix
     from .batch.reports import load_features
     from .core.table_options import carry_options, table_options
-    from .io_csv import write_table_csv
+    from .io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.mds:
@@ -502,7 +502,7 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     graph with --rerank), never the n x n matrix."""
     from .analysis.reduction import neighbour_table
     from .core.table_options import table_options
-    from .io_csv import write_table_csv
+    from .io import write_table_csv
 
     n = len(table)
     k = args.neighbours
@@ -562,7 +562,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     from .batch.reports import load_features, plot_trajectories
     from .core.table_options import table_options
     from .core.table_schema import has_channel, pc_columns
-    from .io_csv import write_table_csv
+    from .io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.plot:
@@ -624,7 +624,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from .analysis.over_time import numeric_columns, plot_over_time
-    from .io_csv import read_table_csv, save_figure, write_table_csv
+    from .io import read_table_csv, save_figure, write_table_csv
 
     out = _check_output(args.output, "plot", force=args.force, inputs=[args.table])
     if args.values:
@@ -692,7 +692,7 @@ def _report_labels(paths: Sequence[str], table, quiet: bool):
 def cmd_report(args: argparse.Namespace) -> int:
     """Write one self-contained HTML report of a feature table."""
     from .batch.reports import load_features
-    from .io_csv import read_sidecar, read_table_csv
+    from .io import read_sidecar, read_table_csv
     from .report import write_report
 
     inputs = [args.features, *(args.labels or ()),
@@ -830,7 +830,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_options import table_options
-    from .io_csv import write_table_csv
+    from .io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
@@ -868,7 +868,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     from .analysis.reduction import object_ids
     from .batch.reports import load_features
     from .core.table_schema import has_channel
-    from .io_csv import write_table_csv
+    from .io import write_table_csv
 
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])
@@ -953,7 +953,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
-    from .io_csv import written_by_pfsdm
+    from .io import written_by_pfsdm
 
     # a folder an earlier demo filled (its features.csv is pfsdm's): the demo may replace its
     # own outputs there, plots of older versions (written without pfsdm's PNG mark) included

@@ -64,7 +64,7 @@ from ..analysis import classification as cl
 from ..core.table_options import carry_options
 from ..core.table_schema import pc_column
 from ..data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
-from ..io_csv import save_figure
+from ..io import save_figure
 from . import pixel_baseline as pb
 
 __all__ = [

@@ -45,7 +45,7 @@ from ..analysis.retrieval import loo_1nn_fraction
 from ..core import DEFAULTS, distance_matrix, pfsdm
 from ..data.shapes import base_shapes, make_benchmark_set
 from ..errors import InputError
-from ..io_csv import save_figure
+from ..io import save_figure
 
 __all__ = [
     "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",
