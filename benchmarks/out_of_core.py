@@ -129,7 +129,7 @@ def main(argv=None) -> int:
             return proc.returncode
         children_maxrss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
 
-        from napari_pfsdm.io_csv import read_table_csv
+        from napari_pfsdm.io import read_table_csv
 
         tab = read_table_csv(table)
         n_err = int(tab["error"].ne("").sum())

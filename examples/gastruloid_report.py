@@ -65,7 +65,7 @@ from napari_pfsdm.analysis import classification as cl
 from napari_pfsdm.core.table_options import carry_options
 from napari_pfsdm.core.table_schema import pc_column
 from napari_pfsdm.data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
-from napari_pfsdm.io_csv import save_figure
+from napari_pfsdm.io import save_figure
 
 __all__ = [
     "build_data", "explain_ranking", "format_seeds_table", "format_table", "main",

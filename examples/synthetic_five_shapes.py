@@ -50,7 +50,7 @@ from napari_pfsdm.analysis.retrieval import loo_1nn_fraction
 from napari_pfsdm.core import DEFAULTS, distance_matrix, pfsdm
 from napari_pfsdm.data.shapes import base_shapes, make_benchmark_set
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io_csv import save_figure
+from napari_pfsdm.io import save_figure
 
 __all__ = [
     "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",

@@ -2,7 +2,7 @@
 """Mutation test of the non-GUI suite: how many plausible one-line bugs do the tests catch?
 
     python scripts/mutation.py                      # the documented sample (docs/testing.md)
-    python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io_csv.py
+    python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io/tables.py
     python scripts/mutation.py --list               # the mutants it would try, nothing run
     python scripts/mutation.py --curated-only --modules analysis/tracking.py \
         --tests tests/test_tracking.py tests/test_linking_gates.py   # targeted
@@ -13,7 +13,7 @@ number changed, a negation or a minus sign dropped, a wrong exponent; plus curat
 (:data:`CURATED`): those that once survived the suite, issue 43's guards undone, and the
 four sorts of bug a reviewer planted (a linking gate dropped, a sign in the per-object
 diagnostics, a word in the explanations, a table check forgetting a channel's columns).
-They are drawn from core, analysis, batch/io.py, io_csv.py and cli/ (the napari plugin is
+They are drawn from core, analysis, batch/io.py, io/ and cli/ (the napari plugin is
 tested under Qt, not here; tests/gui never runs). Code that only builds
 messages (``raise``, f-strings, ``help=``) is not mutated.
 
@@ -53,7 +53,7 @@ PKG = Path("src/napari_pfsdm")
 
 #: The modules mutated (relative to src/napari_pfsdm): core and analysis whole, the readers
 #: and writers, the command line.
-TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io_csv.py", "cli/*.py")
+TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io/*.py", "cli/*.py")
 
 #: Keyword arguments whose values only shape messages or pictures.
 COSMETIC_KEYWORDS = {"help", "metavar", "figsize", "fontsize", "lw", "alpha", "zorder", "dpi",
@@ -106,7 +106,7 @@ CURATED = [
     ("analysis/rerank.py", "sigma = np.take_along_axis(off, order[:, -1:], axis=1)[:, 0]",
      "sigma = np.take_along_axis(off, order[:, :1], axis=1)[:, 0]",
      "local scale from the 1st instead of the k-th neighbour"),
-    ("io_csv.py", 'TEXT_COLUMNS = ("movie", "group", "error", "warnings")',
+    ("io/tables.py", 'TEXT_COLUMNS = ("movie", "group", "error", "warnings")',
      'TEXT_COLUMNS = ("group", "error", "warnings")', '"001" movie names read as numbers'),
     ("cli/compare.py", "boundary_weight=args.boundary_weight)",
      "boundary_weight=None)", "compare --boundary-weight ignored", "cmd_compare"),
@@ -117,9 +117,9 @@ CURATED = [
      "if False:", "missing Zarr chunks never found"),
     ("batch/io.py", "if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:",
      "if False:", "small movies fingerprinted by size and time only"),
-    ("io_csv.py", 'and hashlib.sha256(data).hexdigest() == side["table_sha256"]):',
+    ("io/sidecar.py", 'and hashlib.sha256(data).hexdigest() == side["table_sha256"]):',
      "or True):", "a table paired with any sidecar"),
-    ("io_csv.py", "if not strict and _changed_after(path):", "if _changed_after(path):",
+    ("io/sidecar.py", "if not strict and changed_after(path):", "if changed_after(path):",
      "a damaged part taken for an edit"),
     ("batch/run.py", "if isinstance(exc, BrokenExecutor):", "if False:",
      "a killed worker reported as a bug"),
@@ -629,7 +629,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--per-module", type=int, default=3,
                     help="mutants drawn from each module (default 3)")
     ap.add_argument("--seed", type=int, default=21, help="of the draw (default 21)")
-    ap.add_argument("--modules", nargs="*", help="only these (e.g. core/sdf.py io_csv.py)")
+    ap.add_argument("--modules", nargs="*", help="only these (e.g. core/sdf.py io/tables.py)")
     ap.add_argument("--no-curated", action="store_true", help="leave out the curated mutants")
     ap.add_argument("--timeout", type=float, default=300,
                     help="seconds per mutant before it counts as killed (default 300)")

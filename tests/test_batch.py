@@ -17,9 +17,10 @@ import napari_pfsdm.errors
 from napari_pfsdm.analysis import features as features_module
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch import run as run_module
+from napari_pfsdm.batch import tasks as tasks_module
 from napari_pfsdm.batch.io import check_labels
 from napari_pfsdm.core.params import as_params
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table_csv, write_table_csv
 from unguarded_script import run_once
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
@@ -365,7 +366,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     out = tmp_path / "out" / "features.csv"
     out.parent.mkdir()
     calls = []
-    real = run_module._measure_task
+    real = tasks_module._measure_task
 
     def dies_on_b(*args, **kw):
         calls.append(1)
@@ -373,7 +374,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return real(*args, **kw)
 
-    monkeypatch.setattr(run_module, "_measure_task", dies_on_b)
+    monkeypatch.setattr(tasks_module, "_measure_task", dies_on_b)
     with pytest.raises(KeyboardInterrupt):
         run_batch(movies, out, scheduler="sync", n_fourier=5)
     assert not out.exists()  # no final CSV from a killed run
@@ -381,7 +382,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     assert len(parts) == 2 and parts[0].startswith("a-") and parts[1].startswith("a-")
 
     calls.clear()
-    monkeypatch.setattr(run_module, "_measure_task", real)
+    monkeypatch.setattr(tasks_module, "_measure_task", real)
     log = []
     table = run_batch(movies, out, scheduler="sync", log=log.append, n_fourier=5)
     assert log[0].startswith("skipped a") and log[1].startswith("measured b")

@@ -14,7 +14,7 @@ import tifffile
 
 import napari_pfsdm
 from napari_pfsdm.cli import main
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table_csv, write_table_csv
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
 

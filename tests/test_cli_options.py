@@ -13,7 +13,7 @@ import pytest
 import tifffile
 
 from napari_pfsdm.cli import main
-from napari_pfsdm.io_csv import read_table_csv
+from napari_pfsdm.io import read_table_csv
 
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
 

@@ -269,19 +269,19 @@ def broken_pool(*args, **kwargs):
 
 def test_a_killed_worker_is_a_plain_message_and_finished_movies_stay(tmp_path, monkeypatch,
                                                                        capsys):
-    from napari_pfsdm.batch import run as run_module
+    from napari_pfsdm.batch import tasks
 
     for name in ("a", "b"):
         write_tiff_movie(tmp_path / f"{name}.tif")
     out = tmp_path / "f.csv"
-    real = run_module._run_local
+    real = tasks._run_local
     seen: list = []
 
     def dies_on_b(*args, **kwargs):
         seen.append(1)
         return real(*args, **kwargs) if len(seen) == 1 else broken_pool()
 
-    monkeypatch.setattr(run_module, "_run_local", dies_on_b)
+    monkeypatch.setattr(tasks, "_run_local", dies_on_b)
     assert main(["measure", str(tmp_path / "a.tif"), str(tmp_path / "b.tif"), "-o", str(out),
                  "--scheduler", "sync", *CLI_FAST]) == 2
     err = plain_error(capsys, "worker process", "run the same command again")
@@ -289,7 +289,7 @@ def test_a_killed_worker_is_a_plain_message_and_finished_movies_stay(tmp_path, m
     parts = sorted(p.name for p in (tmp_path / "f.csv.parts").iterdir())
     assert [p[:2] for p in parts if not p.endswith(".json")] == ["a-"]  # a is kept
     assert not out.exists()
-    monkeypatch.setattr(run_module, "_run_local", real)  # the re-run resumes
+    monkeypatch.setattr(tasks, "_run_local", real)  # the re-run resumes
     assert main(["measure", str(tmp_path / "a.tif"), str(tmp_path / "b.tif"), "-o", str(out),
                  "--scheduler", "sync", *CLI_FAST]) == 0
     assert pf.read_table(out)["movie"].tolist() == ["a", "a", "b", "b"]
@@ -336,7 +336,7 @@ def test_a_lost_cluster_is_a_plain_message(fault):
     from distributed.client import FutureCancelledError
     from distributed.comm.core import CommClosedError
 
-    from napari_pfsdm.batch.run import environment_fault
+    from napari_pfsdm.batch.tasks import environment_fault
 
     exc = {"KilledWorker": distributed.KilledWorker("pfsdm-chunk-0", None, 3),
            "CommClosedError": CommClosedError("in <TCP (closed)>: Stream is closed"),
@@ -471,7 +471,7 @@ def test_a_planted_symlink_never_redirects_a_write(tmp_path):
 def test_a_sidecar_from_another_write_is_refused_in_plain_words(tmp_path):
     import shutil
 
-    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table_csv, write_table_csv
 
     a, b = tmp_path / "a.csv", tmp_path / "b" / "a.csv"
     b.parent.mkdir()
@@ -496,7 +496,7 @@ def pd_frame():
 def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
     import threading
 
-    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table_csv, write_table_csv
 
     out = tmp_path / "t.csv"
     base = pd_frame()
@@ -530,7 +530,7 @@ def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
 
 
 def test_a_second_run_into_the_same_output_refuses(tmp_path, capsys):
-    from napari_pfsdm.io_csv import output_lock
+    from napari_pfsdm.io import output_lock
 
     write_tiff_movie(tmp_path / "m.tif")
     out = tmp_path / "f.csv"
@@ -827,7 +827,7 @@ def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
 def test_a_table_edited_in_place_is_read_with_a_warning(tmp_path):
     import os
 
-    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table_csv, write_table_csv
 
     path = tmp_path / "t.csv"
     write_table_csv(pd_frame(), path, {"v": 1})
@@ -843,7 +843,7 @@ def test_a_table_edited_in_place_is_read_with_a_warning(tmp_path):
 def test_without_flock_the_lock_is_an_exclusive_file(tmp_path, monkeypatch):
     import sys
 
-    from napari_pfsdm.io_csv import output_lock
+    from napari_pfsdm.io import output_lock
 
     monkeypatch.setitem(sys.modules, "fcntl", None)  # as on Windows
     out = tmp_path / "t.csv"

@@ -65,7 +65,7 @@ FORMULA_NAMES = ["=1+1", "+SUM(A1)", "-2+3", "@cmd", "\tx", "\rx", "'=quoted"]
 
 @pytest.mark.parametrize("name", FORMULA_NAMES)
 def test_a_text_cell_is_never_a_formula_and_reads_back_the_same(tmp_path, name):
-    from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table_csv, write_table_csv
 
     df = pd.DataFrame({"movie": [name, "e1"], "group": ["a", name], "frame": [0, 1],
                        "x": [-1.5, 2.0], "n": [-3, 4]})

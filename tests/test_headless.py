@@ -23,7 +23,7 @@ MODULES = [
     "napari_pfsdm.data.gastruloids",
     "napari_pfsdm.batch",
     "napari_pfsdm.cli",
-    "napari_pfsdm.io_csv",
+    "napari_pfsdm.io",
 ]
 
 #: The folder of the paper's reproductions, and their modules (outside the package).

@@ -21,17 +21,17 @@ ALLOWED = {
     "core": {"errors"},
     "data": {"core", "errors"},
     "analysis": {"core", "data", "errors"},
-    "io_csv": {"core", "errors"},
-    "batch": {"core", "analysis", "data", "io_csv", "errors"},
-    "cli": {"core", "analysis", "data", "io_csv", "batch", "report", "saved", "errors"},
-    "napari": {"core", "analysis", "data", "io_csv", "report", "saved", "errors"},
-    # the HTML report's file: the analysis' page (analysis.report) written as io_csv writes
-    "report": {"core", "analysis", "io_csv", "errors"},
-    # an analysis kept in a folder: its tables written as io_csv writes them, its labels read
+    "io": {"core", "errors"},
+    "batch": {"core", "analysis", "data", "io", "errors"},
+    "cli": {"core", "analysis", "data", "io", "batch", "report", "saved", "errors"},
+    "napari": {"core", "analysis", "data", "io", "report", "saved", "errors"},
+    # the HTML report's file: the analysis' page (analysis.report) written as io writes
+    "report": {"core", "analysis", "io", "errors"},
+    # an analysis kept in a folder: its tables written as io writes them, its labels read
     # back from their file as batch reads movies
-    "saved": {"core", "analysis", "io_csv", "batch", "errors"},
+    "saved": {"core", "analysis", "io", "batch", "errors"},
     "__main__": {"cli"},
-    "__init__": {"core", "analysis", "io_csv", "errors"},
+    "__init__": {"core", "analysis", "io", "errors"},
     "_version": set(),
     # the one exception class for input a user can fix: imports nothing, used by every layer
     "errors": set(),
@@ -86,7 +86,7 @@ MODULES = sorted(p for p in SRC.rglob("*.py"))
 #: checkout): they use the library, as any script would, and nothing of its command line,
 #: batch runs or plugin.
 EXAMPLES = SRC.parents[1] / "examples"
-EXAMPLES_ALLOWED = {"core", "analysis", "data", "io_csv", "errors"}
+EXAMPLES_ALLOWED = {"core", "analysis", "data", "io", "errors"}
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(SRC)))

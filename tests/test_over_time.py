@@ -71,7 +71,7 @@ def test_pfsdm_plot_draws_the_column_and_writes_what_it_drew(tmp_path, capsys):
     from PIL import Image
 
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io_csv import write_table_csv
+    from napari_pfsdm.io import write_table_csv
 
     table = _table()
     path = tmp_path / "t.csv"

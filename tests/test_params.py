@@ -12,6 +12,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from sklearn.base import clone
 
@@ -23,7 +24,7 @@ from napari_pfsdm.core.descriptor3d import DEFAULTS_3D, pfsdm3d
 from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, OPTIONS, PFSDMParams, check_record, option
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io_csv import read_table_csv, sidecar_path, write_table_csv
+from napari_pfsdm.io import read_table_csv, sidecar_path, write_table_csv
 
 
 def labels():
@@ -167,6 +168,23 @@ def test_an_option_given_at_any_door_reaches_the_record():
     assert res.radii.tolist() == ring_radii(5, "boundary").tolist()
 
 
+def test_the_sidecar_door_carries_every_option_as_the_record_says(tmp_path):
+    """A table's sidecar holds every option of the record, defaults and changed values alike,
+    and gives back the same PFSDMParams: what a table was measured with is never lost."""
+    for params in (PFSDMParams(), PFSDMParams(**CHANGED)):
+        path = write_table_csv(pd.DataFrame({"area": [1.0]}), tmp_path / "t.csv",
+                               params.record())
+        written = json.loads(sidecar_path(path).read_text())["options"]
+        assert {o.name for o in OPTIONS} <= set(written)
+        back = read_table_csv(path).attrs["pfsdm"]
+        # the rings are recorded as their radii (a placement's name becomes its numbers)
+        assert back["radii"] == ring_radii(params.n_radii, params.radii).tolist()
+        assert all(back[o.name] == getattr(params, o.name) for o in OPTIONS
+                   if o.name != "radii"), back
+        again = PFSDMParams.from_options({o.name: back[o.name] for o in OPTIONS})
+        assert again.record() == params.record()
+
+
 #: Bad values: out of range (10**12 Fourier modes would allocate gigabytes), the wrong type,
 #: not finite, not whole.
 BAD = [("n_fourier", 0), ("n_fourier", 10**12), ("n_fourier", "ten"), ("n_radii", 10**6),
@@ -191,6 +209,10 @@ def test_a_bad_value_gets_the_same_words_at_every_door(name, value, tmp_path, ca
         "transformer": lambda: PFSDMTransformer(**{name: value}).fit([mask]),
         "a table's record": lambda: check_record({name: value}),
     }
+    # a table's sidecar naming the value: refused when the table is read, before any row
+    table = tmp_path / "t.csv"
+    write_table_csv(pd.DataFrame({"area": [1.0]}), table, {name: value})
+    doors["a table's sidecar"] = lambda: read_table_csv(table)
     for door, call in doors.items():
         with pytest.raises(InputError) as info:
             call()

@@ -16,7 +16,7 @@ import tifffile
 import napari_pfsdm as P
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_options import plain
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table_csv, write_table_csv
 from test_cli_options import three_objects
 
 #: Writing and reading Parquet needs pyarrow (the [parquet] extra); the message given without

@@ -84,7 +84,7 @@ def test_the_command_line_writes_each_objects_probabilities(two_sizes, tmp_path,
     import json
 
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io_csv import write_table_csv
+    from napari_pfsdm.io import write_table_csv
 
     table, groups = two_sizes
     write_table_csv(table, tmp_path / "features.csv", table.attrs["pfsdm"],

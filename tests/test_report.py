@@ -24,7 +24,7 @@ from napari_pfsdm import measure
 from napari_pfsdm.cli import main
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io_csv import write_table_csv
+from napari_pfsdm.io import write_table_csv
 from napari_pfsdm.report import write_report
 
 #: A group name a person could type, that HTML must not read as markup.

@@ -119,7 +119,7 @@ def test_shape_modes_pick_the_objects_nearest_mean_plus_sigmas():
 
 def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, capsys):
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io_csv import write_table_csv
+    from napari_pfsdm.io import write_table_csv
 
     reference, other = tables
     write_table_csv(reference, tmp_path / "control.csv", reference.attrs["pfsdm"],

@@ -21,7 +21,7 @@ from napari_pfsdm.core.medial_axis import branch_paths
 from napari_pfsdm.core.pushforward import FourierMap
 from napari_pfsdm.core.sph_harm import legendre_table
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io_csv import read_table_csv
+from napari_pfsdm.io import read_table_csv
 
 
 def disk(radius: float, size: int = 96) -> np.ndarray:

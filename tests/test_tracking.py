@@ -14,7 +14,7 @@ from napari_pfsdm.analysis.reduction import object_ids, pca_scores
 from napari_pfsdm.core.table_schema import NO_TRACK, TRACK_COLUMN
 from napari_pfsdm.data.moving_blobs import centroid_table as centroids
 from napari_pfsdm.data.moving_blobs import make_moving_blobs, relabel
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table_csv, write_table_csv
 
 
 @pytest.fixture(scope="module")

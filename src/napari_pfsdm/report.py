@@ -19,7 +19,7 @@ import pandas as pd
 
 from .analysis.report import REPORT_COLUMNS, report_html
 from .errors import InputError
-from .io_csv import atomic_write, check_overwrite
+from .io import atomic_write, check_overwrite
 
 __all__ = ["write_report"]
 

@@ -137,7 +137,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
     ValueError
         A file of the folder exists and napari-pfsdm did not write it (without ``force``).
     """
-    from .io_csv import _version, atomic_write, check_overwrite, write_table_csv
+    from .io import atomic_write, check_overwrite, write_table_csv, writer_name
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -175,7 +175,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
         if array is not None:
             sources[key] = {"name": (names or {}).get(key), "path": (paths or {}).get(key),
                             **fingerprint(array)}
-    manifest = {"written_by": f"napari-pfsdm {_version().split()[-1]}", "format": FORMAT,
+    manifest = {"written_by": f"napari-pfsdm {writer_name().split()[-1]}", "format": FORMAT,
                 "files": files, "sources": sources, "rows": len(table)}
     atomic_write(manifest_path, lambda h: h.write(json.dumps(manifest, indent=1)))
     return folder
@@ -199,7 +199,7 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         Not an analysis folder, a file of it missing, or data that changed (what differs and
         what to do, in words).
     """
-    from .io_csv import read_table_csv
+    from .io import read_table_csv
 
     folder = Path(folder)
     manifest_path = folder / ANALYSIS_FILE

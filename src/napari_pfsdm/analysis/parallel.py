@@ -159,7 +159,7 @@ def task_count(total: int, workers: int, per_worker: int | None = None,
     than :data:`MIN_TASK_OBJECTS` objects (unless there are fewer objects than workers) nor,
     when ``limited``, larger than :data:`MAX_TASK_OBJECTS`. The one rule of the package: the
     pool here (with the defaults) and :func:`napari_pfsdm.batch.measure_dask` (dask's
-    workers: :data:`napari_pfsdm.batch.run.DASK_TASKS_PER_WORKER`, not limited) plan their
+    workers: :data:`napari_pfsdm.batch.tasks.DASK_TASKS_PER_WORKER`, not limited) plan their
     tasks with it.
 
     Examples

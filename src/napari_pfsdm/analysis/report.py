@@ -38,7 +38,7 @@ from ..errors import InputError
 __all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
 #: The ``<meta name="generator">`` a report carries: how napari-pfsdm recognises a report it
-#: wrote (``io_csv.written_by_pfsdm``), so that writing it again needs no ``--force``.
+#: wrote (``io.written_by_pfsdm``), so that writing it again needs no ``--force``.
 GENERATOR = "napari-pfsdm"
 #: The measures drawn over time by default (those the table has).
 REPORT_COLUMNS = ("area", "circularity", "solidity", "intensity_mean")

@@ -8,8 +8,10 @@
   movies.
 """
 
+from ..analysis.schedulers import process_pool
 from .io import Movie, find_movies, open_movie, pair_movies
-from .run import measure_dask, process_pool, run_batch
+from .run import run_batch
+from .tasks import measure_dask
 
 __all__ = ["Movie", "find_movies", "measure_dask", "open_movie", "pair_movies", "process_pool",
            "run_batch"]

@@ -690,7 +690,7 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     name = "pfsdm-read-" + tokenize(str(p.resolve()), frames.identity, frames.shape)
     meta = np.empty((0,) * frames.ndim, dtype=frames.dtype)
     arr = da.from_array(frames, chunks=chunks, name=name, asarray=True, fancy=False, meta=meta)
-    # lets the batch read a task's frames in one call (napari_pfsdm.batch.run._Reader)
+    # lets the batch read a task's frames in one call (napari_pfsdm.batch.tasks._Reader)
     _SOURCES[arr.name] = frames
     return arr
 

@@ -29,7 +29,7 @@ from ..analysis.reduction import (
 from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
 from ..errors import InputError
-from ..io_csv import read_table_csv, save_figure
+from ..io import read_table_csv, save_figure
 
 __all__ = [
     "KEY_COLUMNS",

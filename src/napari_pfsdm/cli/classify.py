@@ -64,7 +64,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     from ..analysis.reduction import object_ids
     from ..batch.reports import load_features
     from ..core.table_options import table_options
-    from ..io_csv import write_table_csv
+    from ..io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
@@ -103,7 +103,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     from ..analysis.reduction import object_ids
     from ..batch.reports import load_features
     from ..core.table_schema import has_channel
-    from ..io_csv import write_table_csv
+    from ..io import write_table_csv
 
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])

@@ -71,7 +71,7 @@ def _check_output(
     inputs: Sequence[str | os.PathLike] = (),
 ) -> Path:
     """Fail early (before any long work) when ``path`` cannot or must not be written."""
-    from ..io_csv import check_overwrite
+    from ..io import check_overwrite
 
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
@@ -86,9 +86,9 @@ def _check_output(
             raise UserError(f"the {what} {p} is also an input; choose another output name")
     check_overwrite(p, force=force, what=what, table=what not in ("plot", "report"))
     if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
-        from ..io_csv import _pyarrow
+        from ..io import require_pyarrow
 
-        _pyarrow(p, "writing")
+        require_pyarrow(p, "writing")
     return p
 
 

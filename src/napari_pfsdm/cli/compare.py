@@ -118,7 +118,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..analysis.tables import distance_matrix
     from ..batch.reports import load_features
     from ..core.table_options import carry_options, table_options
-    from ..io_csv import write_table_csv
+    from ..io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.mds:
@@ -177,7 +177,7 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     graph with --rerank), never the n x n matrix."""
     from ..analysis.reduction import neighbour_table
     from ..core.table_options import table_options
-    from ..io_csv import write_table_csv
+    from ..io import write_table_csv
 
     n = len(table)
     k = args.neighbours

@@ -110,7 +110,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
-    from ..io_csv import written_by_pfsdm
+    from ..io import written_by_pfsdm
 
     # a folder an earlier demo filled (its features.csv is pfsdm's): the demo may replace its
     # own outputs there, plots of older versions (written without pfsdm's PNG mark) included

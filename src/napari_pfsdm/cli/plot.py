@@ -17,7 +17,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from ..analysis.over_time import numeric_columns, plot_over_time
-    from ..io_csv import read_table_csv, save_figure, write_table_csv
+    from ..io import read_table_csv, save_figure, write_table_csv
 
     out = _check_output(args.output, "plot", force=args.force, inputs=[args.table])
     if args.values:

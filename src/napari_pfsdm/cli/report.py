@@ -39,7 +39,7 @@ def _report_labels(paths: Sequence[str], table, quiet: bool):
 def cmd_report(args: argparse.Namespace) -> int:
     """Write one self-contained HTML report of a feature table."""
     from ..batch.reports import load_features
-    from ..io_csv import read_sidecar, read_table_csv
+    from ..io import read_sidecar, read_table_csv
     from ..report import write_report
 
     inputs = [args.features, *(args.labels or ()),

@@ -17,7 +17,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     from ..batch.reports import load_features, plot_trajectories
     from ..core.table_options import table_options
     from ..core.table_schema import has_channel, pc_columns
-    from ..io_csv import write_table_csv
+    from ..io import write_table_csv
 
     out = _check_output(args.output, force=args.force, inputs=[args.features])
     if args.plot:

@@ -7,7 +7,7 @@ over in others (``merge``; ``concat`` compares the inputs' attrs and fails on nu
 Every producer of a table in the package goes through these helpers instead of touching
 ``attrs`` by hand (``tests/test_layering.py`` holds that outside this module and the CSV
 files' reader and writer no code assigns ``.attrs``); on disk the options live in the CSV's
-JSON sidecar (:mod:`napari_pfsdm.io_csv`).
+JSON sidecar (:mod:`napari_pfsdm.io`).
 
 The helpers take and return pandas DataFrames but import nothing: the core stays free of
 pandas.

@@ -20,7 +20,7 @@ from ..analysis.features import split_failed
 from ..analysis.reduction import distance_table, neighbour_table
 from ..core.glossary import glossary
 from ..core.table_schema import has_channel
-from ..io_csv import check_overwrite, write_table_csv
+from ..io import check_overwrite, write_table_csv
 from ._model import Analysis
 
 #: Largest number of objects whose all-pairs distance matrix is exported.

@@ -1,4 +1,4 @@
-"""Tables through CSV and back (napari_pfsdm.io_csv): awkward values come back as written."""
+"""Tables through CSV and back (napari_pfsdm.io): awkward values come back as written."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from napari_pfsdm.batch.run import _read_part, _write_part
-from napari_pfsdm.io_csv import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table_csv, write_table_csv
 
 
 def awkward() -> pd.DataFrame:
@@ -70,7 +70,7 @@ def test_a_distance_table_keeps_its_row_names(tmp_path):
 
 
 def test_batch_parts_read_back_as_written(tmp_path):
-    # a movie's part goes through the same reader as a table (batch/run.py uses io_csv's)
+    # a movie's part goes through the same reader as a table (batch/run.py uses io's)
     df = awkward()
     _write_part(df, tmp_path / "part.csv", {"n_fourier": 6})
     pd.testing.assert_frame_equal(_read_part(tmp_path / "part.csv"), df)
@@ -79,13 +79,13 @@ def test_batch_parts_read_back_as_written(tmp_path):
 def test_a_table_written_in_small_chunks_is_the_file_pandas_writes_whole(tmp_path, monkeypatch):
     """The CSV is formatted a few rows at a time (a worker thread then holds Python's lock
     only briefly): the file is byte for byte what one ``to_csv`` call writes."""
-    import napari_pfsdm.io_csv as io_csv
+    import napari_pfsdm.io.tables as tables
 
     rng = np.random.default_rng(4)
     df = pd.DataFrame(rng.normal(size=(23, 5)), columns=list("abcde"))
     df.insert(0, "label", np.arange(1, 24))
     df["name"] = [f"cell {i}" for i in range(23)]
-    monkeypatch.setattr(io_csv, "CSV_CHUNK_CELLS", 15)  # two rows per chunk: 12 chunks
-    path = io_csv.write_table_csv(df, tmp_path / "t.csv", {})
+    monkeypatch.setattr(tables, "CSV_CHUNK_CELLS", 15)  # two rows per chunk: 12 chunks
+    path = tables.write_table_csv(df, tmp_path / "t.csv", {})
     assert path.read_text() == df.to_csv(index=False, lineterminator="\n")
     pd.testing.assert_frame_equal(pd.read_csv(path), df)
