@@ -14,7 +14,7 @@ import pytest
 import tifffile
 
 import napari_pfsdm as pf
-from napari_pfsdm.analysis.features import count_objects
+from napari_pfsdm.analysis.label_images import count_objects
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_schema import table_feature_columns
 

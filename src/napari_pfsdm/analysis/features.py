@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import threading
 import warnings
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import ndimage as ndi
 
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
@@ -32,28 +29,28 @@ from ..core.table_schema import (
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
 from .classic import classic_columns, classic_measures, midline_measures
+from .label_images import (
+    check_arrays,
+    check_frames,
+    count_objects,
+    crop_of,
+    frame_at,
+    object_boxes,
+    resolve_axes,
+    voxel_spacing,
+)
+from .schedulers import one_blas_thread
 from .tables import failed_rows
 
 __all__ = [
-    "AXES",
     "ObjectResult",
-    "crop_of",
-    "one_blas_thread",
-    "voxel_spacing",
-    "looks_like_colour",
-    "refuse_colour",
-    "refuse_zero_size",
-    "resolve_axes",
     "FOLDED_WARNING",
-    "count_objects",
     "describe_object",
     "drop_failed",
     "feature_columns",
     "iter_objects",
     "measure",
-    "object_boxes",
     "object_warnings",
-    "present_ids",
     "resolved_options",
     "split_failed",
     "table_from_objects",
@@ -64,121 +61,8 @@ __all__ = [
 #: then leaves the object there, and the features describe the object less faithfully.
 FOLDED_WARNING = 0.05
 
-_BLAS_LOCK = threading.Lock()
-_BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None, "controller": None}
-
-
-@contextmanager
-def one_blas_thread():
-    """Limit BLAS to one thread while objects are computed: one object's matrices are small,
-    threads only add overhead and, with several workers, oversubscribe the cores (parallelism
-    comes from frames: the dask batch). Reference-counted, so that concurrent threads restore
-    the original setting only when the last one leaves."""
-    with _BLAS_LOCK:
-        if _BLAS_STATE["users"] == 0:
-            if _BLAS_STATE["controller"] is None:
-                # finding the BLAS libraries reads the process's memory map (a few ms): once,
-                # after SciPy's own OpenBLAS (its linear algebra, scikit-learn's PCA) is loaded
-                import scipy.linalg  # noqa: F401
-                from threadpoolctl import ThreadpoolController
-
-                _BLAS_STATE["controller"] = ThreadpoolController()
-            _BLAS_STATE["limiter"] = _BLAS_STATE["controller"].limit(limits=1,
-                                                                     user_api="blas")
-        _BLAS_STATE["users"] += 1
-    try:
-        yield
-    finally:
-        with _BLAS_LOCK:
-            _BLAS_STATE["users"] -= 1
-            if _BLAS_STATE["users"] == 0:
-                _BLAS_STATE["limiter"].restore_original_limits()
-
 
 _BASE_COLUMNS = BASE_COLUMNS
-
-#: The axis orders a label image may have (docs/design.md §5, "axes"): ``t`` time, ``z``, ``y``,
-#: ``x`` space. A 2-D array is ``"yx"`` and a 3-D one ``"tyx"`` unless ``axes`` says otherwise;
-#: a 4-D array must say (``"tzyx"``).
-AXES = ("yx", "tyx", "zyx", "tzyx")
-
-
-def resolve_axes(shape: tuple[int, ...], axes: str | None = None) -> str:
-    """The axis order of a label image of ``shape``: ``axes`` checked against it, or the
-    documented default (2-D: ``"yx"``, 3-D: ``"tyx"``, the time-lapse of 2-D frames this
-    package always took); a 4-D array without ``axes`` is refused, never guessed.
-
-    Examples
-    --------
-    >>> resolve_axes((10, 64, 64)), resolve_axes((10, 64, 64), "zyx")
-    ('tyx', 'zyx')
-    """
-    ndim = len(shape)
-    if axes is None:
-        refuse_colour(shape)
-        if ndim == 2:
-            return "yx"
-        if ndim == 3:
-            return "tyx"
-        if ndim == 4:
-            raise InputError(
-                f"The labels have 4 dimensions {tuple(shape)}: say which axes they are, e.g. "
-                "axes='tzyx' for a time-lapse of Z-stacks (in the command line: --axes tzyx)."
-            )
-        raise InputError(
-            f"Labels must be 2-D (Y, X), 3-D (T, Y, X or Z, Y, X) or 4-D (T, Z, Y, X); got shape "
-            f"{tuple(shape)}. For extra channels, pass one channel."
-        )
-    axes = str(axes).lower()
-    if axes not in AXES:
-        raise InputError(f"axes must be one of {', '.join(AXES)} (t time, z y x space); got "
-                         f"{axes!r}.")
-    if len(axes) != ndim:
-        raise InputError(f"axes={axes!r} names {len(axes)} axes but the labels have {ndim} "
-                         f"dimensions {tuple(shape)}.")
-    return axes
-
-
-def looks_like_colour(shape: tuple[int, ...]) -> bool:
-    """Whether an array of ``shape`` looks like a colour image: 3 or 4 samples (RGB, RGBA) on
-    its last axis, after an axis of at least 8 pixels (``(Y, X, 3)``, ``(T, Y, X, 4)``).
-
-    Judged by the axes, never by the number of frames: a ``(3, Y, X)`` time-lapse is not one.
-
-    Examples
-    --------
-    >>> looks_like_colour((64, 64, 3)), looks_like_colour((3, 64, 64))
-    (True, False)
-    """
-    return len(shape) in (3, 4) and shape[-1] in (3, 4) and shape[-2] >= 8
-
-
-def refuse_colour(shape: tuple[int, ...], what: str = "The labels") -> None:
-    """Raise, in plain words, for labels (or a reporter) that look like a colour image
-    (:func:`looks_like_colour`) when no ``axes`` were given: the command line refuses them
-    too. Saying ``axes`` (e.g. ``"tyx"``) takes the array as it is."""
-    if looks_like_colour(tuple(shape)):
-        raise InputError(
-            f"{what} have shape {tuple(shape)}: {shape[-1]} values per pixel on the last axis, "
-            "which looks like a colour (RGB/RGBA) image, not a label image. Give the "
-            "segmentation with one whole number per object (0 = background), or one channel "
-            "(e.g. image[..., 0]); if the last axis really is the image's width, say "
-            f"axes='{'tyx' if len(shape) == 3 else 'tzyx'}'."
-        )
-
-
-def voxel_spacing(axes: str, spacing) -> np.ndarray | None:
-    """The voxel size of a 3-D axis order (None for 2-D, where only square pixels exist)."""
-    if "z" in axes:
-        return check_spacing(spacing, 3)
-    if spacing is not None:
-        sp = np.asarray(spacing, float).ravel()
-        if sp.size not in (1, 2) or not np.all(sp == sp[0]):
-            raise InputError(
-                f"spacing {tuple(sp.tolist())} was given for 2-D frames (axes={axes!r}); 2-D "
-                "objects take square pixels only. If the first axis is Z, say axes='zyx'."
-            )
-    return None
 
 
 @dataclass
@@ -218,140 +102,6 @@ class ObjectResult:
     measures: dict = field(default_factory=dict)
 
 
-def refuse_zero_size(shape: tuple[int, ...], what: str = "The labels") -> None:
-    """Raise, in plain words, for an array with no pixels (a 0-frame movie, a 0-wide image)."""
-    if any(int(n) == 0 for n in shape):
-        raise InputError(
-            f"{what} {'have' if what.startswith('The ') else 'has'} shape "
-            f"{tuple(int(n) for n in shape)}: no pixels (an axis of length "
-            "0), so there is nothing to measure. Check that the file was written completely "
-            "and holds the segmentation."
-        )
-
-
-#: Ids up to this many times a frame's pixels get their bounding boxes from a table indexed
-#: by id (:func:`scipy.ndimage.find_objects`); larger ids are renumbered first.
-_DIRECT_IDS_PER_PIXEL = 2
-
-
-def _as_counts(flat: np.ndarray) -> np.ndarray:
-    """An integer array numpy's ``bincount`` and ``find_objects`` take (bool and uint64 too)."""
-    return flat.astype(np.intp, copy=False) if flat.dtype.kind in "bu" and (
-        flat.dtype.itemsize >= np.dtype(np.intp).itemsize or flat.dtype == bool) else flat
-
-
-def _small_ids(frame: np.ndarray) -> bool:
-    """Whether the ids of ``frame`` (non-negative, not empty) are small enough for a table
-    indexed by id: memory then stays proportional to the frame, whatever the largest id."""
-    return int(frame.max()) <= _DIRECT_IDS_PER_PIXEL * frame.size + 1024
-
-
-def present_ids(frame: np.ndarray) -> np.ndarray:
-    """The object ids (> 0) in a frame, sorted; time and memory proportional to its pixels,
-    whatever the ids (up to 2**63 - 1 in int64/uint64, 2**32 - 1 in uint32).
-
-    Examples
-    --------
-    >>> present_ids(np.array([[0, 7], [10**12, 7]], np.int64)).tolist()
-    [7, 1000000000000]
-    """
-    flat = np.asarray(frame).ravel()
-    if flat.size == 0:
-        return np.zeros(0, np.int64)
-    if _small_ids(flat):
-        present = np.flatnonzero(np.bincount(_as_counts(flat)))
-    else:
-        present = np.unique(flat)
-    present = present[present > 0]
-    return present.astype(np.int64) if not len(present) or int(present[-1]) < 2**63 \
-        else present
-
-
-def object_boxes(frame: np.ndarray) -> list[tuple[int, tuple[slice, ...]]]:
-    """``(label, bounding box)`` of every object of a frame, in label order.
-
-    :func:`scipy.ndimage.find_objects` keeps one entry per possible id, from 1 to the largest:
-    one object of id 10**8 would cost 10**8 entries (seconds and gigabytes), and ids near 2**63
-    overflow. Frames whose largest id is more than a few times their number of pixels are
-    renumbered (``numpy.unique``) first, so time and memory follow the pixels and the number
-    of objects, never the ids.
-
-    Examples
-    --------
-    >>> frame = np.zeros((4, 5), np.uint64)
-    >>> frame[1:3, 2:4] = 2**63 - 1
-    >>> object_boxes(frame)
-    [(9223372036854775807, (slice(1, 3, None), slice(2, 4, None)))]
-    """
-    frame = np.asarray(frame)
-    if frame.size == 0 or not frame.any():
-        return []
-    if _small_ids(frame):
-        boxes = ndi.find_objects(_as_counts(frame))
-        return [(i + 1, box) for i, box in enumerate(boxes) if box is not None]
-    ids, inverse = np.unique(frame, return_inverse=True)
-    background = int(ids[0]) == 0
-    compact = inverse.reshape(frame.shape).astype(np.intp) + (0 if background else 1)
-    labels = ids[1:] if background else ids
-    return [(int(lab), box) for lab, box in
-            zip(labels, ndi.find_objects(compact), strict=True)]
-
-
-def _validate(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
-    shape = tuple(labels.shape)
-    axes = resolve_axes(shape, axes)
-    refuse_zero_size(shape)
-    dtype = np.dtype(labels.dtype)
-    if not (np.issubdtype(dtype, np.integer) or dtype.kind == "b"):
-        raise InputError(
-            f"Labels must be an integer label image (each object one whole number), got dtype "
-            f"{dtype}. Convert a segmentation with skimage.measure.label first."
-        )
-    if intensity is not None and tuple(intensity.shape) != shape:
-        if tuple(intensity.shape[:-1]) == shape and intensity.shape[-1] in (3, 4):
-            refuse_colour(tuple(intensity.shape), "The intensity image and its labels")
-        raise InputError(
-            f"The intensity image has shape {tuple(intensity.shape)} but the labels have shape "
-            f"{shape}: they must cover the same frames and pixels."
-        )
-    timelapse = axes.startswith("t")
-    return (shape[0] if timelapse else 1), timelapse, axes
-
-
-def _frame(array, t: int, timelapse: bool) -> np.ndarray:
-    return np.asarray(array[t] if timelapse else array)
-
-
-def count_objects(labels, axes: str | None = None) -> int:
-    """Number of (frame, label) objects in a label image, one frame at a time (numpy, dask
-    and zarr arrays); ``axes`` as :func:`measure`. The one count of the package: the plugin's
-    progress total too.
-
-    Raises
-    ------
-    InputError
-        Labels that are not whole numbers, or that hold negative values.
-
-    Examples
-    --------
-    >>> labels = np.zeros((2, 8, 8), np.uint8)
-    >>> labels[0, :2, :2], labels[0, 5:, 5:], labels[1, 3:5, 3:5] = 1, 4, 4
-    >>> count_objects(labels)
-    3
-    """
-    n_frames, timelapse, _ = _validate(labels, None, axes)
-    n = 0
-    for t in range(n_frames):
-        a = _frame(labels, t, timelapse).ravel()
-        if a.dtype == bool:
-            a = a.astype(np.uint8)
-        if a.size and a.min() < 0:
-            raise InputError("The labels have negative values; labels must be 0 (background) "
-                             "or positive whole numbers.")
-        n += len(present_ids(a))
-    return n
-
-
 def iter_objects(
     labels, intensity=None, *, axes: str | None = None, spacing=None, frames=None,
     params: PFSDMParams | None = None, **options: Any
@@ -388,7 +138,7 @@ def iter_objects(
         formed input (wrong dimensions, shapes, dtype) raises ``ValueError`` before anything runs.
         While it runs, BLAS is limited to one thread (the per-object matrices are small).
     """
-    n_frames, timelapse, axes = _validate(labels, intensity, axes)
+    n_frames, timelapse, axes = check_arrays(labels, intensity, axes)
     voxel = voxel_spacing(axes, spacing)
     p = as_params(params, options)  # a bad option fails here, before any work
     p.check_dimension(3 if "z" in axes else 2)
@@ -403,54 +153,18 @@ def iter_objects(
 iter_objects.__signature__ = with_option_keywords(iter_objects)  # type: ignore[attr-defined]
 
 
-def check_frames(frames: Any, n_frames: int) -> list[int]:
-    """Frame indices given to the API as the frames they are: whole numbers, negative ones
-    counted from the end (``-1`` is ``n_frames - 1``), each once, inside the movie.
-
-    Examples
-    --------
-    >>> check_frames([0, -1], 5)
-    [0, 4]
-    """
-    if isinstance(frames, int | np.integer):
-        frames = [frames]
-    out: list[int] = []
-    for f in np.asarray(list(frames), dtype=object).ravel():
-        if isinstance(f, bool | np.bool_) or not isinstance(f, int | np.integer):
-            if not (isinstance(f, float | np.floating) and float(f).is_integer()):
-                raise InputError(f"frames must be whole numbers (frame indices); got {f!r}.")
-        t = int(f)
-        if not -n_frames <= t < n_frames:
-            raise InputError(f"frame {t} is not in the movie: it has {n_frames} frame"
-                             f"{'s' if n_frames != 1 else ''} (0 to {n_frames - 1}, or -1 for "
-                             "the last).")
-        t %= n_frames
-        if t in out:
-            raise InputError(f"frame {t} is given twice in frames (its objects would be "
-                             "counted twice); give each frame once.")
-        out.append(t)
-    return out
-
-
 def _iter_frames(labels, intensity, n_frames, timelapse, frames, options):
     for t in range(n_frames) if frames is None else frames:
-        frame = _frame(labels, t, timelapse)
+        frame = frame_at(labels, t, timelapse)
         if frame.dtype == bool:
             frame = frame.astype(np.uint8)
         if frame.size and frame.min() < 0:
             raise InputError(
                 f"Frame {t} has negative labels; labels must be 0 (background) or positive."
             )
-        image = None if intensity is None else _frame(intensity, t, timelapse).astype(float)
+        image = None if intensity is None else frame_at(intensity, t, timelapse).astype(float)
         for label, box in object_boxes(frame):
             yield _object_in_frame(frame, image, int(t), label, box, options)
-
-
-def crop_of(box, shape) -> tuple[slice, ...]:
-    """The crop an object is measured in: its bounding box ``box`` one pixel wider on every
-    side, within a frame of ``shape``."""
-    return tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
-                 zip(box, shape, strict=True))
 
 
 def _object_in_frame(frame, image, t: int, label: int, box, options) -> ObjectResult:
@@ -507,7 +221,7 @@ def describe_object(
     KeyError
         When ``label`` is not in that frame.
     """
-    n_frames, timelapse, axes = _validate(labels, intensity, axes)
+    n_frames, timelapse, axes = check_arrays(labels, intensity, axes)
     voxel = voxel_spacing(axes, spacing)
     p = as_params(params, {})
     opts = _pfsdm_options(p)
@@ -516,7 +230,7 @@ def describe_object(
     t = int(frame) if timelapse else 0
     if not 0 <= t < n_frames:
         raise KeyError(f"frame {frame} is not in the labels ({n_frames} frames)")
-    plane = _frame(labels, t, timelapse)
+    plane = frame_at(labels, t, timelapse)
     if plane.dtype == bool:
         plane = plane.astype(np.uint8)
     if box is None:
@@ -525,7 +239,7 @@ def describe_object(
             raise KeyError(f"label {label} is not in frame {frame}")
         box = tuple(slice(int(w.min()), int(w.max()) + 1) for w in where)
     big = crop_of(box, plane.shape)
-    crop = None if intensity is None else _frame(intensity, t, timelapse)[big].astype(float)
+    crop = None if intensity is None else frame_at(intensity, t, timelapse)[big].astype(float)
     with one_blas_thread():
         return _object_in_crop(plane[big], crop, t, int(label), box, big, plane.shape, opts)
 

@@ -38,20 +38,17 @@ from typing import Any
 import numpy as np
 
 from ..core.params import PFSDMParams
-from .features import (
-    ObjectResult,
-    _frame,
-    _object_in_crop,
-    _object_in_frame,
-    _validate,
+from .features import ObjectResult, _object_in_crop, _object_in_frame, iter_objects
+from .label_images import (
+    check_arrays,
     crop_of,
-    iter_objects,
+    frame_at,
     object_boxes,
-    one_blas_thread,
     present_ids,
     voxel_spacing,
 )
 from .row_blocks import RowBlock, block_of
+from .schedulers import one_blas_thread
 
 __all__ = [
     "MAX_TASK_OBJECTS",
@@ -178,7 +175,7 @@ def task_count(total: int, workers: int, per_worker: int | None = None,
 def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray]:
     out = []
     for t in range(n_frames):
-        out.append(present_ids(_frame(labels, t, timelapse)))
+        out.append(present_ids(frame_at(labels, t, timelapse)))
     return out
 
 
@@ -361,7 +358,7 @@ def iter_blocks(
     workers = int(workers or available_cores())
     volume = "z" in axes
     if total is None:
-        from .features import count_objects
+        from .label_images import count_objects
 
         total = count_objects(labels, axes)
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
@@ -383,15 +380,15 @@ def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray
                boxes: dict) -> list[tuple]:
     """What a worker process is sent for one task (:func:`_measure_task`): each whole frame
     it measures, with the labels wanted, or, for a block of the labels of a frame split
-    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.features.crop_of`).
+    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.label_images.crop_of`).
     Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its reporter (29 MB,
     64 tasks) made the Run slower than one process (11.2 s against measure's 10.0 s).
     ``counts``: the labels of each frame; ``boxes``: the bounding boxes of the last split
     frame, kept between its tasks."""
     out: list[tuple] = []
     for t, wanted in task:
-        frame = _frame(labels, t, timelapse)
-        image = None if intensity is None else _frame(intensity, t, timelapse)
+        frame = frame_at(labels, t, timelapse)
+        image = None if intensity is None else frame_at(intensity, t, timelapse)
         if len(wanted) == len(counts[t]):
             out.append(("frame", t, frame, image, wanted))
             continue
@@ -409,7 +406,7 @@ def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray
 
 
 def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, block_kw):
-    n_frames, timelapse, axes = _validate(labels, intensity, axes)
+    n_frames, timelapse, axes = check_arrays(labels, intensity, axes)
     params.check_dimension(3 if "z" in axes else 2)
     options = params.options()
     voxel = voxel_spacing(axes, spacing)

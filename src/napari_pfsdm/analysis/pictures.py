@@ -266,7 +266,8 @@ def object_midline(labels, intensity, frame: int, label: int, *, params: PFSDMPa
     (80, (101, 2), (10, 2, 2))
     """
     from ..core.midline import midline
-    from .features import crop_of, describe_object
+    from .features import describe_object
+    from .label_images import crop_of
 
     if "z" in axes:
         raise ValueError("the midline is measured on 2-D objects only")

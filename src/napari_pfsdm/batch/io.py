@@ -611,7 +611,7 @@ def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFram
         logger.setLevel(level)
         logger.propagate = propagate
     if int(np.prod(shape, dtype=np.int64)) == 0:
-        from ..analysis.features import refuse_zero_size
+        from ..analysis.label_images import refuse_zero_size
 
         refuse_zero_size(shape, str(path))
     if damage is not None:
@@ -906,7 +906,7 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
             f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
             "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
-    from ..analysis.features import refuse_zero_size
+    from ..analysis.label_images import refuse_zero_size
 
     refuse_zero_size(tuple(labels.shape), where)
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):

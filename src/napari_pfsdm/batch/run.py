@@ -383,7 +383,7 @@ def _run_batch_locked(
 
 def _n_frames(movie: Any, axes: str | None) -> int:
     """Frames of a movie: its first axis when that is time, else 1."""
-    from ..analysis.features import resolve_axes
+    from ..analysis.label_images import resolve_axes
 
     timed = resolve_axes(tuple(movie.shape), axes).startswith("t")
     return int(movie.shape[0]) if timed else 1

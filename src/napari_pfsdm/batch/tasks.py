@@ -96,7 +96,7 @@ def _runs(frames: Sequence[int], frame_bytes: int) -> list[tuple[int, int]]:
 def _frame_ids(frame: np.ndarray, t: int) -> np.ndarray:
     """The labels present in frame ``t`` (sorted); negative labels are refused, as
     :func:`napari_pfsdm.measure` refuses them."""
-    from ..analysis.features import present_ids
+    from ..analysis.label_images import present_ids
 
     if frame.dtype == bool:
         frame = frame.astype(np.uint8)
@@ -139,7 +139,8 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
     (:func:`napari_pfsdm.analysis.parallel._measure_task`: whole frames, or the crops of the
     objects wanted, as the pool sends them); the rows as one block."""
     from ..analysis import parallel
-    from ..analysis.features import crop_of, object_boxes, one_blas_thread
+    from ..analysis.label_images import crop_of, object_boxes
+    from ..analysis.schedulers import one_blas_thread
 
     rows: list = []
     wanted = dict(parts)
@@ -255,7 +256,7 @@ def measure_dask(
         One row per (frame, label), ``frame`` numbered from 0 over the whole movie;
         ``attrs["pfsdm"]`` holds the options.
     """
-    from ..analysis.features import resolve_axes
+    from ..analysis.label_images import resolve_axes
 
     p = as_params(params, options)
     check_labels(labels, intensity, axes=axes)
@@ -332,7 +333,7 @@ def _measure_planned(
     """The row blocks of a movie (``labels`` with a time axis first), measured where
     ``kind``/``obj`` say, in tasks planned as the process pool plans them."""
     from ..analysis import parallel
-    from ..analysis.features import voxel_spacing
+    from ..analysis.label_images import voxel_spacing
 
     n_frames = int(labels.shape[0])
     options = p.options()

@@ -44,7 +44,7 @@ def check_layers(labels, intensity, first_axis: str = "time") -> str:
     ValueError
         With a sentence saying what is wrong and what to do.
     """
-    from ..analysis.features import looks_like_colour
+    from ..analysis.label_images import looks_like_colour
 
     shape = tuple(int(n) for n in labels.shape)
     if looks_like_colour(shape):
@@ -92,8 +92,8 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
     ``labels``, ``intensity``, ``boxes``, ``pca``, ``measures``). Closing the generator stops
     the work and keeps nothing.
     """
-    from ..analysis.features import count_objects
     from ..analysis.interpretation import table_measures
+    from ..analysis.label_images import count_objects
     from ..analysis.parallel import iter_blocks
     from ..analysis.row_blocks import BoxLookup, join_blocks
 
