@@ -179,7 +179,14 @@ def cmd_classify(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """``pfsdm classify`` and ``pfsdm predict``."""
+    """Add ``pfsdm classify`` and ``pfsdm predict``, and their arguments to ``pfsdm``'s subcommands.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
+        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
+    """
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "classify", formatter_class=fmt,

@@ -157,7 +157,15 @@ def _series_index(text: str) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """``pfsdm measure``: its options, those of the method from the one record."""
+    """Add ``pfsdm measure`` to ``pfsdm``'s subcommands: its arguments, and the method's
+    options generated from the one record (``core.params.OPTIONS``).
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
+        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
+    """
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "measure", formatter_class=fmt,
