@@ -239,7 +239,7 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
 
 def cmd_measure(args: argparse.Namespace) -> int:
     from .analysis.features import warnings_summary
-    from .batch.io import find_movies, pair_movies
+    from .batch.movies import find_movies, pair_movies
     from .batch.run import default_parts_dir, run_batch
 
     if not args.labels:
@@ -666,7 +666,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
 def _report_labels(paths: Sequence[str], table, quiet: bool):
     """The label movie(s) of ``pfsdm report --labels``: one array (a table of one movie), or
     movie name -> array (the file names give the movies' names, as 'pfsdm measure' does)."""
-    from .batch.io import movie_name, open_movie
+    from .batch.io import open_movie
+    from .batch.movies import movie_name
 
     movies = sorted(set(table["movie"].astype(str))) if "movie" in table.columns else []
     opened = {movie_name(p): open_movie(p) for p in paths}
@@ -1009,7 +1010,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
     # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
     # bar that counts objects as their frames are measured (every frame holds all objects)
-    from .batch.io import Movie
+    from .batch.movies import Movie
     from .batch.run import run_batch
 
     n_frames, per_frame = int(labels.shape[0]), len(groups)
