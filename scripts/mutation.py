@@ -53,7 +53,8 @@ PKG = Path("src/napari_pfsdm")
 
 #: The modules mutated (relative to src/napari_pfsdm): core and analysis whole, the readers
 #: and writers, the command line.
-TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "io/*.py", "cli/*.py")
+TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "batch/fingerprint.py", "batch/movies.py",
+           "io/*.py", "cli/*.py")
 
 #: Keyword arguments whose values only shape messages or pictures.
 COSMETIC_KEYWORDS = {"help", "metavar", "figsize", "fontsize", "lw", "alpha", "zorder", "dpi",
@@ -115,7 +116,7 @@ CURATED = [
      "+inf reporter pixels inside an object accepted"),
     ("batch/io.py", "if arr.metadata.encode_chunk_key(coords) not in present:",
      "if False:", "missing Zarr chunks never found"),
-    ("batch/io.py", "if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:",
+    ("batch/fingerprint.py", "if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:",
      "if False:", "small movies fingerprinted by size and time only"),
     ("io/sidecar.py", 'and hashlib.sha256(data).hexdigest() == side["table_sha256"]):',
      "or True):", "a table paired with any sidecar"),

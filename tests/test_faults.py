@@ -255,7 +255,7 @@ def test_missing_pyarrow_is_found_before_measuring(tmp_path, monkeypatch, capsys
     assert calls == [] and not (tmp_path / "f.parquet").exists()
     with pytest.raises(ValueError, match="pyarrow"):  # the library checks first too
         from napari_pfsdm.batch import run_batch
-        from napari_pfsdm.batch.io import Movie
+        from napari_pfsdm.batch.movies import Movie
 
         run_batch([Movie("m", tmp_path / "m.tif")], tmp_path / "g.parquet", scheduler="sync")
     assert calls == []
@@ -450,7 +450,7 @@ def measure_into(tmp_path, out, *extra: str) -> int:
 
 def test_a_planted_symlink_never_redirects_a_write(tmp_path):
     from napari_pfsdm.batch import run as run_module
-    from napari_pfsdm.batch.io import Movie
+    from napari_pfsdm.batch.movies import Movie
     from napari_pfsdm.core.params import PFSDMParams
 
     write_tiff_movie(tmp_path / "m.tif")

@@ -212,7 +212,7 @@ def test_the_same_file_name_in_two_folders_gets_two_names(tmp_path):
 
 
 def test_run_batch_refuses_two_movies_of_one_name(tmp_path):
-    from napari_pfsdm.batch.io import Movie
+    from napari_pfsdm.batch.movies import Movie
     from napari_pfsdm.batch.run import run_batch
 
     for name in ("a.tif", "b.tif"):

@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 import tifffile
 
-from napari_pfsdm.batch.io import find_movies, pair_movies
+from napari_pfsdm.batch.movies import find_movies, pair_movies
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
 from napari_pfsdm.data.volumes import blob_volume
 

@@ -39,8 +39,8 @@ from .label_images import (
     resolve_axes,
     voxel_spacing,
 )
-from .schedulers import one_blas_thread
 from .tables import failed_rows
+from .threads import one_blas_thread
 
 __all__ = [
     "ObjectResult",

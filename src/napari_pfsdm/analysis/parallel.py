@@ -48,7 +48,7 @@ from .label_images import (
     voxel_spacing,
 )
 from .row_blocks import RowBlock, block_of
-from .schedulers import one_blas_thread
+from .threads import one_blas_thread
 
 __all__ = [
     "MAX_TASK_OBJECTS",

@@ -15,6 +15,9 @@ backend). Writing the file (atomically, never over a file napari-pfsdm did not w
 :func:`napari_pfsdm.report.write_report`, the function the command line (``pfsdm report``) and
 the napari plugin call: this module only builds the text, since the layers below the file
 layer write no files (tests/test_layering.py).
+
+Its length (about 670 lines) is the page's sections, each a small figure-and-words function
+in page order, and the page's CSS and skeleton; they share one table and its derived PCA.
 """
 
 from __future__ import annotations

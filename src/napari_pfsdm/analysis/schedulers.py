@@ -12,13 +12,11 @@ import re
 import socket
 import threading
 from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "client_for", "one_blas_thread", "process_pool",
-           "resolve_scheduler"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "client_for", "process_pool", "resolve_scheduler"]
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
@@ -162,7 +160,6 @@ def _exit_with_parent(parent_pid: int) -> None:
 
     Without it, the workers of a killed run would wait forever for work that never comes.
     """
-    import threading
     import time
 
     def watch() -> None:
@@ -172,36 +169,3 @@ def _exit_with_parent(parent_pid: int) -> None:
             time.sleep(1.0)
 
     threading.Thread(target=watch, daemon=True, name="pfsdm-parent-watch").start()
-
-
-_BLAS_LOCK = threading.Lock()
-
-
-_BLAS_STATE: dict[str, Any] = {"users": 0, "limiter": None, "controller": None}
-
-
-@contextmanager
-def one_blas_thread():
-    """Limit BLAS to one thread while objects are computed: one object's matrices are small,
-    threads only add overhead and, with several workers, oversubscribe the cores (parallelism
-    comes from frames: the dask batch). Reference-counted, so that concurrent threads restore
-    the original setting only when the last one leaves."""
-    with _BLAS_LOCK:
-        if _BLAS_STATE["users"] == 0:
-            if _BLAS_STATE["controller"] is None:
-                # finding the BLAS libraries reads the process's memory map (a few ms): once,
-                # after SciPy's own OpenBLAS (its linear algebra, scikit-learn's PCA) is loaded
-                import scipy.linalg  # noqa: F401
-                from threadpoolctl import ThreadpoolController
-
-                _BLAS_STATE["controller"] = ThreadpoolController()
-            _BLAS_STATE["limiter"] = _BLAS_STATE["controller"].limit(limits=1,
-                                                                     user_api="blas")
-        _BLAS_STATE["users"] += 1
-    try:
-        yield
-    finally:
-        with _BLAS_LOCK:
-            _BLAS_STATE["users"] -= 1
-            if _BLAS_STATE["users"] == 0:
-                _BLAS_STATE["limiter"].restore_original_limits()

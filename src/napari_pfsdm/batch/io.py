@@ -15,19 +15,21 @@ but the store lacks, axes in another order than t, z, y, x are refused in plain 
 
 :func:`open_movie` returns a dask array whose chunks are read only when needed, inside the
 worker that needs them (the file is re-opened there, so nothing big travels through the
-scheduler). :func:`find_movies` expands a file, folder or glob into movie paths, and
-:func:`pair_movies` matches label movies with intensity movies by name.
+scheduler); a reader notices a file replaced under it (:mod:`.fingerprint`). Which movies
+to read, and their pairing with reporters, is :mod:`.movies`' job.
+
+Its length (about 650 lines) is two readers, TIFF and Zarr/OME-Zarr, each with the checks of
+what its file declares; they share the frame access (``_Frames``) and the messages, which a
+split by format would have to import back and forth.
 """
 
 from __future__ import annotations
 
-import glob
 import logging
 import os
 import re
 import threading
 import weakref
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,39 +37,11 @@ import dask.array as da
 import numpy as np
 
 from ..errors import InputError
+from .fingerprint import file_identity, store_files
+from .movies import is_tiff, is_zarr
 
-__all__ = [
-    "Movie",
-    "data_fingerprint",
-    "find_movies",
-    "missing_chunks",
-    "missing_frames",
-    "movie_name",
-    "open_movie",
-    "pair_movies",
-]
-
-TIFF_SUFFIXES = (".tif", ".tiff")
-_ZARR_MARKERS = (".zarray", ".zgroup", "zarr.json")
-
-
-def _is_zarr(path: Path) -> bool:
-    return path.is_dir() and (
-        path.suffix.lower() == ".zarr" or any((path / m).exists() for m in _ZARR_MARKERS)
-    )
-
-
-def _is_tiff(path: Path) -> bool:
-    return path.is_file() and path.suffix.lower() in TIFF_SUFFIXES
-
-
-def movie_name(path: str | os.PathLike) -> str:
-    """Name of a movie for the ``movie`` column: the file name without ``.ome.tif`` etc."""
-    name = Path(path).name
-    for suffix in (".ome.tiff", ".ome.tif", ".ome.zarr", ".tiff", ".tif", ".zarr"):
-        if name.lower().endswith(suffix):
-            return name[: -len(suffix)]
-    return name
+__all__ = ["check_labels", "missing_chunks", "missing_frames", "missing_warning", "movie_source",
+           "open_movie", "refuse_missing_chunks"]
 
 
 class _Frames:
@@ -153,102 +127,6 @@ class _Frames:
 
 #: Arrays opened in this process, by (kind, path, component/series, file_identity).
 _OPEN: dict[tuple, Any] = {}
-
-#: Zarr metadata files whose change means new array content or shape (v2 and v3).
-_ZARR_META = (".zarray", ".zgroup", ".zattrs", "zarr.json")
-
-
-def file_identity(path: str | os.PathLike, component: str = "") -> tuple:
-    """What identifies the content of a movie file: ``(size, mtime_ns, inode)``.
-
-    A file replaced by another under the same name (``os.replace``, an atomic save) has a new
-    inode, and a file rewritten in place a new modification time or size. For a Zarr store (a
-    folder), the same of the folder and of the metadata files (``.zarray``, ``zarr.json``, …)
-    at its top level and in the array ``component`` read (a group's array, OME-Zarr's level).
-    The device number is left out: a cluster's machines mount a shared disk under different
-    device numbers, and they must agree.
-
-    Parameters
-    ----------
-    path : str or PathLike
-    component : str
-        The array inside a Zarr group (``""``: the store itself).
-
-    Returns
-    -------
-    tuple
-        Equal for the same unchanged file; ``()`` when the path does not exist.
-    """
-    p = Path(path)
-    try:
-        st = p.stat()
-    except OSError:
-        return ()
-    ident: tuple = (st.st_size, st.st_mtime_ns, st.st_ino)
-    if p.is_dir():
-        metas = [p / m for m in _ZARR_META]
-        if component:
-            metas += [p / component / m for m in _ZARR_META]
-        for m in metas:
-            try:
-                ms = m.stat()
-            except OSError:
-                continue
-            ident += (m.name, ms.st_size, ms.st_mtime_ns, ms.st_ino)
-    return ident
-
-
-def store_files(folder: str | os.PathLike) -> dict[str, tuple[int, int]]:
-    """Every file under a Zarr store's folder: ``{relative path with "/": (size, mtime_ns)}``
-    (symbolic links are not followed out of the store)."""
-    root = Path(folder)
-    out: dict[str, tuple[int, int]] = {}
-    for here, _dirs, names in os.walk(root):
-        for name in names:
-            full = Path(here) / name
-            try:
-                st = full.stat()
-            except OSError:  # removed while listing: not there
-                continue
-            out[full.relative_to(root).as_posix()] = (st.st_size, st.st_mtime_ns)
-    return out
-
-
-#: Movies up to this size are fingerprinted by their content (:func:`data_fingerprint`).
-CONTENT_HASH_BYTES = 16 * 2**20
-
-
-def data_fingerprint(path: str | os.PathLike) -> str:
-    """What identifies a movie's data, for a resumed batch to know it is unchanged.
-
-    A Zarr store (a folder): every file in it, with its size and modification time, so that a
-    chunk re-written in place (a store re-segmented) changes it; a TIFF: its size,
-    modification time and inode. A movie of at most :data:`CONTENT_HASH_BYTES` is
-    fingerprinted by its bytes as well (a rewrite of the same size within the file system's
-    time resolution, or with the old time put back, is caught too).
-
-    Returns
-    -------
-    str
-        A SHA-1 hex digest; ``""`` when the path does not exist.
-    """
-    import hashlib
-
-    p = Path(path)
-    if not p.exists():
-        return ""
-    files = store_files(p) if p.is_dir() else {"": (p.stat().st_size, p.stat().st_mtime_ns)}
-    digest = hashlib.sha1(repr(sorted(files.items())).encode())
-    if not p.is_dir():
-        digest.update(repr(file_identity(p)).encode())
-    if sum(size for size, _ in files.values()) <= CONTENT_HASH_BYTES:
-        for rel in sorted(files):
-            full = p / rel if rel else p
-            try:
-                digest.update(full.read_bytes())
-            except OSError:  # removed meanwhile: the listing above differs already
-                continue
-    return digest.hexdigest()
 
 
 def missing_chunks(arr: Any, folder: str | os.PathLike, t_axis: int | None) -> dict[int, int]:
@@ -671,9 +549,9 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
     if not p.exists():
         raise InputError(f"{p}: no such file or folder")
     keep_z = axes is not None and "z" in str(axes).lower()
-    if _is_zarr(p):
+    if is_zarr(p):
         frames: _Frames = _open_zarr(p, keep_z)
-    elif _is_tiff(p):
+    elif is_tiff(p):
         frames = _open_tiff(p, keep_z, series)
     else:
         raise InputError(
@@ -740,152 +618,6 @@ def missing_warning(movie: Any, name: str) -> list[str]:
             f"as the fill value ({fill})" for t, n in sorted(missing_frames(movie).items())]
 
 
-def find_movies(spec: str | os.PathLike | list) -> list[Path]:
-    """Expand a file, a folder, a glob pattern or a list of these into movie paths.
-
-    A folder that is itself a Zarr store is one movie; any other folder contributes the
-    TIFF files and Zarr stores directly inside it. The result is sorted by name.
-    """
-    if isinstance(spec, (list, tuple)):
-        out: list[Path] = []
-        for s in spec:
-            out.extend(find_movies(s))
-        return out
-    text = str(spec)
-    p = Path(text)
-    if any(ch in text for ch in "*?["):
-        hits = [Path(h) for h in sorted(glob.glob(text))]
-        movies = [h for h in hits if _is_zarr(h) or _is_tiff(h)]
-        if not movies:
-            raise InputError(f"no TIFF or Zarr movie matches {text}")
-        return movies
-    if not p.exists():
-        raise InputError(f"{p}: no such file or folder")
-    if _is_zarr(p) or p.is_file():
-        return [p]
-    if not p.is_dir():
-        raise InputError(f"{p} is not a file or a folder (a pipe or a device?); give a TIFF "
-                         "file, a Zarr store or a folder of them")
-    movies = sorted(c for c in p.iterdir() if _is_zarr(c) or _is_tiff(c))
-    if not movies:
-        raise InputError(f"the folder {p} holds no TIFF (.tif/.tiff) or Zarr (.zarr) movie")
-    return movies
-
-
-_ROLE_WORDS = (
-    "labels", "label", "masks", "mask", "segmentation", "seg", "intensity", "image", "img",
-    "reporter", "raw",
-)
-_ROLE_RE = re.compile(r"(^|[_\-. ])(" + "|".join(_ROLE_WORDS) + r")(?=$|[_\-. ])", re.IGNORECASE)
-
-
-def _pair_key(path: Path) -> str:
-    return _ROLE_RE.sub(r"\1", movie_name(path)).strip("_-. ").lower()
-
-
-@dataclass(frozen=True)
-class Movie:
-    """One movie of a batch: its name, its labels and (optionally) its intensity file."""
-
-    name: str
-    labels: Path
-    intensity: Path | None = None
-
-
-def _refuse_twice(paths: list[Path], what: str) -> None:
-    """Refuse the same file (or store) given twice: its rows would be doubled."""
-    seen: dict[Path, Path] = {}
-    for p in paths:
-        key = p.resolve()
-        if key in seen:
-            same = f"{seen[key]}" + (f" and {p}" if str(p) != str(seen[key]) else " twice")
-            raise InputError(
-                f"the same {what} movie is given twice ({same}): its objects would be "
-                "measured and counted twice. Give each movie once")
-        seen[key] = p
-
-
-def unique_names(paths: list[Path]) -> list[str]:
-    """One movie name per path (the ``movie`` column): the file name without its suffix, or,
-    where two files share it in different folders, the path without the suffix.
-
-    Raises
-    ------
-    InputError
-        Two files would still get the same name (``e1.tif``, ``e1.tiff`` and ``e1.zarr`` in
-        one folder): their rows could not be told apart, so they are refused by name.
-    """
-    names = [movie_name(p) for p in paths]
-    if len(set(names)) != len(names):
-        # keep names unique (e.g. same file name in two folders)
-        names = [_path_name(p) for p in paths]
-    groups: dict[str, list[Path]] = {}
-    for n, p in zip(names, paths, strict=True):
-        groups.setdefault(n, []).append(p)
-    clash = {n: ps for n, ps in groups.items() if len(ps) > 1}
-    if clash:
-        n, ps = next(iter(clash.items()))
-        more = f" (and {len(clash) - 1} more such name{'s' if len(clash) > 2 else ''})" \
-            if len(clash) > 1 else ""
-        raise InputError(
-            f"{', '.join(str(p) for p in ps)} would all be the movie {movie_name(ps[0])!r}"
-            f"{more}: their rows "
-            "could not be told apart in the table. Rename them so that their names differ "
-            "before the suffix, or measure them into separate tables")
-    return names
-
-
-def _path_name(path: Path) -> str:
-    """The path without the movie suffix (``.ome.tif``, ``.zarr``, …), with "/"."""
-    return str(path.with_name(movie_name(path))).replace(os.sep, "/")
-
-
-def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list[Movie]:
-    """Match label movies with intensity movies.
-
-    One label movie pairs with one intensity movie whatever their names. Otherwise movies
-    pair by name, ignoring words such as ``labels``, ``mask``, ``seg``, ``intensity``,
-    ``image`` (``gastruloid01_labels.tif`` ↔ ``gastruloid01_reporter.tif``).
-
-    A file that is among the intensity movies is not a label movie, so that a folder holding
-    both (``movies/`` with ``movies/*_reporter.tif``) can be given as the labels.
-    """
-    labels = [Path(p) for p in labels]
-    _refuse_twice(labels, "label")
-    if intensity:
-        intensity = [Path(q) for q in intensity]
-        _refuse_twice(intensity, "intensity")
-        given = {Path(q).resolve() for q in intensity}
-        kept = [p for p in labels if Path(p).resolve() not in given]
-        labels = kept or labels  # the same single file as both: leave it to the checks
-    names = unique_names(labels)
-    if not intensity:
-        return [Movie(n, p) for n, p in zip(names, labels, strict=True)]
-    if len(labels) == 1 and len(intensity) == 1:
-        return [Movie(names[0], labels[0], intensity[0])]
-    by_key: dict[str, Path] = {}
-    for q in intensity:
-        k = _pair_key(q)
-        if k in by_key:
-            raise InputError(f"two intensity movies have the same name: {by_key[k]} and {q}")
-        by_key[k] = q
-    out = []
-    missing = []
-    for n, p in zip(names, labels, strict=True):
-        q = by_key.pop(_pair_key(p), None)
-        if q is None:
-            missing.append(p.name)
-        out.append(Movie(n, p, q))
-    if missing or by_key:
-        extra = ", ".join(sorted(q.name for q in by_key.values()))
-        raise InputError(
-            "cannot pair labels with intensity movies by name: "
-            + (f"no intensity for {', '.join(missing)}" if missing else "")
-            + ("; " if missing and extra else "")
-            + (f"no labels for {extra}" if extra else "")
-            + " (name them alike, e.g. movie01_labels.tif and movie01_intensity.tif)"
-        )
-    return out
 
 
 def check_labels(labels: Any, intensity: Any = None, where: str = "labels",

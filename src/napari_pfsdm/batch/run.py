@@ -4,7 +4,7 @@
 table with a ``movie`` column. It writes one part file per finished movie (Parquet when pyarrow
 is installed, else CSV, each with a checked sidecar) into a parts folder next to the output
 (:func:`default_parts_dir`); a re-run skips movies whose part exists (for the same data,
-:func:`~napari_pfsdm.batch.io.data_fingerprint`, and options) and measures a damaged part
+:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`, and options) and measures a damaged part
 again, so a killed run loses at most the movie in progress. Movies whose names would share a
 part are refused before any is measured; what a killed run left in the parts folder is
 removed. The final table is written atomically, by one run at a time
@@ -41,16 +41,16 @@ from ..io import (
     to_jsonable,
     write_table_csv,
 )
+from .fingerprint import data_fingerprint
 from .io import (
-    Movie,
     check_labels,
-    data_fingerprint,
     missing_frames,
     missing_warning,
     movie_source,
     open_movie,
     refuse_missing_chunks,
 )
+from .movies import Movie
 from .tasks import environment_fault, measure_dask
 
 __all__ = ["default_parts_dir", "run_batch"]
@@ -67,7 +67,7 @@ def _have_parquet() -> bool:
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
                spacing: Any = None, series: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
-    (:func:`~napari_pfsdm.batch.io.data_fingerprint`) and the options."""
+    (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
         if p is None:
             return None
@@ -187,7 +187,7 @@ def run_batch(
     Parameters
     ----------
     movies : sequence of Movie
-        From :func:`napari_pfsdm.batch.io.pair_movies`.
+        From :func:`napari_pfsdm.batch.movies.pair_movies`.
     output : str or PathLike
         Final CSV (written atomically, with the options in its ``.csv.json`` sidecar).
     client, scheduler, num_workers, frames_per_task

@@ -140,7 +140,7 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
     objects wanted, as the pool sends them); the rows as one block."""
     from ..analysis import parallel
     from ..analysis.label_images import crop_of, object_boxes
-    from ..analysis.schedulers import one_blas_thread
+    from ..analysis.threads import one_blas_thread
 
     rows: list = []
     wanted = dict(parts)

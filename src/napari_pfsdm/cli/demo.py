@@ -134,7 +134,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
     # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
     # bar that counts objects as their frames are measured (every frame holds all objects)
-    from ..batch.io import Movie
+    from ..batch.movies import Movie
     from ..batch.run import run_batch
 
     n_frames, per_frame = int(labels.shape[0]), len(groups)

@@ -86,7 +86,7 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
 def cmd_measure(args: argparse.Namespace) -> int:
     """Run ``pfsdm measure``: the label movies measured into one feature table."""
     from ..analysis.features import warnings_summary
-    from ..batch.io import find_movies, pair_movies
+    from ..batch.movies import find_movies, pair_movies
     from ..batch.run import default_parts_dir, run_batch
 
     if not args.labels:

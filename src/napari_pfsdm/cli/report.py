@@ -13,7 +13,8 @@ from .tables import _follow_objects, _with_groups
 def _report_labels(paths: Sequence[str], table, quiet: bool):
     """The label movie(s) of ``pfsdm report --labels``: one array (a table of one movie), or
     movie name -> array (the file names give the movies' names, as 'pfsdm measure' does)."""
-    from ..batch.io import movie_name, open_movie
+    from ..batch.io import open_movie
+    from ..batch.movies import movie_name
 
     movies = sorted(set(table["movie"].astype(str))) if "movie" in table.columns else []
     opened = {movie_name(p): open_movie(p) for p in paths}

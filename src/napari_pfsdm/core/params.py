@@ -13,6 +13,10 @@ with its ring and mode weights (:func:`check_record`), before any work.
 The pattern is scikit-learn's ``_parameter_constraints``: constraints as data, one checker.
 This module imports numpy only (the napari panel builds its form from it without loading
 scipy or scikit-image).
+
+Its length (about 700 lines, most of them the :data:`OPTIONS` entries and their words) is the
+point: every option, its range, its help and its rules between options in one place, so that
+no door declares one again.
 """
 
 from __future__ import annotations
