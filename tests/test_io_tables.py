@@ -6,9 +6,11 @@ import shutil
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from napari_pfsdm.batch.run import _read_part, _write_part
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.errors import InputError
+from napari_pfsdm.io import read_table_csv, sidecar_path, write_table_csv
 
 
 def awkward() -> pd.DataFrame:
@@ -89,3 +91,29 @@ def test_a_table_written_in_small_chunks_is_the_file_pandas_writes_whole(tmp_pat
     path = tables.write_table_csv(df, tmp_path / "t.csv", {})
     assert path.read_text() == df.to_csv(index=False, lineterminator="\n")
     pd.testing.assert_frame_equal(pd.read_csv(path), df)
+
+
+def test_a_table_of_several_mebibytes_is_paired_with_its_sidecar(tmp_path):
+    """The sidecar records the table file's size and SHA-256, read in 1 MiB blocks: a table
+    of several blocks reads back as written, its recorded size and digest those of the file."""
+    import hashlib
+    import json
+
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame(rng.normal(size=(20_000, 8)), columns=[f"c{i}" for i in range(8)])
+    path = write_table_csv(df, tmp_path / "big.csv", {})
+    data = path.read_bytes()
+    assert len(data) > 2 * 2**20  # three blocks
+    side = json.loads(sidecar_path(path).read_text())
+    assert side["table_bytes"] == len(data)
+    assert side["table_sha256"] == hashlib.sha256(data).hexdigest()
+    pd.testing.assert_frame_equal(read_table_csv(path, strict=True), df)
+
+
+@pytest.mark.parametrize("text", ['{"written_by": "napari-pfsdm 0.1"}', "[1, 2]", '"options"'])
+def test_a_json_file_that_is_no_sidecar_is_refused_in_plain_words(tmp_path, text):
+    path = tmp_path / "t.csv"
+    pd.DataFrame({"a": [1.0]}).to_csv(path, index=False)
+    sidecar_path(path).write_text(text)
+    with pytest.raises(InputError, match="is not a napari-pfsdm sidecar"):
+        read_table_csv(path)

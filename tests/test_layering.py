@@ -302,3 +302,17 @@ def test_the_package_imports_form_no_circle():
     # the checker finds a circle hidden behind a function-level import
     graph["analysis/label_images"] = graph["analysis/label_images"] | {"analysis/features"}
     assert _circle(graph) is not None
+
+
+#: A module longer than this says why in its docstring ("Its length ..."): rooms of one idea.
+LONG_MODULE = 650
+
+
+def test_a_long_module_says_why_it_is_long():
+    long = []
+    for path in sorted(SRC.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        if text.count("\n") > LONG_MODULE and "Its length" not in (ast.get_docstring(
+                ast.parse(text)) or ""):
+            long.append(f"{path.relative_to(SRC)} ({text.count(chr(10))} lines)")
+    assert not long, f"modules over {LONG_MODULE} lines without a reason: {long}"
