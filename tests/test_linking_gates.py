@@ -2,7 +2,7 @@
 default centroid linking's distance (2 median radii), its one-to-one assignment, the
 overlap linking's min_iou and its gap closing, the jump measured in object radii, and a
 Tracks layer naming objects (napari_pfsdm.analysis.tracking). Each test names the one-line
-bug it catches (scripts/mutation.py's curated mutants)."""
+bug it catches (scripts/curated_mutants.py)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Small pieces held to closed forms or to a second way of computing the same thing. Each test
-kills a mutant that survived the mutation test of the suite (scripts/mutation.py):
+kills a mutant that survived the mutation test of the suite (docs/testing.md):
 the mutant named in the docstring passes every other test."""
 
 from __future__ import annotations

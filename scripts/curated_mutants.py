@@ -1,36 +1,32 @@
 #!/usr/bin/env python3
-"""Mutation test of the non-GUI suite: how many plausible one-line bugs do the tests catch?
+"""The curated mutants: one-line bugs that once happened or that a reviewer planted, each run
+against the tests that should catch it.
 
-    python scripts/mutation.py                      # the documented sample (docs/testing.md)
-    python scripts/mutation.py --per-module 2 --seed 3 --modules core/sdf.py io/tables.py
-    python scripts/mutation.py --list               # the mutants it would try, nothing run
-    python scripts/mutation.py --curated-only --modules analysis/tracking.py \
-        --tests tests/test_tracking.py tests/test_linking_gates.py   # targeted
+    python scripts/curated_mutants.py                           # all, against the non-GUI suite
+    python scripts/curated_mutants.py --list                    # the mutants, nothing run
+    python scripts/curated_mutants.py --modules analysis/tracking.py \
+        --tests tests/test_tracking.py tests/test_linking_gates.py   # one module, its tests
+    python scripts/curated_mutants.py --report curated.json     # keep the verdicts
+    python scripts/curated_mutants.py --again curated.json      # only its survivors again
 
-Each mutant is one plausible slip on one line of the package: an operator swapped (``+``/``-``,
-``*``/``/``, ``<``/``<=``, ``==``/``!=``, ``and``/``or``), a range or slice one off, a
-number changed, a negation or a minus sign dropped, a wrong exponent; plus curated mutants
-(:data:`CURATED`): those that once survived the suite, issue 43's guards undone, and the
-four sorts of bug a reviewer planted (a linking gate dropped, a sign in the per-object
-diagnostics, a word in the explanations, a table check forgetting a channel's columns).
-They are drawn from core, analysis, batch/io.py, io/ and cli/ (the napari plugin is
-tested under Qt, not here; tests/gui never runs). Code that only builds
-messages (``raise``, f-strings, ``help=``) is not mutated.
+The broad sweep of generated mutants (every operator, constant and string of a module) is
+mutmut's job, configured in pyproject.toml (``[tool.mutmut]``; docs/testing.md). What mutmut
+cannot plant are the bugs of :data:`CURATED`: a named line changed as someone did change it
+(a linking gate dropped, a sign in the per-object diagnostics, a word in the explanations, a
+table check forgetting a channel's columns, a fault guard undone). Each is named by its text
+and, when the text recurs, its function; a text found on no line or on several stops the run.
 
 How it runs (one job at a time: the machine has 2 cores):
 
 1. The repository is copied to a temporary folder (the work tree is never changed) and the
    tests run there with ``PYTHONPATH`` pointing at the copy's ``src``.
-2. The non-GUI suite runs once with a profiler hook that records which package functions
-   each test file calls; a mutant then runs only the test files that call the function it
-   is in (``-x``: the first failure kills it), or, for module-level code, every test file that
-   touched the module.
+2. The non-GUI suite (or the files ``--tests`` names) runs once with a profiler hook that
+   records which package functions each test calls; a mutant then runs only the tests that
+   call the function it is in (``-x``: the first failure kills it), fastest first.
 3. A mutant is *killed* when those tests fail or error (or exceed ``--timeout``), *survived*
    when they pass, *not covered* when no test calls its function (counted as survived).
 
-The report lists every survivor; docs/testing.md says which survivors are equivalent
-(no behaviour can tell them apart) and why. Use the same interpreter as the tests
-(``.venv-core/bin/python scripts/mutation.py``).
+Use the same interpreter as the tests (``.venv/bin/python scripts/curated_mutants.py``).
 """
 
 from __future__ import annotations
@@ -39,7 +35,6 @@ import argparse
 import ast
 import json
 import os
-import random
 import shutil
 import subprocess
 import sys
@@ -50,20 +45,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = Path("src/napari_pfsdm")
-
-#: The modules mutated (relative to src/napari_pfsdm): core and analysis whole, the readers
-#: and writers, the command line.
-TARGETS = ("core/*.py", "analysis/*.py", "batch/io.py", "batch/fingerprint.py", "batch/movies.py",
-           "io/*.py", "cli/*.py")
-
-#: Keyword arguments whose values only shape messages or pictures.
-COSMETIC_KEYWORDS = {"help", "metavar", "figsize", "fontsize", "lw", "alpha", "zorder", "dpi",
-                     "ms", "s", "title_fontsize", "flush", "file", "stacklevel", "indent",
-                     "desc", "unit"}
-
-#: Calls whose arguments only build messages or progress.
-MESSAGE_CALLS = {"print", "_say", "_note", "say", "warn", "progress", "log", "_Step",
-                 "add_argument", "add_parser", "add_argument_group", "set_description"}
 
 
 @dataclass
@@ -122,7 +103,7 @@ CURATED = [
      "or True):", "a table paired with any sidecar"),
     ("io/sidecar.py", "if not strict and changed_after(path):", "if changed_after(path):",
      "a damaged part taken for an edit"),
-    ("batch/run.py", "if isinstance(exc, BrokenExecutor):", "if False:",
+    ("batch/tasks.py", "if isinstance(exc, BrokenExecutor):", "if False:",
      "a killed worker reported as a bug"),
     ("batch/run.py", "empty[m.name] = _empty_frames(table, lab, axes)", "empty[m.name] = []",
      "frames without objects not named"),
@@ -148,13 +129,13 @@ CURATED = [
      "the persistence gate of check_tracking dropped"),
     ("analysis/tracking.py", "if switched > MAX_SWITCHED:", "if switched < MAX_SWITCHED:",
      "the switch gate of check_tracking flipped"),
-    ("analysis/tracking.py", "switched[idx] = rows[nearest] != pairs[\"row\"].to_numpy()[idx]",
-     "switched[idx] = rows[nearest] == pairs[\"row\"].to_numpy()[idx]",
+    ("analysis/tracking.py", "switched[steps] = rows[nearest] != here[steps]",
+     "switched[steps] = rows[nearest] == here[steps]",
      "a label that stays on its object counted as switched"),
-    ("analysis/tracking.py", "has_next = t[\"frame\"].isin(frames[np.isin(frames + 1, frames)])",
-     "has_next = t[\"frame\"].isin(frames)", "the last frame's ids expected to persist"),
-    ("analysis/tracking.py", "radius = np.sqrt(0.5 * (pairs[\"area\"] + pairs[\"area_b\"])",
-     "radius = np.sqrt((pairs[\"area\"] + pairs[\"area_b\"])",
+    ("analysis/tracking.py", "has_next = np.isin(frame, frames[np.isin(frames + 1, frames)])",
+     "has_next = np.isin(frame, frames)", "the last frame's ids expected to persist"),
+    ("analysis/tracking.py", "radius = np.sqrt(0.5 * (area[here] + area[there]) / np.pi)",
+     "radius = np.sqrt((area[here] + area[there]) / np.pi)",
      "jump radius from the summed, not the mean, area"),
     ("analysis/tracking.py", "if gain[rows[i], cols[j]] >= min_iou]", "]",
      "overlap pairs below min_iou linked"),
@@ -189,14 +170,14 @@ CURATED = [
      "border warning for inner objects"),
     ("analysis/features.py", "over = folded[folded > FOLDED_WARNING]",
      "over = folded[folded >= 0]", "summary: every object counted as folded"),
-    ("analysis/features.py", "(col(\"n_holes\", 0).fillna(0).astype(float) > 0)",
-     "(col(\"n_holes\", 0).fillna(0).astype(float) >= 0)",
+    ("analysis/features.py", "holes = int((numbers(\"n_holes\", 0.0) > 0).sum())",
+     "holes = int((numbers(\"n_holes\", 0.0) >= 0).sum())",
      "summary: every object said to have holes"),
-    ("analysis/features.py", "(col(\"n_components\", 1).fillna(1).astype(float) > 1)",
-     "(col(\"n_components\", 1).fillna(1).astype(float) >= 1)",
+    ("analysis/features.py", "pieces = int((numbers(\"n_components\", 1.0) > 1).sum())",
+     "pieces = int((numbers(\"n_components\", 1.0) >= 1).sum())",
      "summary: every object said to be in pieces"),
-    ("analysis/features.py", "errors = int(col(\"error\", \"\").fillna(\"\").astype(str).ne(",
-     "errors = int(col(\"error\", \"\").fillna(\"\").astype(str).eq(",
+    ("analysis/features.py", "errors = len(texts(\"error\"))",
+     "errors = len(table) - len(texts(\"error\"))",
      "summary: the measured objects counted as failed"),
     ("core/intensity.py", "if not mean > 0:", "if mean < 0:",
      "a zero mean reporter accepted"),
@@ -218,8 +199,8 @@ CURATED = [
      "explanation: a negative correlation called none"),
     ("analysis/interpretation.py", "best = row.abs().idxmax()", "best = row.idxmax()",
      "explanation: the most positive, not the strongest, measure"),
-    ("analysis/interpretation.py", "if ok.sum() > 2 and a.std() > 0 and b.std() > 0:",
-     "if ok.sum() > 3 and a.std() > 0 and b.std() > 0:",
+    ("analysis/interpretation.py", "out = np.where((n > 2) & varies(left) & varies(right),",
+     "out = np.where((n > 3) & varies(left) & varies(right),",
      "correlation refused for three objects"),
     ("analysis/interpretation.py", "np.divide(minor, major, out=ratio, where=major > 0)",
      "np.divide(major, minor, out=ratio, where=major > 0)", "aspect ratio upside down"),
@@ -231,8 +212,8 @@ CURATED = [
      "check_feature_table checks the first channel only", "check_feature_table"),
     ("core/table_schema.py", "        if missing:", "        if missing and channel == \"shape\":",
      "a cut intensity channel accepted", "check_feature_table"),
-    ("core/table_schema.py", "if re.fullmatch(rf\"{channel}_r\\d+_[nl]\\d+\", c))",
-     "if re.fullmatch(r\"shape_r\\d+_[nl]\\d+\", c))",
+    ("core/table_schema.py", "feature = re.compile(rf\"{channel}_r\\d+_[nl]\\d+\")",
+     "feature = re.compile(r\"shape_r\\d+_[nl]\\d+\")",
      "extra intensity columns accepted"),
     ("core/table_schema.py", "prefix = f\"{channel}_r\"", "prefix = \"shape_r\"",
      "has_channel answers for the shape whatever the channel", "has_channel"),
@@ -255,71 +236,8 @@ CURATED = [
 
 
 # ------------------------------------------------------------------------------------------
-# finding mutants
+# the curated mutants' lines
 # ------------------------------------------------------------------------------------------
-
-_BIN_SWAP = {ast.Add: ("+", "-"), ast.Sub: ("-", "+"), ast.Mult: ("*", "/"),
-             ast.Div: ("/", "*"), ast.FloorDiv: ("//", "/")}
-_CMP_SWAP = {ast.Lt: ("<", "<="), ast.LtE: ("<=", "<"), ast.Gt: (">", ">="),
-             ast.GtE: (">=", ">"), ast.Eq: ("==", "!="), ast.NotEq: ("!=", "==")}
-
-
-def _between(line: str, a: ast.AST, b: ast.AST) -> tuple[int, int] | None:
-    """Columns of the text between nodes a and b on one line (None if not on one line)."""
-    if a.end_lineno != b.lineno:
-        return None
-    return a.end_col_offset, b.col_offset
-
-
-def _swap_in(line: str, span: tuple[int, int], old: str, new: str) -> str | None:
-    """``line`` with the operator ``old`` between ``span`` replaced by ``new``, when the text
-    there is that operator only (with spaces or closing/opening parentheses)."""
-    i, j = span
-    seg = line[i:j]
-    if seg.strip(" ()") != old:
-        return None
-    k = i + seg.index(old)
-    return line[:k] + new + line[k + len(old):]
-
-
-def _skip_zones(tree: ast.AST) -> set[int]:
-    """ids of the nodes whose subtrees build messages, docs or annotations."""
-    skip: set[int] = set()
-
-    def mark(node: ast.AST) -> None:
-        for sub in ast.walk(node):
-            skip.add(id(sub))
-
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Raise | ast.JoinedStr | ast.Assert):
-            mark(node)
-        elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
-            mark(node)  # docstrings
-        elif isinstance(node, ast.AnnAssign) and node.annotation is not None:
-            mark(node.annotation)
-        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
-            for arg in [*node.args.args, *node.args.kwonlyargs, *node.args.posonlyargs]:
-                if arg.annotation is not None:
-                    mark(arg.annotation)
-            if node.returns is not None:
-                mark(node.returns)
-        elif isinstance(node, ast.keyword) and node.arg in COSMETIC_KEYWORDS:
-            mark(node)
-        elif isinstance(node, ast.Call):
-            f = node.func
-            name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) \
-                else ""
-            if name in MESSAGE_CALLS:
-                mark(node)
-        elif isinstance(node, ast.Assign) and any(
-                isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
-            mark(node)
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
-                and node.func.attr == "reshape":
-            for arg in node.args:  # reshape(-1, 2): numpy reads any negative size as -1
-                if isinstance(arg, ast.UnaryOp) and isinstance(arg.op, ast.USub):
-                    mark(arg)
-    return skip
 
 
 def _functions(tree: ast.AST) -> list[tuple[int, int, str, int]]:
@@ -343,98 +261,6 @@ def _functions(tree: ast.AST) -> list[tuple[int, int, str, int]]:
     return out
 
 
-def find_mutants(path: Path, rel: str) -> list[Mutant]:
-    text = path.read_text(encoding="utf-8")
-    lines = text.splitlines()
-    tree = ast.parse(text)
-    skip = _skip_zones(tree)
-    funcs = _functions(tree)
-    found: dict[tuple[int, str], Mutant] = {}
-
-    def add(node: ast.AST, kind: str, new_line: str | None) -> None:
-        if new_line is None or id(node) in skip:
-            return
-        ln = node.lineno
-        old = lines[ln - 1]
-        if new_line == old or old.lstrip().startswith(("#", "@")):
-            return
-        if (ln, new_line) in found:
-            return
-        try:  # a mutant must still be Python: a syntax error is no plausible bug
-            ast.parse("\n".join([*lines[: ln - 1], new_line, *lines[ln:]]))
-        except SyntaxError:
-            return
-        inner = [f for f in funcs if f[0] <= ln <= f[1]]
-        fn = max(inner, key=lambda f: f[0]) if inner else None
-        m = Mutant(rel, ln, kind, old.strip(), new_line.strip(),
-                   function=fn[2] if fn else "", first_line=fn[3] if fn else 0)
-        found.setdefault((ln, new_line), m)
-
-    for node in ast.walk(tree):
-        if getattr(node, "lineno", None) is None or node.lineno != getattr(
-                node, "end_lineno", None):
-            continue
-        line = lines[node.lineno - 1]
-        if isinstance(node, ast.BinOp):
-            if any(isinstance(s, ast.JoinedStr) or (isinstance(s, ast.Constant)
-                                                    and isinstance(s.value, str))
-                   for s in (node.left, node.right)):
-                continue  # joining text
-            if type(node.op) in _BIN_SWAP:
-                span = _between(line, node.left, node.right)
-                if span:
-                    a, b = _BIN_SWAP[type(node.op)]
-                    add(node, "operator", _swap_in(line, span, a, b))
-            elif isinstance(node.op, ast.Pow) and isinstance(node.right, ast.Constant) \
-                    and isinstance(node.right.value, int | float) \
-                    and not isinstance(node.right.value, bool):
-                v = node.right.value
-                new = line[:node.right.col_offset] + repr(v + 1) + line[
-                    node.right.end_col_offset:]
-                add(node, "exponent", new)
-        elif isinstance(node, ast.Compare) and len(node.ops) == 1 \
-                and type(node.ops[0]) in _CMP_SWAP:
-            span = _between(line, node.left, node.comparators[0])
-            if span:
-                a, b = _CMP_SWAP[type(node.ops[0])]
-                add(node, "comparison", _swap_in(line, span, a, b))
-        elif isinstance(node, ast.BoolOp) and len(node.values) == 2:
-            span = _between(line, node.values[0], node.values[1])
-            if span:
-                a, b = ("and", "or") if isinstance(node.op, ast.And) else ("or", "and")
-                add(node, "boolean", _swap_in(line, span, a, b))
-        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
-            c = node.col_offset
-            if line[c:c + 3] == "not":
-                add(node, "negation", line[:c] + line[c + 3:].lstrip(" "))
-        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub) \
-                and not isinstance(node.operand, ast.Constant):
-            c = node.col_offset
-            if line[c] == "-":
-                add(node, "sign", line[:c] + line[c + 1:])
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-                and node.func.id == "range" and len(node.args) >= 2:
-            stop = node.args[1]
-            seg = line[stop.col_offset:stop.end_col_offset]
-            new = line[:stop.col_offset] + f"{seg} - 1" + line[stop.end_col_offset:]
-            add(node, "off-by-one", new)
-        elif isinstance(node, ast.Slice) and node.upper is not None \
-                and not isinstance(node.upper, ast.UnaryOp):
-            up = node.upper
-            seg = line[up.col_offset:up.end_col_offset]
-            new = line[:up.col_offset] + f"({seg}) + 1" + line[up.end_col_offset:]
-            add(node, "off-by-one", new)
-        elif isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
-                and not isinstance(node.value, bool) and not 0 < abs(node.value) < 1e-6:
-            # (guards against dividing by zero, 1e-12 and the like, are not mutated: no
-            # behaviour tells 1e-12 from 2e-12)
-            v = node.value
-            nv = v + 1 if isinstance(v, int) else (v * 2 if v else 1.0)
-            new = line[:node.col_offset] + repr(nv) + line[node.end_col_offset:]
-            add(node, "constant", new)
-    return sorted(found.values(), key=lambda m: (m.line, m.kind))
-
-
 def curated_mutants(only: list[str] | None = None) -> list[Mutant]:
     """The :data:`CURATED` mutants (of the modules ``only``, when given)."""
     out = []
@@ -456,40 +282,13 @@ def curated_mutants(only: list[str] | None = None) -> list[Mutant]:
             place = f"{rel} ({where[0]})" if where else rel
             raise SystemExit(f"curated mutant {what!r}: {old!r} found {len(hits)} times in "
                              f"{place}; make it unambiguous (more of the line, or the "
-                             "function's name) in CURATED in scripts/mutation.py")
+                             "function's name) in CURATED in scripts/curated_mutants.py")
         i = hits[0]
         fn = enclosing(i)
         out.append(Mutant(rel, i + 1, "curated", lines[i].strip(),
                           lines[i].replace(old, new).strip(), function=fn[2] if fn else "",
                           first_line=fn[3] if fn else 0, curated=what))
     return out
-
-
-def target_files(only: list[str] | None) -> list[str]:
-    files = []
-    for pattern in TARGETS:
-        for p in sorted((ROOT / PKG).glob(pattern)):
-            rel = p.relative_to(ROOT / PKG).as_posix()
-            if p.name != "__init__.py" and (not only or rel in only):
-                files.append(rel)
-    return files
-
-
-def sample(mutants: list[Mutant], k: int, rng: random.Random) -> list[Mutant]:
-    """``k`` mutants of one module, spread over the kinds of mutation (round robin)."""
-    by_kind: dict[str, list[Mutant]] = {}
-    for m in mutants:
-        by_kind.setdefault(m.kind, []).append(m)
-    for v in by_kind.values():
-        rng.shuffle(v)
-    kinds = sorted(by_kind)
-    rng.shuffle(kinds)
-    out: list[Mutant] = []
-    while len(out) < k and any(by_kind.values()):
-        for kind in kinds:
-            if by_kind[kind] and len(out) < k:
-                out.append(by_kind[kind].pop())
-    return sorted(out, key=lambda m: m.line)
 
 
 # ------------------------------------------------------------------------------------------
@@ -627,18 +426,13 @@ def apply(work: Path, m: Mutant) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--per-module", type=int, default=3,
-                    help="mutants drawn from each module (default 3)")
-    ap.add_argument("--seed", type=int, default=21, help="of the draw (default 21)")
-    ap.add_argument("--modules", nargs="*", help="only these (e.g. core/sdf.py io/tables.py)")
-    ap.add_argument("--no-curated", action="store_true", help="leave out the curated mutants")
+    ap.add_argument("--modules", nargs="*",
+                    help="only the mutants of these (e.g. analysis/tracking.py io/sidecar.py)")
     ap.add_argument("--timeout", type=float, default=300,
                     help="seconds per mutant before it counts as killed (default 300)")
     ap.add_argument("--tests", nargs="*", metavar="FILE",
                     help="trace and run only these test files (default: the non-GUI suite, "
                          "tests/ without tests/gui)")
-    ap.add_argument("--curated-only", action="store_true",
-                    help="only the curated mutants (of --modules), no drawn sample")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--report", type=Path, help="write the results as JSON here")
     ap.add_argument("--again", type=Path, metavar="REPORT",
@@ -646,23 +440,15 @@ def main(argv: list[str] | None = None) -> int:
                          "their line's text: after the tests that should kill them)")
     args = ap.parse_args(argv)
 
-    rng = random.Random(args.seed)
     if args.again:
         chosen = survivors_of(args.again)
         print(f"{len(chosen)} survivors of {args.again} again", flush=True)
         return run(chosen, args)
-    chosen: list[Mutant] = [] if args.no_curated else curated_mutants(args.modules)
-    taken = {(m.path, m.line) for m in chosen}
-    pool_sizes = {}
-    for rel in [] if args.curated_only else target_files(args.modules):
-        found = [m for m in find_mutants(ROOT / PKG / rel, rel) if (m.path, m.line) not in taken]
-        pool_sizes[rel] = len(found)
-        chosen += sample(found, args.per_module, rng)
-    print(f"{len(chosen)} mutants from {len(pool_sizes)} modules "
-          f"({sum(pool_sizes.values())} candidates in all)", flush=True)
+    chosen = curated_mutants(args.modules)
+    print(f"{len(chosen)} curated mutants", flush=True)
     if args.list:
         for m in chosen:
-            print(f"{m.ident:45s} {m.old}\n{'':45s} {m.new}")
+            print(f"{m.ident:45s} {m.old}\n{'':45s} {m.new}\n{'':45s} ({m.curated})")
         return 0
     return run(chosen, args)
 
@@ -730,7 +516,6 @@ def run(chosen: list[Mutant], args: argparse.Namespace) -> int:
     if args.report:
         args.report.write_text(json.dumps(
             {"killed": killed, "total": len(chosen), "minutes": total / 60,
-             "seed": args.seed, "per_module": args.per_module,
              "mutants": [asdict(m) for m in chosen]}, indent=1))
     return 0
 
