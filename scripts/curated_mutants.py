@@ -403,7 +403,7 @@ def copy_repo() -> Path:
     work = Path(tempfile.mkdtemp(prefix="pfsdm-mutation-"))
     ignore = shutil.ignore_patterns(".git", ".venv*", "__pycache__", "*.egg-info",
                                     ".pytest_cache", "results*", ".ruff_cache", "*.pyc")
-    for name in ("src", "tests", "docs", "scripts", "benchmarks"):
+    for name in ("src", "tests", "docs", "scripts", "benchmarks", "examples"):
         if (ROOT / name).exists():
             shutil.copytree(ROOT / name, work / name, ignore=ignore)
     for name in ("pyproject.toml", "README.md", "napari.yaml"):
