@@ -37,7 +37,7 @@ import napari_pfsdm
 names = {names!r}
 # every submodule outside the napari plugin subpackage, too
 for pkg in ("napari_pfsdm.core", "napari_pfsdm.analysis", "napari_pfsdm.cli",
-            "napari_pfsdm.data", "napari_pfsdm.batch"):
+            "napari_pfsdm.data", "napari_pfsdm.batch", "napari_pfsdm.io"):
     mod = importlib.import_module(pkg)
     names += [m.name for m in pkgutil.walk_packages(mod.__path__, pkg + ".")]
 for name in names:
@@ -56,6 +56,7 @@ def test_headless_modules_import_no_gui_toolkit():
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert "napari_pfsdm.cli" in result["imported"]
     assert "napari_pfsdm.cli.demo" in result["imported"]
+    assert "napari_pfsdm.io.sidecar" in result["imported"]
     assert {"gastruloid_report", "synthetic_five_shapes", "pixel_baseline"} <= set(
         result["imported"])
     assert "napari_pfsdm.core" in result["imported"]
