@@ -234,30 +234,8 @@ def _check_signatures(sig: np.ndarray, name: str) -> np.ndarray:
     return a
 
 
-def _spectra(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per object: the signature's FFT along the points, that of its mirror image, and its
-    squared norm (what the rigid start-shift scores need)."""
-    return (np.fft.rfft(sig, axis=-1), np.fft.rfft(_mirrored(sig), axis=-1),
-            (sig * sig).sum(axis=(1, 2)))
-
-
-def _best_shifts(fa: np.ndarray, na: np.ndarray, fb: tuple[np.ndarray, np.ndarray],
-                 nb: np.ndarray, ii: np.ndarray, jj: np.ndarray, n: int,
-                 n_shifts: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``n_shifts`` cyclic start shifts (and orientations) of the least rigid cost
-    Σ_i ‖a(i) − b(i + s)‖² for the pairs (ii, jj), both orientations of b: (P, S) each."""
-    a = np.conj(fa[ii])
-    scores = np.concatenate(
-        [np.fft.irfft((a * f[jj]).sum(axis=1), n=n, axis=-1) for f in fb], axis=1)
-    scores *= -2.0
-    scores += (na[ii] + nb[jj])[:, None]
-    best = np.argpartition(scores, n_shifts - 1, axis=1)[:, :n_shifts]
-    return (best // n).astype(np.int64), (best % n).astype(np.int64)
-
-
 def _kernel():
-    """The compiled DP over pairs and the rigid start-shift search (numba, compiled on first
-    use and cached on disk)."""
+    """The compiled kernels (numba, compiled on first use and cached on disk)."""
     global _KERNEL
     if _KERNEL is None:
         _KERNEL = _compile()
@@ -266,138 +244,232 @@ def _kernel():
 
 _KERNEL = None
 
+#: What the compiled kernel holds for "more than the limit" and "no cell" (a finite number:
+#: its arithmetic is compiled with fastmath, which assumes no infinities).
+_BIG = 1e30
+#: Precision of the DTW's costs and sums (float32: twice the numbers per vector instruction;
+#: the distances agree with float64's to ~1e-6 relative; the start shifts are always scored
+#: in float64).
+_COST_DTYPE = np.float32
+#: Channels of a signature, a constant of the compiled kernel.
+_C = N_CHANNELS
+#: Pairs per parallel task of the compiled kernel (its scratch arrays are allocated per task).
+_TASK = 64
+
 
 def _compile():
     import numba
 
-    @numba.njit(parallel=True, cache=True, fastmath=True)
-    def dtw_pairs(sig, sig_mirror, ii, jj, mirror, shift, count, band, half,
-                  out):  # pragma: no cover
-        n_pairs = shift.shape[0]
-        n_ch, n = sig.shape[1], sig.shape[2]
-        width = 2 * band + 1
-        inf = np.inf
-        for p in numba.prange(n_pairs):
-            prev = np.empty(width)
-            cur = np.empty(width)
-            a_t = np.empty((n, n_ch))
-            g_t = np.empty((n, n_ch))
-            b_t = np.empty((n, n_ch))
-            h_t = np.empty((n, n_ch))
-            ia, ib = ii[p], jj[p]
-            for i in range(n):
-                for ch in range(n_ch):
-                    a_t[i, ch] = sig[ia, ch, i]
-            for i in range(n):
-                for ch in range(n_ch):
-                    g_t[i, ch] = 0.5 * (a_t[i, ch] + a_t[(i + 1) % n, ch])
-            best = inf
-            for k in range(count[p]):
-                s = shift[p, k]
-                src = sig_mirror if mirror[p, k] else sig
-                for j in range(n):
-                    jb = (j + s) % n
-                    for ch in range(n_ch):
-                        b_t[j, ch] = src[ib, ch, jb]
-                for j in range(n):
-                    for ch in range(n_ch):
-                        h_t[j, ch] = 0.5 * (b_t[j, ch] + b_t[(j + 1) % n, ch])
-                for i in range(n):
-                    lo = max(0, band - i)
-                    hi = min(width, n + band - i)
-                    for w in range(lo):
-                        cur[w] = inf
-                    for w in range(hi, width):
-                        cur[w] = inf
-                    for w in range(lo, hi):
-                        j = i + w - band
-                        c = 0.0
-                        for ch in range(n_ch):
-                            c += abs(a_t[i, ch] - b_t[j, ch])
-                        if half:
-                            c_b = 0.0
-                            c_a = 0.0
-                            for ch in range(n_ch):
-                                c_b += abs(a_t[i, ch] - h_t[j, ch])
-                                c_a += abs(g_t[i, ch] - b_t[j, ch])
-                            if c_b < c:
-                                c = c_b
-                            if c_a < c:
-                                c = c_a
-                        if i == 0:
-                            m = 0.0 if j == 0 else cur[w - 1]
-                        else:
-                            m = prev[w]
-                            if w + 1 < width and prev[w + 1] < m:
-                                m = prev[w + 1]
-                            if w > lo and cur[w - 1] < m:
-                                m = cur[w - 1]
-                        cur[w] = c + m
-                    for w in range(width):
-                        prev[w] = cur[w]
-                if prev[band] < best:
-                    best = prev[band]
-            out[p] = best / n
-
-    @numba.njit(parallel=True, cache=True, fastmath=True)
-    def rigid_shifts(fr, fi, fmr, fmi, norm, ii, jj, cos_t, sin_t, n_cand, mirror, shift,
-                     count):  # pragma: no cover
-        """Per pair, the n_cand lowest local minima over cyclic shifts s (both orientations)
-        of Σ_i ‖a(i) − b(i + s)‖², from the signatures' spectra (real and imaginary parts,
-        (objects, C, H)), plus any other minimum tied with the last (to 1e-9): ``count``
-        of them in ``mirror`` and ``shift``."""
-        n_pairs, cap = shift.shape
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def start_shifts(fr, fi, norm, ia, ib, cos_t, sin_t, n_cand, xr, xi, vals, v_list, code,
+                     mirror, shift):  # pragma: no cover
+        """The n_cand lowest local minima over cyclic shifts s (both orientations) of the
+        rigid cost Σ_i ‖a(i) − b(i + s)‖², from the signatures' spectra (real and imaginary
+        parts, (objects, C, H); the mirror image's spectrum is the conjugate), plus any other
+        minimum tied with the last (to 1e-9), lowest first: their number, written to
+        ``mirror`` and ``shift``."""
         n_ch, n_h = fr.shape[1], fr.shape[2]
         n = cos_t.shape[1]
-        for p in numba.prange(n_pairs):
-            ia, ib = ii[p], jj[p]
-            xr = np.empty(n_h)
-            xi = np.empty(n_h)
-            vals = np.empty((2, n))
-            for m in range(2):
-                br = fmr if m else fr
-                bi = fmi if m else fi
-                for k in range(n_h):
-                    sr = 0.0
-                    si = 0.0
-                    for ch in range(n_ch):  # conj(A) B
-                        ar, ai = fr[ia, ch, k], fi[ia, ch, k]
-                        sr += ar * br[ib, ch, k] + ai * bi[ib, ch, k]
-                        si += ar * bi[ib, ch, k] - ai * br[ib, ch, k]
-                    xr[k] = sr
-                    xi[k] = si
-                for s_ in range(n):
-                    c = 0.0
-                    for k in range(n_h):
-                        c += xr[k] * cos_t[k, s_] - xi[k] * sin_t[k, s_]
-                    vals[m, s_] = norm[ia] + norm[ib] - 2.0 * c
-            # the local minima over s (neighbouring shifts of one valley: one candidate; on a
-            # flat valley floor, equal to rounding, every shift)
-            flat = 1e-9 * (norm[ia] + norm[ib])
-            v_list = np.empty(2 * n)
-            code = np.empty(2 * n, np.int64)
-            n_min = 0
-            for m in range(2):
-                for s_ in range(n):
-                    v = vals[m, s_]
-                    if v <= vals[m, (s_ - 1) % n] + flat and v <= vals[m, (s_ + 1) % n] + flat:
-                        v_list[n_min] = v
-                        code[n_min] = m * n + s_
+        cap = shift.shape[0]
+        # X = Σ_ch conj(A) B, and with B conjugated for the mirror image (row 1)
+        for k in range(n_h):
+            xr[0, k] = 0.0
+            xi[0, k] = 0.0
+            xr[1, k] = 0.0
+            xi[1, k] = 0.0
+        for ch in range(n_ch):
+            for k in range(n_h):
+                ar, ai = fr[ia, ch, k], fi[ia, ch, k]
+                br, bi = fr[ib, ch, k], fi[ib, ch, k]
+                xr[0, k] += ar * br + ai * bi
+                xi[0, k] += ar * bi - ai * br
+                xr[1, k] += ar * br - ai * bi
+                xi[1, k] -= ar * bi + ai * br
+        base = norm[ia] + norm[ib]
+        for s_ in range(n):
+            vals[0, s_] = 0.0
+            vals[1, s_] = 0.0
+        for k in range(n_h):
+            x0, y0, x1, y1 = xr[0, k], xi[0, k], xr[1, k], xi[1, k]
+            for s_ in range(n):
+                c, sn = cos_t[k, s_], sin_t[k, s_]
+                vals[0, s_] += x0 * c - y0 * sn
+                vals[1, s_] += x1 * c - y1 * sn
+        for s_ in range(n):
+            vals[0, s_] = base - 2.0 * vals[0, s_]
+            vals[1, s_] = base - 2.0 * vals[1, s_]
+        # the local minima over s (neighbouring shifts of one valley: one candidate; on a
+        # flat valley floor, equal to rounding, every shift), kept sorted (insertion, stable:
+        # equal values in the order met) as far as they can be among the n_cand lowest or
+        # tied with the last of them
+        flat = 1e-9 * (norm[ia] + norm[ib])
+        n_min = 0
+        for m in range(2):
+            for s_ in range(n):
+                v = vals[m, s_]
+                before = vals[m, s_ - 1 if s_ > 0 else n - 1]
+                after = vals[m, s_ + 1 if s_ < n - 1 else 0]
+                if v <= before + flat and v <= after + flat:
+                    q = n_min
+                    while q > 0 and v_list[q - 1] > v:
+                        if q < v_list.shape[0]:
+                            v_list[q] = v_list[q - 1]
+                            code[q] = code[q - 1]
+                        q -= 1
+                    if q < v_list.shape[0]:
+                        v_list[q] = v
+                        code[q] = m * n + s_
+                    if n_min < v_list.shape[0]:
                         n_min += 1
-            order = np.argsort(v_list[:n_min], kind="mergesort")
-            last = v_list[order[min(n_cand, n_min) - 1]]
-            tol = flat + 1e-9 * abs(last)
-            got = 0
-            for q in range(n_min):
-                v = v_list[order[q]]
-                if got >= cap or (q >= n_cand and v > last + tol):
-                    break
-                mirror[p, got] = code[order[q]] // n
-                shift[p, got] = code[order[q]] % n
-                got += 1
-            count[p] = got
+        last = v_list[min(n_cand, n_min) - 1]
+        tol = flat + 1e-9 * abs(last)
+        got = 0
+        for q in range(n_min):
+            v = v_list[q]
+            if got >= cap or (q >= n_cand and v > last + tol):
+                break
+            mirror[got] = code[q] // n
+            shift[got] = code[q] % n
+            got += 1
+        return got
 
-    return dtw_pairs, rigid_shifts
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def banded(a, g, sig, ib, mirror, s, band, half, limit, bb, hh, cost, rest, prev,
+               cur):  # pragma: no cover
+        """Least banded-DTW cost (not divided by n) between a (C, n), with its midpoints g,
+        and signature ``sig[ib]`` mirrored or not and started at s; _BIG as soon as it is
+        sure to exceed ``limit``: the costs are ≥ 0 and a path visits every row, so the
+        path's cost is at least the least cell of the current row plus, for each row left,
+        that row's least cell. ``bb`` and ``hh`` (C, n + 2 band): scratch, zero in their
+        first and last ``band`` columns."""
+        n = a.shape[1]
+        width = 2 * band + 1
+        big = _BIG
+        for ch in range(_C):
+            if mirror:  # b(−(j + s) mod n)
+                for j in range(n):
+                    t = j + s
+                    if t >= n:
+                        t -= n
+                    bb[ch, band + j] = sig[ib, ch, n - t if t > 0 else 0]
+            else:
+                for j in range(n - s):
+                    bb[ch, band + j] = sig[ib, ch, j + s]
+                for j in range(n - s, n):
+                    bb[ch, band + j] = sig[ib, ch, j + s - n]
+            if half:
+                for j in range(n - 1):
+                    hh[ch, band + j] = 0.5 * (bb[ch, band + j] + bb[ch, band + j + 1])
+                hh[ch, band + n - 1] = 0.5 * (bb[ch, band + n - 1] + bb[ch, band])
+        # the band's costs along its diagonals: cost[w, i] matches a(i) to b(i + w − band);
+        # the channels' loop has a constant length (unrolled: the loop over i is vectorised)
+        for w in range(width):
+            if half:
+                for i in range(n):
+                    x0 = np.float32(0.0)
+                    x1 = np.float32(0.0)
+                    x2 = np.float32(0.0)
+                    for ch in range(_C):
+                        v = bb[ch, w + i]
+                        x0 += abs(a[ch, i] - v)
+                        x1 += abs(a[ch, i] - hh[ch, w + i])
+                        x2 += abs(g[ch, i] - v)
+                    cost[w, i] = min(x0, min(x1, x2))
+            else:
+                for i in range(n):
+                    x0 = np.float32(0.0)
+                    for ch in range(_C):
+                        x0 += abs(a[ch, i] - bb[ch, w + i])
+                    cost[w, i] = x0
+            d = w - band
+            for i in range(max(0, -d)):
+                cost[w, i] = big
+            for i in range(min(n, n - d), n):
+                cost[w, i] = big
+        # rest[i]: Σ over the rows after i of their least cell
+        for i in range(n):
+            rest[i] = big
+        for w in range(width):
+            for i in range(n):
+                rest[i] = min(rest[i], cost[w, i])
+        acc = 0.0
+        for i in range(n - 1, -1, -1):
+            r = rest[i]
+            rest[i] = acc
+            acc += r
+        if acc > limit:
+            return big
+        run = np.float32(0.0)
+        for w in range(width):
+            if w < band:
+                prev[w] = big
+            else:
+                run += cost[w, 0]
+                prev[w] = run
+        prev[width] = big
+        for i in range(1, n):
+            left = big
+            row_min = big
+            for w in range(width):
+                t = min(min(prev[w], prev[w + 1]), left)
+                left = cost[w, i] + t
+                cur[w] = left
+                row_min = min(row_min, left)
+            for w in range(width):
+                prev[w] = cur[w]
+            if row_min + rest[i] > limit:
+                return big
+        return prev[band]
+
+    @numba.njit(parallel=True, cache=True, fastmath=True)
+    def pairs(sig, fr, fi, norm, ii, jj, limit, cos_t, sin_t, n_cand, cap, band, half,
+              out):  # pragma: no cover
+        """out[p] = the least banded-DTW cost (not divided by n) of pair (ii[p], jj[p]) over
+        its rigid start shifts; +inf when it exceeds limit[p] (every shift abandoned)."""
+        n_pairs = ii.shape[0]
+        n_ch, n = sig.shape[1], sig.shape[2]
+        n_h = fr.shape[2]
+        width = 2 * band + 1
+        n_tasks = (n_pairs + _TASK - 1) // _TASK
+        for task in numba.prange(n_tasks):
+            dt = sig.dtype
+            a = np.empty((n_ch, n), dt)
+            g = np.empty((n_ch, n), dt)
+            bb = np.zeros((n_ch, n + 2 * band), dt)
+            hh = np.zeros((n_ch, n + 2 * band), dt)
+            cost = np.empty((width, n), dt)
+            rest = np.empty(n, dt)
+            prev = np.empty(width + 1, dt)
+            cur = np.empty(width + 1, dt)
+            xr = np.empty((2, n_h))
+            xi = np.empty((2, n_h))
+            vals = np.empty((2, n))
+            v_list = np.empty(cap + 1)
+            code = np.empty(cap + 1, np.int64)
+            mirror = np.empty(cap, np.int64)
+            shift = np.empty(cap, np.int64)
+            for p in range(task * _TASK, min(n_pairs, (task + 1) * _TASK)):
+                ia, ib = ii[p], jj[p]
+                got = start_shifts(fr, fi, norm, ia, ib, cos_t, sin_t, n_cand, xr, xi, vals,
+                                   v_list, code, mirror, shift)
+                for ch in range(n_ch):
+                    for i in range(n):
+                        a[ch, i] = sig[ia, ch, i]
+                    for i in range(n - 1):
+                        g[ch, i] = 0.5 * (a[ch, i] + a[ch, i + 1])
+                    g[ch, n - 1] = 0.5 * (a[ch, n - 1] + a[ch, 0])
+                best = _BIG
+                lim = min(limit[p], _BIG)
+                for k in range(got):
+                    v = banded(a, g, sig, ib, mirror[k], shift[k], band, half, lim, bb, hh,
+                               cost, rest, prev, cur)
+                    if v < best:
+                        best = v
+                        if v < lim:
+                            lim = v
+                out[p] = best
+
+    return pairs
 
 
 #: Valleys tied with the last kept one (to 1e-9) refined besides the N_START_SHIFTS: an outline
@@ -419,6 +491,40 @@ def _irfft_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
     return w * np.cos(ang) / n, w * np.sin(ang) / n
 
 
+def _ordered(sig: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each pair (ii[p], jj[p]) in a fixed order: the signature with the smaller sum of
+    squares first (:func:`_distances`)."""
+    key = (sig * sig).sum(axis=(1, 2))
+    swap = key[jj] < key[ii]
+    return (np.where(swap, jj, ii).astype(np.int64), np.where(swap, ii, jj).astype(np.int64))
+
+
+def _costs(sig: np.ndarray, first: np.ndarray, second: np.ndarray, limit: np.ndarray | None,
+           band: int, n_shifts: int, half_steps: bool, chunk: int) -> np.ndarray:
+    """The compiled kernel on the ordered pairs (first[p], second[p]) of ``sig`` (finite,
+    C-contiguous): the least warped cost per point, +inf where it exceeds ``limit[p]``
+    (per point; None: no limit)."""
+    n = sig.shape[2]
+    f = np.fft.rfft(sig, axis=-1)
+    fr, fi = np.ascontiguousarray(f.real), np.ascontiguousarray(f.imag)
+    norm = (sig * sig).sum(axis=(1, 2))
+    cos_t, sin_t = _irfft_tables(n)
+    cap = min(2 * n, n_shifts + _EXTRA_TIED)
+    sig_c = np.ascontiguousarray(sig, _COST_DTYPE)
+    pairs = _kernel()
+    out = np.empty(len(first))
+    for p0 in range(0, len(first), chunk):
+        sl = slice(p0, p0 + chunk)
+        lim = (np.full(len(first[sl]), np.inf) if limit is None
+               else np.asarray(limit[sl], float) * n)
+        res = np.empty(len(first[sl]))
+        pairs(sig_c, fr, fi, norm, first[sl], second[sl], lim, cos_t, sin_t, n_shifts, cap,
+              band, half_steps, res)
+        res[res >= _BIG] = np.inf
+        out[sl] = res / n
+    return out
+
+
 def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, band: int,
                n_shifts: int, half_steps: bool, chunk: int) -> np.ndarray:
     """d_E(a[ii[p]], b[jj[p]]) for every p (rows of a and b finite).
@@ -431,33 +537,13 @@ def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, ban
     may be put in either order by copies that differ by rounding (e.g. a table's and its
     results'), which can move their d_E by about 1 %.
     """
-    n = a.shape[2]
     if b is a:
         sig, jb = a, jj
     else:
         sig, jb = np.concatenate([a, b]), jj + len(a)
-    key = (sig * sig).sum(axis=(1, 2))
-    swap = key[jb] < key[ii]
-    first, second = np.where(swap, jb, ii).astype(np.int64), np.where(swap, ii, jb).astype(
-        np.int64)
-    f, fm, norm = _spectra(sig)
-    parts = [np.ascontiguousarray(x) for x in (f.real, f.imag, fm.real, fm.imag)]
-    cos_t, sin_t = _irfft_tables(n)
-    mirror_sig = np.ascontiguousarray(_mirrored(sig))
-    sig = np.ascontiguousarray(sig)
-    dtw, rigid = _kernel()
-    out = np.empty(len(ii))
-    for p0 in range(0, len(ii), chunk):
-        i, j = first[p0:p0 + chunk], second[p0:p0 + chunk]
-        cap = min(2 * n, n_shifts + _EXTRA_TIED)
-        mirror = np.empty((len(i), cap), np.int64)
-        shift = np.empty((len(i), cap), np.int64)
-        count = np.empty(len(i), np.int64)
-        rigid(*parts, norm, i, j, cos_t, sin_t, n_shifts, mirror, shift, count)
-        res = np.empty(len(i))
-        dtw(sig, mirror_sig, i, j, mirror, shift, count, band, half_steps, res)
-        out[p0:p0 + len(i)] = res
-    return out
+    sig = np.ascontiguousarray(sig, float)
+    first, second = _ordered(sig, np.asarray(ii, np.int64), np.asarray(jb, np.int64))
+    return _costs(sig, first, second, None, band, n_shifts, half_steps, chunk)
 
 
 def _check_search(a: np.ndarray, band: int, n_shifts: int) -> None:
