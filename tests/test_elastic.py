@@ -100,16 +100,39 @@ def _brute(a: np.ndarray, b: np.ndarray, band: int) -> float:
     return best / n
 
 
-def test_compiled_dp_matches_a_numpy_reference():
-    rng = np.random.default_rng(3)
-    a, b = rng.normal(size=(2, 5, N_CHANNELS, 24))
-    got = elastic_distance_pairs(a, b, band=4, n_shifts=48)  # every valley
+@pytest.mark.parametrize(("n", "band"), [(24, 4), (64, 8), (32, 0)])
+def test_compiled_dp_matches_a_numpy_reference(n, band):
+    rng = np.random.default_rng(3 + n)
+    a, b = rng.normal(size=(2, 5, N_CHANNELS, n))
+    b[0] = np.roll(a[0], 3, axis=-1) + 0.05 * b[0]  # one near pair: a deep valley
+    got = elastic_distance_pairs(a, b, band=band, n_shifts=2 * n)  # every valley
     # the pair in the order the library puts it (smaller sum of squares first)
-    want = [_brute(y, x, 4) if (y * y).sum() < (x * x).sum() else _brute(x, y, 4)
+    want = [_brute(y, x, band) if (y * y).sum() < (x * x).sum() else _brute(x, y, band)
             for x, y in zip(a, b, strict=True)]
     assert np.allclose(got, want, rtol=1e-6, atol=0)  # single-precision costs
     # the default keeps the 3 lowest valleys: never below them all
-    assert np.all(elastic_distance_pairs(a, b, band=4) >= got - 1e-12)
+    assert np.all(elastic_distance_pairs(a, b, band=band) >= got * (1 - 1e-6))
+
+
+def test_compiled_dp_without_half_steps_matches_the_reference():
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=(2, 4, N_CHANNELS, 32))
+    d = np.arange(-4, 5)
+    i = np.arange(32)[:, None]
+    want = []
+    for x, y in zip(a, b, strict=True):
+        x, y = (y, x) if (y * y).sum() < (x * x).sum() else (x, y)
+        best = np.inf
+        for yy in (y, _mirrored(y)):
+            for s in range(32):  # every start shift: at least the kernel's valleys
+                cost = np.abs(x[:, i] - yy[:, (i + d[None, :] + s) % 32]).sum(axis=0)
+                best = min(best, banded_dtw(cost[None])[0])
+        want.append(best / 32)
+    got = elastic_distance_pairs(a, b, band=4, n_shifts=64, half_steps=False)
+    # every local minimum of the rigid cost is refined, so the least over all shifts is
+    # reached unless a non-minimum shift warps better: never below it
+    assert np.all(got >= np.array(want) * (1 - 1e-6))
+    assert np.isclose(got, want, rtol=1e-6).sum() >= 3
 
 
 def test_start_point_and_mirror_of_a_signature_are_free():
@@ -174,6 +197,40 @@ def test_bad_input_is_refused():
         elastic_distance_pairs(np.zeros((2, N_CHANNELS, 64)), np.zeros((3, N_CHANNELS, 64)))
     with pytest.raises(InputError):
         elastic_distance_matrix(np.zeros((2, 3, 64)))
+
+
+def test_nearest_is_the_shortcut_with_every_candidate_computed():
+    from napari_pfsdm.core.elastic import elastic_nearest
+
+    rng = np.random.default_rng(13)
+    n, k, mu = 40, 4, 0.7
+    s = rng.normal(size=(n, N_CHANNELS, 32))
+    s[n // 2:] = s[: n // 2] + 0.3 * rng.normal(size=(n // 2, N_CHANNELS, 32))  # near pairs
+    sq = rng.random((n, n))
+    for scale in (1.0, 30.0):  # the other terms small, then large, against μ d_E
+        other = scale * (sq + sq.T)
+        np.fill_diagonal(other, np.inf)
+        full = other + mu * elastic_distance_matrix(s)
+        np.fill_diagonal(full, np.inf)
+        for n_cand in (6, 15, n - 1):
+            cand = np.argsort(other, axis=1, kind="stable")[:, :n_cand]
+            base = np.take_along_axis(other, cand, 1)
+            idx, dist, computed, exact = elastic_nearest(s, cand, base, mu, k)
+            # the k least totals among the candidates, ties by number: what sorting gives
+            tot = np.take_along_axis(full, cand, 1)
+            want = np.take_along_axis(cand, np.lexsort((cand, tot), axis=1)[:, :k], 1)
+            assert np.array_equal(idx, want)
+            assert np.allclose(dist, np.take_along_axis(full, idx, 1), rtol=1e-6)
+            assert np.all(computed <= n_cand)
+            # a row said exact has the k nearest of all objects
+            truth = np.argsort(full, axis=1, kind="stable")[:, :k]
+            assert np.array_equal(idx[exact], truth[exact])
+        assert exact.all()  # every other object a candidate
+    # with the other terms large, a candidate whose base exceeds the k-th total ends the row
+    assert computed.mean() < n / 2
+    cand[0, 2:] = -1  # fewer than k candidates
+    idx, dist, _, _ = elastic_nearest(s, cand, np.where(cand >= 0, base, np.inf), mu, k)
+    assert idx[0, 2:].tolist() == [-1, -1] and np.isinf(dist[0, 2:]).all()
 
 
 def test_between_is_the_matrix_entries():

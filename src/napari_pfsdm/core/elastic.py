@@ -67,6 +67,7 @@ __all__ = [
     "elastic_distance_between",
     "elastic_distance_matrix",
     "elastic_distance_pairs",
+    "elastic_nearest",
     "outline_signature",
 ]
 
@@ -421,55 +422,118 @@ def _compile():
                 return big
         return prev[band]
 
+    @numba.njit(cache=True, inline="always")
+    def scratch(sig, band, n_h, cap):  # pragma: no cover
+        """The per-task work arrays of :func:`pair_cost`."""
+        n_ch, n = sig.shape[1], sig.shape[2]
+        width = 2 * band + 1
+        dt = sig.dtype
+        return (np.empty((n_ch, n), dt), np.empty((n_ch, n), dt),
+                np.zeros((n_ch, n + 2 * band), dt), np.zeros((n_ch, n + 2 * band), dt),
+                np.empty((width, n), dt), np.empty(n, dt), np.empty(width + 1, dt),
+                np.empty(width + 1, dt), np.empty((2, n_h)), np.empty((2, n_h)),
+                np.empty((2, n)), np.empty(cap + 1), np.empty(cap + 1, np.int64),
+                np.empty(cap, np.int64), np.empty(cap, np.int64))
+
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def pair_cost(sig, fr, fi, norm, ia, ib, limit, cos_t, sin_t, n_cand, band, half,
+                  work):  # pragma: no cover
+        """The least banded-DTW cost (not divided by n) of the ordered pair (ia, ib) over
+        its rigid start shifts, or _BIG when it is sure to exceed ``limit``."""
+        a, g, bb, hh, cost, rest, prev, cur, xr, xi, vals, v_list, code, mirror, shift = work
+        n_ch, n = sig.shape[1], sig.shape[2]
+        got = start_shifts(fr, fi, norm, ia, ib, cos_t, sin_t, n_cand, xr, xi, vals, v_list,
+                           code, mirror, shift)
+        for ch in range(n_ch):
+            for i in range(n):
+                a[ch, i] = sig[ia, ch, i]
+            for i in range(n - 1):
+                g[ch, i] = 0.5 * (a[ch, i] + a[ch, i + 1])
+            g[ch, n - 1] = 0.5 * (a[ch, n - 1] + a[ch, 0])
+        best = _BIG
+        lim = min(limit, _BIG)
+        for k in range(got):
+            v = banded(a, g, sig, ib, mirror[k], shift[k], band, half, lim, bb, hh, cost, rest,
+                       prev, cur)
+            if v < best:
+                best = v
+                if v < lim:
+                    lim = v
+        return best
+
     @numba.njit(parallel=True, cache=True, fastmath=True)
     def pairs(sig, fr, fi, norm, ii, jj, limit, cos_t, sin_t, n_cand, cap, band, half,
               out):  # pragma: no cover
-        """out[p] = the least banded-DTW cost (not divided by n) of pair (ii[p], jj[p]) over
-        its rigid start shifts; +inf when it exceeds limit[p] (every shift abandoned)."""
+        """out[p] = the least banded-DTW cost (not divided by n) of the ordered pair
+        (ii[p], jj[p]) over its rigid start shifts; _BIG when it exceeds limit[p]."""
         n_pairs = ii.shape[0]
-        n_ch, n = sig.shape[1], sig.shape[2]
-        n_h = fr.shape[2]
-        width = 2 * band + 1
         n_tasks = (n_pairs + _TASK - 1) // _TASK
         for task in numba.prange(n_tasks):
-            dt = sig.dtype
-            a = np.empty((n_ch, n), dt)
-            g = np.empty((n_ch, n), dt)
-            bb = np.zeros((n_ch, n + 2 * band), dt)
-            hh = np.zeros((n_ch, n + 2 * band), dt)
-            cost = np.empty((width, n), dt)
-            rest = np.empty(n, dt)
-            prev = np.empty(width + 1, dt)
-            cur = np.empty(width + 1, dt)
-            xr = np.empty((2, n_h))
-            xi = np.empty((2, n_h))
-            vals = np.empty((2, n))
-            v_list = np.empty(cap + 1)
-            code = np.empty(cap + 1, np.int64)
-            mirror = np.empty(cap, np.int64)
-            shift = np.empty(cap, np.int64)
+            work = scratch(sig, band, fr.shape[2], cap)
             for p in range(task * _TASK, min(n_pairs, (task + 1) * _TASK)):
-                ia, ib = ii[p], jj[p]
-                got = start_shifts(fr, fi, norm, ia, ib, cos_t, sin_t, n_cand, xr, xi, vals,
-                                   v_list, code, mirror, shift)
-                for ch in range(n_ch):
-                    for i in range(n):
-                        a[ch, i] = sig[ia, ch, i]
-                    for i in range(n - 1):
-                        g[ch, i] = 0.5 * (a[ch, i] + a[ch, i + 1])
-                    g[ch, n - 1] = 0.5 * (a[ch, n - 1] + a[ch, 0])
-                best = _BIG
-                lim = min(limit[p], _BIG)
-                for k in range(got):
-                    v = banded(a, g, sig, ib, mirror[k], shift[k], band, half, lim, bb, hh,
-                               cost, rest, prev, cur)
-                    if v < best:
-                        best = v
-                        if v < lim:
-                            lim = v
-                out[p] = best
+                out[p] = pair_cost(sig, fr, fi, norm, ii[p], jj[p], limit[p], cos_t, sin_t,
+                                   n_cand, band, half, work)
 
-    return pairs
+    @numba.njit(parallel=True, cache=True, fastmath=True)
+    def nearest(sig, fr, fi, norm, key, queries, cand, base, mu, k, cos_t, sin_t, n_cand,
+                cap, band, half, out_idx, out_dist, computed, exact):  # pragma: no cover
+        """For each query q (object ``queries[r]``): of its candidates ``cand[r]`` (objects,
+        -1 for none, in increasing order of the other terms ``base[r]``), the k of least
+        base + mu d_E (ties by object number), with d_E computed for as few as possible: a
+        candidate whose base exceeds the k-th total so far cannot enter (nor can any after
+        it: then the row is ``exact``, no object left out of the candidates can enter
+        either), and the DTW of one whose d_E must be below (k-th total − base) / mu is
+        abandoned as soon as it cannot be."""
+        n_q, n_c = cand.shape
+        n = sig.shape[2]
+        slack = 1.0 + 1e-5  # the abandoning compares single-precision sums
+        n_tasks = (n_q + 7) // 8
+        for task in numba.prange(n_tasks):
+            work = scratch(sig, band, fr.shape[2], cap)
+            for r in range(task * 8, min(n_q, (task + 1) * 8)):
+                q = queries[r]
+                m = 0
+                done = 0
+                exact[r] = False
+                for c in range(n_c):
+                    j = cand[r, c]
+                    if j < 0:
+                        break
+                    b = base[r, c]
+                    if m == k and b > out_dist[r, k - 1]:
+                        exact[r] = True
+                        break
+                    lim = _BIG
+                    if m == k:
+                        lim = (out_dist[r, k - 1] - b) / mu * n * slack
+                    ia, ib = (j, q) if key[j] < key[q] else (q, j)
+                    v = pair_cost(sig, fr, fi, norm, ia, ib, lim, cos_t, sin_t, n_cand, band,
+                                  half, work)
+                    done += 1
+                    if v >= _BIG:
+                        continue
+                    t = b + mu * (v / n)
+                    if m == k and (t > out_dist[r, k - 1]
+                                   or (t == out_dist[r, k - 1] and j > out_idx[r, k - 1])):
+                        continue
+                    pos = m if m < k else k - 1
+                    while pos > 0 and (out_dist[r, pos - 1] > t
+                                       or (out_dist[r, pos - 1] == t
+                                           and out_idx[r, pos - 1] > j)):
+                        if pos < k:
+                            out_dist[r, pos] = out_dist[r, pos - 1]
+                            out_idx[r, pos] = out_idx[r, pos - 1]
+                        pos -= 1
+                    out_dist[r, pos] = t
+                    out_idx[r, pos] = j
+                    if m < k:
+                        m += 1
+                computed[r] = done
+                for c in range(m, k):
+                    out_idx[r, c] = -1
+                    out_dist[r, c] = np.inf
+
+    return pairs, nearest
 
 
 #: Valleys tied with the last kept one (to 1e-9) refined besides the N_START_SHIFTS: an outline
@@ -505,13 +569,11 @@ def _costs(sig: np.ndarray, first: np.ndarray, second: np.ndarray, limit: np.nda
     C-contiguous): the least warped cost per point, +inf where it exceeds ``limit[p]``
     (per point; None: no limit)."""
     n = sig.shape[2]
-    f = np.fft.rfft(sig, axis=-1)
-    fr, fi = np.ascontiguousarray(f.real), np.ascontiguousarray(f.imag)
-    norm = (sig * sig).sum(axis=(1, 2))
+    fr, fi, norm = _spectral_parts(sig)
     cos_t, sin_t = _irfft_tables(n)
     cap = min(2 * n, n_shifts + _EXTRA_TIED)
     sig_c = np.ascontiguousarray(sig, _COST_DTYPE)
-    pairs = _kernel()
+    pairs = _kernel()[0]
     out = np.empty(len(first))
     for p0 in range(0, len(first), chunk):
         sl = slice(p0, p0 + chunk)
@@ -544,6 +606,88 @@ def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, ban
     sig = np.ascontiguousarray(sig, float)
     first, second = _ordered(sig, np.asarray(ii, np.int64), np.asarray(jb, np.int64))
     return _costs(sig, first, second, None, band, n_shifts, half_steps, chunk)
+
+
+def _spectral_parts(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Real and imaginary parts of the signatures' FFT along the points, and their squared
+    norms: what the compiled rigid start-shift scores need."""
+    f = np.fft.rfft(sig, axis=-1)
+    return (np.ascontiguousarray(f.real), np.ascontiguousarray(f.imag),
+            (sig * sig).sum(axis=(1, 2)))
+
+
+def elastic_nearest(signatures: np.ndarray, candidates: np.ndarray, base: np.ndarray,
+                    weight: float, k: int, *, band: int = BAND,
+                    n_shifts: int = N_START_SHIFTS, half_steps: bool = HALF_STEPS,
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each object's k nearest among its candidates under ``base + weight · d_E``.
+
+    Parameters
+    ----------
+    signatures : ndarray, shape (n, N_CHANNELS, points)
+        :func:`outline_signature` of every object (finite).
+    candidates : ndarray of int, shape (n, C)
+        Row q: object q's candidates in increasing order of ``base`` (-1: none; then the
+        rest of the row is -1 too), never q itself.
+    base : ndarray, shape (n, C)
+        The other terms of the distance from q to each candidate.
+    weight : float
+        μ > 0.
+    k : int
+        Neighbours kept per object.
+    band, n_shifts, half_steps
+        As :func:`elastic_distance_pairs`.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (n, k)
+        Nearest first, equal totals by object number; -1 where fewer than k candidates.
+    distances : ndarray, shape (n, k)
+        ``base + weight · d_E`` (inf where -1). d_E is
+        ``elastic_distance_between(signatures, q, j)`` to single-precision rounding.
+    computed : ndarray of int, shape (n,)
+        The candidates whose d_E was computed (the DTW may have been abandoned).
+    exact : ndarray of bool, shape (n,)
+        Rows whose k nearest are those of all n objects, not only of the candidates: a
+        candidate whose base alone was above the k-th total was reached (as d_E ≥ 0, no
+        object after it, candidate or not, can be nearer), or the candidates were all the
+        other objects.
+
+    Notes
+    -----
+    The candidates are taken in order; once k are in, a candidate enters only if its
+    d_E is below (k-th total − base) / μ, and its DTW is abandoned as soon as the least
+    cost of a path through the current row plus the least cell of each row left exceeds
+    that (:mod:`module docstring <napari_pfsdm.core.elastic>`); the first candidate whose
+    base exceeds the k-th total ends the row. On MPEG-7 this computes d_E fully for a few
+    candidates per object (docs/benchmarks.md, "The elastic outline term").
+    """
+    a = _check_signatures(signatures, "signatures")
+    _check_search(a, band, n_shifts)
+    cand = np.ascontiguousarray(candidates, np.int64)
+    base = np.ascontiguousarray(base, float)
+    if cand.ndim != 2 or base.shape != cand.shape or len(cand) != len(a):
+        raise InputError(f"candidates and base must be (n, C) for n = {len(a)} objects; got "
+                         f"{cand.shape} and {base.shape}")
+    if not weight > 0 or not 1 <= k:
+        raise InputError(f"weight must be > 0 and k ≥ 1; got {weight} and {k}")
+    if not np.isfinite(a).all():
+        raise InputError("the signatures must be finite")
+    sig = np.ascontiguousarray(a, float)
+    fr, fi, norm = _spectral_parts(sig)
+    cos_t, sin_t = _irfft_tables(sig.shape[2])
+    cap = min(2 * sig.shape[2], n_shifts + _EXTRA_TIED)
+    n = len(sig)
+    idx = np.full((n, k), -1, np.int64)
+    dist = np.full((n, k), np.inf)
+    computed = np.zeros(n, np.int64)
+    exact = np.zeros(n, bool)
+    nearest = _kernel()[1]
+    nearest(np.ascontiguousarray(sig, _COST_DTYPE), fr, fi, norm, norm, np.arange(n), cand,
+            base, float(weight), int(k), cos_t, sin_t, n_shifts, cap, band, half_steps, idx,
+            dist, computed, exact)
+    exact |= (cand >= 0).sum(axis=1) >= n - 1
+    return idx, dist, computed, exact
 
 
 def _check_search(a: np.ndarray, band: int, n_shifts: int) -> None:
