@@ -129,7 +129,7 @@ def test_compiled_dp_matches_a_numpy_reference(n, band):
     want = [_brute(y, x, band) if (y * y).sum() < (x * x).sum() else _brute(x, y, band)
             for x, y in zip(a, b, strict=True)]
     assert np.allclose(got, want, rtol=1e-6, atol=0)  # single-precision costs
-    # the default keeps the 3 lowest valleys: never below them all
+    # the default keeps the 5 lowest valleys: never below them all
     assert np.all(elastic_distance_pairs(a, b, band=band) >= got * (1 - 1e-6))
 
 

@@ -75,7 +75,7 @@ BOUNDARY_WEIGHT = option("boundary_weight").default
 ELASTIC_WEIGHT = option("elastic_weight").default
 #: The weight of d_E chosen by leave-classes-out cross-validation on MPEG-7
 #: (``benchmarks/mpeg7_elastic.py``, docs/benchmarks.md).
-RECOMMENDED_ELASTIC_WEIGHT = 0.5
+RECOMMENDED_ELASTIC_WEIGHT = 0.375
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
