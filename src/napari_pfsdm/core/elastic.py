@@ -167,7 +167,8 @@ def outline_signature(points: np.ndarray, n_points: int = N_SIGNATURE_POINTS, *,
         raise InputError(f"n_points must divide {_RESAMPLED} and be at least 8, got {n_points}")
     p = pts if len(pts) == _RESAMPLED else _resample(pts, _RESAMPLED)
     x, y = p[:, 0], p[:, 1]
-    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    nxt = _next_index(len(p))
+    xn, yn = x[nxt], y[nxt]
     cross = x * yn - xn * y
     area = cross.sum() / 2
     if not abs(area) > 0:
@@ -183,7 +184,7 @@ def outline_signature(points: np.ndarray, n_points: int = N_SIGNATURE_POINTS, *,
     radius = np.hypot(p[:, 0], p[:, 1])
     out[-1] = radius / radius.mean()
     if smoothing > 0:
-        out = ndi.gaussian_filter1d(out, smoothing, axis=-1, mode="wrap")
+        out = ndi.correlate1d(out, _gaussian(smoothing), axis=-1, mode="wrap")
     step = _RESAMPLED // n_points
     r = local_thickness(p, step, area > 0)
     finite = np.isfinite(r)
@@ -191,8 +192,29 @@ def outline_signature(points: np.ndarray, n_points: int = N_SIGNATURE_POINTS, *,
         r[~finite] = r[finite].max() if finite.any() else 1.0
     thick = np.log(np.maximum(r / r.mean(), 1e-3))
     if smoothing > 0:
-        thick = ndi.gaussian_filter1d(thick, smoothing / step, mode="wrap")
+        thick = ndi.correlate1d(thick, _gaussian(smoothing / step), mode="wrap")
     return np.concatenate([out[:, ::step], thickness_weight * thick[None]])
+
+
+@lru_cache(maxsize=4)
+def _next_index(m: int) -> np.ndarray:
+    """(i + 1) mod m for i < m (read-only)."""
+    out = np.roll(np.arange(m), -1)
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=8)
+def _gaussian(sigma: float) -> np.ndarray:
+    """The weights ``ndi.gaussian_filter1d(x, sigma)`` correlates x with (read from the filter's
+    response to an impulse, so that ``ndi.correlate1d(x, _gaussian(sigma))`` is the same
+    filter, number for number, without rebuilding the kernel at each call)."""
+    radius = int(4.0 * float(sigma) + 0.5)
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    out = ndi.gaussian_filter1d(impulse, sigma, mode="constant")[::-1].copy()
+    out.flags.writeable = False
+    return out
 
 
 def local_thickness(points: np.ndarray, step: int = 1, ccw: bool = True) -> np.ndarray:
