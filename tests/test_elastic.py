@@ -25,8 +25,10 @@ def test_signature_of_a_circle_is_its_closed_form():
     circle = np.column_stack([3 + 2 * np.cos(t), -1 + 2 * np.sin(t)])
     sig = outline_signature(circle)
     want = 2 * np.pi * np.array(TURNING_ARCS)
-    assert np.allclose(sig[:-1], want[:, None], atol=1e-12)
-    assert np.allclose(sig[-1], 1.0, atol=1e-12)
+    n_arcs = len(TURNING_ARCS)
+    assert np.allclose(sig[:n_arcs], want[:, None], atol=1e-12)
+    assert np.allclose(sig[n_arcs], 1.0, atol=1e-12)
+    assert np.allclose(sig[-1], 0.0, atol=1e-3)  # log of the thickness over its mean
 
 
 def test_signature_of_an_ellipse_centroid_channel():
@@ -38,8 +40,24 @@ def test_signature_of_an_ellipse_centroid_channel():
     seg = np.hypot(*np.diff(np.vstack([pts, pts[:1]]), axis=0).T)
     r = np.hypot(*pts.T)
     mean_r = (r * seg).sum() / seg.sum()  # mean over arc length
-    assert sig[-1].max() == pytest.approx(2 / mean_r, rel=1e-3)
-    assert sig[-1].min() == pytest.approx(1 / mean_r, rel=1e-3)
+    centroid = sig[len(TURNING_ARCS)]
+    assert centroid.max() == pytest.approx(2 / mean_r, rel=1e-3)
+    assert centroid.min() == pytest.approx(1 / mean_r, rel=1e-3)
+
+
+def test_local_thickness_of_an_ellipse():
+    # the largest disk inside x²/4 + y² ≤ 1 touching at (±2, 0) has the radius of curvature
+    # there, b²/a = 1/2; at (0, ±1) it is the disk of radius b = 1 (it meets the far side)
+    from napari_pfsdm.core.elastic import local_thickness
+
+    t = 2 * np.pi * np.arange(1024) / 1024
+    r = local_thickness(np.column_stack([2 * np.cos(t), np.sin(t)]))
+    assert r[0] == pytest.approx(0.5, rel=0.02) and r[512] == pytest.approx(0.5, rel=0.02)
+    assert r[256] == pytest.approx(1.0, rel=1e-3) and r[768] == pytest.approx(1.0, rel=1e-3)
+    assert r.min() == pytest.approx(0.5, rel=0.02) and r.max() == pytest.approx(1.0, rel=1e-3)
+    # clockwise vertices with ccw=False: the same radii
+    assert np.allclose(local_thickness(np.column_stack([2 * np.cos(t), -np.sin(t)]),
+                                       ccw=False), r)
 
 
 def _pulse_pair(n: int = 18) -> tuple[np.ndarray, np.ndarray]:
@@ -63,8 +81,9 @@ def test_half_point_offset_costs_nothing_with_half_steps():
     # a sampled half a point later than b: each a(i) is the midpoint of b(i) and b(i + 1)
     b = np.random.default_rng(2).normal(size=(3, N_CHANNELS, 64))
     a = 0.5 * (b + np.roll(b, -1, axis=-1))
-    assert np.abs(elastic_distance_pairs(a, b)).max() < 1e-12
-    assert np.abs(elastic_distance_pairs(b, a)).max() < 1e-12
+    # (the DTW's costs are summed in single precision: zero to its rounding)
+    assert np.abs(elastic_distance_pairs(a, b)).max() < 1e-6
+    assert np.abs(elastic_distance_pairs(b, a)).max() < 1e-6
     assert np.all(elastic_distance_pairs(a, b, half_steps=False) > 0.1)
 
 
@@ -76,7 +95,7 @@ def test_banded_dtw_hand_worked():
     assert banded_dtw(c)[0] == pytest.approx(8.0)
 
 
-def _brute(a: np.ndarray, b: np.ndarray, band: int) -> float:
+def _brute(a: np.ndarray, b: np.ndarray, band: int, half: bool = True) -> float:
     """min over both orientations and the local minima over cyclic shifts s of the rigid cost
     Σ_i ‖a(i) − b(i + s)‖², of the numpy banded DTW / n, with the half-point matches."""
     n = a.shape[1]
@@ -91,24 +110,36 @@ def _brute(a: np.ndarray, b: np.ndarray, band: int) -> float:
             if rigid[s] > rigid[s - 1] + flat or rigid[s] > rigid[(s + 1) % n] + flat:
                 continue
             j = (i + d[None, :] + s) % n
-            cost = np.minimum.reduce([
-                np.abs(a[:, i] - bb[:, j]).sum(axis=0),
-                np.abs(a[:, i] - mid(bb)[:, j]).sum(axis=0),
-                np.abs(mid(a)[:, i] - bb[:, j]).sum(axis=0)])
+            cost = np.abs(a[:, i] - bb[:, j]).sum(axis=0)
+            if half:
+                cost = np.minimum.reduce([
+                    cost, np.abs(a[:, i] - mid(bb)[:, j]).sum(axis=0),
+                    np.abs(mid(a)[:, i] - bb[:, j]).sum(axis=0)])
             best = min(best, banded_dtw(cost[None])[0])
     return best / n
 
 
-def test_compiled_dp_matches_a_numpy_reference():
-    rng = np.random.default_rng(3)
-    a, b = rng.normal(size=(2, 5, N_CHANNELS, 24))
-    got = elastic_distance_pairs(a, b, band=4, n_shifts=48)  # every valley
+@pytest.mark.parametrize(("n", "band"), [(24, 4), (64, 8), (32, 0)])
+def test_compiled_dp_matches_a_numpy_reference(n, band):
+    rng = np.random.default_rng(3 + n)
+    a, b = rng.normal(size=(2, 5, N_CHANNELS, n))
+    b[0] = np.roll(a[0], 3, axis=-1) + 0.05 * b[0]  # one near pair: a deep valley
+    got = elastic_distance_pairs(a, b, band=band, n_shifts=2 * n)  # every valley
     # the pair in the order the library puts it (smaller sum of squares first)
-    want = [_brute(y, x, 4) if (y * y).sum() < (x * x).sum() else _brute(x, y, 4)
+    want = [_brute(y, x, band) if (y * y).sum() < (x * x).sum() else _brute(x, y, band)
             for x, y in zip(a, b, strict=True)]
-    assert np.allclose(got, want, rtol=1e-9)
-    # the default keeps the 3 lowest valleys: never below them all
-    assert np.all(elastic_distance_pairs(a, b, band=4) >= got - 1e-12)
+    assert np.allclose(got, want, rtol=1e-6, atol=0)  # single-precision costs
+    # the default keeps the 5 lowest valleys: never below them all
+    assert np.all(elastic_distance_pairs(a, b, band=band) >= got * (1 - 1e-6))
+
+
+def test_compiled_dp_without_half_steps_matches_the_reference():
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=(2, 4, N_CHANNELS, 32))
+    got = elastic_distance_pairs(a, b, band=4, n_shifts=64, half_steps=False)
+    want = [_brute(y, x, 4, half=False) if (y * y).sum() < (x * x).sum()
+            else _brute(x, y, 4, half=False) for x, y in zip(a, b, strict=True)]
+    assert np.allclose(got, want, rtol=1e-6, atol=0)
 
 
 def test_start_point_and_mirror_of_a_signature_are_free():
@@ -173,6 +204,40 @@ def test_bad_input_is_refused():
         elastic_distance_pairs(np.zeros((2, N_CHANNELS, 64)), np.zeros((3, N_CHANNELS, 64)))
     with pytest.raises(InputError):
         elastic_distance_matrix(np.zeros((2, 3, 64)))
+
+
+def test_nearest_is_the_shortcut_with_every_candidate_computed():
+    from napari_pfsdm.core.elastic import elastic_nearest
+
+    rng = np.random.default_rng(13)
+    n, k, mu = 40, 4, 0.7
+    s = rng.normal(size=(n, N_CHANNELS, 32))
+    s[n // 2:] = s[: n // 2] + 0.3 * rng.normal(size=(n // 2, N_CHANNELS, 32))  # near pairs
+    sq = rng.random((n, n))
+    for scale in (1.0, 30.0):  # the other terms small, then large, against μ d_E
+        other = scale * (sq + sq.T)
+        np.fill_diagonal(other, np.inf)
+        full = other + mu * elastic_distance_matrix(s)
+        np.fill_diagonal(full, np.inf)
+        for n_cand in (6, 15, n - 1):
+            cand = np.argsort(other, axis=1, kind="stable")[:, :n_cand]
+            base = np.take_along_axis(other, cand, 1)
+            idx, dist, computed, exact = elastic_nearest(s, cand, base, mu, k)
+            # the k least totals among the candidates, ties by number: what sorting gives
+            tot = np.take_along_axis(full, cand, 1)
+            want = np.take_along_axis(cand, np.lexsort((cand, tot), axis=1)[:, :k], 1)
+            assert np.array_equal(idx, want)
+            assert np.allclose(dist, np.take_along_axis(full, idx, 1), rtol=1e-6)
+            assert np.all(computed <= n_cand)
+            # a row said exact has the k nearest of all objects
+            truth = np.argsort(full, axis=1, kind="stable")[:, :k]
+            assert np.array_equal(idx[exact], truth[exact])
+        assert exact.all()  # every other object a candidate
+    # with the other terms large, a candidate whose base exceeds the k-th total ends the row
+    assert computed.mean() < n / 2
+    cand[0, 2:] = -1  # fewer than k candidates
+    idx, dist, _, _ = elastic_nearest(s, cand, np.where(cand >= 0, base, np.inf), mu, k)
+    assert idx[0, 2:].tolist() == [-1, -1] and np.isinf(dist[0, 2:]).all()
 
 
 def test_between_is_the_matrix_entries():

@@ -574,7 +574,7 @@ def measure(
         pixels, degrees; NaN for 3-D objects), then
         ``shape_rXX_nYY`` and, with an intensity, ``intensity_rXX_nYY``, then the outline
         coefficients of the boundary term ``outline_n±KK_re/im`` (64 columns) and the outline
-        signature of the elastic term ``elastic_cC_pPP`` (384 columns), see
+        signature of the elastic term ``elastic_cC_pPP`` (448 columns), see
         :mod:`napari_pfsdm.core.table_schema`. ``attrs["pfsdm"]`` holds the options used,
         with the rings' ``radii`` and ``weights``, and ``axes``.
         3-D objects: ``volume`` (voxels) instead of ``area``, ``centroid_z``, and

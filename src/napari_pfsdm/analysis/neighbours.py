@@ -212,18 +212,44 @@ def _signatures(items) -> np.ndarray:
 
 def _add_elastic(idx: np.ndarray, dist: np.ndarray, signatures: np.ndarray, mu: float,
                  k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each row's candidates (idx, dist: the other terms) with μ d_E added, the k nearest kept
-    (nearest first, equal distances by row number)."""
-    from ..core.elastic import elastic_distance_between
+    """Each row's candidates (idx, dist: the other terms, nearest first) with μ d_E added,
+    the k nearest kept (nearest first, equal distances by row number). d_E is computed in
+    the candidates' order and only as far as it can still matter
+    (:func:`napari_pfsdm.core.elastic.elastic_nearest`); rows whose own or a candidate's
+    signature is not finite, or with NaN distances (objects without features), get every
+    candidate's d_E, as :func:`elastic_distance_between` gives it (NaN totals last)."""
+    from ..core.elastic import elastic_distance_between, elastic_nearest
 
-    rows, cols = np.nonzero(idx >= 0)
-    total = dist.astype(float).copy()
-    if rows.size:
-        total[rows, cols] += mu * elastic_distance_between(signatures, rows, idx[rows, cols])
-    total = np.where(idx >= 0, total, np.where(np.isnan(dist), np.nan, np.inf))
-    key = np.where(np.isnan(total), np.inf, total)
-    order = np.lexsort((idx, key), axis=1)[:, :k]
-    return np.take_along_axis(idx, order, 1), np.take_along_axis(total, order, 1)
+    sig = np.asarray(signatures, float)
+    ok = np.isfinite(sig).all(axis=(1, 2))
+    cand = np.where(idx >= 0, idx, -1)
+    plain = (~ok | (~ok[np.maximum(cand, 0)] & (cand >= 0)).any(axis=1)
+             | np.isnan(dist).any(axis=1))
+    out_i = np.full((len(idx), k), -1, np.int64)
+    out_d = np.full((len(idx), k), np.inf)
+    fast = np.flatnonzero(~plain)
+    if fast.size:
+        # the kernel reads each object's signature by number: NaN rows zeroed (never used)
+        sig0 = np.where(ok[:, None, None], sig, 0.0)
+        sub_i = np.full((len(idx), cand.shape[1]), -1, np.int64)
+        sub_i[fast] = cand[fast]
+        base = np.where(sub_i >= 0, dist, np.inf)
+        i_all, d_all, _, _ = elastic_nearest(sig0, sub_i, base, mu, k)
+        out_i[fast], out_d[fast] = i_all[fast], d_all[fast]
+    slow = np.flatnonzero(plain)
+    if slow.size:
+        sub, dsub = idx[slow], dist[slow]
+        rows, cols = np.nonzero(sub >= 0)
+        total = dsub.astype(float).copy()
+        if rows.size:
+            total[rows, cols] += mu * elastic_distance_between(sig, slow[rows],
+                                                               sub[rows, cols])
+        total = np.where(sub >= 0, total, np.where(np.isnan(dsub), np.nan, np.inf))
+        key = np.where(np.isnan(total), np.inf, total)
+        order = np.lexsort((sub, key), axis=1)[:, :k]
+        out_i[slow] = np.take_along_axis(sub, order, 1)
+        out_d[slow] = np.take_along_axis(total, order, 1)
+    return out_i, out_d
 
 
 def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,

@@ -15,7 +15,7 @@ An elastic outline term is opt-in (``elastic_weight`` μ > 0, :mod:`napari_pfsdm
 D + μ · d_E, d_E the mean L1 cost per point of the best elastic correspondence between the
 two outlines' multi-scale signatures (dynamic programming over start point, mirror and local
 stretching). It needs the signatures (results, or a table measured with them) and costs
-about 4 times the default distance's time for all pairs (docs/benchmarks.md).
+about 3 times the default distance's time for all pairs (docs/benchmarks.md).
 
 Three ways to remove rotation and reflection from the SDF term (``invariance``):
 
@@ -75,7 +75,7 @@ BOUNDARY_WEIGHT = option("boundary_weight").default
 ELASTIC_WEIGHT = option("elastic_weight").default
 #: The weight of d_E chosen by leave-classes-out cross-validation on MPEG-7
 #: (``benchmarks/mpeg7_elastic.py``, docs/benchmarks.md).
-RECOMMENDED_ELASTIC_WEIGHT = 0.5
+RECOMMENDED_ELASTIC_WEIGHT = 0.375
 
 
 def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:

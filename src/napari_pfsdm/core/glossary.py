@@ -86,9 +86,10 @@ _PATTERNS = [
                f"{'real' if m[2] == 're' else 'imaginary'} part (what the outline term of the "
                "distance compares)"),
     (re.compile(r"^elastic_c(\d+)_p(\d+)$"),
-     lambda m: f"the outline's elastic signature, channel {int(m[1])} (turning angle over an "
-               "arc of the perimeter, or the centroid distance / its mean), at point "
-               f"{int(m[2])} of the outline (what the opt-in elastic term compares)"),
+     lambda m: f"the outline's elastic signature, channel {int(m[1])} (0–4: turning angle "
+               "over an arc of the perimeter; 5: the centroid distance / its mean; 6: the log "
+               f"local thickness / its mean), at point {int(m[2])} of the outline (what the "
+               "opt-in elastic term compares)"),
     (re.compile(r"^width_b(\d+)$"),
      lambda m: f"mean width across the midline (pixels) on piece {int(m[1])} of its "
                "profile_bins equal pieces, counted from the anterior end (0)"),

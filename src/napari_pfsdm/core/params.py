@@ -321,7 +321,7 @@ OPTIONS: tuple[Option, ...] = (
            "in 1/256 of the outline's length",
            low=0.0, high=32.0, dims="2d"),
     Option("elastic_signature", str, "none",
-           "'table': each row carries the outline signature (384 elastic_* columns) that the "
+           "'table': each row carries the outline signature (448 elastic_* columns) that the "
            "opt-in elastic term of distances (elastic_weight) compares; 'none' keeps tables "
            "small",
            choices=("none", "table"), dims="2d"),
@@ -376,7 +376,7 @@ WEIGHT_OPTIONS: tuple[Option, ...] = (
            "alone)",
            low=0.0, high=MAX_WEIGHT),
     Option("elastic_weight", float, 0.0,
-           "weight of the opt-in elastic outline term in the distance (0: off; 0.5 retrieves "
+           "weight of the opt-in elastic outline term in the distance (0: off; 0.375 retrieves "
            "best on MPEG-7); needs the objects' outline signatures",
            low=0.0, high=MAX_WEIGHT),
 )

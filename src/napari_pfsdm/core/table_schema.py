@@ -10,7 +10,7 @@ compares, :mod:`napari_pfsdm.core.boundary`) follow as ``outline_n±KK_re`` /
 ``outline_n±KK_im`` (:func:`outline_columns`: 64 columns, 512 bytes per row in memory, about
 1.2 kB per row in a CSV written with exact numbers), then the outline signature of the
 elastic term (:mod:`napari_pfsdm.core.elastic`) as ``elastic_cC_pPP`` (channel C, point PP;
-:func:`signature_columns`: 6 × 64 = 384 columns).
+:func:`signature_columns`: 7 × 64 = 448 columns).
 
 A table of 3-D objects (its options say ``ndim: 3``) has :data:`BASE_COLUMNS_3D`, then
 ``shape_rXX_lYY`` (shell ``XX``, spherical-harmonic degree ``YY``: √P_l(r)), ``surface_lYY``
