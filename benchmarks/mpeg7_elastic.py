@@ -9,8 +9,8 @@ Steps, each cached in ``$TMPDIR/napari_pfsdm_mpeg7/elastic_*.npz`` (never in the
 
 1. the preprocessed masks of ``benchmarks/mpeg7.py`` (same cache); per object the default
    :func:`napari_pfsdm.pfsdm` result, kept as its embedding, outline coefficients, elastic
-   signature (:func:`napari_pfsdm.core.elastic.outline_signature`) and the log-magnitudes of
-   64 outline harmonics; the ms per object of ``pfsdm`` and of the signature;
+   signature (:func:`napari_pfsdm.core.elastic_signature.outline_signature`) and the
+   log-magnitudes of 64 outline harmonics; the ms per object of ``pfsdm`` and of the signature;
 2. the distance components once, each timed (after a first call that compiles): the default
    PF-SDM distance ``D_PF`` (:func:`napari_pfsdm.distance_matrix`, SDF + boundary term), the
    elastic term ``D_E`` for every setting in ``--settings`` (weight of the signature's
@@ -53,11 +53,8 @@ from napari_pfsdm import pfsdm  # noqa: E402
 from napari_pfsdm.analysis.retrieval import bullseye, loo_1nn  # noqa: E402
 from napari_pfsdm.core.boundary import outline_coefficients  # noqa: E402
 from napari_pfsdm.core.distances import distance_matrix  # noqa: E402
-from napari_pfsdm.core.elastic import (  # noqa: E402
-    elastic_distance_matrix,
-    elastic_nearest,
-    outline_signature,
-)
+from napari_pfsdm.core.elastic import elastic_distance_matrix, elastic_nearest  # noqa: E402
+from napari_pfsdm.core.elastic_signature import outline_signature  # noqa: E402
 from napari_pfsdm.core.embeddings import Embeddings  # noqa: E402
 
 CACHE = Path(tempfile.gettempdir()) / "napari_pfsdm_mpeg7"

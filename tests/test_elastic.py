@@ -7,15 +7,13 @@ import pytest
 
 from napari_pfsdm import pfsdm
 from napari_pfsdm.core.elastic import (
-    N_CHANNELS,
-    TURNING_ARCS,
     _mirrored,
     banded_dtw,
     elastic_distance_between,
     elastic_distance_matrix,
     elastic_distance_pairs,
-    outline_signature,
 )
+from napari_pfsdm.core.elastic_signature import N_CHANNELS, TURNING_ARCS, outline_signature
 from napari_pfsdm.errors import InputError
 
 
@@ -48,7 +46,7 @@ def test_signature_of_an_ellipse_centroid_channel():
 def test_local_thickness_of_an_ellipse():
     # the largest disk inside x²/4 + y² ≤ 1 touching at (±2, 0) has the radius of curvature
     # there, b²/a = 1/2; at (0, ±1) it is the disk of radius b = 1 (it meets the far side)
-    from napari_pfsdm.core.elastic import local_thickness
+    from napari_pfsdm.core.elastic_signature import local_thickness
 
     t = 2 * np.pi * np.arange(1024) / 1024
     r = local_thickness(np.column_stack([2 * np.cos(t), np.sin(t)]))

@@ -12,7 +12,7 @@ import pandas as pd
 
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.descriptor import PFSDMResult, pfsdm
-from ..core.elastic import N_CHANNELS, N_SIGNATURE_POINTS
+from ..core.elastic_signature import N_CHANNELS, N_SIGNATURE_POINTS
 from ..core.midline import midline_columns
 from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.pieces import quietly

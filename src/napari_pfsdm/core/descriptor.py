@@ -12,7 +12,7 @@ from scipy import ndimage as ndi
 from ..errors import InputError
 from .boundary import normalised_modes, outline_coefficients
 from .contour import Contour, MaskInfo, extract_contour, prepare_mask
-from .elastic import SMOOTHING, outline_signature
+from .elastic_signature import SMOOTHING, outline_signature
 from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
@@ -65,7 +65,7 @@ class PFSDMResult:
     @cached_property
     def signature(self) -> np.ndarray:
         """The outline signature that the elastic term of the distance compares
-        (:func:`napari_pfsdm.core.elastic.outline_signature`, with the result's
+        (:func:`napari_pfsdm.core.elastic_signature.outline_signature`, with the result's
         ``elastic_smoothing``): (channels, points)."""
         return outline_signature(self.contour.normalized,
                                  smoothing=self.options.get("elastic_smoothing",

@@ -36,7 +36,7 @@ class Embeddings:
         (:func:`napari_pfsdm.core.boundary.outline_coefficients`).
     signature : ndarray, shape (n, channels, points), optional
         The outline signatures of the elastic term
-        (:func:`napari_pfsdm.core.elastic.outline_signature`).
+        (:func:`napari_pfsdm.core.elastic_signature.outline_signature`).
     """
 
     shape: np.ndarray

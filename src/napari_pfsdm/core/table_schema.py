@@ -257,7 +257,7 @@ def check_feature_table(
 
 def signature_columns(n_channels: int, n_points: int) -> list[str]:
     """Column names of the elastic term's outline signature, channel-major:
-    ``elastic_cC_pPP`` (:func:`napari_pfsdm.core.elastic.outline_signature`).
+    ``elastic_cC_pPP`` (:func:`napari_pfsdm.core.elastic_signature.outline_signature`).
 
     Examples
     --------
