@@ -188,13 +188,13 @@ def test_huge_ids_link_over_time(tmp_path, link):
 
 
 def test_the_parallel_run_takes_huge_ids():
-    from napari_pfsdm.analysis.parallel import _labels_per_frame, _task_args, plan_tasks
+    from napari_pfsdm.analysis.parallel import _labels_per_frame, plan_tasks, task_entries
 
     labels = two_objects(np.uint64, 2**63 - 1)
     counts = _labels_per_frame(labels, 2, True)
     assert [c.tolist() for c in counts] == [[5, 2**63 - 1]] * 2
     tasks = plan_tasks(counts, 4)  # one object per task: a frame split between tasks, crops
-    sent = [_task_args(labels, None, True, task, counts, {}) for task in tasks]
+    sent = [task_entries(labels, None, True, task, counts, {}) for task in tasks]
     crops = [c for entries in sent for e in entries if e[0] == "crops" for c in e[3]]
     assert {c[0] for c in crops} <= {5, 2**63 - 1} and crops
 
@@ -745,7 +745,7 @@ def test_a_scheduler_lost_during_the_run_is_a_plain_message(tmp_path, monkeypatc
         gone.set()
         cluster.close()
 
-    monkeypatch.setattr(parallel, "_measure_task", slow)  # the objects of a task
+    monkeypatch.setattr(parallel, "measure_entries", slow)  # the objects of a task
     cluster = distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
                                        dashboard_address=None, protocol="tcp")
     address = cluster.scheduler_address
@@ -791,7 +791,7 @@ def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
     def buggy(*args, **kwargs):
         return 1 // 0
 
-    monkeypatch.setattr(parallel, "_measure_task", buggy)
+    monkeypatch.setattr(parallel, "measure_entries", buggy)
     write_tiff_movie(tmp_path / "m.tif")
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"),
                  "--scheduler", "sync", *CLI_FAST]) == 1

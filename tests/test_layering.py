@@ -291,3 +291,40 @@ def test_a_long_module_says_why_it_is_long():
                 ast.parse(text)) or ""):
             long.append(f"{path.relative_to(SRC)} ({text.count(chr(10))} lines)")
     assert not long, f"modules over {LONG_MODULE} lines without a reason: {long}"
+
+
+def test_no_private_name_crosses_a_package():
+    """A module takes from another room (core, analysis, io, batch, cli, ...) only its public
+    names: an underscore name is its own room's business, free to change without a caller
+    elsewhere breaking (``from ..core.distances import _x`` and ``distances._x`` alike)."""
+    crossings = []
+    for path in SRC.rglob("*.py"):
+        rel = path.relative_to(SRC).parts
+        room = rel[0].removesuffix(".py")
+        modules = {}  # local name -> room of a module imported whole
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = list(rel[:-1])[:len(rel) - node.level]
+                    target = base + (node.module.split(".") if node.module else [])
+                elif (node.module or "").split(".")[0] == "napari_pfsdm":
+                    target = node.module.split(".")[1:]
+                else:
+                    continue
+                other = target[0].removesuffix(".py") if target else ""
+                for alias in node.names:
+                    if not target:  # from .. import cli: a room imported whole
+                        modules[alias.asname or alias.name] = alias.name
+                    elif len(target) >= 1 and (SRC.joinpath(*target, alias.name + ".py")
+                                               .is_file()):
+                        modules[alias.asname or alias.name] = other
+                    elif (alias.name.startswith("_") and not alias.name.startswith("__")
+                          and other != room):
+                        crossings.append(f"{'/'.join(rel)}:{node.lineno} {alias.name}")
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                  and node.attr.startswith("_") and not node.attr.startswith("__")
+                  and modules.get(node.value.id, room) != room):
+                crossings.append(f"{'/'.join(rel)}:{node.lineno} {node.value.id}.{node.attr}")
+    assert not crossings, crossings

@@ -94,7 +94,7 @@ def test_a_split_frame_is_sent_as_the_crops_of_its_objects_and_gives_measures_ta
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
     counts = parallel._labels_per_frame(frame, 1, False)
     tasks = parallel.plan_tasks(counts, 4)
-    sent = parallel._task_args(frame, image, False, tasks[0], counts, {})
+    sent = parallel.task_entries(frame, image, False, tasks[0], counts, {})
     assert len(tasks) > 1 and [entry[0] for entry in sent] == ["crops"]
     boxes = ndi.find_objects(frame)
     for label, box, big, labels_crop, crop in sent[0][3]:

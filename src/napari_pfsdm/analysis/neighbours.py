@@ -37,7 +37,7 @@ def neighbour_index(items, intensity_weight: float = 0.0,
         volumes = table_ndim(table_options(items)) == 3
         items = _table_embeddings(items, channels)
         if volumes:
-            boundary_weight = _dist._no_boundary_in_3d(boundary_weight)
+            boundary_weight = _dist.no_boundary_in_3d(boundary_weight)
         elif items.outline is None and boundary_weight is None:
             warnings.warn(
                 "This table has no outline_* columns (it was measured before the boundary "
@@ -48,14 +48,14 @@ def neighbour_index(items, intensity_weight: float = 0.0,
         items = list(items)
         if items and distances3d.is_3d(items):
             items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
-            boundary_weight = _dist._no_boundary_in_3d(boundary_weight)
-    lam = _dist._check_boundary_weight(boundary_weight)
-    w_i = _dist._check_weight("intensity_weight", intensity_weight)
+            boundary_weight = _dist.no_boundary_in_3d(boundary_weight)
+    lam = _dist.check_boundary_weight(boundary_weight)
+    w_i = _dist.check_weight("intensity_weight", intensity_weight)
     if not isinstance(items, Embeddings) and not items:
         return NeighbourIndex.build(np.zeros((0, 1)), None, 0.0)
-    feats = _dist._magnitude_features(*_dist._channel_arrays(items, "shape"))
+    feats = _dist.magnitude_features(*_dist.channel_arrays(items, "shape"))
     if w_i:
-        inten = _dist._magnitude_features(*_dist._channel_arrays(items, "intensity"))
+        inten = _dist.magnitude_features(*_dist.channel_arrays(items, "intensity"))
         feats = np.hstack([feats, np.sqrt(w_i) * inten])  # d² = d_shape² + w_I d_int²
     outline = _dist.outlines_of(items) if lam else None
     return NeighbourIndex.build(feats, outline, lam)
@@ -163,7 +163,7 @@ def nearest_neighbours(
     >>> idx[:, 0].tolist()
     [1, 0, 1]
     """
-    mu = _dist._check_elastic_weight(elastic_weight)
+    mu = _dist.check_elastic_weight(elastic_weight)
     signatures = _signatures(items) if mu else None
     index = neighbour_index(items, intensity_weight, boundary_weight)
     k = check_k(k, len(index))
@@ -195,7 +195,7 @@ def _signatures(items) -> np.ndarray:
         from .tables import signatures_from_table
 
         if table_ndim(table_options(items)) == 3:
-            _dist._no_elastic_in_3d(1.0)
+            _dist.no_elastic_in_3d(1.0)
         sig = signatures_from_table(items)
         if sig is None:
             from ..errors import InputError
@@ -206,7 +206,7 @@ def _signatures(items) -> np.ndarray:
     if not isinstance(items, Embeddings):
         items = list(items)
         if items and distances3d.is_3d(items):
-            _dist._no_elastic_in_3d(1.0)
+            _dist.no_elastic_in_3d(1.0)
     return _dist.signatures_of(items)
 
 

@@ -55,13 +55,16 @@ __all__ = [
     "MIN_OBJECTS",
     "available_cores",
     "bare_main",
+    "block_of_entries",
     "iter_blocks",
+    "measure_entries",
     "plan_tasks",
     "row_of",
     "shared_pool",
     "pool_ready",
     "shutdown_pool",
     "task_count",
+    "task_entries",
     "warm_pool",
 ]
 
@@ -179,8 +182,8 @@ def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray
     return out
 
 
-def _measure_task(entries: list[tuple], options: dict) -> list[ObjectResult]:
-    """Worker process: the rows of a task's entries (:func:`_task_args`): ``("frame", frame
+def measure_entries(entries: list[tuple], options: dict) -> list[ObjectResult]:
+    """Worker process: the rows of a task's entries (:func:`task_entries`): ``("frame", frame
     index, frame, image, labels)`` or ``("crops", frame index, frame shape, crops)``."""
     rows: list[ObjectResult] = []
     with one_blas_thread():
@@ -302,7 +305,7 @@ def _warm_task(_index: int) -> None:
     yy, xx = np.mgrid[:32, :32]
     frame = ((yy - 15.5) ** 2 + (xx - 15.5) ** 2 < 100).astype(np.uint8)
     args = [("frame", 0, frame, frame.astype(np.float32), np.array([1]))]
-    _measure_task(args, PFSDMParams().options())
+    measure_entries(args, PFSDMParams().options())
 
 
 def shutdown_pool() -> None:
@@ -376,9 +379,9 @@ def iter_blocks(
                                          total, block_kw))
 
 
-def _task_args(labels, intensity, timelapse: bool, task, counts: list[np.ndarray],
+def task_entries(labels, intensity, timelapse: bool, task, counts: list[np.ndarray],
                boxes: dict) -> list[tuple]:
-    """What a worker process is sent for one task (:func:`_measure_task`): each whole frame
+    """What a worker process is sent for one task (:func:`measure_entries`): each whole frame
     it measures, with the labels wanted, or, for a block of the labels of a frame split
     between tasks, each object's crop (:func:`~napari_pfsdm.analysis.label_images.crop_of`).
     Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its reporter (29 MB,
@@ -417,9 +420,9 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     pool = shared_pool(workers)
     started = _worker_pids(pool)
     boxes: dict = {}
-    args: Iterator[tuple] = ((_task_args(labels, intensity, timelapse, task, counts, boxes),
+    args: Iterator[tuple] = ((task_entries(labels, intensity, timelapse, task, counts, boxes),
                               options, block_kw) for task in tasks)
-    results = pool.imap(_block_task, args)
+    results = pool.imap(block_of_entries, args)
     blocks: list[RowBlock] = []
     done = 0
     finished = False
@@ -462,7 +465,7 @@ def _killed_worker() -> Exception:
         "memory ran out); run again, with fewer worker processes if memory is short")
 
 
-def _block_task(args: tuple) -> RowBlock:
+def block_of_entries(args: tuple) -> RowBlock:
     """Worker process: the block of one task's objects."""
     frames, options, block_kw = args
-    return block_of(_measure_task(frames, options), **block_kw)
+    return block_of(measure_entries(frames, options), **block_kw)

@@ -317,10 +317,10 @@ def distance_matrix(
         volumes = table_ndim(table_options(items)) == 3  # no outline in 3-D
         items = embeddings(items, channels)
         if volumes:
-            from ..core.distances import _no_boundary_in_3d, _no_elastic_in_3d
+            from ..core.distances import no_boundary_in_3d, no_elastic_in_3d
 
-            boundary_weight = _no_boundary_in_3d(boundary_weight)
-            elastic_weight = _no_elastic_in_3d(elastic_weight)
+            boundary_weight = no_boundary_in_3d(boundary_weight)
+            elastic_weight = no_elastic_in_3d(elastic_weight)
         elif items.outline is None and boundary_weight is None:
             warnings.warn(
                 "This table has no outline_* columns (it was measured before the boundary "

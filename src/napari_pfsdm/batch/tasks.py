@@ -136,7 +136,7 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
                   options: dict, block_kw: dict, frame_bytes: int) -> RowBlock:
     """Worker task: read the frames of ``parts`` (``(frame, labels wanted)``; None: all of
     the frame's) and measure their objects with the process pool's own code
-    (:func:`napari_pfsdm.analysis.parallel._measure_task`: whole frames, or the crops of the
+    (:func:`napari_pfsdm.analysis.parallel.measure_entries`: whole frames, or the crops of the
     objects wanted, as the pool sends them); the rows as one block."""
     from ..analysis import parallel
     from ..analysis.label_images import crop_of, object_boxes
@@ -161,7 +161,7 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
                 if wanted[t] is None:  # the whole frame
                     ids = _frame_ids(frame, t)
                     entry = ("frame", t, frame, image, ids)
-                    rows += parallel._measure_task([entry], options)
+                    rows += parallel.measure_entries([entry], options)
                     continue
                 if boxes is None:  # a frame of a plan by objects: maybe split, keep it
                     boxes = dict(object_boxes(frame.astype(np.uint8) if frame.dtype == bool
@@ -178,7 +178,7 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
                     big = crop_of(box, frame.shape)
                     crops.append((int(label), box, big, np.array(frame[big]),
                                   None if image is None else np.array(image[big])))
-                rows += parallel._measure_task([("crops", t, frame.shape, crops)], options)
+                rows += parallel.measure_entries([("crops", t, frame.shape, crops)], options)
     return block_of(rows, **block_kw)
 
 
@@ -378,7 +378,7 @@ def _measure_planned(
 
         if in_memory:  # what the pool sends: whole frames, or the crops of a split frame
             boxes: dict = {}
-            calls = [(parallel._block_task, ((parallel._task_args(
+            calls = [(parallel.block_of_entries, ((parallel.task_entries(
                 labels, intensity, True, task, counts, boxes), options, block_kw),))
                 for task in tasks]
         else:

@@ -51,10 +51,17 @@ __all__ = [
     "INVARIANCES",
     "RECOMMENDED_ELASTIC_WEIGHT",
     "boundary_term",
+    "channel_arrays",
+    "check_boundary_weight",
+    "check_elastic_weight",
+    "check_weight",
     "elastic_term",
     "distance",
     "distance_matrix",
     "Embeddings",
+    "magnitude_features",
+    "no_boundary_in_3d",
+    "no_elastic_in_3d",
     "weighted_features",
 ]
 
@@ -78,7 +85,7 @@ ELASTIC_WEIGHT = option("elastic_weight").default
 RECOMMENDED_ELASTIC_WEIGHT = 0.375
 
 
-def _magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
+def magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) -> np.ndarray:
     return (emb * np.sqrt(weights)[None, :, None] * modes[None, None, :]).reshape(len(emb), -1)
 
 
@@ -152,7 +159,9 @@ def _from_results(items, channel: str):
     return emb, items[0].weights, items[0].mode_weights
 
 
-def _channel_arrays(items, channel: str):
+def channel_arrays(items, channel: str):
+    """``(embeddings, ring weights, mode weights)`` of one channel (``"shape"`` or
+    ``"intensity"``) of results or :class:`Embeddings`."""
     if isinstance(items, Embeddings):
         return items.channel(channel)
     return _from_results(list(items), channel)
@@ -168,7 +177,7 @@ def weighted_features(items, channel: str = "shape") -> np.ndarray:
         items = list(items)
         if items and distances3d.is_3d(items):
             items = distances3d.embeddings_3d(items, with_intensity=channel == "intensity")
-    return _magnitude_features(*_channel_arrays(items, channel))
+    return magnitude_features(*channel_arrays(items, channel))
 
 
 def distance_matrix(
@@ -232,8 +241,8 @@ def distance_matrix(
             distances3d.check_invariance_3d(invariance)
             items = distances3d.embeddings_3d(items, with_intensity=bool(intensity_weight))
             invariance = "magnitude"
-            boundary_weight = _no_boundary_in_3d(boundary_weight)
-            elastic_weight = _no_elastic_in_3d(elastic_weight)
+            boundary_weight = no_boundary_in_3d(boundary_weight)
+            elastic_weight = no_elastic_in_3d(elastic_weight)
     if hasattr(items, "columns"):
         raise TypeError(
             "core.distances.distance_matrix takes results or Embeddings; for a feature table use "
@@ -242,9 +251,9 @@ def distance_matrix(
     arrays = isinstance(items, Embeddings)
     if invariance is None:
         invariance = "magnitude"
-    boundary_weight = _check_boundary_weight(boundary_weight)
-    intensity_weight = _check_weight("intensity_weight", intensity_weight)
-    elastic_weight = _check_elastic_weight(elastic_weight)
+    boundary_weight = check_boundary_weight(boundary_weight)
+    intensity_weight = check_weight("intensity_weight", intensity_weight)
+    elastic_weight = check_elastic_weight(elastic_weight)
     if invariance not in INVARIANCES:
         raise InputError(f"invariance must be one of {INVARIANCES}, got {invariance!r}.")
     channels = ["shape"] + (["intensity"] if intensity_weight else [])
@@ -265,7 +274,7 @@ def distance_matrix(
     if invariance in ("magnitude", "combined"):
         d_mag = None
         for (emb, w, mw), s in zip(embs, scale[: len(embs)], strict=True):
-            f = _magnitude_features(emb, w, mw)
+            f = magnitude_features(emb, w, mw)
             sq = _sq_euclidean(f, f)
             if d_mag is None:
                 d_mag = sq if s == 1.0 else sq * s
@@ -308,7 +317,7 @@ def distance(a, b, intensity_weight: float = 0.0, *, invariance: str | None = No
 
 
 # --------------------------------------------------------------------------- boundary term
-def _no_boundary_in_3d(weight: float | None) -> float:
+def no_boundary_in_3d(weight: float | None) -> float:
     """3-D objects have no outline: their surface term (``surface_weight``) plays that part."""
     if weight:
         raise InputError("boundary_weight is for 2-D outlines; 3-D objects have their surface "
@@ -316,16 +325,17 @@ def _no_boundary_in_3d(weight: float | None) -> float:
     return 0.0
 
 
-def _check_weight(name: str, weight: float) -> float:
+def check_weight(name: str, weight: float) -> float:
     """A weight of the distance checked by its record (``core.params.WEIGHT_OPTIONS``: from 0
     to ``MAX_WEIGHT``, where every distance stays finite)."""
     return float(option(name).check(weight))
 
 
-def _check_boundary_weight(weight: float | None) -> float:
+def check_boundary_weight(weight: float | None) -> float:
+    """λ as given, checked by its record; :data:`BOUNDARY_WEIGHT` for None."""
     if weight is None:
         return BOUNDARY_WEIGHT
-    return _check_weight("boundary_weight", weight)
+    return check_weight("boundary_weight", weight)
 
 
 def outlines_of(items) -> np.ndarray:
@@ -348,17 +358,19 @@ def boundary_term(items) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- elastic term
-def _no_elastic_in_3d(weight: float | None) -> float:
+def no_elastic_in_3d(weight: float | None) -> float:
+    """3-D objects have no outline signature: a non-zero elastic weight is refused."""
     if weight:
         raise InputError("elastic_weight is for 2-D outlines; 3-D objects have their surface "
                          "term instead (the surface_weight option of pfsdm / measure).")
     return 0.0
 
 
-def _check_elastic_weight(weight: float | None) -> float:
+def check_elastic_weight(weight: float | None) -> float:
+    """μ as given, checked by its record; :data:`ELASTIC_WEIGHT` (0: off) for None."""
     if weight is None:
         return ELASTIC_WEIGHT
-    return _check_weight("elastic_weight", weight)
+    return check_weight("elastic_weight", weight)
 
 
 def signatures_of(items) -> np.ndarray:
