@@ -799,6 +799,7 @@ def test_a_bug_is_still_reported_as_a_bug(tmp_path, monkeypatch, capsys):
 
 
 def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
+    import multiprocessing
     import os
     import signal
 
@@ -806,8 +807,11 @@ def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
     from napari_pfsdm.core.params import PFSDMParams
 
     frames = np.stack([three_objects_per_frame(1)[0]] * 120)  # 360 objects
-    pool = parallel.shared_pool(2)
-    victims = [proc.pid for proc in pool._pool]
+    parallel.shutdown_pool()
+    before = set(multiprocessing.active_children())
+    parallel.warm_pool(2).join(timeout=120)
+    victims = [proc.pid for proc in set(multiprocessing.active_children()) - before]
+    assert len(victims) == 2  # the pool's workers
     run = parallel.iter_blocks(frames, params=PFSDMParams(mapping="bijective", **FAST),
                                axes="tyx", workers=2)
     try:

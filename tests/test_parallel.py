@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import multiprocessing
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -181,10 +183,12 @@ def test_a_warm_pool_of_another_size_or_too_few_objects_stays_here(monkeypatch):
 def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
     labels, intensity = small_movie
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
+    parallel.shutdown_pool()
+    before = set(multiprocessing.active_children())
     gen = parallel.iter_blocks(labels, intensity, params=PFSDMParams(), axes="tyx", workers=2)
     next(gen)
-    pool = parallel._POOL["pool"]
-    processes = list(pool._pool)
+    processes = set(multiprocessing.active_children()) - before  # the pool's workers
+    assert len(processes) == 2
     gen.close()  # what a napari worker's quit does at a yield
     assert parallel._POOL["pool"] is None
     for proc in processes:
@@ -193,8 +197,8 @@ def test_stopping_early_stops_the_processes(small_movie, monkeypatch):
 
 
 def test_a_script_without_a_main_guard_runs_once(tmp_path):
-    """spawn/forkserver children re-import the main module: a biologist's script with no
-    ``if __name__ == "__main__":`` must not start again in every worker process."""
+    """multiprocessing's spawn/forkserver children re-import the main module: a biologist's
+    script with no ``if __name__ == "__main__":`` must not start again in every worker."""
     out = run_once(tmp_path, [
         "from napari_pfsdm.analysis import parallel",
         "from napari_pfsdm.core.params import PFSDMParams",

@@ -11,26 +11,27 @@ back in frame order, then label order, so that
 :func:`~napari_pfsdm.measure` builds (tested equal).
 
 Processes, not threads: one object's work is many small numpy / scikit-image calls that hold
-Python's lock, so threads gain little (docs/design.md §5). The pool is started by the
-``forkserver`` method where there is one (a clean server process forks the workers; forking
-the viewer's own process, with Qt and its threads, is unsafe), else ``spawn``; it imports this
-module once and is kept for the next run (:func:`shared_pool`), because starting it costs
-about a second.
+Python's lock, so threads gain little (docs/design.md §5). The pool is loky's process
+executor (the process pool of joblib and scikit-learn): its workers are fresh interpreters
+(forking the viewer's own process, with Qt and its threads, is unsafe) that never import the
+caller's ``__main__`` (a script without an ``if __name__ == "__main__":`` guard, one that
+opens a viewer or measures a movie, runs once, not again in every worker), and a worker that
+dies breaks the pool at once (a plain :class:`~napari_pfsdm.errors.RunFault`, never a run
+that waits for ever). The pool is kept for the next run (:func:`shared_pool`), because
+starting it costs about a second.
 
-Cancelling: closing :func:`iter_blocks` (the widget's worker stops at a yield) terminates the
+Cancelling: closing :func:`iter_blocks` (the widget's worker stops at a yield) kills the
 pool's processes at once; the next run starts a new pool.
 """
 
 from __future__ import annotations
 
 import atexit
-import multiprocessing as mp
 import os
-import sys
 import threading
-import types
+from collections import deque
 from collections.abc import Generator, Iterator
-from contextlib import contextmanager
+from concurrent.futures import BrokenExecutor, wait
 from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
@@ -54,7 +55,6 @@ __all__ = [
     "MAX_TASK_OBJECTS",
     "MIN_OBJECTS",
     "available_cores",
-    "bare_main",
     "block_of_entries",
     "iter_blocks",
     "measure_entries",
@@ -211,44 +211,31 @@ def measure_entries(entries: list[tuple], options: dict) -> list[ObjectResult]:
 # --------------------------------------------------------------------------- the pool
 _POOL: dict[str, Any] = {"pool": None, "workers": 0}
 _POOL_LOCK = threading.Lock()
-#: Imported once by the fork server, so that no worker imports them in its first task
+#: Imported by each worker as it starts, so that no worker imports them in its first task
 #: (what the first object imports lazily: regionprops, contours, moments, BLAS control).
-_PRELOAD = ("skimage.measure._regionprops", "skimage.measure._find_contours",
-            "skimage.measure._moments", "threadpoolctl")
+_PRELOAD = ("napari_pfsdm.analysis.parallel", "skimage.measure._regionprops",
+            "skimage.measure._find_contours", "skimage.measure._moments", "threadpoolctl")
 
 
-def _context():
-    methods = mp.get_all_start_methods()
-    if "forkserver" in methods:
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload([__name__, *_PRELOAD])
-        return ctx
-    return mp.get_context("spawn")  # pragma: no cover - Windows, macOS default
+def _preload() -> None:
+    """Worker initializer: import :data:`_PRELOAD`."""
+    import importlib
+
+    for name in _PRELOAD:
+        importlib.import_module(name)
 
 
-@contextmanager
-def bare_main() -> Iterator[None]:
-    """While worker processes start, ``__main__`` is a bare stand-in: they do not run the
-    caller's script.
+def _start(workers: int) -> Any:
+    """A pool of ``workers`` processes (loky's executor: fresh interpreters that do not run the
+    caller's script)."""
+    from loky import ProcessPoolExecutor
 
-    multiprocessing's spawn and forkserver children re-import the main module (a script
-    without an ``if __name__ == "__main__":`` guard, e.g. one that opens a napari viewer or
-    measures a movie, would start again in every child and make processes without end, or
-    stop them). The workers of this package need only its own modules.
-    """
-    main = sys.modules.get("__main__")
-    sys.modules["__main__"] = types.ModuleType("__main__")
-    try:
-        yield
-    finally:
-        if main is not None:
-            sys.modules["__main__"] = main
+    return ProcessPoolExecutor(max_workers=workers, initializer=_preload)
 
 
-def _start(workers: int):
-    """A pool whose processes do not run the caller's script (:func:`bare_main`)."""
-    with bare_main():
-        return _context().Pool(workers)
+def _stop(pool: Any) -> None:
+    """Kill a pool's processes now, without waiting for their tasks."""
+    pool.shutdown(wait=False, kill_workers=True)
 
 
 def shared_pool(workers: int | None = None):
@@ -264,7 +251,7 @@ def shared_pool(workers: int | None = None):
         pool = _POOL["pool"]
         if pool is None or _POOL["workers"] != workers:
             if pool is not None:
-                pool.terminate()
+                _stop(pool)
             pool = _start(workers)
             _POOL.update(pool=pool, workers=workers)
         return pool
@@ -298,7 +285,7 @@ def _start_warm(workers: int) -> None:
     pool = shared_pool(workers)
     # one small object per process: its first FFTs and contours cost 0.1 s more than later
     # ones (plans, caches); a pool stopped meanwhile just ends the wait
-    pool.map_async(_warm_task, range(workers), chunksize=1).wait(timeout=60)
+    wait([pool.submit(_warm_task, i) for i in range(workers)], timeout=60)
 
 
 def _warm_task(_index: int) -> None:
@@ -314,7 +301,7 @@ def shutdown_pool() -> None:
         pool = _POOL["pool"]
         _POOL.update(pool=None, workers=0)
     if pool is not None:
-        pool.terminate()
+        _stop(pool)
 
 
 atexit.register(shutdown_pool)
@@ -418,25 +405,34 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
     counts = _labels_per_frame(labels, n_frames, timelapse)
     tasks = plan_tasks(counts, task_count(total, workers))
     pool = shared_pool(workers)
-    started = _worker_pids(pool)
     boxes: dict = {}
     args: Iterator[tuple] = ((task_entries(labels, intensity, timelapse, task, counts, boxes),
                               options, block_kw) for task in tasks)
-    results = pool.imap(block_of_entries, args)
+    pending: deque = deque()
+
+    def send() -> None:  # the next task's frames, read only when a worker is about to free up
+        entry = next(args, None)
+        if entry is not None:
+            pending.append(pool.submit(block_of_entries, entry))
+
+    for _ in range(2 * workers):
+        send()
     blocks: list[RowBlock] = []
     done = 0
     finished = False
     try:
         last = (0, total, 0, 0)
         for _ in tasks:
+            future = pending.popleft()
             while True:
                 try:
-                    block = results.next(timeout=0.2)
+                    block = future.result(timeout=0.2)
                     break
-                except mp.TimeoutError:
-                    if not started <= _worker_pids(pool):  # one died: its task is lost
-                        raise _killed_worker() from None
+                except TimeoutError:
                     yield last
+                except BrokenExecutor:  # a worker died: its task is lost
+                    raise _killed_worker() from None
+            send()
             blocks.append(block)
             done += len(block.table)
             if len(block.table):
@@ -448,12 +444,6 @@ def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, 
         if not finished:  # stopped early (Cancel) or failed: stop the processes now
             shutdown_pool()
     return blocks
-
-
-def _worker_pids(pool) -> set[int]:
-    """The process ids of a pool's workers (multiprocessing replaces a dead one with a new
-    process, and the task the dead one held is never finished)."""
-    return {proc.pid for proc in getattr(pool, "_pool", [])}
 
 
 def _killed_worker() -> Exception:

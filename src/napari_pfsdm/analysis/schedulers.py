@@ -124,33 +124,28 @@ def probe_scheduler(address: str, timeout: float) -> None:
 
 
 def process_pool(workers: int | None = None) -> Any:
-    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (spawned;
-    default: one per core), all started before it is returned, that exit with this process
-    and do not run the caller's script (:func:`~napari_pfsdm.analysis.parallel.bare_main`:
-    a script without an ``if __name__ == "__main__":`` guard measures once, not again in
-    every worker).
+    """A process pool for the ``"processes"`` scheduler: ``workers`` processes (fresh
+    interpreters; default: one per core), all started before it is returned, that exit with
+    this process and do not run the caller's script (loky's executor never imports
+    ``__main__`` in its workers: a script without an ``if __name__ == "__main__":`` guard
+    measures once, not again in every worker).
 
     Returns
     -------
-    concurrent.futures.ProcessPoolExecutor
-        Close it with ``shutdown()`` (or use it in a ``with`` block).
+    loky.ProcessPoolExecutor
+        A :class:`concurrent.futures.Executor`; close it with ``shutdown()`` (or use it in a
+        ``with`` block).
     """
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from .parallel import bare_main
+    from loky import ProcessPoolExecutor
 
     workers = int(workers or os.cpu_count() or 1)
-    pool = ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_exit_with_parent, initargs=(os.getpid(),))
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
+                               initargs=(os.getpid(),))
     try:
-        with bare_main():  # each submission starts one more process, until there are enough
-            started = [pool.submit(os.getpid) for _ in range(workers)]
-        for future in started:
+        for future in [pool.submit(os.getpid) for _ in range(workers)]:
             future.result()
     except BaseException:
-        pool.shutdown(cancel_futures=True)
+        pool.shutdown(wait=False, kill_workers=True)
         raise
     return pool
 

@@ -273,6 +273,7 @@ def measure_dask(
 
     where = _where(kind, obj)
     own = kind == "local" and obj == "processes" and pool is None
+    blocks = None
     try:
         if own:  # the processes of this run, started without the caller's script
             pool = process_pool(num_workers)
@@ -284,8 +285,8 @@ def measure_dask(
             raise
         raise fault from exc
     finally:
-        if own and pool is not None:
-            pool.shutdown(cancel_futures=True)
+        if own and pool is not None:  # idle after a finished run; killed after a failure
+            pool.shutdown(wait=True, kill_workers=blocks is None)
         if kind == "local" and obj != "processes":  # run here: keep no frame after the run
             with _RECENT_LOCK:
                 _RECENT.clear()
