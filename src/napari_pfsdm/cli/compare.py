@@ -231,15 +231,9 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``pfsdm compare`` to ``pfsdm``'s subcommands: its arguments, the weights' from
-    the one record (``core.params.WEIGHT_OPTIONS``).
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
-        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
-    """
+    """Add ``pfsdm compare`` to ``sub`` (the subcommands of
+    :func:`~napari_pfsdm.cli.build_parser`, or the demo's own), ``cmd_*`` as its ``func``; the
+    weights' arguments from the one record (``core.params.WEIGHT_OPTIONS``)."""
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "compare", formatter_class=fmt,

@@ -197,14 +197,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``pfsdm demo`` and its arguments to ``pfsdm``'s subcommands.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
-        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
-    """
+    """Add ``pfsdm demo`` to ``sub`` (the subcommands of
+    :func:`~napari_pfsdm.cli.build_parser`, or the demo's own), ``cmd_*`` as its ``func``."""
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "demo", formatter_class=fmt,

@@ -157,15 +157,9 @@ def _series_index(text: str) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``pfsdm measure`` to ``pfsdm``'s subcommands: its arguments, and the method's
-    options generated from the one record (``core.params.OPTIONS``).
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
-        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
-    """
+    """Add ``pfsdm measure`` to ``sub`` (the subcommands of
+    :func:`~napari_pfsdm.cli.build_parser`, or the demo's own), ``cmd_*`` as its ``func``; the
+    method's options generated from the one record (``core.params.OPTIONS``)."""
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "measure", formatter_class=fmt,

@@ -72,14 +72,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``pfsdm trajectories`` and its arguments to ``pfsdm``'s subcommands.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The subcommands of a parser (:func:`napari_pfsdm.cli.build_parser`'s, or the demo's
-        parser of one command); the command's ``cmd_*`` function is its ``func`` default.
-    """
+    """Add ``pfsdm trajectories`` to ``sub`` (the subcommands of
+    :func:`~napari_pfsdm.cli.build_parser`, or the demo's own), ``cmd_*`` as its ``func``."""
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "trajectories", formatter_class=fmt,
