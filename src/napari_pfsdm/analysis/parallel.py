@@ -18,7 +18,8 @@ caller's ``__main__`` (a script without an ``if __name__ == "__main__":`` guard,
 opens a viewer or measures a movie, runs once, not again in every worker), and a worker that
 dies breaks the pool at once (a plain :class:`~napari_pfsdm.errors.RunFault`, never a run
 that waits for ever). The pool is kept for the next run (:func:`shared_pool`), because
-starting it costs about a second.
+starting it costs seconds (each worker imports numpy, scipy and scikit-image itself;
+``benchmarks/pool_start.py``); :func:`warm_pool` starts it ahead of a run.
 
 Cancelling: closing :func:`iter_blocks` (the widget's worker stops at a yield) kills the
 pool's processes at once; the next run starts a new pool.
