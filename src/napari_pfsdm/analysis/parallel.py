@@ -235,8 +235,10 @@ def _start(workers: int) -> Any:
 
 
 def _stop(pool: Any) -> None:
-    """Kill a pool's processes now, without waiting for their tasks."""
-    pool.shutdown(wait=False, kill_workers=True)
+    """Kill a pool's processes now, without waiting for their tasks; return once they are
+    gone (the executor's own thread kills them: not waiting for it could leave a worker
+    that was still starting alive)."""
+    pool.shutdown(wait=True, kill_workers=True)
 
 
 def shared_pool(workers: int | None = None):
