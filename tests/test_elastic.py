@@ -43,6 +43,41 @@ def test_signature_of_an_ellipse_centroid_channel():
     assert centroid.min() == pytest.approx(1 / mean_r, rel=1e-3)
 
 
+
+def test_the_smoothed_channels_are_scipys_gaussian_filter_sampled_at_the_points():
+    # the channels of a lopsided outline, filtered by scipy's own Gaussian (wrapping round
+    # the outline) and taken at every 4th of its 256 points, in the signature's order
+    from scipy import ndimage as ndi
+
+    from napari_pfsdm.core.elastic_signature import SMOOTHING
+
+    t = 2 * np.pi * np.arange(256) / 256
+    rho = 1 + 0.3 * np.cos(3 * t) + 0.2 * np.sin(t)
+    raw = np.column_stack([rho * np.cos(t), rho * np.sin(t)])
+    closed = np.vstack([raw, raw[:1]])
+    s = np.r_[0, np.cumsum(np.hypot(*np.diff(closed, axis=0).T))]
+    u = np.arange(256) * s[-1] / 256  # 256 points uniform in arc length, as the signature
+    pts = np.column_stack([np.interp(u, s, closed[:, 0]), np.interp(u, s, closed[:, 1])])
+    x, y = pts.T
+    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+    area = cross.sum() / 2
+    centre = np.array([((x + np.roll(x, -1)) * cross).sum(),
+                       ((y + np.roll(y, -1)) * cross).sum()]) / (6 * area)
+    q = pts - centre
+    r = np.hypot(*q.T)
+    want = [ndi.gaussian_filter1d(r / r.mean(), SMOOTHING, mode="wrap")[::4]]
+    k = round(TURNING_ARCS[-1] * 256)
+    uu, vv = q - np.roll(q, k, axis=0), np.roll(q, -k, axis=0) - q
+    turn = np.arctan2(uu[:, 0] * vv[:, 1] - uu[:, 1] * vv[:, 0], (uu * vv).sum(axis=1))
+    want.insert(0, ndi.gaussian_filter1d(turn, SMOOTHING, mode="wrap")[::4])
+    sig = outline_signature(pts)
+    n_arcs = len(TURNING_ARCS)
+    assert np.allclose(sig[n_arcs - 1], want[0], atol=1e-12)
+    assert np.allclose(sig[n_arcs], want[1], atol=1e-12)
+    # started 8 points later (2 signature points): the columns shift by 2, the numbers stay
+    assert np.allclose(outline_signature(np.roll(pts, -8, axis=0)), np.roll(sig, -2, axis=1),
+                       atol=1e-9)
+
 def test_local_thickness_of_an_ellipse():
     # the largest disk inside x²/4 + y² ≤ 1 touching at (±2, 0) has the radius of curvature
     # there, b²/a = 1/2; at (0, ±1) it is the disk of radius b = 1 (it meets the far side)

@@ -13,6 +13,10 @@ changes). Each is invariant to translation, rotation and
 scale; moving the start point shifts the columns cyclically; a mirror image, traced
 counter-clockwise again, reverses their order.
 
+One compiled kernel (numba) computes the whole signature of an outline: the turning angles
+and centroid distances at the 256 points of the resampled outline, their Gaussian smoothing
+evaluated at the signature's points only, and the local thickness at those points.
+
 The distance that compares two signatures is :mod:`.elastic`.
 """
 
@@ -111,41 +115,16 @@ def outline_signature(points: np.ndarray, n_points: int = N_SIGNATURE_POINTS, *,
     if n_points < 8 or _RESAMPLED % n_points:
         raise InputError(f"n_points must divide {_RESAMPLED} and be at least 8, got {n_points}")
     p = pts if len(pts) == _RESAMPLED else _resample(pts, _RESAMPLED)
-    x, y = p[:, 0], p[:, 1]
-    nxt = _next_index(len(p))
-    xn, yn = x[nxt], y[nxt]
-    cross = x * yn - xn * y
-    area = cross.sum() / 2
-    if not abs(area) > 0:
-        raise InputError("the outline encloses no area")
-    centre = np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * area)
-    p = p - centre
-    out = np.empty((len(TURNING_ARCS) + 1, _RESAMPLED))
-    before, after = _arc_index()
-    u = p - p[before]  # (arcs, points, 2): the chord arriving at each point
-    v = p[after] - p  # the chord leaving it
-    np.arctan2(u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
-               u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1], out=out[:-1])
-    radius = np.hypot(p[:, 0], p[:, 1])
-    out[-1] = radius / radius.mean()
-    if smoothing > 0:
-        out = ndi.correlate1d(out, _gaussian(smoothing), axis=-1, mode="wrap")
     step = _RESAMPLED // n_points
-    r = local_thickness(p, step, area > 0)
-    finite = np.isfinite(r)
-    if not finite.all():  # (no vertex in front of a point: a degenerate outline)
-        r[~finite] = r[finite].max() if finite.any() else 1.0
-    thick = np.log(np.maximum(r / r.mean(), 1e-3))
-    if smoothing > 0:
-        thick = ndi.correlate1d(thick, _gaussian(smoothing / step), mode="wrap")
-    return np.concatenate([out[:, ::step], thickness_weight * thick[None]])
-
-
-@lru_cache(maxsize=4)
-def _next_index(m: int) -> np.ndarray:
-    """(i + 1) mod m for i < m (read-only)."""
-    out = np.roll(np.arange(m), -1)
-    out.flags.writeable = False
+    out = np.empty((N_CHANNELS, n_points))
+    flat = np.ones(1)
+    ok = _signature_kernel()(
+        np.ascontiguousarray(p, float), _arc_steps(),
+        _gaussian(smoothing) if smoothing > 0 else flat,
+        _gaussian(smoothing / step) if smoothing > 0 else flat,
+        step, float(thickness_weight), _THICKNESS_CHORD, _THICKNESS_GAP, out)
+    if not ok:
+        raise InputError("the outline encloses no area")
     return out
 
 
@@ -210,12 +189,36 @@ _THICKNESS_GAP = 4
 
 @lru_cache(maxsize=1)
 def _thickness_kernel():
+    return _kernels()[0]
+
+
+@lru_cache(maxsize=1)
+def _signature_kernel():
+    return _kernels()[1]
+
+
+#: "No vertex in front" inside the thickness kernel (a finite number: its arithmetic is compiled
+#: with fastmath, which assumes no infinities).
+_NONE = 1e300
+
+
+@lru_cache(maxsize=1)
+def _kernels():
+    """The compiled kernels (numba, compiled on first use and cached on disk): the local
+    thickness, and the whole signature of a resampled outline."""
     import numba
 
-    @numba.njit(cache=True, fastmath=True)
+    @numba.njit(cache=True, fastmath=True, error_model="numpy")
     def thickness(p, step, sign, chord, gap_min):  # pragma: no cover
         m = p.shape[0]
         n = m // step
+        # the vertices twice over, coordinates apart: the q's of vertex i are the
+        # contiguous i + gap_min + 1 … i + m − gap_min − 1
+        xs = np.empty(2 * m)
+        ys = np.empty(2 * m)
+        for j in range(m):
+            xs[j] = xs[j + m] = p[j, 0]
+            ys[j] = ys[j + m] = p[j, 1]
         out = np.empty(n)
         for r in range(n):
             i = r * step
@@ -225,30 +228,106 @@ def _thickness_kernel():
             if norm == 0.0:
                 norm = 1.0
             nx, ny = -sign * ty / norm, sign * tx / norm
-            best = np.inf
-            for j in range(m):
-                gap = abs(j - i)
-                if gap <= gap_min or gap >= m - gap_min:
-                    continue
-                dx, dy = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1]
+            px, py = xs[i], ys[i]
+            best = _NONE
+            for j in range(i + gap_min + 1, i + m - gap_min):
+                dx, dy = xs[j] - px, ys[j] - py
                 proj = dx * nx + dy * ny
-                if proj > 0.0:
-                    v = (dx * dx + dy * dy) / (2.0 * proj)
-                    if v < best:
-                        best = v
-            out[r] = best
+                v = (dx * dx + dy * dy) / (2.0 * proj)
+                best = min(best, v if proj > 0.0 else _NONE)
+            out[r] = best if best < _NONE else np.inf
         return out
 
-    return thickness
+    @numba.njit(cache=True, fastmath=True)
+    def smoothed(x, w, step, out):  # pragma: no cover
+        """``out[c] = ndi.correlate1d(x[c], w, mode="wrap")[::step]`` for an odd-length w."""
+        m = x.shape[1]
+        half = w.shape[0] // 2
+        pad = np.empty(m + 2 * half)
+        for c in range(x.shape[0]):
+            for j in range(m + 2 * half):
+                pad[j] = x[c, (j - half) % m]
+            for r in range(out.shape[1]):
+                acc = 0.0
+                i = r * step
+                for t in range(w.shape[0]):
+                    acc += w[t] * pad[i + t]
+                out[c, r] = acc
+
+    @numba.njit(cache=True)
+    def signature(p, arcs, w, w_thick, step, thickness_weight, chord, gap_min,
+                  out):  # pragma: no cover
+        """The signature of the outline p (resampled, uniform in arc length) into out
+        (N_CHANNELS, len(p) // step); False when p encloses no area."""
+        m = p.shape[0]
+        n = m // step
+        # centroid of the enclosed area
+        area = 0.0
+        cx = 0.0
+        cy = 0.0
+        for i in range(m):
+            j = i + 1 if i + 1 < m else 0
+            cr = p[i, 0] * p[j, 1] - p[j, 0] * p[i, 1]
+            area += cr
+            cx += (p[i, 0] + p[j, 0]) * cr
+            cy += (p[i, 1] + p[j, 1]) * cr
+        area *= 0.5
+        if not abs(area) > 0.0:
+            return False
+        cx /= 6.0 * area
+        cy /= 6.0 * area
+        q = np.empty((m, 2))
+        for i in range(m):
+            q[i, 0] = p[i, 0] - cx
+            q[i, 1] = p[i, 1] - cy
+        n_arcs = arcs.shape[0]
+        chan = np.empty((n_arcs + 1, m))
+        # turning angle between the chord arriving at i and the one leaving it
+        for a in range(n_arcs):
+            k = arcs[a]
+            for i in range(m):
+                b = (i - k) % m
+                f = (i + k) % m
+                ux, uy = q[i, 0] - q[b, 0], q[i, 1] - q[b, 1]
+                vx, vy = q[f, 0] - q[i, 0], q[f, 1] - q[i, 1]
+                chan[a, i] = np.arctan2(ux * vy - uy * vx, ux * vx + uy * vy)
+        mean = 0.0
+        for i in range(m):
+            rad = np.sqrt(q[i, 0] * q[i, 0] + q[i, 1] * q[i, 1])
+            chan[n_arcs, i] = rad
+            mean += rad
+        mean /= m
+        for i in range(m):
+            chan[n_arcs, i] /= mean
+        smoothed(chan, w, step, out[: n_arcs + 1])  # at the signature's points only
+        r_t = thickness(q, step, 1.0 if area > 0 else -1.0, chord, gap_min)
+        top = -np.inf
+        for r in range(n):
+            if np.isfinite(r_t[r]) and r_t[r] > top:
+                top = r_t[r]
+        if top == -np.inf:  # (no vertex in front of any point: a degenerate outline)
+            top = 1.0
+        mean = 0.0
+        for r in range(n):
+            if not np.isfinite(r_t[r]):
+                r_t[r] = top
+            mean += r_t[r]
+        mean /= n
+        lt = np.empty((1, n))
+        for r in range(n):
+            lt[0, r] = np.log(max(r_t[r] / mean, 1e-3))
+        smoothed(lt, w_thick, 1, out[n_arcs + 1:])
+        for r in range(n):
+            out[n_arcs + 1, r] *= thickness_weight
+        return True
+
+    return thickness, signature
 
 
 @lru_cache(maxsize=1)
-def _arc_index() -> tuple[np.ndarray, np.ndarray]:
-    """For each arc of :data:`TURNING_ARCS` and each resampled point, the indices of the
-    points that far behind and ahead: two (arcs, points) arrays (read-only)."""
-    k = np.array([max(1, int(round(a * _RESAMPLED))) for a in TURNING_ARCS])[:, None]
-    idx = np.arange(_RESAMPLED)[None, :]
-    out = ((idx - k) % _RESAMPLED, (idx + k) % _RESAMPLED)
-    for a in out:
-        a.flags.writeable = False
+def _arc_steps() -> np.ndarray:
+    """The points (of the resampled outline) spanned by each arc of :data:`TURNING_ARCS`
+    (read-only)."""
+    out = np.array([max(1, int(round(a * _RESAMPLED))) for a in TURNING_ARCS], np.int64)
+    out.flags.writeable = False
     return out
