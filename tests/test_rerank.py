@@ -107,6 +107,20 @@ def test_transduction_reranking_by_hand():
     np.testing.assert_allclose(rerank(d, "transduction", k=2), want, rtol=1e-10, atol=1e-12)
 
 
+def test_tpg_reranking_by_hand():
+    # Q = Σ_{t=0}^{T} P^t (Pᵀ)^t by matrix powers, P the row-normalised w⁴
+    d, w, tie = _line_example()
+    w4 = w**4
+    p = w4 / w4.sum(axis=1, keepdims=True)
+    for steps in (1, 3, 20):
+        q = sum(np.linalg.matrix_power(p, t) @ np.linalg.matrix_power(p.T, t)
+                for t in range(steps + 1))
+        want = 1 - q / np.sqrt(np.outer(np.diag(q), np.diag(q))) + tie
+        np.fill_diagonal(want, 0.0)
+        np.testing.assert_allclose(rerank(d, "tpg", k=2, steps=steps), want, rtol=1e-10,
+                                   atol=1e-12)
+
+
 # ---- the same on a neighbour graph (napari_pfsdm.analysis.rerank.rerank_neighbours) ----------
 
 def _blobs(n_per=60, classes=5, seed=1):
