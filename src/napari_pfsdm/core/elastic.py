@@ -42,16 +42,20 @@ Distance (:func:`elastic_distance_pairs`, :func:`elastic_distance_matrix`)
 
 Compiled kernel (numba, parallel over pairs)
     Per pair: the rigid scores of both orientations from the signatures' spectra in one pass;
-    per start shift, the band's costs along its diagonals (the channels' loop unrolled, the
-    loop along a diagonal vectorised) and the DP row by row, in single precision (the
-    distances agree with a float64 reference to ~1e-6 relative, tested). A start shift is
+    the costs along each cyclic diagonal of the (point of a, point of b) grid that a start
+    shift's band needs, computed once per pair (shifts less than 2 :data:`BAND` apart share
+    diagonals; the channels' loop unrolled, the loop along a diagonal vectorised); the DP row
+    by row, reading them in place, in single precision (the distances agree with a float64
+    reference to ~1e-6 relative, tested). The lowest start shift is refined first and alone;
+    the others four at a time, their four DPs interleaved in one loop (a DP row is a chain of
+    dependent additions and minima: one chain leaves the processor idle). A start shift is
     abandoned as soon as the least cost of a path through the current row plus the least
     cell of every row left exceeds the best shift's cost so far (costs are ≥ 0 and a path
     visits every row), so the result is the same as refining every shift to the end.
     :func:`elastic_nearest` passes a limit of its own: the cost a candidate must stay under
-    to enter a row's k nearest.
+    to enter a row's k nearest. docs/benchmarks.md gives the cost per pair.
 
-Its length (about 720 lines) is the DP twice, held against each other by the tests: the
+Its length (about 860 lines) is the DP twice, held against each other by the tests: the
 compiled kernel (numba: the banded DTW with its bounds, the rigid start shifts) and its plain
 numpy reference (:func:`banded_dtw`), with the searches that call them.
 """
@@ -358,7 +362,8 @@ def _compile():
         their DPs interleaved in one loop: a DP row is a chain of dependent additions and
         minima, four independent chains keep the processor busy. ``out[c]``: on entry _BIG
         for a shift already known to exceed ``limit`` (else 0), on return shift c's least
-        cost, or _BIG once it is sure to exceed ``limit``; all four stop when all four
+        cost, or _BIG once it is sure to exceed ``limit`` (its bound is checked every fourth
+        row: the loop is bound by its number of operations); all four stop when all four
         are."""
         n = rest.shape[1]
         width = 2 * band + 1
@@ -378,15 +383,12 @@ def _compile():
         for i in range(1, n):
             iu = _U(i)
             hi = _U(min(width, n + band - i))
+            lo = _U(max(0, band - i))
             x0 = big
             x1 = big
             x2 = big
             x3 = big
-            r0 = big
-            r1 = big
-            r2 = big
-            r3 = big
-            for w in range(_U(max(0, band - i)), hi):
+            for w in range(lo, hi):
                 x0 = diag[c0[w] + iu] + min(min(p0[w], p0[w + one]), x0)
                 x1 = diag[c1[w] + iu] + min(min(p1[w], p1[w + one]), x1)
                 x2 = diag[c2[w] + iu] + min(min(p2[w], p2[w + one]), x2)
@@ -395,10 +397,6 @@ def _compile():
                 q1[w] = x1
                 q2[w] = x2
                 q3[w] = x3
-                r0 = min(r0, x0)
-                r1 = min(r1, x1)
-                r2 = min(r2, x2)
-                r3 = min(r3, x3)
             for w in range(hi, _U(width)):
                 q0[w] = big
                 q1[w] = big
@@ -408,6 +406,17 @@ def _compile():
             p1, q1 = q1, p1
             p2, q2 = q2, p2
             p3, q3 = q3, p3
+            if i & 3 and i < n - 1:  # the bounds every fourth row (and the last)
+                continue
+            r0 = big
+            r1 = big
+            r2 = big
+            r3 = big
+            for w in range(lo, hi):
+                r0 = np.minimum(r0, p0[w])
+                r1 = np.minimum(r1, p1[w])
+                r2 = np.minimum(r2, p2[w])
+                r3 = np.minimum(r3, p3[w])
             if r0 + rest[0, i] > limit:
                 out[0] = _BIG
             if r1 + rest[1, i] > limit:
