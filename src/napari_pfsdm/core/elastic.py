@@ -42,16 +42,20 @@ Distance (:func:`elastic_distance_pairs`, :func:`elastic_distance_matrix`)
 
 Compiled kernel (numba, parallel over pairs)
     Per pair: the rigid scores of both orientations from the signatures' spectra in one pass;
-    per start shift, the band's costs along its diagonals (the channels' loop unrolled, the
-    loop along a diagonal vectorised) and the DP row by row, in single precision (the
-    distances agree with a float64 reference to ~1e-6 relative, tested). A start shift is
+    the costs along each cyclic diagonal of the (point of a, point of b) grid that a start
+    shift's band needs, computed once per pair (shifts less than 2 :data:`BAND` apart share
+    diagonals; the channels' loop unrolled, the loop along a diagonal vectorised); the DP row
+    by row, reading them in place, in single precision (the distances agree with a float64
+    reference to ~1e-6 relative, tested). The lowest start shift is refined first and alone;
+    the others four at a time, their four DPs interleaved in one loop (a DP row is a chain of
+    dependent additions and minima: one chain leaves the processor idle). A start shift is
     abandoned as soon as the least cost of a path through the current row plus the least
     cell of every row left exceeds the best shift's cost so far (costs are ≥ 0 and a path
     visits every row), so the result is the same as refining every shift to the end.
     :func:`elastic_nearest` passes a limit of its own: the cost a candidate must stay under
-    to enter a row's k nearest.
+    to enter a row's k nearest. docs/benchmarks.md gives the cost per pair.
 
-Its length (about 720 lines) is the DP twice, held against each other by the tests: the
+Its length (about 860 lines) is the DP twice, held against each other by the tests: the
 compiled kernel (numba: the banded DTW with its bounds, the rigid start shifts) and its plain
 numpy reference (:func:`banded_dtw`), with the searches that call them.
 """
@@ -173,6 +177,9 @@ _BIG = 1e30
 _COST_DTYPE = np.float32
 #: Channels of a signature, a constant of the compiled kernel.
 _C = N_CHANNELS
+#: Unsigned indices in the compiled loops: numba wraps negative signed indices around, and
+#: the code for it (per access) keeps the loops from being vectorised.
+_U = np.uint64
 #: Pairs per parallel task of the compiled kernel (its scratch arrays are allocated per task).
 _TASK = 64
 
@@ -254,92 +261,180 @@ def _compile():
         return got
 
     @numba.njit(cache=True, fastmath=True, inline="always")
-    def banded(a, g, sig, ib, mirror, s, band, half, limit, bb, hh, cost, rest, prev,
-               cur):  # pragma: no cover
-        """Least banded-DTW cost (not divided by n) between a (C, n), with its midpoints g,
-        and signature ``sig[ib]`` mirrored or not and started at s; _BIG as soon as it is
-        sure to exceed ``limit``: the costs are ≥ 0 and a path visits every row, so the
-        path's cost is at least the least cell of the current row plus, for each row left,
-        that row's least cell. ``bb`` and ``hh`` (C, n + 2 band): scratch, zero in their
-        first and last ``band`` columns."""
+    def diagonal(a, g, bx, hx, m, half, o, diag, at):  # pragma: no cover
+        """diag[at + i] = c(a(i), b(i + o)) for every i: the costs along one cyclic diagonal
+        of orientation m of b, given as ``bx[m]`` (C, 2n): b(j mod n), and ``hx[m]``: its
+        midpoints between j and j + 1. The channels' loop has a constant length (unrolled:
+        the loop along the diagonal is vectorised)."""
+        n = a.shape[1]
+        ou = _U(o)
+        if half:
+            for i in range(n):
+                j = ou + _U(i)
+                x0 = np.float32(0.0)
+                x1 = np.float32(0.0)
+                x2 = np.float32(0.0)
+                for ch in range(_C):
+                    v = bx[m, ch, j]
+                    x0 += abs(a[ch, i] - v)
+                    x1 += abs(a[ch, i] - hx[m, ch, j])
+                    x2 += abs(g[ch, i] - v)
+                diag[at + _U(i)] = np.minimum(x0, np.minimum(x1, x2))
+        else:
+            for i in range(n):
+                j = ou + _U(i)
+                x0 = np.float32(0.0)
+                for ch in range(_C):
+                    x0 += abs(a[ch, i] - bx[m, ch, j])
+                diag[at + _U(i)] = x0
+
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def band_of(a, g, bx, hx, diag, have, mirror, s, band, half, col, rest):  # pragma: no cover
+        """The band of start shift s of orientation ``mirror`` of b. Its column w matches a(i)
+        to b(i + s + w − band) in the rows max(0, band − w) ≤ i < min(n, n + band − w): the
+        cyclic diagonal o = s + w − band mod n, whose costs are ``diag[col[w] + i]``. They
+        are computed once per pair (``have[mirror, o]`` says whether they are there): start
+        shifts less than 2 band apart share diagonals. ``rest[i]``: Σ over the rows after i
+        of their least cell; returns the Σ over all rows."""
         n = a.shape[1]
         width = 2 * band + 1
-        big = _BIG
-        for ch in range(_C):
-            if mirror:  # b(−(j + s) mod n)
-                for j in range(n):
-                    t = j + s
-                    if t >= n:
-                        t -= n
-                    bb[ch, band + j] = sig[ib, ch, n - t if t > 0 else 0]
-            else:
-                for j in range(n - s):
-                    bb[ch, band + j] = sig[ib, ch, j + s]
-                for j in range(n - s, n):
-                    bb[ch, band + j] = sig[ib, ch, j + s - n]
-            if half:
-                for j in range(n - 1):
-                    hh[ch, band + j] = 0.5 * (bb[ch, band + j] + bb[ch, band + j + 1])
-                hh[ch, band + n - 1] = 0.5 * (bb[ch, band + n - 1] + bb[ch, band])
-        # the band's costs along its diagonals: cost[w, i] matches a(i) to b(i + w − band);
-        # the channels' loop has a constant length (unrolled: the loop over i is vectorised)
         for w in range(width):
-            if half:
-                for i in range(n):
-                    x0 = np.float32(0.0)
-                    x1 = np.float32(0.0)
-                    x2 = np.float32(0.0)
-                    for ch in range(_C):
-                        v = bb[ch, w + i]
-                        x0 += abs(a[ch, i] - v)
-                        x1 += abs(a[ch, i] - hh[ch, w + i])
-                        x2 += abs(g[ch, i] - v)
-                    cost[w, i] = min(x0, min(x1, x2))
-            else:
-                for i in range(n):
-                    x0 = np.float32(0.0)
-                    for ch in range(_C):
-                        x0 += abs(a[ch, i] - bb[ch, w + i])
-                    cost[w, i] = x0
-            d = w - band
-            for i in range(max(0, -d)):
-                cost[w, i] = big
-            for i in range(min(n, n - d), n):
-                cost[w, i] = big
-        # rest[i]: Σ over the rows after i of their least cell
+            o = s + w - band
+            if o < 0:
+                o += n
+            elif o >= n:
+                o -= n
+            at = _U((mirror * n + o) * n)
+            col[w] = at
+            if not have[mirror, o]:
+                diagonal(a, g, bx, hx, mirror, half, o, diag, at)
+                have[mirror, o] = True
         for i in range(n):
-            rest[i] = big
+            rest[i] = _BIG
         for w in range(width):
-            for i in range(n):
-                rest[i] = min(rest[i], cost[w, i])
+            at = col[w]
+            for i in range(_U(max(0, band - w)), _U(min(n, n + band - w))):
+                rest[i] = np.minimum(rest[i], diag[at + i])
         acc = 0.0
         for i in range(n - 1, -1, -1):
             r = rest[i]
             rest[i] = acc
             acc += r
-        if acc > limit:
-            return big
+        return acc
+
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def dtw1(diag, col, band, limit, rest, prev, cur):  # pragma: no cover
+        """The banded DTW of one start shift (:func:`band_of`) row by row: its least cost
+        (not divided by n), or _BIG as soon as it is sure to exceed ``limit``: the costs are
+        ≥ 0 and a path visits every row, so the path's cost is at least the least cell of the
+        current row plus, for each row left, that row's least cell. Cells outside the band's
+        valid part hold _BIG."""
+        n = rest.shape[0]
+        width = 2 * band + 1
+        big = np.float32(_BIG)
+        for w in range(width + 1):
+            prev[w] = big
+            cur[w] = big
         run = np.float32(0.0)
-        for w in range(width):
-            if w < band:
-                prev[w] = big
-            else:
-                run += cost[w, 0]
-                prev[w] = run
-        prev[width] = big
+        for w in range(band, width):
+            run += diag[col[w]]
+            prev[w] = run
         for i in range(1, n):
+            iu = _U(i)
+            hi = _U(min(width, n + band - i))
             left = big
             row_min = big
-            for w in range(width):
-                t = min(min(prev[w], prev[w + 1]), left)
-                left = cost[w, i] + t
+            for w in range(_U(max(0, band - i)), hi):
+                t = min(min(prev[w], prev[w + _U(1)]), left)
+                left = diag[col[w] + iu] + t
                 cur[w] = left
                 row_min = min(row_min, left)
-            for w in range(width):
-                prev[w] = cur[w]
+            for w in range(hi, _U(width)):
+                cur[w] = big
+            prev, cur = cur, prev
             if row_min + rest[i] > limit:
                 return big
         return prev[band]
+
+    @numba.njit(cache=True, fastmath=True, inline="always")
+    def dtw4(diag, col, band, limit, rest, prev, cur, out):  # pragma: no cover
+        """:func:`dtw1` for four start shifts at once (``col[c]``, ``rest[c]``, c = 0 … 3),
+        their DPs interleaved in one loop: a DP row is a chain of dependent additions and
+        minima, four independent chains keep the processor busy. ``out[c]``: on entry _BIG
+        for a shift already known to exceed ``limit`` (else 0), on return shift c's least
+        cost, or _BIG once it is sure to exceed ``limit`` (its bound is checked every fourth
+        row: the loop is bound by its number of operations); all four stop when all four
+        are."""
+        n = rest.shape[1]
+        width = 2 * band + 1
+        big = np.float32(_BIG)
+        for c in range(4):
+            for w in range(width + 1):
+                prev[c, w] = big
+                cur[c, w] = big
+            run = np.float32(0.0)
+            for w in range(band, width):
+                run += diag[col[c, w]]
+                prev[c, w] = run
+        p0, p1, p2, p3 = prev[0], prev[1], prev[2], prev[3]
+        q0, q1, q2, q3 = cur[0], cur[1], cur[2], cur[3]
+        c0, c1, c2, c3 = col[0], col[1], col[2], col[3]
+        one = _U(1)
+        for i in range(1, n):
+            iu = _U(i)
+            hi = _U(min(width, n + band - i))
+            lo = _U(max(0, band - i))
+            x0 = big
+            x1 = big
+            x2 = big
+            x3 = big
+            for w in range(lo, hi):
+                x0 = diag[c0[w] + iu] + min(min(p0[w], p0[w + one]), x0)
+                x1 = diag[c1[w] + iu] + min(min(p1[w], p1[w + one]), x1)
+                x2 = diag[c2[w] + iu] + min(min(p2[w], p2[w + one]), x2)
+                x3 = diag[c3[w] + iu] + min(min(p3[w], p3[w + one]), x3)
+                q0[w] = x0
+                q1[w] = x1
+                q2[w] = x2
+                q3[w] = x3
+            for w in range(hi, _U(width)):
+                q0[w] = big
+                q1[w] = big
+                q2[w] = big
+                q3[w] = big
+            p0, q0 = q0, p0
+            p1, q1 = q1, p1
+            p2, q2 = q2, p2
+            p3, q3 = q3, p3
+            if i & 3 and i < n - 1:  # the bounds every fourth row (and the last)
+                continue
+            r0 = big
+            r1 = big
+            r2 = big
+            r3 = big
+            for w in range(lo, hi):
+                r0 = np.minimum(r0, p0[w])
+                r1 = np.minimum(r1, p1[w])
+                r2 = np.minimum(r2, p2[w])
+                r3 = np.minimum(r3, p3[w])
+            if r0 + rest[0, i] > limit:
+                out[0] = _BIG
+            if r1 + rest[1, i] > limit:
+                out[1] = _BIG
+            if r2 + rest[2, i] > limit:
+                out[2] = _BIG
+            if r3 + rest[3, i] > limit:
+                out[3] = _BIG
+            if min(min(out[0], out[1]), min(out[2], out[3])) >= _BIG:
+                return
+        if out[0] < _BIG:
+            out[0] = p0[band]
+        if out[1] < _BIG:
+            out[1] = p1[band]
+        if out[2] < _BIG:
+            out[2] = p2[band]
+        if out[3] < _BIG:
+            out[3] = p3[band]
 
     @numba.njit(cache=True, inline="always")
     def scratch(sig, band, n_h, cap):  # pragma: no cover
@@ -348,9 +443,11 @@ def _compile():
         width = 2 * band + 1
         dt = sig.dtype
         return (np.empty((n_ch, n), dt), np.empty((n_ch, n), dt),
-                np.zeros((n_ch, n + 2 * band), dt), np.zeros((n_ch, n + 2 * band), dt),
-                np.empty((width, n), dt), np.empty(n, dt), np.empty(width + 1, dt),
-                np.empty(width + 1, dt), np.empty((2, n_h)), np.empty((2, n_h)),
+                np.empty((2, n_ch, 2 * n), dt), np.empty((2, n_ch, 2 * n), dt),
+                np.empty(2 * n * n, dt), np.empty((2, n), np.bool_),
+                np.empty((4, width), np.uint64), np.empty((4, n), dt),
+                np.empty((4, width + 1), dt), np.empty((4, width + 1), dt),
+                np.empty(4), np.empty((2, n_h)), np.empty((2, n_h)),
                 np.empty((2, n)), np.empty(cap + 1), np.empty(cap + 1, np.int64),
                 np.empty(cap, np.int64), np.empty(cap, np.int64))
 
@@ -358,8 +455,11 @@ def _compile():
     def pair_cost(sig, fr, fi, norm, ia, ib, limit, cos_t, sin_t, n_cand, band, half,
                   work):  # pragma: no cover
         """The least banded-DTW cost (not divided by n) of the ordered pair (ia, ib) over
-        its rigid start shifts, or _BIG when it is sure to exceed ``limit``."""
-        a, g, bb, hh, cost, rest, prev, cur, xr, xi, vals, v_list, code, mirror, shift = work
+        its rigid start shifts, or _BIG when it is sure to exceed ``limit``: the lowest shift
+        alone first (its cost bounds the others'), then the others four at a time
+        (:func:`dtw4`; a group's last shift repeated where fewer are left)."""
+        (a, g, bx, hx, diag, have, offs, rest, prev, cur, out4, xr, xi, vals, v_list, code,
+         mirror, shift) = work
         n_ch, n = sig.shape[1], sig.shape[2]
         got = start_shifts(fr, fi, norm, ia, ib, cos_t, sin_t, n_cand, xr, xi, vals, v_list,
                            code, mirror, shift)
@@ -369,15 +469,58 @@ def _compile():
             for i in range(n - 1):
                 g[ch, i] = 0.5 * (a[ch, i] + a[ch, i + 1])
             g[ch, n - 1] = 0.5 * (a[ch, n - 1] + a[ch, 0])
+            # b as is, and its mirror image b(−j mod n), both repeated once
+            for j in range(n):
+                v = sig[ib, ch, j]
+                bx[0, ch, j] = v
+                bx[0, ch, n + j] = v
+            bx[1, ch, 0] = sig[ib, ch, 0]
+            bx[1, ch, n] = sig[ib, ch, 0]
+            for j in range(1, n):
+                v = sig[ib, ch, n - j]
+                bx[1, ch, j] = v
+                bx[1, ch, n + j] = v
+            if half:
+                for m in range(2):
+                    for j in range(2 * n - 1):
+                        hx[m, ch, j] = 0.5 * (bx[m, ch, j] + bx[m, ch, j + 1])
+                    hx[m, ch, 2 * n - 1] = 0.5 * (bx[m, ch, 2 * n - 1] + bx[m, ch, 0])
+        for m in range(2):
+            for o in range(n):
+                have[m, o] = False
         best = _BIG
         lim = min(limit, _BIG)
-        for k in range(got):
-            v = banded(a, g, sig, ib, mirror[k], shift[k], band, half, lim, bb, hh, cost, rest,
-                       prev, cur)
-            if v < best:
-                best = v
-                if v < lim:
-                    lim = v
+        if got == 0:
+            return best
+        if band_of(a, g, bx, hx, diag, have, mirror[0], shift[0], band, half, offs[0],
+                   rest[0]) <= lim:
+            best = dtw1(diag, offs[0], band, lim, rest[0], prev[0], cur[0])
+            if best < lim:
+                lim = best
+        for k0 in range(1, got, 4):
+            live = 0
+            for c in range(4):
+                k = min(k0 + c, got - 1)
+                if c == 0 or k0 + c < got:
+                    acc = band_of(a, g, bx, hx, diag, have, mirror[k], shift[k], band, half,
+                                  offs[c], rest[c])
+                    out4[c] = 0.0 if acc <= lim else _BIG
+                    if acc <= lim:
+                        live += 1
+                else:  # a repeat of the group's last shift
+                    out4[c] = out4[c - 1]
+                    for w in range(offs.shape[1]):
+                        offs[c, w] = offs[c - 1, w]
+                    for i in range(n):
+                        rest[c, i] = rest[c - 1, i]
+            if live == 0:
+                continue
+            dtw4(diag, offs, band, lim, rest, prev, cur, out4)
+            for c in range(4):
+                if out4[c] < best:
+                    best = out4[c]
+            if best < lim:
+                lim = best
         return best
 
     @numba.njit(parallel=True, cache=True, fastmath=True)
