@@ -79,7 +79,9 @@ def test_rerank_and_its_k_are_the_re_ranking_of_the_plain_matrix(features, tmp_p
     from napari_pfsdm.analysis.rerank import rerank
 
     plain = compare(features, tmp_path).to_numpy()
-    for method in ("diffusion", "mutual", "transduction"):
+    from napari_pfsdm.analysis.rerank import RERANK_METHODS
+
+    for method in RERANK_METHODS:
         got = compare(features, tmp_path, "--rerank", method).to_numpy()
         np.testing.assert_allclose(got, rerank(plain, method, k=8), rtol=1e-12, atol=1e-14)
     k3 = compare(features, tmp_path, "--rerank", "diffusion", "--rerank-k", "3").to_numpy()

@@ -141,9 +141,10 @@ def test_neighbours_refuses_what_it_cannot_do(features, tmp_path, capsys):
     out = str(tmp_path / "e.csv")
     assert main(["compare", str(features), "--neighbours", "12", "-o", out]) == 2
     assert "at most 11 neighbours" in capsys.readouterr().err
-    assert main(["compare", str(features), "--neighbours", "3", "--rerank", "transduction",
-                 "-o", out]) == 2
-    assert "full matrix" in capsys.readouterr().err
+    for dense in ("transduction", "tpg"):
+        assert main(["compare", str(features), "--neighbours", "3", "--rerank", dense,
+                     "-o", out]) == 2
+        assert "full matrix" in capsys.readouterr().err
     assert not (tmp_path / "e.csv").exists()
 
 
