@@ -40,12 +40,26 @@ K = 10
 PER_FRAME = 250
 
 
-def _movie(n: int, seed: int):
+def blob_movie(n: int, seed: int):
     from napari_pfsdm.data.moving_blobs import make_moving_blobs
 
     frames = int(np.ceil(n / (0.96 * PER_FRAME)))
     return make_moving_blobs(n_objects=PER_FRAME, n_frames=frames, size=1024,
                              radius=(10.0, 16.0), seed=seed)
+
+
+def blob_table(movie, n: int):
+    """The feature table (with the signature's columns) of a movie's first n described
+    objects, and their signatures."""
+    import napari_pfsdm as pf
+    from napari_pfsdm.analysis.tables import signatures_from_table
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = pf.drop_failed(pf.measure(movie.labels, elastic_signature="table"))
+    kept = table.iloc[:n].reset_index(drop=True)
+    kept.attrs = table.attrs
+    return kept, signatures_from_table(kept)
 
 
 def _measure_cost(labels: np.ndarray, repeats: int = 2) -> tuple[float, float]:
@@ -82,7 +96,6 @@ def main(argv=None) -> int:
 
     import napari_pfsdm as pf
     from napari_pfsdm.analysis.neighbours import ELASTIC_CANDIDATES
-    from napari_pfsdm.analysis.tables import signatures_from_table
     from napari_pfsdm.core.distances import RECOMMENDED_ELASTIC_WEIGHT
     from napari_pfsdm.core.elastic import elastic_distance_between, elastic_nearest
 
@@ -95,15 +108,10 @@ def main(argv=None) -> int:
           "| d_E per object | recall@10 of the shortcut |")
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for n in args.sizes:
-        movie = _movie(n, args.seed)
+        movie = blob_movie(n, args.seed)
         w, wo = _measure_cost(movie.labels[: args.measure_frames])
         per = args.measure_frames * PER_FRAME
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            table = pf.drop_failed(pf.measure(movie.labels, elastic_signature="table"))
-        kept = table.iloc[:n].reset_index(drop=True)
-        kept.attrs = table.attrs
-        sig = signatures_from_table(kept)
+        kept, sig = blob_table(movie, n)
         # compiled here
         elastic_distance_between(sig, np.arange(20), np.arange(20)[::-1])
         elastic_nearest(sig[:20], np.tile(np.arange(1, 20), (20, 1)) % 20,

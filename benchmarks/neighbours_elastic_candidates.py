@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -51,17 +50,10 @@ def mpeg7_data() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def blob_data(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     import napari_pfsdm as pf
     import neighbours_elastic
-    from napari_pfsdm.analysis.tables import signatures_from_table
     from napari_pfsdm.core.elastic import elastic_distance_matrix
 
-    movie = neighbours_elastic._movie(n, 0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        table = pf.drop_failed(pf.measure(movie.labels, elastic_signature="table"))
-    kept = table.iloc[:n].reset_index(drop=True)
-    kept.attrs = table.attrs
-    sig = signatures_from_table(kept)
-    return sig, pf.distance_matrix(kept), elastic_distance_matrix(sig)
+    table, sig = neighbours_elastic.blob_table(neighbours_elastic.blob_movie(n, 0), n)
+    return sig, pf.distance_matrix(table), elastic_distance_matrix(sig)
 
 
 def invariant_vectors(sig: np.ndarray) -> np.ndarray:
