@@ -50,7 +50,7 @@ __all__ = ["RERANK_METHODS", "SPARSE_RERANK_METHODS", "rerank", "rerank_neighbou
 
 RERANK_METHODS = ("diffusion", "mutual", "transduction", "tpg")
 #: The variants :func:`rerank_neighbours` computes on a neighbour graph (transduction inverts a
-#: dense n x n matrix: it needs the full matrix).
+#: dense n x n matrix and tpg's Q is one: they need the full matrix).
 SPARSE_RERANK_METHODS = ("diffusion", "mutual")
 
 #: Share of the original distance (divided by its median) kept as a tie-breaker.
