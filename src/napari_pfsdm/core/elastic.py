@@ -45,17 +45,20 @@ Compiled kernel (numba, parallel over pairs)
     the costs along each cyclic diagonal of the (point of a, point of b) grid that a start
     shift's band needs, computed once per pair (shifts less than 2 :data:`BAND` apart share
     diagonals; the channels' loop unrolled, the loop along a diagonal vectorised); the DP row
-    by row, reading them in place, in single precision (the distances agree with a float64
+    by row, reading them in place (a band's diagonals sit in consecutive slots, so a cell's
+    place is computed, not loaded), in single precision (the distances agree with a float64
     reference to ~1e-6 relative, tested). The lowest start shift is refined first and alone;
     the others four at a time, their four DPs interleaved in one loop (a DP row is a chain of
-    dependent additions and minima: one chain leaves the processor idle). A start shift is
-    abandoned as soon as the least cost of a path through the current row plus the least
-    cell of every row left exceeds the best shift's cost so far (costs are ≥ 0 and a path
-    visits every row), so the result is the same as refining every shift to the end.
-    :func:`elastic_nearest` passes a limit of its own: the cost a candidate must stay under
-    to enter a row's k nearest. docs/benchmarks.md gives the cost per pair.
+    dependent additions and minima: one chain leaves the processor idle). With a limit (what
+    :func:`elastic_nearest` passes: the cost a candidate must stay under to enter a row's k
+    nearest), a start shift is abandoned as soon as the least cost of a path through the
+    current row plus the least cell of every row left exceeds the limit or the best shift's
+    cost so far (costs are ≥ 0 and a path visits every row), so the result is the same as
+    refining every shift to the end. Without one (all pairs) there are no bounds: between a
+    pair's own start shifts they rule out too little to pay for themselves (the lowest rigid
+    shift is often not the best one). docs/benchmarks.md gives the cost per pair.
 
-Its length (about 860 lines) is the DP twice, held against each other by the tests: the
+Its length (about 890 lines) is the DP twice, held against each other by the tests: the
 compiled kernel (numba: the banded DTW with its bounds, the rigid start shifts) and its plain
 numpy reference (:func:`banded_dtw`), with the searches that call them.
 """
@@ -289,26 +292,44 @@ def _compile():
                 diag[at + _U(i)] = x0
 
     @numba.njit(cache=True, fastmath=True, inline="always")
-    def band_of(a, g, bx, hx, diag, have, mirror, s, band, half, col, rest):  # pragma: no cover
+    def band_of(a, g, bx, hx, diag, have, mirror, s, band, half, col, rest,
+                bounds):  # pragma: no cover
         """The band of start shift s of orientation ``mirror`` of b. Its column w matches a(i)
         to b(i + s + w − band) in the rows max(0, band − w) ≤ i < min(n, n + band − w): the
-        cyclic diagonal o = s + w − band mod n, whose costs are ``diag[col[w] + i]``. They
-        are computed once per pair (``have[mirror, o]`` says whether they are there): start
-        shifts less than 2 band apart share diagonals. ``rest[i]``: Σ over the rows after i
-        of their least cell; returns the Σ over all rows."""
+        cyclic diagonal o = s + w − band mod n, whose costs are ``diag[col[w] + i]``, with
+        ``col[w] = col[0] + w n`` (the DP computes a cell's place instead of loading it).
+        ``diag`` holds n + 2 band slots of n costs per orientation, slot k the diagonal
+        (k − band) mod n: the diagonals within band of the cut are held twice, so that a
+        band's columns are consecutive slots (s + w). They are computed once per pair
+        (``have[mirror, o]`` says whether they are there): start shifts less than 2 band
+        apart share diagonals. ``rest[i]``: Σ over the rows after i of their least cell;
+        returns the Σ over all rows (with ``bounds`` False: 0, no bound)."""
         n = a.shape[1]
         width = 2 * band + 1
+        slots = n + 2 * band
         for w in range(width):
             o = s + w - band
             if o < 0:
                 o += n
             elif o >= n:
                 o -= n
-            at = _U((mirror * n + o) * n)
-            col[w] = at
+            col[w] = _U((mirror * slots + s + w) * n)
             if not have[mirror, o]:
+                at = _U((mirror * slots + o + band) * n)
                 diagonal(a, g, bx, hx, mirror, half, o, diag, at)
+                if o < band:  # its second slot, after the last diagonal's
+                    to = at + _U(n * n)
+                    for i in range(_U(n)):
+                        diag[to + i] = diag[at + i]
+                elif o >= n - band:  # before the first's
+                    to = at - _U(n * n)
+                    for i in range(_U(n)):
+                        diag[to + i] = diag[at + i]
                 have[mirror, o] = True
+        if not bounds:
+            for i in range(n):
+                rest[i] = 0.0
+            return 0.0
         for i in range(n):
             rest[i] = _BIG
         for w in range(width):
@@ -339,14 +360,18 @@ def _compile():
         for w in range(band, width):
             run += diag[col[w]]
             prev[w] = run
+        nu = _U(n)
         for i in range(1, n):
-            iu = _U(i)
+            r = col[0] + _U(i)
             hi = _U(min(width, n + band - i))
+            lo = _U(max(0, band - i))
             left = big
             row_min = big
-            for w in range(_U(max(0, band - i)), hi):
-                t = min(min(prev[w], prev[w + _U(1)]), left)
-                left = diag[col[w] + iu] + t
+            p = prev[lo]
+            for w in range(lo, hi):
+                q = prev[w + _U(1)]
+                left = diag[r + w * nu] + min(min(p, q), left)
+                p = q
                 cur[w] = left
                 row_min = min(row_min, left)
             for w in range(hi, _U(width)):
@@ -357,14 +382,14 @@ def _compile():
         return prev[band]
 
     @numba.njit(cache=True, fastmath=True, inline="always")
-    def dtw4(diag, col, band, limit, rest, prev, cur, out):  # pragma: no cover
+    def dtw4(diag, col, band, limit, rest, prev, cur, out, bounds):  # pragma: no cover
         """:func:`dtw1` for four start shifts at once (``col[c]``, ``rest[c]``, c = 0 … 3),
         their DPs interleaved in one loop: a DP row is a chain of dependent additions and
         minima, four independent chains keep the processor busy. ``out[c]``: on entry _BIG
         for a shift already known to exceed ``limit`` (else 0), on return shift c's least
         cost, or _BIG once it is sure to exceed ``limit`` (its bound is checked every fourth
-        row: the loop is bound by its number of operations); all four stop when all four
-        are."""
+        row: the loop is bound by its number of operations; never with ``bounds`` False);
+        all four stop when all four are."""
         n = rest.shape[1]
         width = 2 * band + 1
         big = np.float32(_BIG)
@@ -378,21 +403,26 @@ def _compile():
                 prev[c, w] = run
         p0, p1, p2, p3 = prev[0], prev[1], prev[2], prev[3]
         q0, q1, q2, q3 = cur[0], cur[1], cur[2], cur[3]
-        c0, c1, c2, c3 = col[0], col[1], col[2], col[3]
         one = _U(1)
+        nu = _U(n)
         for i in range(1, n):
             iu = _U(i)
+            r0, r1, r2, r3 = col[0, 0] + iu, col[1, 0] + iu, col[2, 0] + iu, col[3, 0] + iu
             hi = _U(min(width, n + band - i))
             lo = _U(max(0, band - i))
             x0 = big
             x1 = big
             x2 = big
             x3 = big
+            a0, a1, a2, a3 = p0[lo], p1[lo], p2[lo], p3[lo]
             for w in range(lo, hi):
-                x0 = diag[c0[w] + iu] + min(min(p0[w], p0[w + one]), x0)
-                x1 = diag[c1[w] + iu] + min(min(p1[w], p1[w + one]), x1)
-                x2 = diag[c2[w] + iu] + min(min(p2[w], p2[w + one]), x2)
-                x3 = diag[c3[w] + iu] + min(min(p3[w], p3[w + one]), x3)
+                wn = w * nu
+                b0, b1, b2, b3 = p0[w + one], p1[w + one], p2[w + one], p3[w + one]
+                x0 = diag[r0 + wn] + min(min(a0, b0), x0)
+                x1 = diag[r1 + wn] + min(min(a1, b1), x1)
+                x2 = diag[r2 + wn] + min(min(a2, b2), x2)
+                x3 = diag[r3 + wn] + min(min(a3, b3), x3)
+                a0, a1, a2, a3 = b0, b1, b2, b3
                 q0[w] = x0
                 q1[w] = x1
                 q2[w] = x2
@@ -406,7 +436,7 @@ def _compile():
             p1, q1 = q1, p1
             p2, q2 = q2, p2
             p3, q3 = q3, p3
-            if i & 3 and i < n - 1:  # the bounds every fourth row (and the last)
+            if not bounds or (i & 3 and i < n - 1):  # every fourth row (and the last)
                 continue
             r0 = big
             r1 = big
@@ -444,7 +474,7 @@ def _compile():
         dt = sig.dtype
         return (np.empty((n_ch, n), dt), np.empty((n_ch, n), dt),
                 np.empty((2, n_ch, 2 * n), dt), np.empty((2, n_ch, 2 * n), dt),
-                np.empty(2 * n * n, dt), np.empty((2, n), np.bool_),
+                np.empty(2 * (n + 2 * band) * n, dt), np.empty((2, n), np.bool_),
                 np.empty((4, width), np.uint64), np.empty((4, n), dt),
                 np.empty((4, width + 1), dt), np.empty((4, width + 1), dt),
                 np.empty(4), np.empty((2, n_h)), np.empty((2, n_h)),
@@ -456,8 +486,9 @@ def _compile():
                   work):  # pragma: no cover
         """The least banded-DTW cost (not divided by n) of the ordered pair (ia, ib) over
         its rigid start shifts, or _BIG when it is sure to exceed ``limit``: the lowest shift
-        alone first (its cost bounds the others'), then the others four at a time
-        (:func:`dtw4`; a group's last shift repeated where fewer are left)."""
+        alone first, then the others four at a time (:func:`dtw4`; a group's last shift
+        repeated where fewer are left). The bounds (the rows' least cells, the abandoning)
+        serve a finite ``limit`` only (module docstring)."""
         (a, g, bx, hx, diag, have, offs, rest, prev, cur, out4, xr, xi, vals, v_list, code,
          mirror, shift) = work
         n_ch, n = sig.shape[1], sig.shape[2]
@@ -482,18 +513,20 @@ def _compile():
                 bx[1, ch, n + j] = v
             if half:
                 for m in range(2):
-                    for j in range(2 * n - 1):
-                        hx[m, ch, j] = 0.5 * (bx[m, ch, j] + bx[m, ch, j + 1])
-                    hx[m, ch, 2 * n - 1] = 0.5 * (bx[m, ch, 2 * n - 1] + bx[m, ch, 0])
+                    for j in range(_U(n)):
+                        v = np.float32(0.5) * (bx[m, ch, j] + bx[m, ch, j + _U(1)])
+                        hx[m, ch, j] = v
+                        hx[m, ch, j + _U(n)] = v
         for m in range(2):
             for o in range(n):
                 have[m, o] = False
         best = _BIG
         lim = min(limit, _BIG)
+        bounds = lim < _BIG
         if got == 0:
             return best
         if band_of(a, g, bx, hx, diag, have, mirror[0], shift[0], band, half, offs[0],
-                   rest[0]) <= lim:
+                   rest[0], bounds) <= lim:
             best = dtw1(diag, offs[0], band, lim, rest[0], prev[0], cur[0])
             if best < lim:
                 lim = best
@@ -503,7 +536,7 @@ def _compile():
                 k = min(k0 + c, got - 1)
                 if c == 0 or k0 + c < got:
                     acc = band_of(a, g, bx, hx, diag, have, mirror[k], shift[k], band, half,
-                                  offs[c], rest[c])
+                                  offs[c], rest[c], bounds)
                     out4[c] = 0.0 if acc <= lim else _BIG
                     if acc <= lim:
                         live += 1
@@ -515,7 +548,7 @@ def _compile():
                         rest[c, i] = rest[c - 1, i]
             if live == 0:
                 continue
-            dtw4(diag, offs, band, lim, rest, prev, cur, out4)
+            dtw4(diag, offs, band, lim, rest, prev, cur, out4, bounds)
             for c in range(4):
                 if out4[c] < best:
                     best = out4[c]
