@@ -15,7 +15,8 @@ An elastic outline term is opt-in (``elastic_weight`` μ > 0, :mod:`napari_pfsdm
 D + μ · d_E, d_E the mean L1 cost per point of the best elastic correspondence between the
 two outlines' multi-scale signatures (dynamic programming over start point, mirror and local
 stretching). It needs the signatures (results, or a table measured with them) and costs
-about 3 times the default distance's time for all pairs (docs/benchmarks.md).
+about 3 times the default distance's time for all pairs on 2 cores, 5 times on one
+(docs/benchmarks.md).
 
 Three ways to remove rotation and reflection from the SDF term (``invariance``):
 
