@@ -32,6 +32,7 @@ import time
 import pandas as pd
 
 from napari_pfsdm.analysis import parallel
+from napari_pfsdm.analysis.measuring import ObjectMeasurer
 from napari_pfsdm.analysis.row_blocks import join_blocks
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
@@ -39,13 +40,13 @@ from napari_pfsdm.data.gastruloids import make_timelapse_montage
 
 def _tasks(labels, intensity, workers):
     """The pool's own plan of the movie: the arguments of each task."""
-    options = PFSDMParams().options()
+    measurer = ObjectMeasurer.of(PFSDMParams(), with_intensity=True, axes="tyx")
     counts = parallel._labels_per_frame(labels, len(labels), True)
     total = sum(len(c) for c in counts)
     tasks = parallel.plan_tasks(counts, parallel.task_count(total, workers))
-    kw = {"with_intensity": True, "params": PFSDMParams(), "axes": "tyx"}
     boxes: dict = {}
-    return [(parallel.task_entries(labels, intensity, True, task, counts, boxes), options, kw)
+    return [(measurer, parallel.task_entries(measurer, labels, intensity, True, task, counts,
+                                             boxes))
             for task in tasks]
 
 

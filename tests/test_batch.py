@@ -14,12 +14,11 @@ import tifffile
 
 import napari_pfsdm
 import napari_pfsdm.errors
-from napari_pfsdm.analysis import features as features_module
+from napari_pfsdm.analysis.measuring import ObjectMeasurer
 from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pair_movies, run_batch
 from napari_pfsdm.batch import run as run_module
 from napari_pfsdm.batch import tasks as tasks_module
 from napari_pfsdm.batch.io import check_labels
-from napari_pfsdm.core.params import as_params
 from napari_pfsdm.io import read_table_csv, write_table_csv
 from unguarded_script import run_once
 
@@ -39,24 +38,19 @@ def make_movie(n_frames: int = 4, shape=(64, 80)) -> tuple[np.ndarray, np.ndarra
     return labels, intensity.astype(np.float32)
 
 
-def fake_measure(labels, intensity=None, *, axes=None, spacing=None, progress=None, params=None,
-                 **options):
-    """Stand-in for the core: frame, label, area, mean intensity (monkeypatched only)."""
-    labels = np.asarray(labels)
-    if labels.ndim == 2:
-        labels = labels[None]
-        intensity = None if intensity is None else np.asarray(intensity)[None]
-    rows = []
-    for t in range(labels.shape[0]):
-        for lab in np.unique(labels[t])[1:]:
-            m = labels[t] == lab
-            rows.append({"frame": t, "label": int(lab), "area": float(m.sum()),
-                         "mean": float(np.asarray(intensity[t])[m].mean())
-                         if intensity is not None else np.nan, "error": ""})
-    df = pd.DataFrame(rows)
-    record = as_params(params, options).record()  # as the real measure records its options
-    df.attrs["pfsdm"] = {**record, "radii": np.array([0.25, 0.75])}
-    return df
+@pytest.fixture
+def measured(monkeypatch):
+    """The objects the batch measures, as they reach the one per-object step every path
+    calls (``ObjectMeasurer.measure``; the ``sync`` scheduler runs it in this process)."""
+    seen: list[tuple[int, int]] = []
+    real = ObjectMeasurer.measure
+
+    def counting(self, crop):
+        seen.append((crop.frame, crop.label))
+        return real(self, crop)
+
+    monkeypatch.setattr(ObjectMeasurer, "measure", counting)
+    return seen
 
 
 def write_zarr(path: Path, data: np.ndarray, zarr_format: int = 3, chunks=None) -> Path:
@@ -401,8 +395,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     assert all(m.startswith("measured") for m in log)
 
 
-def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
-    monkeypatch.setattr(features_module, "measure", fake_measure)
+def test_run_batch_checks_every_movie_before_work(tmp_path, measured):
     labels, intensity = make_movie(2)
     write_zarr(tmp_path / "good.zarr", labels)
     write_zarr(tmp_path / "raw.zarr", intensity)
@@ -411,11 +404,11 @@ def test_run_batch_checks_every_movie_before_work(tmp_path, monkeypatch):
         run_batch(movies, tmp_path / "f.csv", scheduler="sync")
     parts = tmp_path / "f.csv.parts"
     assert not (tmp_path / "f.csv").exists() and not any(parts.iterdir())
+    assert measured == []  # not even the good movie's objects
 
 
-def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
+def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, measured):
     pytest.importorskip("pyarrow")
-    monkeypatch.setattr(features_module, "measure", fake_measure)
     labels, _ = make_movie(2)
     write_zarr(tmp_path / "a.zarr", labels)
     movies = pair_movies(find_movies(tmp_path / "a.zarr"))
@@ -424,8 +417,9 @@ def test_parts_are_parquet_when_pyarrow_is_installed(tmp_path, monkeypatch):
     assert [p.name.split(".", 1)[1] for p in sorted((tmp_path / "f.csv.parts").iterdir())] \
         == ["parquet", "parquet.json"]
     log = []
+    n = len(measured)
     again = run_batch(movies, tmp_path / "f.csv", scheduler="sync", log=log.append)
-    assert log[0].startswith("skipped a")
+    assert log[0].startswith("skipped a") and len(measured) == n == len(first)
     pd.testing.assert_frame_equal(again, first)
 
 
@@ -471,8 +465,7 @@ def test_a_movie_changed_after_opening_is_refused_in_plain_words(tmp_path):
         arr.compute()
 
 
-def test_run_batch_measures_a_replaced_movie_again(tmp_path, monkeypatch):
-    monkeypatch.setattr(features_module, "measure", fake_measure)
+def test_run_batch_measures_a_replaced_movie_again(tmp_path, measured):
     path = tmp_path / "m.tif"
     small = np.zeros((1, 40, 40), np.uint16)
     small[0, 5:10, 5:10] = 1  # area 25
@@ -486,4 +479,4 @@ def test_run_batch_measures_a_replaced_movie_again(tmp_path, monkeypatch):
     log = []
     second = run_batch(pair_movies([path]), out, scheduler="sync", log=log.append)
     assert second["area"].tolist() == [100.0]
-    assert log[0].startswith("measured m")
+    assert log[0].startswith("measured m") and measured == [(0, 1), (0, 1)]

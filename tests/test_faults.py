@@ -188,15 +188,18 @@ def test_huge_ids_link_over_time(tmp_path, link):
 
 
 def test_the_parallel_run_takes_huge_ids():
+    from napari_pfsdm.analysis.measuring import ObjectMeasurer
     from napari_pfsdm.analysis.parallel import _labels_per_frame, plan_tasks, task_entries
+    from napari_pfsdm.core.params import PFSDMParams
 
     labels = two_objects(np.uint64, 2**63 - 1)
     counts = _labels_per_frame(labels, 2, True)
     assert [c.tolist() for c in counts] == [[5, 2**63 - 1]] * 2
     tasks = plan_tasks(counts, 4)  # one object per task: a frame split between tasks, crops
-    sent = [task_entries(labels, None, True, task, counts, {}) for task in tasks]
-    crops = [c for entries in sent for e in entries if e[0] == "crops" for c in e[3]]
-    assert {c[0] for c in crops} <= {5, 2**63 - 1} and crops
+    measurer = ObjectMeasurer.of(PFSDMParams())
+    sent = [task_entries(measurer, labels, None, True, task, counts, {}) for task in tasks]
+    crops = [c for entries in sent for e in entries if e[0] == "crops" for c in e[1]]
+    assert {c.label for c in crops} <= {5, 2**63 - 1} and crops
 
 
 @pytest.mark.parametrize("shape", [(0, 16, 16), (3, 0, 16), (0, 0), (16, 0)])

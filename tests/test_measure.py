@@ -104,7 +104,7 @@ def test_a_numerical_failure_costs_one_row_not_the_run(monkeypatch):
     error; the other objects are measured."""
     from scipy.spatial import QhullError
 
-    from napari_pfsdm.analysis import features
+    from napari_pfsdm.analysis import measuring as features
 
     real = features.pfsdm
 
@@ -122,21 +122,21 @@ def test_a_numerical_failure_costs_one_row_not_the_run(monkeypatch):
 
 
 def test_rows_are_stacked_in_pieces_as_np_array_would(monkeypatch):
-    """table_from_objects stacks its rows piece by piece (a worker thread holding the
+    """The measurer stacks a table's rows piece by piece (a worker thread holding the
     interpreter lock for one np.array over 50,000 rows froze the viewer): same values and
     dtype as np.array, across piece boundaries, and for no rows."""
-    from napari_pfsdm.analysis import features
+    from napari_pfsdm.analysis import measuring as features
 
     monkeypatch.setattr(features, "STACK_PIECE_ROWS", 3)
     rng = np.random.default_rng(0)
     rows = [rng.random(4) for _ in range(8)]
     rows[5] = np.full(4, np.nan)
-    got = features._stack_rows(rows, 4)
+    got = features.stack_rows(rows, 4)
     np.testing.assert_array_equal(got, np.array(rows))
     assert got.dtype == np.float64
     single = [r.astype(np.float32) for r in rows]
-    assert features._stack_rows(single, 4).dtype == np.float32
-    assert features._stack_rows(single[:4] + rows[4:], 4).dtype == np.float64  # as np.array
+    assert features.stack_rows(single, 4).dtype == np.float32
+    assert features.stack_rows(single[:4] + rows[4:], 4).dtype == np.float64  # as np.array
     lists = [[1.0, 2.0], [3.0, np.nan], [5.0, 6.0], [7.0, 8.0]]
-    np.testing.assert_array_equal(features._stack_rows(lists, 2, float), np.array(lists, float))
-    assert features._stack_rows([], 5).shape == (0, 5)
+    np.testing.assert_array_equal(features.stack_rows(lists, 2, float), np.array(lists, float))
+    assert features.stack_rows([], 5).shape == (0, 5)

@@ -147,7 +147,7 @@ def test_the_columns_follow_the_names():
 
 def test_measure_appends_the_midline_columns_after_the_classic_measures():
     import napari_pfsdm as pf
-    from napari_pfsdm.analysis.classic import classic_columns
+    from napari_pfsdm.analysis.classic import REPORTER_MEASURES, SHAPE_MEASURES_2D
     from napari_pfsdm.analysis.features import describe_object
     from napari_pfsdm.core.params import PFSDMParams
 
@@ -159,7 +159,7 @@ def test_measure_appends_the_midline_columns_after_the_classic_measures():
     table = pf.measure(labels, reporter, profile_bins=4, anterior="reporter_low")
     cols = list(table.columns)
     start = cols.index("perimeter")
-    classic = classic_columns(2, with_intensity=True)
+    classic = [*SHAPE_MEASURES_2D, *REPORTER_MEASURES]
     assert cols[start:start + len(classic)] == classic
     new = midline_columns(4, with_intensity=True)
     assert cols[start + len(classic):start + len(classic) + len(new)] == new

@@ -11,6 +11,7 @@ import pytest
 
 import napari_pfsdm as pf
 from napari_pfsdm.analysis import parallel
+from napari_pfsdm.analysis.measuring import ObjectMeasurer
 from napari_pfsdm.analysis.row_blocks import join_blocks
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
@@ -96,13 +97,17 @@ def test_a_split_frame_is_sent_as_the_crops_of_its_objects_and_gives_measures_ta
     monkeypatch.setattr(parallel, "MIN_OBJECTS", 1)
     counts = parallel._labels_per_frame(frame, 1, False)
     tasks = parallel.plan_tasks(counts, 4)
-    sent = parallel.task_entries(frame, image, False, tasks[0], counts, {})
+    measurer = ObjectMeasurer.of(PFSDMParams(), with_intensity=True, axes="yx")
+    sent = parallel.task_entries(measurer, frame, image, False, tasks[0], counts, {})
     assert len(tasks) > 1 and [entry[0] for entry in sent] == ["crops"]
     boxes = ndi.find_objects(frame)
-    for label, box, big, labels_crop, crop in sent[0][3]:
-        assert box == boxes[label - 1] and labels_crop.shape == crop.shape
-        np.testing.assert_array_equal(labels_crop, frame[big])
-        assert labels_crop.size < frame.size / 20
+    for crop in sent[0][1]:
+        assert crop.box == boxes[crop.label - 1] and crop.labels.shape == crop.image.shape
+        big = tuple(slice(o, o + n) for o, n in zip(crop.origin, crop.labels.shape,
+                                                     strict=True))
+        np.testing.assert_array_equal(crop.labels, frame[big])
+        assert crop.labels.base is None  # its own pixels, not a view of the frame
+        assert crop.labels.size < frame.size / 20
     blocks, _ = _drain(parallel.iter_blocks(frame, image, params=PFSDMParams(), axes="yx",
                                             workers=2))
     joined = join_blocks(blocks)

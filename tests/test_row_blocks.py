@@ -8,7 +8,7 @@ import pytest
 
 import napari_pfsdm as pf
 from napari_pfsdm.analysis.features import iter_objects
-from napari_pfsdm.analysis.parallel import row_of
+from napari_pfsdm.analysis.measuring import ObjectMeasurer, light
 from napari_pfsdm.analysis.row_blocks import BoxLookup, block_of, join_blocks
 from napari_pfsdm.core.params import PFSDMParams
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
@@ -22,7 +22,7 @@ def movie_rows():
     labels[2, 5:7, 5:7] = 41
     params = PFSDMParams()
     objects = list(iter_objects(labels, intensity, params=params, axes="tyx"))
-    rows = [row_of(obj) for obj in objects]
+    rows = [light(obj) for obj in objects]
     return labels, intensity, params, objects, rows
 
 
@@ -39,7 +39,8 @@ def test_any_split_joins_to_measures_table_and_boxes(movie_rows, cuts):
     elif cuts == "empty blocks":  # at the start, in the middle and at the end
         cuts = [0, 3, 3, len(rows)]
     edges = [0, *cuts, len(rows)]
-    blocks = [block_of(rows[a:b], with_intensity=True, params=params, axes="tyx")
+    measurer = ObjectMeasurer.of(params, with_intensity=True, axes="tyx")
+    blocks = [block_of(rows[a:b], measurer)
               for a, b in zip(edges, edges[1:], strict=False)]
     joined = join_blocks(blocks)
     pd.testing.assert_frame_equal(joined.table, expected)

@@ -36,32 +36,79 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORM_MEASURES_2D", "SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D", "REPORTER_MEASURES",
-           "classic_columns", "classic_measures", "convex_area", "midline_measures", "perimeter_4",
-           "shape_measures_2d"]
+from ..core.columns import Column, Family
+
+__all__ = ["FORM_MEASURES_2D", "MIDLINE_COLUMNS", "REPORTER_COLUMNS", "REPORTER_MEASURES",
+           "SHAPE_COLUMNS_2D", "SHAPE_COLUMNS_3D", "SHAPE_MEASURES_2D", "SHAPE_MEASURES_3D",
+           "classic_measures", "convex_area", "midline_measures", "perimeter_4",
+           "reporter_measures", "shape_measures", "shape_measures_2d"]
+
+_AXES = ("axis_major_length", "major axis of the ellipse of the same second moments"), \
+    ("axis_minor_length", "minor axis of the ellipse of the same second moments")
+_SOLIDITY = Column("solidity", "area / area of the convex hull (1: no indentation)")
+#: The columns of the 2-D shape measures (regionprops' properties, plus circularity).
+SHAPE_COLUMNS_2D = (
+    Column("perimeter", "perimeter (scikit-image's regionprops)", "length"),
+    Column("eccentricity", "eccentricity of the ellipse of the same second moments (0: a "
+                           "disk)"),
+    _SOLIDITY,
+    *(Column(name, words, "length") for name, words in _AXES),
+    Column("circularity", "4π·area / perimeter² (1 for a disk, smaller when elongated or "
+                          "ragged)"),
+)
+#: The columns of the 3-D shape measures.
+SHAPE_COLUMNS_3D = (_SOLIDITY, *(Column(name, words, "length") for name, words in _AXES))
+#: The columns of the reporter's measures (tables measured with an intensity image).
+REPORTER_COLUMNS = (
+    Column("intensity_mean", "mean reporter intensity on the object", "intensity"),
+    Column("intensity_integrated", "summed reporter intensity on the object's pixels",
+           "intensity"),
+    Column("intensity_polarity", "how far the reporter's centre of mass lies from the "
+                                 "object's centre, in object radii (0: even; towards 1: at one "
+                                 "pole)"),
+)
+#: The columns of the object's own axis (``profile_bins`` > 0; 2-D objects).
+MIDLINE_COLUMNS = (
+    Column("midline_length", "length of the object along its own axis: the skeleton's main "
+                             "path extended to the outline at both ends", "length"),
+    Column("width_mean", "mean width of the object across its midline, over its length "
+                         "(area / length for a straight axis)", "length"),
+    Column("width_max", "largest width of the object across its midline", "length"),
+    Family(r"width_b(\d+)", "width_bXX",
+           lambda m: f"mean width across the midline on piece {int(m[1])} of its profile_bins "
+                     "equal pieces, counted from the anterior end (0)",
+           "mean width across the midline on piece XX of its `profile_bins` equal pieces, "
+           "counted from the anterior end (00)", "length"),
+    Family(r"reporter_b(\d+)", "reporter_bXX",
+           lambda m: f"mean reporter of the object's pixels nearest piece {int(m[1])} of the "
+                     "midline's profile_bins equal pieces, counted from the anterior end (0)",
+           "mean reporter of the object's pixels nearest piece XX of the midline's "
+           "`profile_bins` equal pieces, counted from the anterior end (00)", "intensity"),
+    Column("polarity_angle_image", "direction of the reporter's centre of mass from the "
+                                   "object's centre in the image (0: towards +x, the columns; "
+                                   "counter-clockwise as shown, 90: up)", "degrees"),
+    Column("polarity_angle_midline", "angle (0 to 180 degrees) between the reporter's "
+                                     "centre-of-mass offset and the midline's anterior-to-"
+                                     "posterior direction (0: towards the posterior end, 180: "
+                                     "the anterior one)", "degrees"),
+)
 
 #: regionprops properties of 2-D objects (plus circularity, from area and perimeter).
-SHAPE_MEASURES_2D = ("perimeter", "eccentricity", "solidity", "axis_major_length",
-                     "axis_minor_length", "circularity")
+SHAPE_MEASURES_2D = tuple(c.name for c in SHAPE_COLUMNS_2D)
 #: regionprops properties of 3-D objects.
-SHAPE_MEASURES_3D = ("solidity", "axis_major_length", "axis_minor_length")
+SHAPE_MEASURES_3D = tuple(c.name for c in SHAPE_COLUMNS_3D)
 #: Size and form of a 2-D object by classic measures: what a shape space "beyond the classic
 #: measures" regresses out (``ShapePCA(regress_out=FORM_MEASURES_2D)``; the plugin's PCs tab).
 FORM_MEASURES_2D = ("area", "circularity", "eccentricity", "solidity", "axis_major_length",
                     "axis_minor_length")
 #: The reporter's measures (tables measured with an intensity image).
-REPORTER_MEASURES = ("intensity_mean", "intensity_integrated", "intensity_polarity")
-
-
-def classic_columns(ndim: int = 2, with_intensity: bool = False) -> list[str]:
-    """The classic-measure columns of a table, in order."""
-    cols = list(SHAPE_MEASURES_3D if ndim == 3 else SHAPE_MEASURES_2D)
-    return cols + (list(REPORTER_MEASURES) if with_intensity else [])
+REPORTER_MEASURES = tuple(c.name for c in REPORTER_COLUMNS)
 
 
 def classic_measures(mask: np.ndarray, image: np.ndarray | None = None, *,
                      spacing=None) -> dict[str, float]:
-    """The classic measures of one object (module docstring for what each one is).
+    """The classic measures of one object (module docstring for what each one is): its
+    :func:`shape_measures` and, with an ``image``, its :func:`reporter_measures`.
 
     Parameters
     ----------
@@ -81,28 +128,30 @@ def classic_measures(mask: np.ndarray, image: np.ndarray | None = None, *,
     >>> round(m["axis_major_length"] / 80, 2), round(m["eccentricity"], 2)
     (1.0, 0.0)
     """
+    out = shape_measures(mask, spacing=spacing)
+    if image is not None:
+        out.update(reporter_measures(np.asarray(mask, bool), np.asarray(image, float)))
+    return out
+
+
+def shape_measures(mask: np.ndarray, *, spacing=None) -> dict[str, float]:
+    """The shape measures of one object's labelled pixels: :data:`SHAPE_MEASURES_2D`
+    (:func:`shape_measures_2d`) or, for a 3-D mask, :data:`SHAPE_MEASURES_3D` from
+    ``regionprops_table`` with the voxel ``spacing``; NaN for an empty mask."""
     from skimage.measure import regionprops_table
 
     mask = np.asarray(mask, bool)
     ndim = mask.ndim
-    names = SHAPE_MEASURES_3D if ndim == 3 else SHAPE_MEASURES_2D[:-1]
+    if not mask.any():
+        return dict.fromkeys(SHAPE_MEASURES_3D if ndim == 3 else SHAPE_MEASURES_2D, np.nan)
+    if ndim == 2:
+        return shape_measures_2d(mask)
     kwargs = {}
-    if spacing is not None and ndim == 3:
+    if spacing is not None:
         kwargs["spacing"] = tuple(float(s) for s in spacing)
-    out: dict[str, float] = {}
-    if ndim == 2 and mask.any():
-        out = shape_measures_2d(mask)
-    elif mask.any():
-        props = regionprops_table(mask.astype(np.uint8), properties=("area", *names), **kwargs)
-        out = {k: float(props[k][0]) for k in names}
-        if ndim == 2:
-            area, perimeter = float(props["area"][0]), out["perimeter"]
-            out["circularity"] = 4 * np.pi * area / perimeter**2 if perimeter > 0 else np.nan
-    else:
-        out = dict.fromkeys(SHAPE_MEASURES_3D if ndim == 3 else SHAPE_MEASURES_2D, np.nan)
-    if image is not None:
-        out.update(reporter_measures(mask, np.asarray(image, float)))
-    return out
+    props = regionprops_table(mask.astype(np.uint8), properties=("area", *SHAPE_MEASURES_3D),
+                              **kwargs)
+    return {k: float(props[k][0]) for k in SHAPE_MEASURES_3D}
 
 
 def shape_measures_2d(mask: np.ndarray) -> dict[str, float]:

@@ -2,11 +2,12 @@
 
 The napari widget's Run (and anyone who wants ``measure``'s objects faster on one machine)
 hands the frames to a pool of worker processes; each task measures some objects of one or a
-few frames exactly as :func:`~napari_pfsdm.iter_objects` does (the same crop, the same
-options: the same private function) and sends back only what the table needs of them, as a
-block of table rows (:mod:`~napari_pfsdm.analysis.row_blocks`: a few arrays, not one Python
-object per object for the garbage collector to walk in the viewer's process). The blocks come
-back in frame order, then label order, so that
+few frames exactly as :func:`~napari_pfsdm.iter_objects` does (the run's
+:class:`~napari_pfsdm.analysis.measuring.ObjectMeasurer`, sent with the task) and sends back
+only what the table needs of them, as a block of table rows
+(:mod:`~napari_pfsdm.analysis.row_blocks`: a few arrays, not one Python object per object
+for the garbage collector to walk in the viewer's process). The blocks come back in frame
+order, then label order, so that
 :func:`~napari_pfsdm.analysis.row_blocks.join_blocks` gives the table
 :func:`~napari_pfsdm.measure` builds (tested equal).
 
@@ -33,22 +34,14 @@ import threading
 from collections import deque
 from collections.abc import Generator, Iterator
 from concurrent.futures import BrokenExecutor, wait
-from dataclasses import replace
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from ..core.params import PFSDMParams
-from .features import ObjectResult, _object_in_crop, _object_in_frame, iter_objects
-from .label_images import (
-    check_arrays,
-    crop_of,
-    frame_at,
-    object_boxes,
-    present_ids,
-    voxel_spacing,
-)
+from .features import iter_objects
+from .label_images import check_arrays, frame_at, object_boxes, present_ids, voxel_spacing
+from .measuring import ObjectMeasurer, ObjectResult, light
 from .row_blocks import RowBlock, block_of
 from .threads import one_blas_thread
 
@@ -60,7 +53,6 @@ __all__ = [
     "iter_blocks",
     "measure_entries",
     "plan_tasks",
-    "row_of",
     "shared_pool",
     "pool_ready",
     "shutdown_pool",
@@ -93,21 +85,6 @@ def available_cores() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - macOS, Windows
         return os.cpu_count() or 1
-
-
-def row_of(obj: ObjectResult) -> ObjectResult:
-    """What a table row needs of one object: the object with a light result (embeddings and
-    diagnostics only: the SDF, map and skeleton of every object are not kept for a whole
-    run)."""
-    res = obj.result
-    if res is None:
-        return obj
-    light = SimpleNamespace(diagnostics=res.diagnostics, embedding=res.embedding,
-                            intensity_embedding=res.intensity_embedding,
-                            surface_embedding=getattr(res, "surface_embedding", None),
-                            outline=getattr(res, "outline", None),
-                            signature=getattr(res, "signature", None))
-    return replace(obj, result=light)
 
 
 # --------------------------------------------------------------------------- tasks
@@ -183,29 +160,19 @@ def _labels_per_frame(labels, n_frames: int, timelapse: bool) -> list[np.ndarray
     return out
 
 
-def measure_entries(entries: list[tuple], options: dict) -> list[ObjectResult]:
-    """Worker process: the rows of a task's entries (:func:`task_entries`): ``("frame", frame
-    index, frame, image, labels)`` or ``("crops", frame index, frame shape, crops)``."""
+def measure_entries(measurer: ObjectMeasurer, entries: list[tuple]) -> list[ObjectResult]:
+    """Worker process: the light rows (:func:`~napari_pfsdm.analysis.measuring.light`) of a
+    task's entries (:func:`task_entries`): ``("frame", frame index, frame, image, labels)``
+    or ``("crops", crops)``."""
     rows: list[ObjectResult] = []
     with one_blas_thread():
         for entry in entries:
             if entry[0] == "crops":
-                _, t, shape, crops = entry
-                for label, box, big, labels_crop, crop in crops:
-                    crop = None if crop is None else crop.astype(float)
-                    rows.append(row_of(_object_in_crop(labels_crop, crop, int(t), label, box,
-                                                       big, shape, options)))
-                continue
-            _, t, frame, image, wanted = entry
-            if frame.dtype == bool:
-                frame = frame.astype(np.uint8)
-            if image is not None:
-                image = image.astype(float)
-            boxes = dict(object_boxes(frame))
-            for label in wanted:
-                box = boxes[int(label)]
-                rows.append(row_of(_object_in_frame(frame, image, int(t), int(label), box,
-                                                    options)))
+                crops = entry[1]
+            else:
+                _, t, frame, image, wanted = entry
+                crops = measurer.crops(frame, image, int(t), wanted)
+            rows += [light(measurer.measure(crop)) for crop in crops]
     return rows
 
 
@@ -295,7 +262,7 @@ def _warm_task(_index: int) -> None:
     yy, xx = np.mgrid[:32, :32]
     frame = ((yy - 15.5) ** 2 + (xx - 15.5) ** 2 < 100).astype(np.uint8)
     args = [("frame", 0, frame, frame.astype(np.float32), np.array([1]))]
-    measure_entries(args, PFSDMParams().options())
+    measure_entries(ObjectMeasurer.of(PFSDMParams(), with_intensity=True), args)
 
 
 def shutdown_pool() -> None:
@@ -355,29 +322,30 @@ def iter_blocks(
 
         total = count_objects(labels, axes)
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
-    block_kw = {"with_intensity": intensity is not None, "params": params, **where}
+    measurer = ObjectMeasurer.of(params, ndim=3 if volume else 2,
+                                 with_intensity=intensity is not None, axes=axes,
+                                 spacing=voxel_spacing(axes, spacing))
     pooled = total >= MIN_OBJECTS or (pool_ready(workers)
                                       and total >= workers * MIN_TASK_OBJECTS)
     if workers <= 1 or not pooled:
         rows = []
         for done, obj in enumerate(iter_objects(labels, intensity, params=params, **where),
                                    start=1):
-            rows.append(row_of(obj))
+            rows.append(light(obj))
             yield done, total, int(obj.frame), int(obj.label)
-        return [block_of(rows, **block_kw)] if rows else []
-    return (yield from _iter_blocks_pool(labels, intensity, params, axes, spacing, workers,
-                                         total, block_kw))
+        return [block_of(rows, measurer)] if rows else []
+    return (yield from _iter_blocks_pool(labels, intensity, measurer, workers, total))
 
 
-def task_entries(labels, intensity, timelapse: bool, task, counts: list[np.ndarray],
-               boxes: dict) -> list[tuple]:
+def task_entries(measurer: ObjectMeasurer, labels, intensity, timelapse: bool, task,
+                 counts: list[np.ndarray], boxes: dict) -> list[tuple]:
     """What a worker process is sent for one task (:func:`measure_entries`): each whole frame
     it measures, with the labels wanted, or, for a block of the labels of a frame split
-    between tasks, each object's crop (:func:`~napari_pfsdm.analysis.label_images.crop_of`).
-    Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its reporter (29 MB,
-    64 tasks) made the Run slower than one process (11.2 s against measure's 10.0 s).
-    ``counts``: the labels of each frame; ``boxes``: the bounding boxes of the last split
-    frame, kept between its tasks."""
+    between tasks, each object's :class:`~napari_pfsdm.analysis.measuring.Crop` (its pixels
+    only). Sent whole to each of its tasks, a 2,200² frame of 3,000 objects with its
+    reporter (29 MB, 64 tasks) made the Run slower than one process (11.2 s against
+    measure's 10.0 s). ``counts``: the labels of each frame; ``boxes``: the bounding boxes
+    of the last split frame, kept between its tasks."""
     out: list[tuple] = []
     for t, wanted in task:
         frame = frame_at(labels, t, timelapse)
@@ -388,29 +356,22 @@ def task_entries(labels, intensity, timelapse: bool, task, counts: list[np.ndarr
         if t not in boxes:
             boxes.clear()
             boxes[t] = dict(object_boxes(frame))
-        crops = []
-        for label in wanted:
-            box = boxes[t][int(label)]
-            big = crop_of(box, frame.shape)
-            crops.append((int(label), box, big, np.array(frame[big]),
-                          None if image is None else np.array(image[big])))
-        out.append(("crops", t, frame.shape, crops))
+        out.append(("crops", [measurer.crop(frame, image, t, int(label),
+                                            boxes[t][int(label)]).detached()
+                              for label in wanted]))
     return out
 
 
-def _iter_blocks_pool(labels, intensity, params, axes, spacing, workers, total, block_kw):
+def _iter_blocks_pool(labels, intensity, measurer: ObjectMeasurer, workers: int, total: int):
+    axes = measurer.axes
     n_frames, timelapse, axes = check_arrays(labels, intensity, axes)
-    params.check_dimension(3 if "z" in axes else 2)
-    options = params.options()
-    voxel = voxel_spacing(axes, spacing)
-    if voxel is not None:
-        options["spacing"] = voxel
     counts = _labels_per_frame(labels, n_frames, timelapse)
     tasks = plan_tasks(counts, task_count(total, workers))
     pool = shared_pool(workers)
     boxes: dict = {}
-    args: Iterator[tuple] = ((task_entries(labels, intensity, timelapse, task, counts, boxes),
-                              options, block_kw) for task in tasks)
+    args: Iterator[tuple] = ((measurer, task_entries(measurer, labels, intensity, timelapse,
+                                                     task, counts, boxes))
+                             for task in tasks)
     pending: deque = deque()
 
     def send() -> None:  # the next task's frames, read only when a worker is about to free up
@@ -458,7 +419,8 @@ def _killed_worker() -> Exception:
         "memory ran out); run again, with fewer worker processes if memory is short")
 
 
-def block_of_entries(args: tuple) -> RowBlock:
-    """Worker process: the block of one task's objects."""
-    frames, options, block_kw = args
-    return block_of(measure_entries(frames, options), **block_kw)
+def block_of_entries(args: tuple[ObjectMeasurer, list[tuple]]) -> RowBlock:
+    """Worker process: the block of one task's objects (``args``: the run's measurer and the
+    task's entries, :func:`task_entries`)."""
+    measurer, entries = args
+    return block_of(measure_entries(measurer, entries), measurer)

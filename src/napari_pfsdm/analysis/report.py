@@ -404,7 +404,7 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
         ax.set_title(col, fontsize=10)
     for ax in axes[len(cols):]:
         ax.set_visible(False)
-    from ..core.glossary import describe_column
+    from .glossary import describe_column
 
     notes = "".join(f"<li><b>{_e(c)}</b>: {_e(describe_column(c))}</li>" for c in cols)
     return (_img(fig, "measures over time") + "<p class=\"note\">Thin grey lines: each "

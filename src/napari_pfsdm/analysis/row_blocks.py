@@ -1,13 +1,13 @@
 """A feature table in blocks: what a worker process sends back for its objects.
 
 A run kept one row object per measured object until the table was made (an
-:class:`~napari_pfsdm.analysis.features.ObjectResult`, its light result, two dicts, a
+:class:`~napari_pfsdm.analysis.measuring.ObjectResult`, its light result, two dicts, a
 bounding box of slices): 50,000 objects are some 400,000 Python objects that the garbage
 collector walks at each full collection, holding the interpreter lock. In the viewer that
 froze the GUI thread as long (20,000 objects: three collections of 56, 118 and 131 ms during
 one Run, measured with ``gc.callbacks``). A :class:`RowBlock` holds the same rows as a few
-arrays: the table's rows of its objects (:func:`~napari_pfsdm.analysis.features.
-table_from_objects`, made in the worker process) and their bounding boxes as integers;
+arrays: the table's rows of its objects (made in the worker process by the run's
+:class:`~napari_pfsdm.analysis.measuring.ObjectMeasurer`) and their bounding boxes as integers;
 :func:`join_blocks` puts the blocks of a run together (tested equal to
 :func:`~napari_pfsdm.measure`'s table).
 """
@@ -20,9 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..core.params import PFSDMParams
 from ..core.table_options import set_options
-from .features import ObjectResult, table_from_objects
+from .measuring import ObjectMeasurer, ObjectResult
 
 __all__ = ["BoxLookup", "RowBlock", "block_of", "join_blocks"]
 
@@ -33,7 +32,7 @@ class RowBlock:
     Attributes
     ----------
     table : DataFrame
-        The objects' rows, as :func:`~napari_pfsdm.analysis.features.table_from_objects`
+        The objects' rows, as :meth:`~napari_pfsdm.analysis.measuring.ObjectMeasurer.table`
         makes them (``attrs["pfsdm"]`` holds the options).
     boxes : ndarray, shape (n, 2 * ndim), int64
         Each object's bounding box in its frame: the start on each axis, then the stop
@@ -44,14 +43,11 @@ class RowBlock:
     boxes: np.ndarray
 
 
-def block_of(objects: Sequence[ObjectResult], *, with_intensity: bool, params: PFSDMParams,
-             axes: str, spacing=None) -> RowBlock:
-    """The block of ``objects`` (as :func:`napari_pfsdm.analysis.parallel.row_of` makes
-    them), measured with ``params`` on labels of ``axes`` (and ``spacing`` for Z-stacks)."""
-    volume = "z" in axes
-    where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
-    table = table_from_objects(objects, with_intensity=with_intensity, params=params, **where)
-    ndim = 3 if volume else 2
+def block_of(objects: Sequence[ObjectResult], measurer: ObjectMeasurer) -> RowBlock:
+    """The block of ``objects`` (as :func:`~napari_pfsdm.analysis.measuring.light` makes
+    them), measured by ``measurer``."""
+    table = measurer.table(objects)
+    ndim = measurer.ndim
     boxes = np.full((len(objects), 2 * ndim), -1, dtype=np.int64)
     for i, obj in enumerate(objects):
         if obj.bbox is not None:

@@ -67,7 +67,9 @@ def _have_parquet() -> bool:
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
                spacing: Any = None, series: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
-    (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and the options."""
+    (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and of what is measured
+    (:meth:`~napari_pfsdm.core.params.PFSDMParams.measured`: the options that leave objects
+    out of shape spaces do not name a part, so changing them measures nothing again)."""
     def stamp(p: Path | None) -> Any:
         if p is None:
             return None
@@ -75,7 +77,7 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         return [str(p), data_fingerprint(p)]  # a replaced or re-written movie: measured again
 
     key = json.dumps(
-        [stamp(movie.labels), stamp(movie.intensity), to_jsonable(params.record())]
+        [stamp(movie.labels), stamp(movie.intensity), to_jsonable(params.measured().record())]
         + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
            if axes is not None and "z" in axes else [])
         + ([["series", int(series)]] if series is not None else []),
@@ -341,7 +343,8 @@ def _run_batch_locked(
                         client=cl if kind != "local" else None,
                         scheduler=obj if kind == "local" else None,
                         num_workers=num_workers, frames_per_task=frames_per_task,
-                        progress=_prog, pool=pool, params=p, axes=axes, spacing=spacing,
+                        progress=_prog, pool=pool, params=p.measured(), axes=axes,
+                        spacing=spacing,
                         allow_missing_chunks=True,  # checked above, with the user's word
                     )
                 attrs = to_jsonable(table_options(table) or attrs)
@@ -367,6 +370,7 @@ def _run_batch_locked(
         result[TRACK_COLUMN] = result[TRACK_COLUMN].fillna(NO_TRACK).astype(np.int64)
     if not attrs:
         attrs = p.record(3 if axes and "z" in axes else 2)
+    attrs = {**attrs, **p.leave_out()}  # this run's: the parts hold what was measured
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
         raise InputError(

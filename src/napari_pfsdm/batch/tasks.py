@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.measuring import ObjectMeasurer, check_frame_ids
 from ..analysis.row_blocks import RowBlock, block_of, join_blocks
 from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
 from ..core.params import PFSDMParams, as_params
@@ -98,12 +99,7 @@ def _frame_ids(frame: np.ndarray, t: int) -> np.ndarray:
     :func:`napari_pfsdm.measure` refuses them."""
     from ..analysis.label_images import present_ids
 
-    if frame.dtype == bool:
-        frame = frame.astype(np.uint8)
-    if frame.size and frame.min() < 0:
-        raise InputError(
-            f"Frame {t} has negative labels; labels must be 0 (background) or positive.")
-    return present_ids(frame)
+    return present_ids(check_frame_ids(frame, t))
 
 
 def _count_task(labels: _Reader, start: int, stop: int, frame_bytes: int) -> list[np.ndarray]:
@@ -132,14 +128,14 @@ def _recent_key(labels: _Reader, intensity: _Reader | None, t: int) -> tuple | N
             None if intensity is None else intensity.source._cache_key(), int(t))
 
 
-def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple],
-                  options: dict, block_kw: dict, frame_bytes: int) -> RowBlock:
+def _measure_task(measurer: ObjectMeasurer, labels: _Reader, intensity: _Reader | None,
+                  parts: list[tuple], frame_bytes: int) -> RowBlock:
     """Worker task: read the frames of ``parts`` (``(frame, labels wanted)``; None: all of
-    the frame's) and measure their objects with the process pool's own code
-    (:func:`napari_pfsdm.analysis.parallel.measure_entries`: whole frames, or the crops of the
-    objects wanted, as the pool sends them); the rows as one block."""
+    the frame's) and measure their objects with ``measurer``, as the process pool's tasks do
+    (:func:`napari_pfsdm.analysis.parallel.measure_entries`: whole frames, or the crops of
+    the objects wanted); the rows as one block."""
     from ..analysis import parallel
-    from ..analysis.label_images import crop_of, object_boxes
+    from ..analysis.label_images import object_boxes
     from ..analysis.threads import one_blas_thread
 
     rows: list = []
@@ -159,27 +155,21 @@ def _measure_task(labels: _Reader, intensity: _Reader | None, parts: list[tuple]
                     frame, image = lab[t - a], None if img is None else img[t - a]
                     boxes = None
                 if wanted[t] is None:  # the whole frame
-                    ids = _frame_ids(frame, t)
-                    entry = ("frame", t, frame, image, ids)
-                    rows += parallel.measure_entries([entry], options)
+                    entry = ("frame", t, frame, image, _frame_ids(frame, t))
+                    rows += parallel.measure_entries(measurer, [entry])
                     continue
                 if boxes is None:  # a frame of a plan by objects: maybe split, keep it
-                    boxes = dict(object_boxes(frame.astype(np.uint8) if frame.dtype == bool
-                                              else frame))
+                    boxes = dict(object_boxes(check_frame_ids(frame, t)))
                     key = _recent_key(labels, intensity, t)
                     if key is not None:
                         with _RECENT_LOCK:
                             while len(_RECENT) >= _RECENT_FRAMES:
                                 _RECENT.pop(next(iter(_RECENT)))
                             _RECENT[key] = (frame, image, boxes)
-                crops = []
-                for label in wanted[t]:
-                    box = boxes[int(label)]
-                    big = crop_of(box, frame.shape)
-                    crops.append((int(label), box, big, np.array(frame[big]),
-                                  None if image is None else np.array(image[big])))
-                rows += parallel.measure_entries([("crops", t, frame.shape, crops)], options)
-    return block_of(rows, **block_kw)
+                crops = [measurer.crop(frame, image, t, int(label), boxes[int(label)])
+                         for label in wanted[t]]
+                rows += parallel.measure_entries(measurer, [("crops", crops)])
+    return block_of(rows, measurer)
 
 
 def measure_dask(
@@ -256,17 +246,17 @@ def measure_dask(
         One row per (frame, label), ``frame`` numbered from 0 over the whole movie;
         ``attrs["pfsdm"]`` holds the options.
     """
-    from ..analysis.label_images import resolve_axes
+    from ..analysis.features import with_leave_out
+    from ..analysis.label_images import resolve_axes, voxel_spacing
 
     p = as_params(params, options)
     check_labels(labels, intensity, axes=axes)
     _check_chunks(labels, intensity, allow_missing_chunks)
     axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
-    volume = "z" in axes
-    p.check_dimension(3 if volume else 2)
-    where_kw = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
-    block_kw = {"with_intensity": intensity is not None, "params": p, **where_kw}
+    measurer = ObjectMeasurer.of(p, ndim=3 if "z" in axes else 2,
+                                 with_intensity=intensity is not None, axes=axes,
+                                 spacing=voxel_spacing(axes, spacing))
     if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
         labels = labels[None]
         intensity = intensity[None] if intensity is not None else None
@@ -277,8 +267,8 @@ def measure_dask(
     try:
         if own:  # the processes of this run, started without the caller's script
             pool = process_pool(num_workers)
-        blocks = _measure_planned(labels, intensity, kind, obj, p, axes, spacing,
-                                  frames_per_task, num_workers, progress, pool, block_kw)
+        blocks = _measure_planned(labels, intensity, kind, obj, measurer, frames_per_task,
+                                  num_workers, progress, pool)
     except Exception as exc:  # noqa: BLE001 - sorted: the environment's faults, or re-raised
         fault = environment_fault(exc, where)
         if fault is None:
@@ -291,8 +281,8 @@ def measure_dask(
             with _RECENT_LOCK:
                 _RECENT.clear()
     if not blocks:  # no object at all: measure's empty table
-        return block_of([], **block_kw).table
-    return join_blocks(blocks).table
+        return with_leave_out(block_of([], measurer).table, p)
+    return with_leave_out(join_blocks(blocks).table, p)
 
 
 def _check_chunks(labels: Any, intensity: Any, allow: bool) -> None:
@@ -327,20 +317,16 @@ def _workers(kind: str, obj: Any, num_workers: int | None) -> int:
 
 
 def _measure_planned(
-    labels: Any, intensity: Any, kind: str, obj: Any, p: PFSDMParams, axes: str,
-    spacing: Any, frames_per_task: int | None, num_workers: int | None,
-    progress: Callable[[int, int], None] | None, pool: Any, block_kw: dict,
+    labels: Any, intensity: Any, kind: str, obj: Any, measurer: ObjectMeasurer,
+    frames_per_task: int | None, num_workers: int | None,
+    progress: Callable[[int, int], None] | None, pool: Any,
 ) -> list[RowBlock]:
-    """The row blocks of a movie (``labels`` with a time axis first), measured where
-    ``kind``/``obj`` say, in tasks planned as the process pool plans them."""
+    """The row blocks of a movie (``labels`` with a time axis first), measured by
+    ``measurer`` where ``kind``/``obj`` say, in tasks planned as the process pool plans
+    them."""
     from ..analysis import parallel
-    from ..analysis.label_images import voxel_spacing
 
     n_frames = int(labels.shape[0])
-    options = p.options()
-    voxel = voxel_spacing(axes, spacing)
-    if voxel is not None:
-        options["spacing"] = voxel
     frame_bytes = int(np.prod(labels.shape[1:])) * np.dtype(labels.dtype).itemsize
     if intensity is not None:
         frame_bytes += int(np.prod(intensity.shape[1:])) * np.dtype(intensity.dtype).itemsize
@@ -379,17 +365,17 @@ def _measure_planned(
 
         if in_memory:  # what the pool sends: whole frames, or the crops of a split frame
             boxes: dict = {}
-            calls = [(parallel.block_of_entries, ((parallel.task_entries(
-                labels, intensity, True, task, counts, boxes), options, block_kw),))
+            calls = [(parallel.block_of_entries, ((measurer, parallel.task_entries(
+                measurer, labels, intensity, True, task, counts, boxes)),))
                 for task in tasks]
         else:
             calls = []
             for task in tasks:
                 s, e = task[0][0], task[-1][0] + 1
                 calls.append((_measure_task, (
-                    _Reader(labels, s, e),
+                    measurer, _Reader(labels, s, e),
                     _Reader(intensity, s, e) if intensity is not None else None,
-                    task, options, block_kw, frame_bytes)))
+                    task, frame_bytes)))
         return run(calls, "task", _frame_progress(tasks, n_frames, progress))
 
 

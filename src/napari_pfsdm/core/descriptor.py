@@ -16,7 +16,7 @@ from .elastic_signature import SMOOTHING, outline_signature
 from .intensity import intensity_crop
 from .medial_axis import skeleton as _skeleton
 from .morphometric import magnitude_embedding, mode_weights, ring_radii, ring_weights, spectrum
-from .params import OPTIONS, params_of, with_option_keywords
+from .params import OPTIONS, PFSDMParams, as_params, params_of, with_option_keywords
 from .pushforward import BijectiveMap, FourierMap, display_turn, make_map
 from .sdf import ExactSDF, ViscousSDF, make_sdf
 
@@ -104,6 +104,7 @@ def pfsdm(
     grid: int = 48,
     offset: tuple[float, ...] = (0.0, 0.0),
     spacing=None,
+    params: PFSDMParams | None = None,
     **options: Any,
 ):
     """Push-Forward Signed Distance Morphometric of one 2-D object or one 3-D volume.
@@ -174,6 +175,8 @@ def pfsdm(
         descriptor is scale-invariant); anisotropic pixels are refused.
     sh_degree, surface_weight, ball_map
         3-D only (see :func:`~napari_pfsdm.core.descriptor3d.pfsdm3d`).
+    params : PFSDMParams, optional
+        The options as one checked record, instead of keywords (giving both is refused).
 
     Returns
     -------
@@ -198,7 +201,8 @@ def pfsdm(
     True
     """
     mask = np.asarray(mask)
-    p = params_of(options)  # a bad or unknown option fails here, in plain words
+    # a bad or unknown option fails here, in plain words
+    p = params_of(options) if params is None else as_params(params, options)
     if mask.ndim in (2, 3):
         p.check_dimension(mask.ndim)
     radii = np.asarray(p.radii) if isinstance(p.radii, tuple) else p.radii

@@ -24,7 +24,7 @@ from __future__ import annotations
 import inspect
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field, fields, make_dataclass
+from dataclasses import asdict, dataclass, field, fields, make_dataclass, replace
 from functools import lru_cache
 from numbers import Integral, Real
 from typing import Any
@@ -56,11 +56,13 @@ __all__ = [
     "ONLY_2D",
     "ONLY_3D",
     "OPTIONS",
+    "LEAVE_OUT_OPTIONS",
     "SELECTION_OPTIONS",
     "Option",
     "PFSDMParams",
     "as_params",
     "check_record",
+    "leave_out_of",
     "option",
     "params_of",
     "with_option_keywords",
@@ -410,6 +412,26 @@ ONLY_3D = tuple(o.name for o in OPTIONS if o.dims == "3d")
 #: values of them still share one shape space.
 SELECTION_OPTIONS = ("components", "min_area", "border_objects", "warned_objects")
 
+#: Options that leave measured objects out of shape spaces (PCA, distances, neighbours,
+#: prediction, plots, the report), read from the table's record where a shape space is built
+#: (:func:`leave_out_of`). They change nothing that is measured: an
+#: :class:`~napari_pfsdm.analysis.measuring.ObjectMeasurer` holds them at their defaults
+#: (:meth:`PFSDMParams.measured`), so changing them measures nothing again.
+LEAVE_OUT_OPTIONS = ("border_objects", "warned_objects")
+
+
+def leave_out_of(record: Mapping[str, Any]) -> dict[str, str]:
+    """The leave-out options of a table's record (:data:`LEAVE_OUT_OPTIONS`), each checked,
+    its default where the record has none.
+
+    Examples
+    --------
+    >>> leave_out_of({"border_objects": "leave_out"})
+    {'border_objects': 'leave_out', 'warned_objects': 'keep'}
+    """
+    return {name: option(name).check(record.get(name, option(name).default))
+            for name in LEAVE_OUT_OPTIONS}
+
 #: Options of the midline measures (:mod:`napari_pfsdm.core.midline`), not of the features:
 #: tables measured with different values of them still share one shape space.
 MIDLINE_OPTIONS = ("profile_bins", "anterior")
@@ -454,6 +476,24 @@ class _ParamsMethods:
         if any(k in merged for k in DERIVED):
             check_record(merged, "the options")
         return cls(**{k: v for k, v in merged.items() if k in known})
+
+    def measured(self) -> PFSDMParams:
+        """The record of what is measured: this one with the options that only leave objects
+        out of shape spaces (:data:`LEAVE_OUT_OPTIONS`) at their defaults.
+
+        >>> PFSDMParams(border_objects="leave_out", n_fourier=6).measured() == \\
+        ...     PFSDMParams(n_fourier=6)
+        True
+        """
+        defaults = {name: option(name).default for name in LEAVE_OUT_OPTIONS}
+        if all(getattr(self, k) == v for k, v in defaults.items()):
+            return self  # type: ignore[return-value]
+        return replace(self, **defaults)  # type: ignore[type-var]
+
+    def leave_out(self) -> dict[str, str]:
+        """The values of :data:`LEAVE_OUT_OPTIONS` (what a table's record adds to what was
+        measured)."""
+        return {name: getattr(self, name) for name in LEAVE_OUT_OPTIONS}
 
     def options(self) -> dict[str, Any]:
         """The keyword arguments of :func:`napari_pfsdm.pfsdm`."""

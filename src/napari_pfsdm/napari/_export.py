@@ -1,7 +1,8 @@
 """Export of one analysis as plain CSV tables, each with its ``.csv.json`` sidecar (no Qt).
 
 ``<prefix>_features.csv`` (one row per frame and label, exactly the run's table),
-``<prefix>_columns.csv`` (what each of its columns means, :mod:`napari_pfsdm.core.glossary`),
+``<prefix>_columns.csv`` (what each of its columns means,
+:mod:`napari_pfsdm.analysis.glossary`),
 ``<prefix>_pca_<channel>.csv`` and ``<prefix>_distances.csv`` (all pairs), or above
 :data:`MAX_DISTANCE_ROWS` objects ``<prefix>_neighbours.csv`` (each object's
 :data:`NEIGHBOURS` nearest shapes, exact) with a sentence saying so in the features' sidecar.
@@ -17,8 +18,8 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import split_failed
+from ..analysis.glossary import glossary
 from ..analysis.reduction import distance_table, neighbour_table
-from ..core.glossary import glossary
 from ..core.table_schema import has_channel
 from ..io import check_overwrite, write_table_csv
 from ._model import Analysis

@@ -92,6 +92,7 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
     ``labels``, ``intensity``, ``boxes``, ``pca``, ``measures``). Closing the generator stops
     the work and keeps nothing.
     """
+    from ..analysis.features import with_leave_out
     from ..analysis.interpretation import table_measures
     from ..analysis.label_images import count_objects
     from ..analysis.parallel import iter_blocks
@@ -120,7 +121,7 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
     finally:
         steps.close()  # a closed run stops its processes
     joined = join_blocks(blocks)
-    table = joined.table
+    table = with_leave_out(joined.table, params)
     pca = {"shape": pca_scores(table, "shape")}
     if intensity is not None:
         pca["intensity"] = pca_scores(table, "intensity")
@@ -349,7 +350,7 @@ def row_glossary(analysis: Analysis, frame: int, label: int) -> str:
     >>> print(row_glossary(Analysis("id", 1, t, {}, axes="tyx"), 0, 4).splitlines()[2])
     area = 50: area in pixels
     """
-    from ..core.glossary import describe_column
+    from ..analysis.glossary import describe_column
 
     i = analysis.row_of(frame, label)
     if i is None:
