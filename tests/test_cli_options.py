@@ -38,7 +38,7 @@ def features(tmp_path_factory):
     tifffile.imwrite(folder / "m_i.tif", intensity, photometric="minisblack")
     out = folder / "features.csv"
     assert main(["measure", str(folder / "m.tif"), "--intensity", str(folder / "m_i.tif"),
-                 "-o", str(out), "--link", "none", *FAST]) == 0
+                 "-o", str(out), "--link", "labels", *FAST]) == 0
     return out
 
 

@@ -21,7 +21,7 @@ from napari_pfsdm.core.table_schema import table_feature_columns
 zarr = pytest.importorskip("zarr")
 
 FAST = {"n_fourier": 4, "n_radii": 4}
-CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "none", "-q"]
+CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "labels", "-q"]
 
 
 def ellipse_labels(shape=(64, 64), centre=(32, 30), axes=(20, 12), label=1) -> np.ndarray:
@@ -177,7 +177,7 @@ def test_huge_ids_link_over_time(tmp_path, link):
     labels = two_objects(np.uint64, 2**63 - 1)
     tifffile.imwrite(tmp_path / "l.tif", labels, photometric="minisblack")
     out = tmp_path / "f.csv"
-    cli = [a for a in CLI_FAST if a not in ("--link", "none")]
+    cli = [a for a in CLI_FAST if a not in ("--link", "labels")]
     assert main(["measure", str(tmp_path / "l.tif"), "-o", str(out), "--scheduler", "sync",
                  "--link", link, *cli]) == 0
     table = pf.read_table(out)

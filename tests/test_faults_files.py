@@ -23,7 +23,7 @@ from napari_pfsdm.cli import main
 zarr = pytest.importorskip("zarr")
 
 FAST = {"n_fourier": 4, "n_radii": 4}
-CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "none", "-q",
+CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "labels", "-q",
             "--scheduler", "sync"]
 
 
@@ -637,7 +637,7 @@ def one_stack(tmp_path):
 def test_a_voxel_size_that_would_overflow_is_refused(tmp_path, one_stack, capsys, spacing):
     out = tmp_path / "s.csv"
     assert main(["measure", str(one_stack), "--axes", "zyx", "--spacing", *spacing, "-o",
-                 str(out), "-q", "--link", "none", "--scheduler", "sync"]) == 2
+                 str(out), "-q", "--link", "labels", "--scheduler", "sync"]) == 2
     assert "spacing must be numbers from" in error_line(capsys)
     assert not out.exists()
 

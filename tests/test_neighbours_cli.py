@@ -46,7 +46,7 @@ def features(tmp_path_factory):
     folder = tmp_path_factory.mktemp("nn")
     tifffile.imwrite(folder / "m.tif", _objects(), photometric="minisblack")
     out = folder / "features.csv"
-    assert main(["measure", str(folder / "m.tif"), "-o", str(out), "--link", "none",
+    assert main(["measure", str(folder / "m.tif"), "-o", str(out), "--link", "labels",
                  *FAST]) == 0
     return out
 

@@ -69,7 +69,7 @@ def test_measure_writes_parquet_that_every_reader_takes(tmp_path):
     tifffile.imwrite(tmp_path / "m.tif", _movie(), photometric="minisblack")
     for name in ("f.csv", "f.parquet"):
         assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / name),
-                     "--link", "none", *FAST]) == 0
+                     "--link", "labels", *FAST]) == 0
     csv, pq = read_table_csv(tmp_path / "f.csv"), read_table_csv(tmp_path / "f.parquet")
     assert pq.attrs["pfsdm"] == csv.attrs["pfsdm"]
     pd.testing.assert_frame_equal(plain(pq), plain(csv))  # dtypes included
@@ -78,7 +78,7 @@ def test_measure_writes_parquet_that_every_reader_takes(tmp_path):
         assert main(["compare", str(tmp_path / src), "-o", str(tmp_path / f"d_{src}.csv"),
                      "-q"]) == 0
         assert main(["trajectories", str(tmp_path / src), "-o",
-                     str(tmp_path / f"p_{src}.csv"), "--link", "none", "-q"]) == 0
+                     str(tmp_path / f"p_{src}.csv"), "--link", "labels", "-q"]) == 0
     for what in ("d", "p"):
         a = pd.read_csv(tmp_path / f"{what}_f.csv.csv")
         b = pd.read_csv(tmp_path / f"{what}_f.parquet.csv")
@@ -93,7 +93,7 @@ def test_without_pyarrow_a_plain_message_and_no_file(tmp_path, monkeypatch, caps
     assert list(tmp_path.iterdir()) == []
     tifffile.imwrite(tmp_path / "m.tif", _movie(1), photometric="minisblack")
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.parquet"),
-                 "--link", "none", "--scheduler", "sync"]) == 2
+                 "--link", "labels", "--scheduler", "sync"]) == 2
     err = capsys.readouterr().err
     assert 'pip install "napari-pfsdm[parquet]"' in err and "Traceback" not in err
     assert not (tmp_path / "f.parquet").exists()

@@ -128,7 +128,7 @@ def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, caps
                     table_type="features")
     rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
                str(tmp_path / "control.csv"), "-o", str(tmp_path / "pca.csv"),
-               "--channel", "shape", "--components", "2", "--link", "none", "-q"])
+               "--channel", "shape", "--components", "2", "--link", "labels", "-q"])
     assert rc == 0
     scores = pd.read_csv(tmp_path / "pca.csv")
     sk = PCA(n_components=2).fit(weighted_features(reference))
@@ -141,7 +141,7 @@ def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, caps
                     table_type="features")
     rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
                str(tmp_path / "coarse.csv"), "-o", str(tmp_path / "pca2.csv"),
-               "--channel", "shape", "--link", "none", "-q"])
+               "--channel", "shape", "--link", "labels", "-q"])
     assert rc == 2
     assert "n_fourier" in capsys.readouterr().err
     assert not (tmp_path / "pca2.csv").exists()

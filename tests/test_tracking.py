@@ -3,14 +3,18 @@
 
 from __future__ import annotations
 
+import json
 import sys
 
 import numpy as np
 import pandas as pd
 import pytest
+import tifffile
 
+import napari_pfsdm as pf
 from napari_pfsdm.analysis import tracking as tk
 from napari_pfsdm.analysis.reduction import object_ids, pca_scores
+from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_schema import NO_TRACK, TRACK_COLUMN
 from napari_pfsdm.data.moving_blobs import centroid_table as centroids
 from napari_pfsdm.data.moving_blobs import make_moving_blobs, relabel
@@ -221,7 +225,7 @@ def test_link_movie_auto(movie):
     out, check, used = tk.link_movie(centroids(shuffled), shuffled, "auto")
     assert not check.tracked and used == tk.DEFAULT_LINK == "centroid"
     assert list(out.columns[:3]) == ["frame", "label", TRACK_COLUMN]
-    assert TRACK_COLUMN not in tk.link_movie(tracked, None, "none")[0].columns
+    assert TRACK_COLUMN not in tk.link_movie(tracked, None, "labels")[0].columns
 
 
 def _packed_movie(side: int = 6, frames: int = 6, cell: int = 26, seed: int = 0):
@@ -369,7 +373,7 @@ def test_cli_warns_refuses_and_links(cli_movie, capsys):
 
     movie, shuffled, d = cli_movie
     assert main(["measure", str(d / "shuffled.tif"), "-o", str(d / "plain.csv"),
-                 "--link", "none", *CLI_OPTS]) == 0
+                 "--link", "labels", *CLI_OPTS]) == 0
     err = capsys.readouterr().err
     assert "do not follow objects" in err and "--link auto" in err
     assert TRACK_COLUMN not in read_table_csv(d / "plain.csv").columns
@@ -384,7 +388,7 @@ def test_cli_warns_refuses_and_links(cli_movie, capsys):
     pca = read_table_csv(d / "pca.csv")
     assert TRACK_COLUMN in pca.columns and (d / "pca.png").is_file()
     assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca_l.csv"), "--force",
-                 "--link", "none"]) == 0
+                 "--link", "labels"]) == 0
     assert "drawing by label anyway" in capsys.readouterr().err
     # classify over several frames refuses too (one frame is fine: no identity over time)
     groups = d / "groups.csv"
@@ -434,3 +438,42 @@ def test_the_check_counts_steps_jumps_and_switches_worked_by_hand():
     assert check.median_jump == pytest.approx(3.5)  # median of 0, 3, 4, 28
     assert check.median_jump_radii == pytest.approx(0.35)
     assert check.switched == pytest.approx(1 / 4) and check.jumping == pytest.approx(1 / 4)
+
+
+def test_identity_has_one_vocabulary_at_every_door(tmp_path):
+    """The option ``link`` (core.params.LINK_OPTION) is what pfsdm measure --link, the table
+    commands' --link, the plugin's Identity choice and link_movie take, and what the sidecar
+    records."""
+    import argparse
+
+    from napari_pfsdm.cli import build_parser
+    from napari_pfsdm.core.params import LINK_OPTION
+    from napari_pfsdm.napari._results import IDENTITY
+
+    words = set(LINK_OPTION.choices)
+    assert words == {"auto", "labels", "centroid", "overlap", "laptrack"}
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for command in ("measure", "trajectories", "plot", "report"):
+        link = next(a for a in sub.choices[command]._actions if a.dest == "link")
+        # the table commands lack only what needs the label images
+        assert set(link.choices) == (words if command == "measure" else words - {"overlap"})
+    assert set(IDENTITY.values()) == words
+    table = pf.measure(np.stack([_disk_frame(i) for i in range(3)]), n_fourier=4, n_radii=4)
+    for word in words - {"laptrack", "overlap"}:
+        tk.link_movie(table, None, word)
+    with pytest.raises(pf.errors.InputError, match="link must be one of auto, labels"):
+        tk.link_movie(table, None, "none")
+    labels = np.stack([_disk_frame(i) for i in range(3)])
+    tifffile.imwrite(tmp_path / "m.tif", labels, photometric="minisblack")
+    assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.csv"), "-q",
+                 "--link", "centroid", "--n-fourier", "4", "--n-radii", "4"]) == 0
+    side = json.loads((tmp_path / "f.csv.json").read_text())
+    assert side["link"] == "centroid" and side["linked"] == {"m": "centroid"}
+
+
+def _disk_frame(t):
+    yy, xx = np.mgrid[:48, :64]
+    frame = np.zeros((48, 64), np.uint8)
+    frame[(yy - 24) ** 2 + (xx - 16 - 2 * t) ** 2 < 64] = 1
+    frame[(yy - 24) ** 2 + (xx - 44) ** 2 < 49] = 2
+    return frame

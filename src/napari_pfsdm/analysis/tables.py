@@ -18,6 +18,7 @@ from ..core import distances as _core
 from ..core.distances import Embeddings
 from ..core.distances3d import stack_3d
 from ..core.morphometric import mode_weights
+from ..core.params import leave_out_of
 from ..core.table_options import table_options
 from ..core.table_schema import (
     NO_TRACK,
@@ -175,11 +176,12 @@ def left_out_reasons(table, options: Mapping[str, Any]) -> np.ndarray:
     """
     n = len(table)
     out = np.full(n, "", dtype=object)
-    if options.get("warned_objects", "keep") == "leave_out" and "warnings" in table.columns:
+    leave_out = leave_out_of(options)
+    if leave_out["warned_objects"] == "leave_out" and "warnings" in table.columns:
         warn = table["warnings"].fillna("").astype(str).to_numpy()
         out = np.where(warn != "", np.array([f"warnings: {w} (warned_objects=leave_out)"
                                              for w in warn], dtype=object), out)
-    if options.get("border_objects", "keep") == "leave_out" and "touches_border" in table:
+    if leave_out["border_objects"] == "leave_out" and "touches_border" in table:
         border = table["touches_border"].fillna(False).to_numpy().astype(bool)
         out[border] = "touches the image border (border_objects=leave_out)"
     return out

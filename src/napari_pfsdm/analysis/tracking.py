@@ -34,6 +34,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
+from ..core.choices import IDENTITIES
+from ..core.params import LINK_OPTION
 from ..core.table_options import carry_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
@@ -58,8 +60,9 @@ __all__ = [
 ]
 
 #: Linking methods: ``"centroid"`` and ``"laptrack"`` (from the table's centroids),
-#: ``"overlap"`` (from the labels). ``pfsdm measure --link`` offers these plus auto and none.
-LINK_METHODS = ("centroid", "overlap", "laptrack")
+#: ``"overlap"`` (from the labels): the identities of :data:`~napari_pfsdm.core.choices.
+#: IDENTITIES` that always link.
+LINK_METHODS = tuple(i for i in IDENTITIES if i not in ("auto", "labels"))
 #: The method used when none is named: the best of ``benchmarks/linking.py`` (as accurate as
 #: laptrack at the same settings or better, 70-100x faster; better than overlap when objects
 #: move fast; needs no labels, so the table alone is enough).
@@ -707,27 +710,26 @@ def link_movie(
     labels : array_like (T, Y, X), optional
         Its labels (needed for ``"overlap"``; with ``"auto"``, they let packed objects be
         linked by overlap).
-    how : {"auto", "none", "overlap", "centroid", "laptrack"}
-        ``"auto"``: link only when :func:`check_tracking` finds the labels untracked, by
-        overlap when the labels of a 2-D movie are given and at least :data:`PACKED` of the
-        objects touch another one (:func:`touching_fraction`), else with
-        :data:`DEFAULT_LINK`; tracked labels get ``track_id = label``. ``"none"``: no
-        ``track_id``. A method name: always link with it.
+    how : {"auto", "labels", "centroid", "overlap", "laptrack"}
+        The option ``link`` (:data:`~napari_pfsdm.core.params.LINK_OPTION`). ``"auto"``: link
+        only when :func:`check_tracking` finds the labels untracked, by overlap when the
+        labels of a 2-D movie are given and at least :data:`PACKED` of the objects touch
+        another one (:func:`touching_fraction`), else with :data:`DEFAULT_LINK`; tracked
+        labels get ``track_id = label``. ``"labels"``: the label ids are the identity (no
+        ``track_id``). A method name: always link with it.
 
     Returns
     -------
     table : DataFrame
-        With ``track_id`` (not for ``"none"``).
+        With ``track_id`` (not for ``"labels"``).
     check : TrackingCheck
         The check of the labels as they were.
     method : str
         The linking method used, ``""`` when none was.
     """
-    if how not in ("auto", "none", *LINK_METHODS):
-        raise InputError(f"--link must be auto, none or one of {', '.join(LINK_METHODS)}; "
-                         f"got {how!r}")
+    how = LINK_OPTION.check(how)
     check = check_tracking(table)
-    if how == "none":
+    if how == "labels":
         return table, check, ""
     if how == "auto":
         if check.tracked:

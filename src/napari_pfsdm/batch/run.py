@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
-from ..core.params import PFSDMParams, as_params
+from ..core.params import LINK_OPTION, PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
@@ -141,7 +141,7 @@ def _link(table: pd.DataFrame, lab: Any, how: str, name: str,
         n = out.loc[out[TRACK_COLUMN] >= 0, TRACK_COLUMN].nunique()
         why = check.message.split(". Link")[0] if not check.tracked else check.message
         say(f"{name}: {why}; linked by {used}: {n} tracks in the track_id column")
-    elif how != "none" and check.verdict == "tracked":
+    elif how != "labels" and check.verdict == "tracked":
         say(f"{name}: {check.message}: track_id = label")
     return out, used
 
@@ -177,7 +177,7 @@ def run_batch(
     log: Callable[[str], None] | None = None,
     allow_empty: bool = True,
     params: PFSDMParams | None = None,
-    link: str = "none",
+    link: str = "labels",
     axes: str | None = None,
     spacing: Any = None,
     allow_missing_chunks: bool = False,
@@ -207,7 +207,7 @@ def run_batch(
         (all-background labels are usually the wrong file).
     params : PFSDMParams, optional
         The method's options as one record.
-    link : {"none", "auto", "overlap", "centroid", "laptrack"}
+    link : {"labels", "auto", "centroid", "overlap", "laptrack"}
         Link each movie's objects into tracks (a ``track_id`` column) with
         :func:`napari_pfsdm.analysis.tracking.link_movie`: ``"auto"`` links (by overlap of the
         labels) only the movies whose label ids do not follow objects, and gives the others
@@ -240,6 +240,7 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    link = LINK_OPTION.check(link)
     _refuse_collisions(movies)
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         require_pyarrow(output, "writing")  # a missing package fails here, not after measuring
@@ -319,6 +320,7 @@ def _run_batch_locked(
     tables = []
     attrs: dict = {}
     linked = False
+    methods: dict[str, str] = {}  # each movie's identity: the linking method used, or labels
     empty: dict[str, list[int]] = {}
     with contextlib.ExitStack() as kept, client_for(kind, obj) as cl:
         pool = None
@@ -357,9 +359,10 @@ def _run_batch_locked(
                 shown = ", ".join(str(t) for t in empty[m.name])
                 say(f"{m.name}: no objects in frame{'s' if len(empty[m.name]) > 1 else ''} "
                     f"{shown} (of {_n_frames(lab, axes)})")
-            if link != "none" and len(table):
+            if link != "labels" and len(table):
                 table, used = _link(table, lab, link, m.name, say)
                 linked = linked or bool(used)
+                methods[m.name] = used or "labels"
             tables.append(table)
 
     tables = [plain(t) for t in tables]
@@ -380,7 +383,8 @@ def _run_batch_locked(
         )
     set_options(result, attrs)
     extra = {"empty_frames": {k: v for k, v in empty.items() if v},
-             "missing_chunks": missing}
+             "missing_chunks": missing, "link": link,
+             "linked": {k: v for k, v in methods.items() if v != "labels"}}
     write_table_csv(result, output, attrs, table_type="features", extra=extra)
     return result
 

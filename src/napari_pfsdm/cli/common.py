@@ -12,7 +12,12 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..core.params import LINK_OPTION
 from ..errors import InputError
+
+#: The identities (the option ``link``) a command that reads a table offers: all but
+#: ``overlap``, which needs the label images.
+TABLE_LINKS = tuple(c for c in LINK_OPTION.choices if c != "overlap")
 
 #: The exit status of an error the user can fix, and of a bug.
 EXIT_USAGE = 2
@@ -155,8 +160,7 @@ def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
     """``--groups``, ``--link``, ``--force`` and ``-q`` as the table-reading commands take them."""
     p.add_argument("--groups", metavar="GROUPS.csv",
                    help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
-    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
-                   help="as for 'pfsdm trajectories'")
+    p.add_argument("--link", choices=TABLE_LINKS, help="as for 'pfsdm trajectories'")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 

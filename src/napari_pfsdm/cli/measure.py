@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ..core.params import LINK_OPTION
 from .common import (
     UserError,
     _add_force,
@@ -140,7 +141,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     summary = warnings_summary(table)
     if summary:
         _say(summary[0].upper() + summary[1:], args.quiet)
-    if args.link == "none":
+    if args.link == "labels":
         _warn_untracked(table, args.quiet)
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
     _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
@@ -211,14 +212,10 @@ examples:
                         "positions, a thumbnail beside the image; 0 = the first); such a file "
                         "is refused without it")
     _add_force(p)
-    p.add_argument("--link", choices=("auto", "none", "centroid", "overlap", "laptrack"),
-                   default="auto",
-                   help="follow objects over time (a track_id column): 'auto' (default) "
-                        "checks each movie and, only when its label ids do not follow the "
-                        "objects (per-frame segmentation), links them by their centroids "
-                        "('centroid'); 'centroid', 'overlap' (of the label masks) or "
-                        "'laptrack' (pip install laptrack) always link; 'none' never (a "
-                        "warning says when the labels look untracked)")
+    p.add_argument("--link", choices=LINK_OPTION.choices, default=LINK_OPTION.default,
+                   help=LINK_OPTION.help + " (a track_id column that trajectories follow; "
+                        "'laptrack' needs pip install laptrack; with 'labels' a warning says "
+                        "when the labels look untracked)")
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")

@@ -97,7 +97,8 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
     from ..analysis.tracking import link as link_table
     from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 
-    if link in ("centroid", "laptrack"):
+    if link in ("centroid", "laptrack") or (link == "auto" and _untracked_movies(table)):
+        link = "centroid" if link == "auto" else link
         with _Step(f"linking {len(table):,} objects into tracks ({link})", quiet):
             table = link_table(table, method=link)
         n = table.loc[table[TRACK_COLUMN] != NO_TRACK, TRACK_COLUMN].nunique()
@@ -115,8 +116,8 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
         return table
     first = bad[0][1].message.split(". Link")[0]
     where = _which_movies(bad)
-    if link == "none":
-        _note(f"warning: {where}{first}; drawing by label anyway (--link none)", quiet)
+    if link == "labels":
+        _note(f"warning: {where}{first}; drawing by label anyway (--link labels)", quiet)
         return table
     if command == "classify":
         raise UserError(
@@ -127,4 +128,4 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
     raise UserError(
         f"{where}{first}, so trajectories drawn by label would jump between objects. Link "
         "them: add --link centroid here (the linking 'pfsdm measure' does by default), or "
-        "--link none to draw by label anyway")
+        "--link labels to draw by label anyway")

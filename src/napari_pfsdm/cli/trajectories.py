@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import UserError, _add_force, _check_output, _say, _Step, _whole
+from .common import TABLE_LINKS, UserError, _add_force, _check_output, _say, _Step, _whole
 from .tables import _follow_objects, _measured, _with_groups
 
 
@@ -110,11 +110,12 @@ examples:
                         "with the same options")
     p.add_argument("--show", type=_whole("--show", 1), nargs=2, default=(1, 2), metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
-    p.add_argument("--link", choices=("centroid", "laptrack", "none"),
-                   help="link untracked labels from the table's centroids first "
-                        "('centroid', or 'laptrack' when installed); 'none' draws by label "
-                        "anyway. Default: follow the table's track_id, or its labels when "
-                        "they follow the objects; refuse untracked labels")
+    p.add_argument("--link", choices=TABLE_LINKS,
+                   help="how objects keep their identity: 'centroid' or 'laptrack' (when "
+                        "installed) link the table's objects first, 'auto' only when their "
+                        "labels do not follow them, 'labels' draws by label anyway. Default: "
+                        "follow the table's track_id, or its labels when they follow the "
+                        "objects; refuse untracked labels")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_trajectories)

@@ -7,8 +7,8 @@ imports no scipy or scikit-image: those modules are loaded when an object is mea
 
 from __future__ import annotations
 
-__all__ = ["ANTERIOR_RULES", "BALL_MAPS", "DEFAULT_MIN_AREA", "KEEP_OR_LEAVE_OUT", "MAPPINGS",
-           "SDF_KINDS"]
+__all__ = ["ANTERIOR_RULES", "BALL_MAPS", "DEFAULT_MIN_AREA", "IDENTITIES", "KEEP_OR_LEAVE_OUT",
+           "MAPPINGS", "SDF_KINDS"]
 
 #: Push-forward maps of the unit disk (:func:`~napari_pfsdm.core.pushforward.make_map`).
 MAPPINGS = ("harmonic", "bijective", "radial")
@@ -25,3 +25,7 @@ KEEP_OR_LEAVE_OUT = ("keep", "leave_out")
 #: (:func:`~napari_pfsdm.core.midline.midline`): the reporter's high or low end, or the end
 #: nearer the image's top (left when the midline runs more left-right) or the other one.
 ANTERIOR_RULES = ("reporter", "reporter_low", "first", "last")
+#: How an object keeps its identity through time (the option ``link``): ``"auto"`` links the
+#: objects only when their label ids do not follow them, ``"labels"`` trusts the ids, and the
+#: linking methods (:mod:`napari_pfsdm.analysis.tracking`) always link that way.
+IDENTITIES = ("auto", "labels", "centroid", "overlap", "laptrack")

@@ -36,6 +36,7 @@ from .choices import (
     ANTERIOR_RULES,
     BALL_MAPS,
     DEFAULT_MIN_AREA,
+    IDENTITIES,
     KEEP_OR_LEAVE_OUT,
     MAPPINGS,
     SDF_KINDS,
@@ -57,6 +58,7 @@ __all__ = [
     "ONLY_3D",
     "OPTIONS",
     "LEAVE_OUT_OPTIONS",
+    "LINK_OPTION",
     "SELECTION_OPTIONS",
     "Option",
     "PFSDMParams",
@@ -383,7 +385,17 @@ WEIGHT_OPTIONS: tuple[Option, ...] = (
            low=0.0, high=MAX_WEIGHT),
 )
 
-_BY_NAME: dict[str, Option] = {o.name: o for o in (*OPTIONS, *WEIGHT_OPTIONS)}
+#: How objects keep their identity through time: one vocabulary for ``pfsdm measure --link``,
+#: the table-reading commands' ``--link``, the plugin's Identity choice,
+#: :func:`~napari_pfsdm.analysis.tracking.link_movie` and the table's sidecar (``link``).
+LINK_OPTION = Option(
+    "link", str, "auto",
+    "how objects keep their identity through time: 'auto' links them only when their label "
+    "ids do not follow them (per-frame segmentation, e.g. cellpose), 'labels' trusts the "
+    "label ids, 'centroid', 'overlap' (of the masks) or 'laptrack' always link that way",
+    choices=IDENTITIES)
+
+_BY_NAME: dict[str, Option] = {o.name: o for o in (*OPTIONS, *WEIGHT_OPTIONS, LINK_OPTION)}
 
 
 def option(name: str) -> Option:

@@ -14,7 +14,7 @@ from collections.abc import Generator
 import numpy as np
 import pandas as pd
 
-from ..core.params import PFSDMParams
+from ..core.params import LINK_OPTION, PFSDMParams
 from ..core.table_options import carry_options
 from ._model import Analysis
 
@@ -25,8 +25,10 @@ FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "
 #: How objects keep their identity through time, in the form's words → the mode: link when
 #: the ids jump (by overlap where objects touch), trust the ids, always link by centroids or
 #: by overlap (or "tracks": follow a napari Tracks layer).
-IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
-            "link by centroids": "centroid", "link by overlap": "overlap"}
+IDENTITY = {f"{name}: {words}": name for name, words in (
+    ("auto", "link when ids jump"), ("labels", "the label ids"),
+    ("centroid", "link by centroids"), ("overlap", "link by overlap"),
+    ("laptrack", "link with laptrack")) if name in LINK_OPTION.choices}
 #: Largest number of channels a reporter image's extra axis may have to be offered by channel.
 MAX_CHANNELS = 16
 
@@ -164,7 +166,7 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
             f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
             + (f"; {missed} objects that no track point reaches are left out of the "
                "trajectories." if missed else "."))
-    out, check, used = link_movie(table, labels, "none" if mode == "labels" else mode)
+    out, check, used = link_movie(table, labels, mode)
     if used:
         n = int(out[TRACK_COLUMN].max()) if len(out) else 0
         how = "by overlap (the objects touch)" if used == "overlap" else "by centroids"
