@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from napari_pfsdm.analysis import tracking as tk
-from napari_pfsdm.core.table_schema import NO_TRACK
+from napari_pfsdm.core.table_schema import NO_TRACK, TRACK_COLUMN
 
 
 def objects(rows, radius=5.0):
@@ -76,7 +76,7 @@ def test_overlap_linking_never_links_objects_below_min_iou():
     lab[0, :20, 20:23] = 2  # B
     lab[1, :20, 2:23] = 3  # C
     lab[1, :20, 0:2] = 4  # D
-    out = tk.link_labels(lab, min_iou=0.05).set_index(["frame", "label"])[tk.TRACK_COLUMN]
+    out = tk.link_labels(lab, min_iou=0.05).set_index(["frame", "label"])[TRACK_COLUMN]
     assert out[(1, 3)] == out[(0, 1)]
     assert out[(1, 4)] not in (out[(0, 1)], out[(0, 2)])
     assert out.nunique() == 3
@@ -92,7 +92,7 @@ def test_overlap_gap_closing_leaves_linked_objects_alone():
     lab[1, :10, 12:22] = 2  # B
     lab[2, :10, 6:16] = 3  # C: 4 columns of A, 4 of B
     lab[2, 30:40, 30:40] = 4  # E
-    out = tk.link_labels(lab).set_index(["frame", "label"])[tk.TRACK_COLUMN]
+    out = tk.link_labels(lab).set_index(["frame", "label"])[TRACK_COLUMN]
     assert out[(2, 3)] == out[(1, 2)]
     assert out[(0, 1)] != out[(1, 2)]
     assert out[(2, 4)] not in (out[(0, 1)], out[(1, 2)])

@@ -14,7 +14,7 @@ from scipy.special import gammaln, lpmv
 import napari_pfsdm as P
 from napari_pfsdm.analysis.interpretation import outline_measures
 from napari_pfsdm.analysis.reduction import mds_coordinates
-from napari_pfsdm.analysis.tracking import _median_radius
+from napari_pfsdm.analysis.tracking.check import median_radius as _median_radius
 from napari_pfsdm.core.boundary import _refine
 from napari_pfsdm.core.descriptor import _polar_to_cartesian
 from napari_pfsdm.core.medial_axis import branch_paths

@@ -203,7 +203,7 @@ def perimeter_4(mask: np.ndarray) -> float:
     --------
     >>> from skimage.measure import perimeter
     >>> disk = np.add.outer(np.arange(-9, 10) ** 2, np.arange(-9, 10) ** 2) <= 64
-    >>> perimeter_4(disk) == perimeter(disk, 4)
+    >>> bool(perimeter_4(disk) == perimeter(disk, 4))
     True
     """
     h, w = mask.shape
@@ -247,7 +247,7 @@ def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
     >>> from skimage.morphology import convex_hull_image
     >>> ell = np.zeros((9, 9), bool); ell[1:8, 1:3] = ell[6:8, 1:8] = True
     >>> convex_area(ell), int(convex_hull_image(ell).sum())
-    (37, 37)
+    (34, 34)
     """
     if rows is None:
         rows, cols = np.nonzero(mask)

@@ -415,55 +415,16 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     # chord of a vertex pair then strays < 0.01 px from an outline 14 px in radius)
     spacing = float(np.linalg.norm(np.diff(polygon, axis=0), axis=1).mean())
     polygon = polygon[::max(1, int(step / max(spacing, 1e-12)))]
-    depth = float(np.median(sk.depth)) if len(sk.depth) else 1.0
     # the object's pixels: every one up to 512 across, as the pictures' skeleton samples them
     every = grid_step(info.mask.shape, SAMPLES_ACROSS)
     sampled = info.mask[::every, ::every]
     cells = np.argwhere(sampled)
     pixels = cells * every + np.asarray(info.offset, float)
 
-    path = main_path(sk)
-    plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
-    if plen < max(2.0 * step, depth):
-        # a round or roundish object (its skeleton no longer than its half-width): its axis is
-        # the pixels' major axis through their centre
-        centre = pixels.mean(axis=0)
-        d = _principal_direction(pixels)
-        path = np.vstack([centre - 1e-3 * d, centre + 1e-3 * d])
-        head_dir, tail_dir = -d, d
-    else:
-        # the last pixels of a raster skeleton often hook to one side (a pruned fork, a grid
-        # step): cut them before smoothing, the straight extension replaces them
-        path = _trim(path, min(1.0 * step, plen / 4))
-        path = _smooth(path, sigma_px=2.0 * step, spacing=0.5 * step)
-        plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
-        reach = float(np.clip(depth, 3.0 * step, plen / 3))
-        tail_dir = _end_tangent(path, reach)
-        head_dir = _end_tangent(path[::-1], reach)
-    ends = np.vstack([path[0], path[-1]])
-    t, _ = _crossings(ends, np.vstack([head_dir, tail_dir]), polygon)
-    t = np.where(np.isfinite(t), t, 0.0)
-    full = np.vstack([path[0] + t[0] * head_dir, path, path[-1] + t[1] * tail_dir])
-
-    n = SAMPLES_PER_BIN * bins
-    points, arc = _resample(full, n + 1)
-    tangent = np.gradient(points, axis=0)
-    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
-    normals = np.column_stack([tangent[:, 1], -tangent[:, 0]])
-    ahead, behind = _crossings(points, normals, polygon)
-    sides = np.column_stack([ahead, behind])
-    sides[[0, -1]] = 0.0
-    sides = np.where(np.isfinite(sides), sides, 0.0)
-    width = sides.sum(axis=1)
-
-    values = None
-    if intensity is not None:
-        image = np.asarray(intensity, float)
-        idx = np.rint(pixels - np.asarray(intensity_offset, float)).astype(int)
-        inside = np.all((idx >= 0) & (idx < image.shape), axis=1)
-        values = np.full(len(pixels), np.nan)
-        values[inside] = image[idx[inside, 0], idx[inside, 1]]
-        values[~np.isfinite(values)] = np.nan
+    full = _axis(sk, pixels, polygon)
+    points, arc = _resample(full, SAMPLES_PER_BIN * bins + 1)
+    normals, sides, width = _widths(points, polygon)
+    values = None if intensity is None else _pixel_values(intensity, pixels, intensity_offset)
 
     # which end is anterior; the profiles then run from it
     reporter_bins, halves = None, (np.nan, np.nan)
@@ -483,19 +444,82 @@ def midline(result, intensity: np.ndarray | None = None, *, bins: int = 10,
     per_bin = width.reshape(-1)[:-1].reshape(bins, SAMPLES_PER_BIN)
     nxt = np.append(per_bin[1:, 0], width[-1])
     width_bins = (per_bin.sum(axis=1) - 0.5 * per_bin[:, 0] + 0.5 * nxt) / SAMPLES_PER_BIN
-
-    angle_image = angle_midline = np.nan
-    if values is not None:
-        ok = np.isfinite(values)
-        w = np.clip(values[ok], 0, None)
-        if w.sum() > 0:
-            offset = (pixels[ok] * w[:, None]).sum(axis=0) / w.sum() - pixels.mean(axis=0)
-            if np.linalg.norm(offset) > 1e-12:
-                angle_image = float(np.degrees(np.arctan2(-offset[0], offset[1])))
-                chord = points[-1] - points[0]
-                cos = offset @ chord / (np.linalg.norm(offset) * np.linalg.norm(chord))
-                angle_midline = float(np.degrees(np.arccos(np.clip(cos, -1, 1))))
+    angle_image, angle_midline = (np.nan, np.nan) if values is None else \
+        _polarity_angles(pixels, values, points)
     return Midline(points=points, arc=arc, width=width, normals=normals, width_bins=width_bins,
                    reporter_bins=reporter_bins, anterior=rule,
                    polarity_angle_image=angle_image, polarity_angle_midline=angle_midline,
                    pixel_size=scale, sides=sides)
+
+
+def _axis(sk: Skeleton, pixels: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """The object's axis as points in image (row, col): the skeleton's main path, its hooked
+    ends cut, smoothed, and extended straight along its end tangents to the outline
+    ``polygon``; a roundish object's (skeleton no longer than its half-width) the pixels'
+    major axis through their centre."""
+    step = int(sk.step)
+    depth = float(np.median(sk.depth)) if len(sk.depth) else 1.0
+    path = main_path(sk)
+    plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
+    if plen < max(2.0 * step, depth):
+        centre = pixels.mean(axis=0)
+        d = _principal_direction(pixels)
+        path = np.vstack([centre - 1e-3 * d, centre + 1e-3 * d])
+        head_dir, tail_dir = -d, d
+    else:
+        # the last pixels of a raster skeleton often hook to one side (a pruned fork, a grid
+        # step): cut them before smoothing, the straight extension replaces them
+        path = _trim(path, min(1.0 * step, plen / 4))
+        path = _smooth(path, sigma_px=2.0 * step, spacing=0.5 * step)
+        plen = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        reach = float(np.clip(depth, 3.0 * step, plen / 3))
+        tail_dir = _end_tangent(path, reach)
+        head_dir = _end_tangent(path[::-1], reach)
+    ends = np.vstack([path[0], path[-1]])
+    t, _ = _crossings(ends, np.vstack([head_dir, tail_dir]), polygon)
+    t = np.where(np.isfinite(t), t, 0.0)
+    return np.vstack([path[0] + t[0] * head_dir, path, path[-1] + t[1] * tail_dir])
+
+
+def _widths(points: np.ndarray, polygon: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(normals, the distances to the outline on either side, the widths) at the axis'
+    ``points``: chords along the normal, 0 at the two ends."""
+    tangent = np.gradient(points, axis=0)
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
+    normals = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    ahead, behind = _crossings(points, normals, polygon)
+    sides = np.column_stack([ahead, behind])
+    sides[[0, -1]] = 0.0
+    sides = np.where(np.isfinite(sides), sides, 0.0)
+    return normals, sides, sides.sum(axis=1)
+
+
+def _pixel_values(intensity: np.ndarray, pixels: np.ndarray,
+                  offset: tuple[float, float]) -> np.ndarray:
+    """The reporter at the object's ``pixels`` (image coordinates; ``intensity[0, 0]`` at
+    ``offset``): NaN outside the image and where it is not finite."""
+    image = np.asarray(intensity, float)
+    idx = np.rint(pixels - np.asarray(offset, float)).astype(int)
+    inside = np.all((idx >= 0) & (idx < image.shape), axis=1)
+    values = np.full(len(pixels), np.nan)
+    values[inside] = image[idx[inside, 0], idx[inside, 1]]
+    values[~np.isfinite(values)] = np.nan
+    return values
+
+
+def _polarity_angles(pixels: np.ndarray, values: np.ndarray,
+                     points: np.ndarray) -> tuple[float, float]:
+    """The direction of the reporter's centre of mass from the object's centre: in the image
+    (degrees, 0 towards +x, counter-clockwise as shown) and against the axis from its first
+    to its last point (0–180 degrees); NaN without positive reporter or offset."""
+    ok = np.isfinite(values)
+    w = np.clip(values[ok], 0, None)
+    if w.sum() <= 0:
+        return np.nan, np.nan
+    offset = (pixels[ok] * w[:, None]).sum(axis=0) / w.sum() - pixels.mean(axis=0)
+    if np.linalg.norm(offset) <= 1e-12:
+        return np.nan, np.nan
+    angle_image = float(np.degrees(np.arctan2(-offset[0], offset[1])))
+    chord = points[-1] - points[0]
+    cos = offset @ chord / (np.linalg.norm(offset) * np.linalg.norm(chord))
+    return angle_image, float(np.degrees(np.arccos(np.clip(cos, -1, 1))))

@@ -276,7 +276,7 @@ class ViscousSDF:
     >>> sdf = ViscousSDF(np.column_stack([np.cos(t), np.sin(t)]), viscosity=0.1)
     >>> from scipy.special import i0e
     >>> rho = 0.5; expected = 0.1 * (np.log(i0e(rho / 0.1) / i0e(1 / 0.1)) + (rho - 1) / 0.1)
-    >>> bool(abs(sdf(np.array([[rho, 0.0]]))[0] - expected) < 1e-8)
+    >>> bool(abs(sdf(np.array([[rho, 0.0]]))[0] - expected) < 1e-5)  # 5e-6 at 128 nodes
     True
     """
 
