@@ -9,15 +9,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..core import units
 from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.table_options import carry_options, set_options, table_options
 from ..core.table_schema import TRACK_COLUMN, feature_columns
+from ..core.units import check_times
+from ..errors import InputError
 from .label_images import (
     check_arrays,
     check_frames,
     count_objects,
     frame_at,
-    resolve_axes,
     voxel_spacing,
 )
 from .measuring import (
@@ -27,6 +29,7 @@ from .measuring import (
     check_frame_ids,
     object_warnings,
 )
+from .physical import add_times
 from .tables import failed_rows
 from .threads import one_blas_thread
 
@@ -87,15 +90,23 @@ def iter_objects(
     measurer = ObjectMeasurer.of(p, ndim=3 if "z" in axes else 2,
                                  with_intensity=intensity is not None, axes=axes, spacing=voxel)
     frames = None if frames is None else check_frames(frames, n_frames if timelapse else 1)
+    yield from measure_frames(measurer, labels, intensity,
+                              range(n_frames) if frames is None else frames, timelapse)
+
+
+iter_objects.__signature__ = with_option_keywords(iter_objects)  # type: ignore[attr-defined]
+
+
+def measure_frames(measurer: ObjectMeasurer, labels, intensity, frames, timelapse: bool
+                   ) -> Iterator[ObjectResult]:
+    """Every object of ``frames`` of the labels (and the reporter), measured by ``measurer``
+    one crop at a time, in frame then label order, on one BLAS thread."""
     with one_blas_thread():
-        for t in range(n_frames) if frames is None else frames:
+        for t in frames:
             frame = check_frame_ids(frame_at(labels, t, timelapse), t)
             image = None if intensity is None else frame_at(intensity, t, timelapse)
             for crop in measurer.crops(frame, image, int(t)):
                 yield measurer.measure(crop)
-
-
-iter_objects.__signature__ = with_option_keywords(iter_objects)  # type: ignore[attr-defined]
 
 
 def describe_object(
@@ -293,6 +304,10 @@ def measure(
     spacing=None,
     progress: Callable[[int, int | None], None] | None = None,
     params: PFSDMParams | None = None,
+    times: Any = None,
+    time_unit: str | None = None,
+    pixel_size: Any = None,
+    space_unit: str | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table: one row per (frame, label).
@@ -314,6 +329,20 @@ def measure(
         Called after every object; ``total`` is None for lazy (non-numpy) inputs.
     params : PFSDMParams, optional
         The method's options as one record (or give them as keywords).
+    times : sequence of float, optional
+        Each frame's time, in frame order (uneven, or repeated for a time imaged twice, as
+        the experiment was): the table gets a ``time`` column after ``frame``, and
+        ``time_unit`` in its record. Without it, time is the frame.
+    time_unit : str, optional
+        Their unit (``"day"``, ``"h"``, ``"min"``, ``"s"``; :data:`~napari_pfsdm.core.units.
+        TIMES`).
+    pixel_size : float or sequence of float, optional
+        The physical size of a pixel (one number: square pixels), or of a voxel (Z, Y, X,
+        for 3-D objects: then also their ``spacing``): sizes (areas, volumes, lengths,
+        widths, perimeters, midline measures) are then in ``space_unit``, not pixels; shape
+        features stay unitless. Recorded as ``pixel_size`` and ``space_unit``.
+    space_unit : str, optional
+        Its unit (default ``"µm"``; :data:`~napari_pfsdm.core.units.LENGTHS`).
     **options
         The method's options (``n_fourier``, ``mapping``, ...: one keyword per
         :data:`~napari_pfsdm.core.params.OPTIONS` entry, shown in the signature with its
@@ -354,21 +383,30 @@ def measure(
     (6, ['frame', 'label', 'area'])
     """
     p = as_params(params, options)  # before counting: a bad option fails at once
-    axes = resolve_axes(tuple(labels.shape), axes)
-    voxel = voxel_spacing(axes, spacing)
-    p.check_dimension(3 if "z" in axes else 2)
+    n_frames, timelapse, axes = check_arrays(labels, intensity, axes)
+    volume = "z" in axes
+    measurer = ObjectMeasurer.of(
+        p, ndim=3 if volume else 2, with_intensity=intensity is not None, axes=axes,
+        spacing=voxel_spacing(axes, spacing) if pixel_size is None or not volume else spacing,
+        pixel_size=pixel_size, space_unit=space_unit)
+    if times is not None:
+        times = check_times(times, n_frames if timelapse else 1)
+        time_unit = units.time_unit(time_unit)[0] if time_unit else None
+    elif time_unit is not None:
+        raise InputError(f"a time unit ({time_unit}) was given without times: give each "
+                         "frame's time too (times=[...])")
     counted = progress is not None and isinstance(labels, np.ndarray)
     total = count_objects(labels, axes) if counted else None
 
     def reporting():
-        for done, obj in enumerate(iter_objects(labels, intensity, axes=axes, spacing=voxel,
-                                                params=p), start=1):
+        objects = measure_frames(measurer, labels, intensity, range(n_frames), timelapse)
+        for done, obj in enumerate(objects, start=1):
             yield obj  # consumed row by row: no result is kept
             if progress is not None:
                 progress(done, total)
 
-    return table_from_objects(reporting(), with_intensity=intensity is not None, params=p,
-                              axes=axes, spacing=voxel)
+    table = with_leave_out(measurer.table(reporting()), p)
+    return table if times is None else add_times(table, times, time_unit)
 
 
 measure.__signature__ = with_option_keywords(measure)  # type: ignore[attr-defined]

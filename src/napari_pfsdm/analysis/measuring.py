@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..core import units
 from ..core.boundary import N_OUTLINE_MODES
 from ..core.columns import BASE_2D, BASE_3D, Column, Family
 from ..core.descriptor import PFSDMResult, pfsdm
@@ -47,6 +48,7 @@ from ..core.table_schema import (
     signature_columns,
     table_feature_columns,
 )
+from ..core.units import check_pixel_size
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
 from . import classic
@@ -261,6 +263,11 @@ class ObjectMeasurer:
         Voxel size (Z, Y, X) of 3-D objects.
     measures : tuple of Measure
         The measures of :data:`MEASURES` that apply.
+    pixel_size : tuple of float or None
+        The physical size of a pixel (Y, X), or of a voxel (Z, Y, X: then also ``spacing``),
+        in ``space_unit``: the table's sizes (columns of unit ``length``, ``area``,
+        ``volume``) are then in that unit, not in pixels.
+    space_unit : str or None
     """
 
     params: PFSDMParams
@@ -269,19 +276,38 @@ class ObjectMeasurer:
     axes: str | None = None
     spacing: tuple[float, ...] | None = None
     measures: tuple[Measure, ...] = ()
+    pixel_size: tuple[float, ...] | None = None
+    space_unit: str | None = None
 
     @classmethod
     def of(cls, params: PFSDMParams, *, ndim: int = 2, with_intensity: bool = False,
-           axes: str | None = None, spacing: Any = None) -> ObjectMeasurer:
+           axes: str | None = None, spacing: Any = None, pixel_size: Any = None,
+           space_unit: str | None = None) -> ObjectMeasurer:
         """The measurer of ``params`` for ``ndim``-D objects (``spacing``: their voxel size,
-        3-D only; default 1, 1, 1), with or without a reporter."""
+        3-D only; default 1, 1, 1, or ``pixel_size``), with or without a reporter; with a
+        ``pixel_size`` (one number, or one per axis) and its ``space_unit`` (µm when not
+        given), the table's sizes are physical."""
         if ndim not in (2, 3):
             raise ValueError(f"ndim must be 2 or 3, got {ndim!r}")
         params.check_dimension(ndim)
+        size, unit = None, None
+        if pixel_size is not None:
+            size = check_pixel_size(pixel_size, ndim)
+            unit = units.space_unit(space_unit or "µm")[0]
+            if ndim == 3:
+                given = None if spacing is None else tuple(check_spacing(spacing, 3).tolist())
+                if given is not None and given != size:
+                    raise InputError(
+                        f"spacing {given} and pixel size {size} differ: give the voxel size "
+                        "once (the pixel size, in its unit)")
+                spacing = size
+        elif space_unit is not None:
+            raise InputError(f"a space unit ({space_unit}) was given without a pixel size: "
+                             "give the pixel size too (e.g. --pixel-size 0.65)")
         voxel = tuple(check_spacing(spacing, 3).tolist()) if ndim == 3 else None
-        base = cls(params.measured(), ndim, bool(with_intensity), axes, voxel)
+        base = cls(params.measured(), ndim, bool(with_intensity), axes, voxel, (), size, unit)
         measures = tuple(m for m in MEASURES if m.applies(base))
-        return cls(base.params, base.ndim, base.with_intensity, axes, voxel, measures)
+        return replace(base, measures=measures)
 
     # ----------------------------------------------------------------- what it writes
     def record(self) -> dict[str, Any]:
@@ -292,7 +318,25 @@ class ObjectMeasurer:
             out["axes"] = self.axes
         if self.ndim == 3:
             out["spacing"] = list(self.spacing)
+        if self.pixel_size is not None:
+            out["pixel_size"] = list(self.pixel_size)
+            out["space_unit"] = self.space_unit
         return out
+
+    @cached_property
+    def size_factors(self) -> dict[str, float]:
+        """What each size column is multiplied by to be in the physical unit (none without a
+        pixel size): lengths by the pixel's side, areas by its area, volumes by the voxel's
+        (3-D lengths are already physical: scikit-image measures them with the spacing)."""
+        if self.pixel_size is None:
+            return {}
+        kinds = column_units(self)
+        if self.ndim == 2:
+            side = self.pixel_size[0]
+            factor = {"length": side, "area": side * side}
+        else:
+            factor = {"volume": float(np.prod(self.pixel_size))}
+        return {c: factor[k] for c, k in kinds.items() if k in factor}
 
     @cached_property
     def families(self) -> dict[str, list[str]]:
@@ -423,6 +467,8 @@ class ObjectMeasurer:
                 blocks.append(pd.DataFrame(stack_rows(rows[kind], len(fam[kind])),
                                            columns=fam[kind]))
         table = pd.concat(blocks, axis=1)
+        for column, factor in self.size_factors.items():
+            table[column] = table[column].astype(float) * factor
         set_options(table, self.record())
         return table
 
@@ -432,6 +478,22 @@ class ObjectMeasurer:
 #: a degenerate Delaunay triangulation (scipy's QhullError) in the bijective map,
 #: ArithmeticError for overflows.
 OBJECT_ERRORS = (ValueError, RuntimeError, ArithmeticError)
+
+
+def column_units(measurer: ObjectMeasurer) -> dict[str, str]:
+    """The unit kind (:data:`~napari_pfsdm.core.columns.UNITS`) of each column of a
+    measurer's table that has one, from the columns' declarations."""
+    declared: list[Column | Family] = [*(BASE_2D if measurer.ndim == 2 else BASE_3D)]
+    for m in measurer.measures:
+        declared += list(m.declares)
+    out = {}
+    for name in measurer.columns:
+        for d in declared:
+            if (d.name == name) if isinstance(d, Column) else d.match(name) is not None:
+                if d.unit:
+                    out[name] = d.unit
+                break
+    return out
 
 
 def reason(exc: BaseException) -> str:

@@ -16,8 +16,8 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["TIFF_SUFFIXES", "Movie", "find_movies", "is_tiff", "is_zarr", "movie_name",
-           "pair_movies", "unique_names"]
+__all__ = ["TIFF_SUFFIXES", "Movie", "find_movies", "is_tiff", "is_zarr", "match_name",
+           "movie_name", "pair_movies", "unique_names"]
 
 TIFF_SUFFIXES = (".tif", ".tiff")
 _ZARR_MARKERS = (".zarray", ".zgroup", "zarr.json")
@@ -42,6 +42,27 @@ def movie_name(path: str | os.PathLike) -> str:
         if name.lower().endswith(suffix):
             return name[: -len(suffix)]
     return name
+
+
+def match_name(name: str, names: list[str]) -> str | None:
+    """The entry of ``names`` (as a lab writes movies in a spreadsheet: with or without a
+    folder and an extension such as ``.tif``, in any case) that names the movie ``name``, or
+    None; two entries that would both name it are refused.
+
+    Examples
+    --------
+    >>> match_name("e01", ["plate1/E01.tif", "e02.tif"])
+    'plate1/E01.tif'
+    >>> match_name("e01", ["e1.tif"]) is None
+    True
+    """
+    key = movie_name(Path(str(name).replace("\\", "/")).name).lower()
+    hits = [n for n in names if movie_name(Path(str(n).strip().replace("\\", "/")).name)
+            .lower() == key]
+    if len(set(hits)) > 1:
+        raise InputError(f"{', '.join(map(repr, hits))} all name the movie {name!r}: name each "
+                         "movie once")
+    return hits[0] if hits else None
 
 
 def find_movies(spec: str | os.PathLike | list) -> list[Path]:

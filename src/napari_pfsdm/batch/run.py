@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..analysis.physical import add_times
 from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
 from ..core.params import LINK_OPTION, PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
@@ -41,6 +42,7 @@ from ..io import (
     to_jsonable,
     write_table_csv,
 )
+from .calibration import Calibration, calibrate
 from .fingerprint import data_fingerprint
 from .io import (
     check_labels,
@@ -50,6 +52,7 @@ from .io import (
     open_movie,
     refuse_missing_chunks,
 )
+from .metadata import read_metadata
 from .movies import Movie
 from .tasks import environment_fault, measure_dask
 
@@ -65,7 +68,8 @@ def _have_parquet() -> bool:
 
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
-               spacing: Any = None, series: int | None = None) -> str:
+               spacing: Any = None, series: int | None = None,
+               calibration: Calibration | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
     (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and of what is measured
     (:meth:`~napari_pfsdm.core.params.PFSDMParams.measured`: the options that leave objects
@@ -80,7 +84,10 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         [stamp(movie.labels), stamp(movie.intensity), to_jsonable(params.measured().record())]
         + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
            if axes is not None and "z" in axes else [])
-        + ([["series", int(series)]] if series is not None else []),
+        + ([["series", int(series)]] if series is not None else [])
+        # the pixel size and its unit change the sizes measured (not the times: added later)
+        + ([["pixel_size", list(calibration.pixel_size), calibration.space_unit]]
+           if calibration is not None and calibration.pixel_size is not None else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -173,7 +180,7 @@ def run_batch(
     num_workers: int | None = None,
     frames_per_task: int | None = None,
     parts_dir: str | os.PathLike | None = None,
-    progress: Callable[[str, int, int], None] | None = None,
+    progress: Progress | None = None,
     log: Callable[[str], None] | None = None,
     allow_empty: bool = True,
     params: PFSDMParams | None = None,
@@ -182,6 +189,10 @@ def run_batch(
     spacing: Any = None,
     allow_missing_chunks: bool = False,
     series: int | None = None,
+    times: Any = None,
+    time_unit: str | None = None,
+    pixel_size: Any = None,
+    space_unit: str | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -199,7 +210,10 @@ def run_batch(
         (the same files, unchanged: size, modification time and inode; the same options) is
         not measured again.
     progress : callable, optional
-        ``progress(movie_name, frames_done, n_frames)``.
+        ``progress(stage, done, total, what)`` from the start of the run, over every movie:
+        ``"checking"`` (movies opened and checked, ``what`` the movie), then ``"measuring"``
+        (frames measured of every movie not measured before, ``what`` the movie, or what
+        the run waits for).
     log : callable, optional
         Receives one-line messages (e.g. ``"skipped movie01 (already measured)"``).
     allow_empty : bool
@@ -223,6 +237,17 @@ def run_batch(
     series : int, optional
         The image series read from every TIFF (:func:`~napari_pfsdm.batch.io.open_movie`);
         a TIFF of several series is refused without it.
+    times : sequence of float, or {movie: {frame: time}}, optional
+        The frames' times (the same for every movie, or per movie as
+        :func:`~napari_pfsdm.batch.calibration.read_times_file` reads them); without them,
+        each movie's file's own (ImageJ, OME), else none. The table gets a ``time`` column.
+    time_unit : str, optional
+        Their unit; files' times are converted to it.
+    pixel_size : float or sequence of float, optional
+        The pixel size of every movie; without it, each file's own (ImageJ, OME, TIFF
+        resolution), else sizes stay in pixels.
+    space_unit : str, optional
+        Its unit (µm when not given); files' pixel sizes are converted to it.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -249,7 +274,9 @@ def run_batch(
             movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
             frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
-            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series)
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series,
+            units={"times": times, "time_unit": time_unit, "pixel_size": pixel_size,
+                   "space_unit": space_unit})
 
 
 def _refuse_collisions(movies: Sequence[Movie]) -> None:
@@ -290,90 +317,74 @@ def _remove_part_leftovers(parts: Path) -> None:
 def _run_batch_locked(
     movies: Sequence[Movie], output: Path, p: PFSDMParams, *, client: Any, scheduler: Any,
     num_workers: int | None, frames_per_task: int | None,
-    parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
+    parts_dir: str | os.PathLike | None, progress: Progress | None,
     say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
     spacing: Any, allow_missing_chunks: bool, series: int | None = None,
+    units: dict | None = None,
 ) -> pd.DataFrame:
-    """:func:`run_batch`'s work, holding the output's lock."""
+    """:func:`run_batch`'s work, holding the output's lock: open and check every movie, find
+    their times and pixel sizes, measure those without a part, put the table together."""
     remove_leftovers(output)
     parts = Path(parts_dir) if parts_dir is not None else default_parts_dir(output)
     parts.mkdir(parents=True, exist_ok=True)
     _remove_part_leftovers(parts)
     suffix = ".parquet" if _have_parquet() else ".csv"
+    progress = progress or (lambda *a: None)
 
-    # Open and check every movie first: a bad file fails the run before any long work.
-    opened = []
-    for m in movies:
-        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
-        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
-                         series=series) if m.intensity else None
-        check_labels(lab, img, where=str(m.labels), axes=axes)
-        if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
-            raise InputError(f"{m.labels} and {m.intensity} have different shapes")
-        for movie, path in ((lab, m.labels), (img, m.intensity)):
-            if movie is not None and not allow_missing_chunks:
-                refuse_missing_chunks(movie, str(path))
-        opened.append((m, lab, img))
+    opened = _open_movies(movies, frames_per_task, axes, series, allow_missing_chunks,
+                          progress)
     missing = _missing_chunks(opened, say)
-
+    cal = _calibrations(opened, axes, series, units or {}, say)
+    plan = [(m, lab, img, parts / (_part_name(m, p, axes, spacing, series, cal[m.name])
+                                  + suffix)) for m, lab, img in opened]
+    total = sum(_n_frames(lab, axes) for _, lab, _, part in plan if not part.exists())
+    done = 0
+    progress("measuring", 0, total, "")
     kind, obj = resolve_scheduler(scheduler, client)
-    tables = []
-    attrs: dict = {}
-    linked = False
-    methods: dict[str, str] = {}  # each movie's identity: the linking method used, or labels
-    empty: dict[str, list[int]] = {}
+    tables, attrs, methods, empty = [], {}, {}, {}
     with contextlib.ExitStack() as kept, client_for(kind, obj) as cl:
         pool = None
-        for m, lab, img in opened:
-            part = parts / (_part_name(m, p, axes, spacing, series) + suffix)
+        for m, lab, img, part in plan:
             table = _resumed(part, m.name, say)
-            if table is not None:
-                attrs = attrs or to_jsonable(table_options(table) or {})
-            else:
+            if table is None:
                 if kind == "local" and obj == "processes" and pool is None:
                     # started for the first movie to measure, kept for the others
+                    progress("measuring", done, total, "starting the worker processes")
                     pool = kept.enter_context(_batch_pool(num_workers))
 
-                def _prog(done: int, total: int, _name: str = m.name) -> None:
-                    if progress:
-                        progress(_name, done, total)
+                def _prog(frames: int, n: int, _name: str = m.name, _at: int = done) -> None:
+                    progress("measuring", _at + frames, total, _name)
 
                 with warnings.catch_warnings():  # the missing chunks were said above
                     warnings.filterwarnings("ignore", ".*chunk files? missing", UserWarning)
                     table = measure_dask(
-                        lab, img,
-                        client=cl if kind != "local" else None,
-                        scheduler=obj if kind == "local" else None,
-                        num_workers=num_workers, frames_per_task=frames_per_task,
-                        progress=_prog, pool=pool, params=p.measured(), axes=axes,
-                        spacing=spacing,
+                        lab, img, client=cl if kind != "local" else None,
+                        scheduler=obj if kind == "local" else None, num_workers=num_workers,
+                        frames_per_task=frames_per_task, progress=_prog, pool=pool,
+                        params=p.measured(), axes=axes, spacing=spacing,
+                        pixel_size=cal[m.name].pixel_size, space_unit=cal[m.name].space_unit,
                         allow_missing_chunks=True,  # checked above, with the user's word
                     )
-                attrs = to_jsonable(table_options(table) or attrs)
+                done += _n_frames(lab, axes)
                 table = table.copy()
                 table.insert(0, "movie", m.name)
-                _write_part(table, part, attrs)
-                say(f"measured {m.name}: {len(table)} objects")
+                _write_part(table, part, to_jsonable(table_options(table) or {}))
+                say(f"measured {m.name}: {_objects(len(table))}")
+            attrs = attrs or to_jsonable(table_options(table) or {})
             empty[m.name] = _empty_frames(table, lab, axes)
             if empty[m.name]:
                 shown = ", ".join(str(t) for t in empty[m.name])
                 say(f"{m.name}: no objects in frame{'s' if len(empty[m.name]) > 1 else ''} "
                     f"{shown} (of {_n_frames(lab, axes)})")
+            if cal[m.name].times is not None and len(table):
+                table = add_times(table, cal[m.name].times, cal[m.name].time_unit)
             if link != "labels" and len(table):
                 table, used = _link(table, lab, link, m.name, say)
-                linked = linked or bool(used)
                 methods[m.name] = used or "labels"
             tables.append(table)
-
-    tables = [plain(t) for t in tables]
-    if link == "auto" and not linked:  # every movie was tracked: its labels are the ids
-        tables = [t.drop(columns=[TRACK_COLUMN], errors="ignore") for t in tables]
-    result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
-    if TRACK_COLUMN in result.columns:  # a movie without objects has none
-        result[TRACK_COLUMN] = result[TRACK_COLUMN].fillna(NO_TRACK).astype(np.int64)
-    if not attrs:
-        attrs = p.record(3 if axes and "z" in axes else 2)
-    attrs = {**attrs, **p.leave_out()}  # this run's: the parts hold what was measured
+    progress("measuring", total, total, "")
+    result = _joined(tables, link, any(v != "labels" for v in methods.values()))
+    attrs = _table_record(attrs or p.record(3 if axes and "z" in axes else 2), p, cal)
     if len(result) == 0 and not allow_empty:
         names = ", ".join(str(m.labels) for m in movies[:3]) + (" …" if len(movies) > 3 else "")
         raise InputError(
@@ -384,9 +395,91 @@ def _run_batch_locked(
     set_options(result, attrs)
     extra = {"empty_frames": {k: v for k, v in empty.items() if v},
              "missing_chunks": missing, "link": link,
-             "linked": {k: v for k, v in methods.items() if v != "labels"}}
+             "linked": {k: v for k, v in methods.items() if v != "labels"},
+             "calibration": {k: c.source for k, c in cal.items() if c.source}}
     write_table_csv(result, output, attrs, table_type="features", extra=extra)
     return result
+
+
+#: ``progress(stage, done, total, what)``: ``"checking"`` (movies opened and checked) then
+#: ``"measuring"`` (frames measured, over every movie to measure; ``what``: the movie, or
+#: what the run waits for).
+Progress = Callable[[str, int, int, str], None]
+
+
+def _objects(n: int) -> str:
+    return f"{n} object{'s' if n != 1 else ''}"
+
+
+def _open_movies(movies: Sequence[Movie], frames_per_task: int | None, axes: str | None,
+                 series: int | None, allow_missing_chunks: bool, progress: Progress
+                 ) -> list[tuple[Movie, Any, Any]]:
+    """Open and check every movie first: a bad file fails the run before any long work."""
+    opened = []
+    for i, m in enumerate(movies):
+        progress("checking", i, len(movies), m.name)
+        lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
+        img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
+                         series=series) if m.intensity else None
+        check_labels(lab, img, where=str(m.labels), axes=axes)
+        if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
+            raise InputError(f"{m.labels} and {m.intensity} have different shapes")
+        for movie, path in ((lab, m.labels), (img, m.intensity)):
+            if movie is not None and not allow_missing_chunks:
+                refuse_missing_chunks(movie, str(path))
+        opened.append((m, lab, img))
+    progress("checking", len(movies), len(movies), "")
+    return opened
+
+
+def _calibrations(opened: list[tuple], axes: str | None, series: int | None, units: dict,
+                  say: Callable[[str], None]) -> dict[str, Calibration]:
+    """Each movie's times and pixel size (:func:`~.calibration.calibrate`): as given in
+    ``units`` (``times``, ``time_unit``, ``pixel_size``, ``space_unit``), else as its file
+    declares."""
+    from .movies import match_name
+
+    volume = bool(axes) and "z" in axes
+    found = [(m.name, _n_frames(lab, axes),
+              read_metadata(m.labels, _n_frames(lab, axes), series=series, volume=volume))
+             for m, lab, _ in opened]
+    cal = calibrate(found, times=units.get("times"), time_unit_given=units.get("time_unit"),
+                    pixel_size=units.get("pixel_size"),
+                    space_unit_given=units.get("space_unit"), volume=volume,
+                    match=match_name, say=say)
+    for name, c in cal.items():
+        if c.source:
+            say(f"{name}: {c.source}")
+    return cal
+
+
+def _joined(tables: list[pd.DataFrame], link: str, linked: bool) -> pd.DataFrame:
+    """The movies' tables as one."""
+    tables = [plain(t) for t in tables]
+    if link == "auto" and not linked:  # every movie was tracked: its labels are the ids
+        tables = [t.drop(columns=[TRACK_COLUMN], errors="ignore") for t in tables]
+    result = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+    if TRACK_COLUMN in result.columns:  # a movie without objects has none
+        result[TRACK_COLUMN] = result[TRACK_COLUMN].fillna(NO_TRACK).astype(np.int64)
+    return result
+
+
+def _table_record(attrs: dict, p: PFSDMParams, cal: dict[str, Calibration]) -> dict:
+    """The joined table's record: what was measured, this run's leave-out options (the parts
+    hold what was measured), the units of its times and sizes, each movie's pixel size."""
+    attrs = {k: v for k, v in attrs.items() if k not in ("pixel_size", "space_unit",
+                                                         "time_unit", "pixel_sizes")}
+    attrs.update(p.leave_out())
+    sizes = {n: list(c.pixel_size) for n, c in cal.items() if c.pixel_size is not None}
+    if sizes:
+        attrs["space_unit"] = next(c.space_unit for c in cal.values() if c.space_unit)
+        attrs["pixel_sizes"] = sizes
+        if len({tuple(v) for v in sizes.values()}) == 1:
+            attrs["pixel_size"] = next(iter(sizes.values()))
+    units = {c.time_unit for c in cal.values() if c.times is not None}
+    if any(c.times is not None for c in cal.values()):
+        attrs["time_unit"] = units.pop() if units else None
+    return attrs
 
 
 def _n_frames(movie: Any, axes: str | None) -> int:

@@ -187,6 +187,8 @@ def measure_dask(
     spacing: Any = None,
     allow_missing_chunks: bool = False,
     series: int | None = None,
+    pixel_size: Any = None,
+    space_unit: str | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """PF-SDM feature table of a movie, measured in parallel with dask.
@@ -231,7 +233,7 @@ def measure_dask(
         ``if __name__ == "__main__":`` guard).
     params : PFSDMParams, optional
         The method's options as one record (it travels to the workers as it is).
-    axes, spacing
+    axes, spacing, pixel_size, space_unit
         As :func:`napari_pfsdm.measure` (``"zyx"`` or ``"tzyx"`` for 3-D objects).
     allow_missing_chunks : bool
         A Zarr movie (from :func:`~napari_pfsdm.batch.io.open_movie`) whose chunk files are
@@ -254,9 +256,11 @@ def measure_dask(
     _check_chunks(labels, intensity, allow_missing_chunks)
     axes = resolve_axes(tuple(labels.shape), axes)
     kind, obj = resolve_scheduler(scheduler, client)
-    measurer = ObjectMeasurer.of(p, ndim=3 if "z" in axes else 2,
-                                 with_intensity=intensity is not None, axes=axes,
-                                 spacing=voxel_spacing(axes, spacing))
+    volume = "z" in axes
+    measurer = ObjectMeasurer.of(
+        p, ndim=3 if volume else 2, with_intensity=intensity is not None, axes=axes,
+        spacing=voxel_spacing(axes, spacing) if pixel_size is None or not volume else spacing,
+        pixel_size=pixel_size, space_unit=space_unit)
     if not axes.startswith("t"):  # one image or volume: frame 0 of a one-frame movie
         labels = labels[None]
         intensity = intensity[None] if intensity is not None else None

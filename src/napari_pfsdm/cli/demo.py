@@ -147,8 +147,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         bar = tqdm(total=n_frames * per_frame, desc="measuring", unit="object",
                    file=sys.stderr, dynamic_ncols=True)
 
-    def objects_done(name: str, done: int, total: int) -> None:
-        if bar is not None:
+    def objects_done(stage: str, done: int, total: int, what: str) -> None:
+        if bar is not None and stage == "measuring":
             bar.update(done * per_frame - bar.n)
             if done >= total:
                 bar.close()  # before the messages about the finished movie

@@ -22,22 +22,31 @@ from .tables import _warn_untracked
 
 
 def _progress_printer(quiet: bool):
-    """A ``progress(movie, done, total)`` callback drawing one tqdm bar per movie on stderr
-    (redrawn at most every 0.2 s on a terminal, every 5 s in a log file); None when quiet."""
+    """A ``progress(stage, done, total, what)`` callback (:func:`~napari_pfsdm.batch.run.
+    run_batch`'s) drawing one tqdm bar per stage on stderr, over every movie: the movies
+    checked, then the frames measured with the time left; the movie being measured (or what
+    the run waits for) after the bar. Redrawn at most every 0.2 s on a terminal, every 5 s
+    in a log file; None when quiet."""
     if quiet:
         return None
     from tqdm import tqdm
 
     bars: dict = {}
     interval = 0.2 if sys.stderr.isatty() else 5.0
+    units = {"checking": ("checking movies", "movie"), "measuring": ("measuring", "frame")}
 
-    def show(name: str, done: int, total: int) -> None:
-        bar = bars.get(name)
+    def show(stage: str, done: int, total: int, what: str) -> None:
+        bar = bars.get(stage)
         if bar is None:
-            bar = bars[name] = tqdm(total=total, desc=name[:28], unit="frame", file=sys.stderr,
-                                    mininterval=interval, dynamic_ncols=True)
+            for other in bars.values():
+                other.close()
+            desc, unit = units.get(stage, (stage, "item"))
+            bar = bars[stage] = tqdm(total=total, desc=desc, unit=unit, file=sys.stderr,
+                                     mininterval=interval, dynamic_ncols=True)
+        if what:
+            bar.set_postfix_str(what[:40], refresh=False)
         bar.update(done - bar.n)
-        if done >= total:
+        if done >= total and total:
             bar.close()
 
     return show
@@ -134,6 +143,10 @@ def cmd_measure(args: argparse.Namespace) -> int:
         spacing=args.spacing,
         allow_missing_chunks=args.allow_missing_chunks,
         series=args.series,
+        times=_times(args.times),
+        time_unit=args.time_unit,
+        pixel_size=args.pixel_size,
+        space_unit=args.space_unit,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -146,6 +159,23 @@ def cmd_measure(args: argparse.Namespace) -> int:
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
     _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
     return 0
+
+
+def _times(text: str | None) -> Any:
+    """``--times``: a comma-separated list (every movie's frames), or a CSV file with the
+    columns movie, frame, time."""
+    from ..batch.calibration import read_times_file
+
+    if text is None:
+        return None
+    if Path(text).is_file():
+        return read_times_file(text)
+    try:
+        return [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+    except ValueError:
+        raise UserError(f"--times must be numbers separated by commas (e.g. --times "
+                        f"2,5,8,10) or a CSV file (movie, frame, time); got {text!r}, which "
+                        "is neither") from None
 
 
 def _series_index(text: str) -> int:
@@ -219,6 +249,23 @@ examples:
     p.add_argument("--parts", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
+    gu = p.add_argument_group(
+        "time and size (read from the files' metadata when they have them: ImageJ, OME, TIFF "
+        "resolution, OME-Zarr; given values win)")
+    gu.add_argument("--times", metavar="T1,T2,… | TIMES.csv",
+                    help="each frame's time, the same for every movie (e.g. --times "
+                         "2,5,8,10,12,12,16 for culture days; a time may repeat), or a CSV "
+                         "with the columns movie, frame, time: the table gets a time column")
+    gu.add_argument("--time-unit", metavar="UNIT",
+                    help="the times' unit: s, min, h or day (the files' times are converted "
+                         "to it)")
+    gu.add_argument("--pixel-size", nargs="+", type=float, metavar="SIZE",
+                    help="the size of a pixel (one number: square pixels; Z Y X for "
+                         "Z-stacks): areas, lengths, widths and perimeters are then in "
+                         "--space-unit (shape features have no unit)")
+    gu.add_argument("--space-unit", metavar="UNIT",
+                    help="the pixel size's unit: nm, um (default), mm (the files' pixel "
+                         "sizes are converted to it)")
     g3 = p.add_argument_group("3-D objects (Z-stacks)")
     g3.add_argument("--axes", metavar="AXES",
                     help="which axes the label files have: yx, tyx (a time-lapse of 2-D "

@@ -11,7 +11,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ...core.table_options import set_options, table_options
 from ...errors import InputError
+from ..physical import pixel_areas
 from ..tables import key_rows
 
 __all__ = ["JUMP_RADII", "MAX_SWITCHED", "MIN_PERSISTENCE", "PACKED", "TrackingCheck",
@@ -104,7 +106,7 @@ def label_steps(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
     frame = table["frame"].to_numpy(np.int64)
     label = table["label"].to_numpy(np.int64)
-    area = table["area"].to_numpy(float)
+    area = pixel_areas(table)  # the centroids are pixels, whatever unit the sizes are in
     yx = table[position_columns(table)].to_numpy(float)
     following = key_rows(frame + 1, label, frame, label)  # the same label's row at t + 1
     here = np.flatnonzero(following >= 0)
@@ -229,13 +231,23 @@ def check_tracking(table: pd.DataFrame) -> TrackingCheck:
 
 
 def with_area(table: pd.DataFrame) -> pd.DataFrame:
-    """A table of 3-D objects (``volume``, no ``area``) gets the area of the disk whose radius
-    is that of the sphere of the same volume: the checks and the linking then work on its
-    (z, y, x) centroids with the object's radius as their scale."""
-    if "area" in table.columns or "volume" not in table.columns:
+    """The table with its ``area`` in pixels, the unit of its centroids, whatever unit its
+    sizes are in (its record then says pixels); a table of 3-D objects (``volume``, no
+    ``area``) gets the area of the disk whose radius is that of the sphere of the same volume
+    (voxels): the checks and the linking then work on its (z, y, x) centroids with the
+    object's radius as their scale."""
+    record = dict(table_options(table) or {})
+    if "area" in table.columns:
+        out = table.assign(area=pixel_areas(table))
+    elif "volume" in table.columns:
+        radius = np.cbrt(3 * pixel_areas(table, "volume") / (4 * np.pi))
+        out = table.assign(area=np.pi * radius**2)
+    else:
         return table
-    radius = np.cbrt(3 * table["volume"].to_numpy(float) / (4 * np.pi))
-    return table.assign(area=np.pi * radius**2)
+    for key in ("pixel_size", "pixel_sizes", "space_unit"):
+        record.pop(key, None)
+    set_options(out, record)
+    return out
 
 
 def median_radius(table: pd.DataFrame) -> float:
