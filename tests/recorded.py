@@ -131,7 +131,7 @@ def fusion_runs(part: str) -> dict:
     """The fusion protocol's results (JSON-ready): ``part`` "evaluate" (the classification
     helpers) or "predict" (``predict_outcome``)."""
     from napari_pfsdm.analysis import classification as cl
-    from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.outcome import predict_outcome
 
     out: dict = {}
     if part == "evaluate":

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 import napari_pfsdm as pf
-from napari_pfsdm.analysis.prediction import predict_outcome
+from napari_pfsdm.analysis.outcome import predict_outcome
 from napari_pfsdm.analysis.reduction import pca_scores
 from napari_pfsdm.cli import main
 

@@ -61,7 +61,7 @@ def files(run, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def library_report(run, tmp_path_factory):
-    from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.outcome import predict_outcome
 
     labels, table, groups = run
     pred = predict_outcome(table, groups, n_splits=3, n_repeats=1)

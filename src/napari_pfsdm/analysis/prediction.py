@@ -1,5 +1,5 @@
-"""The late-fusion prediction protocol (docs/design.md §2.8), and :func:`predict_outcome`, which
-predicts each object's group from its early frames with it.
+"""The late-fusion prediction protocol (docs/design.md §2.8), for two groups or more;
+:mod:`napari_pfsdm.analysis.outcome` runs it on feature tables.
 
 The protocol, the paper's with one correction:
 
@@ -22,39 +22,28 @@ probabilities for ``predict_idx``; :func:`channel_model` is the logistic one, an
 baselines of ``examples/pixel_baseline.py`` plug into the same splits.
 :mod:`napari_pfsdm.analysis.classification` builds the paper's two-channel evaluation on it.
 
-:func:`predict_outcome` runs the protocol on a feature table with a third channel, the classic
-measures of the table (:mod:`napari_pfsdm.analysis.classic`), and reports beside the fusion
-each channel alone (the classic measures alone is what napari-skimage-regionprops plus a
-classifier would give) and chance (a balanced accuracy of 0.5). It also gives, for every
-object, the probability of each group — out-of-fold for the objects whose group is known (from a
-model that never saw them), from the model of all labelled objects for the others.
+:func:`napari_pfsdm.analysis.outcome.predict_outcome` runs the protocol on a feature table,
+with the classic measures as a third channel.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from itertools import product
 
 import numpy as np
-import pandas as pd
 from sklearn.linear_model import LogisticRegression
 from sklearn.metrics import balanced_accuracy_score
 from sklearn.model_selection import StratifiedKFold, StratifiedShuffleSplit
 from sklearn.pipeline import Pipeline, make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from ..core.table_options import carry_options, table_options
-from ..core.table_schema import has_channel
 from ..errors import InputError
-from .classic import REPORTER_MEASURES, SHAPE_MEASURES_2D, SHAPE_MEASURES_3D
-from .tables import left_out_reasons
 
 __all__ = [
-    "CHANNELS",
     "FitPredict",
     "Fold",
-    "Prediction",
     "best_weights",
     "channel_model",
     "cross_validate",
@@ -62,22 +51,18 @@ __all__ = [
     "logistic_pipeline",
     "make_splits",
     "nested_weights",
-    "predict_outcome",
+    "log_loss_of",
+    "predicted_class",
     "weight_grid",
 ]
 
-#: The channels :func:`predict_outcome` can fuse, in display order.
-CHANNELS = ("shape", "intensity", "classic")
-#: Step of :func:`predict_outcome`'s grid of fusion weights (on the simplex: weights >= 0
+#: Step of the grid of fusion weights (on the simplex: weights >= 0
 #: summing to 1).
 WEIGHT_STEP = 0.25
 #: Regularisation of each channel's logistic regression (C): strong, as few objects and many
 #: features are usual (1760 features per channel for ~60 training objects of the synthetic
 #: gastruloids; chosen on a development seed), milder for the few classic measures.
 C_FEATURES = 0.01
-C_CLASSIC = 1.0
-#: Points of the accuracy-against-last-frame curve, at most.
-CURVE_POINTS = 6
 
 #: ``fit_predict(train_idx, predict_idx) -> per-channel class-1 probabilities`` (a sequence of
 #: arrays, or an array (n_channels, len(predict_idx))).
@@ -97,7 +82,7 @@ def make_splits(
     Parameters
     ----------
     y : ndarray, (n_objects,)
-        Class of each object (binary).
+        Class of each object (two or more classes).
     n_splits, test_size : int, float
         As :class:`sklearn.model_selection.StratifiedShuffleSplit` (the paper: 5, 0.2).
     n_repeats : int
@@ -112,12 +97,18 @@ def make_splits(
     """
     y = np.asarray(y)
     classes, counts = np.unique(y, return_counts=True)
-    if len(classes) != 2:
-        raise InputError(f"need exactly two classes to classify, got {len(classes)}.")
+    if len(classes) < 2:
+        raise InputError(f"need at least two classes to classify, got {len(classes)}.")
     if counts.min() < 2:
         raise InputError(
-            f"the smaller class has {counts.min()} object(s); stratified splits need at least 2."
-        )
+            f"the smallest class has {counts.min()} object(s); stratified splits need at "
+            "least 2.")
+    n_test = int(np.ceil(test_size * len(y)))
+    if n_test < len(classes) or len(y) - n_test < len(classes):
+        raise InputError(
+            f"{len(y)} objects in {len(classes)} groups are too few for a {test_size:.0%} test "
+            f"split: each side of a split needs an object of every group ({n_test} would be "
+            "tested). Use more objects, or fewer groups")
     out = []
     for r in range(n_repeats):
         sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=test_size, random_state=seed + r)
@@ -125,21 +116,22 @@ def make_splits(
     return out
 
 
-def logistic_pipeline(C: float = C_FEATURES) -> Pipeline:
+def logistic_pipeline(C: float = C_FEATURES, n_classes: int = 2) -> Pipeline:
     """The paper's per-channel classifier as a scikit-learn :class:`~sklearn.pipeline.Pipeline`:
-    standardised features, L2 logistic regression with balanced class weights (liblinear,
-    deterministic, about 7x faster than lbfgs here). Put :class:`napari_pfsdm.PFSDMTransformer`
-    in front of it to classify masks.
+    standardised features, L2 logistic regression with balanced class weights (two classes:
+    liblinear, deterministic, about 7x faster than lbfgs here; more: the multinomial model,
+    lbfgs). Put :class:`napari_pfsdm.PFSDMTransformer` in front of it to classify masks.
 
     Examples
     --------
     >>> list(logistic_pipeline().named_steps)
     ['standardscaler', 'logisticregression']
     """
+    solver = "liblinear" if n_classes <= 2 else "lbfgs"
     return make_pipeline(
         StandardScaler(),
         LogisticRegression(
-            C=C, class_weight="balanced", solver="liblinear", max_iter=1000, random_state=0
+            C=C, class_weight="balanced", solver=solver, max_iter=1000, random_state=0
         ),
     )
 
@@ -153,22 +145,48 @@ def channel_model(xs: Sequence[np.ndarray], y: np.ndarray,
     Returns
     -------
     callable
-        ``fit_predict(train_idx, predict_idx)`` -> ndarray (n_channels, len(predict_idx)).
+        ``fit_predict(train_idx, predict_idx)`` -> ndarray (n_channels, len(predict_idx)): the
+        class-1 probabilities for two classes 0 and 1; for ``k`` > 2 classes ``0 … k - 1``,
+        (n_channels, len(predict_idx), k): each class's.
     """
     y = np.asarray(y).astype(int)
     cs = [float(C)] * len(xs) if np.ndim(C) == 0 else [float(c) for c in C]
     if len(cs) != len(xs):
         raise InputError(f"{len(xs)} channels but {len(cs)} values of C")
+    n_classes = int(y[y >= 0].max()) + 1 if (y >= 0).any() else 2
 
     def fit_predict(train_idx: np.ndarray, predict_idx: np.ndarray) -> np.ndarray:
         out = []
         for x, c in zip(xs, cs, strict=True):
-            model = logistic_pipeline(c)
+            model = logistic_pipeline(c, n_classes)
             model.fit(x[train_idx], y[train_idx])
-            out.append(model.predict_proba(x[predict_idx])[:, 1])
+            proba = model.predict_proba(x[predict_idx])
+            if n_classes <= 2:
+                out.append(proba[:, 1])
+                continue
+            full = np.zeros((len(predict_idx), n_classes))
+            full[:, model.classes_] = proba  # a class absent from training: probability 0
+            out.append(full)
         return np.stack(out)
 
     return fit_predict
+
+
+def predicted_class(p: np.ndarray) -> np.ndarray:
+    """The class each object is given: class 1 where the class-1 probability is ≥ 0.5
+    (two classes, ``p`` of shape (n,)), else the most probable (``p`` (n, k))."""
+    p = np.asarray(p)
+    return (p >= 0.5).astype(int) if p.ndim == 1 else np.argmax(p, axis=1)
+
+
+def log_loss_of(p: np.ndarray, y: np.ndarray) -> float:
+    """Mean negative log-probability of the true classes (probabilities clipped to
+    [1e-6, 1]), each class weighted by the inverse of its count (balanced, as the models)."""
+    p = np.asarray(p, float)
+    y = np.asarray(y).astype(int)
+    truth = np.where(y == 1, p, 1 - p) if p.ndim == 1 else p[np.arange(len(y)), y]
+    weights = 1.0 / np.bincount(y)[y]
+    return float(-(weights * np.log(np.clip(truth, 1e-6, 1.0))).sum() / weights.sum())
 
 
 def weight_grid(n_channels: int, step: float = WEIGHT_STEP) -> list[tuple[float, ...]]:
@@ -194,12 +212,21 @@ def fuse(probas: Sequence[np.ndarray], weights: Sequence[float]) -> np.ndarray:
 
 
 def best_weights(probas: Sequence[np.ndarray], y: np.ndarray,
-                 grid: Sequence[tuple[float, ...]]) -> tuple[float, ...]:
-    """The weights of ``grid`` whose fusion has the best balanced accuracy on ``y``; ties go to
-    the weights nearest equal weights (sum of absolute differences), then to the first of
-    ``grid``."""
+                 grid: Sequence[tuple[float, ...]], score: str = "balanced_accuracy"
+                 ) -> tuple[float, ...]:
+    """The weights of ``grid`` whose fusion scores best on ``y``.
+
+    ``score``: ``"balanced_accuracy"`` (the highest; ties go to the weights nearest equal
+    weights, sum of absolute differences, then to the first of ``grid``) or ``"log_loss"``
+    (the lowest :func:`log_loss_of`, which every object's probability moves and so varies
+    less from sample to sample than an accuracy of a few objects; ties as above).
+    """
     y = np.asarray(y).astype(int)
-    scores = [balanced_accuracy_score(y, (fuse(probas, w) >= 0.5).astype(int)) for w in grid]
+    fused = [fuse(probas, w) for w in grid]
+    if score == "log_loss":
+        scores = [-log_loss_of(f, y) for f in fused]
+    else:
+        scores = [balanced_accuracy_score(y, predicted_class(f)) for f in fused]
     best = np.flatnonzero(np.isclose(scores, max(scores)))
     even = np.full(len(grid[0]), 1 / len(grid[0]))
     return grid[min(best, key=lambda i: np.abs(np.asarray(grid[i]) - even).sum())]
@@ -207,20 +234,25 @@ def best_weights(probas: Sequence[np.ndarray], y: np.ndarray,
 
 def nested_weights(fit_predict: FitPredict, y: np.ndarray, train: np.ndarray, *,
                    grid: Sequence[tuple[float, ...]], folds: int = 3,
-                   seed: int = 0) -> tuple[float, ...]:
+                   seed: int = 0, score: str = "balanced_accuracy") -> tuple[float, ...]:
     """Fusion weights from out-of-fold predictions of a stratified ``folds``-fold CV inside
-    ``train`` (the objects outside it are never touched); equal weights when the smaller class
-    of ``train`` has fewer than two objects, or there is one channel."""
+    ``train`` (the objects outside it are never touched), scored by ``score``
+    (:func:`best_weights`); equal weights when the smallest class of ``train`` has fewer than
+    two objects, or there is one channel."""
     y = np.asarray(y).astype(int)
     n_channels = len(grid[0])
-    n_folds = min(folds, int(np.bincount(y[train]).min()))
+    present = np.bincount(y[train])
+    n_folds = min(folds, int(present[present > 0].min()))
     if n_folds < 2 or n_channels == 1:
         return tuple(np.full(n_channels, 1 / n_channels))
-    oof = np.empty((n_channels, len(train)))
+    oof = None
     skf = StratifiedKFold(n_splits=n_folds, shuffle=True, random_state=seed)
     for itr, iva in skf.split(np.zeros(len(train)), y[train]):
-        oof[:, iva] = np.stack(fit_predict(train[itr], train[iva]))
-    return best_weights(oof, y[train], grid)
+        part = np.stack(fit_predict(train[itr], train[iva]))
+        if oof is None:
+            oof = np.empty((n_channels, len(train), *part.shape[2:]))
+        oof[:, iva] = part
+    return best_weights(oof, y[train], grid, score)
 
 
 @dataclass
@@ -248,6 +280,7 @@ def cross_validate(
     inner_folds: int = 3,
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
+    score: str = "balanced_accuracy",
 ) -> list[Fold]:
     """The protocol on every split: the fusion weights chosen inside the training split, the
     channels' probabilities on the test split.
@@ -270,6 +303,8 @@ def cross_validate(
         predicted by that same model.
     progress : callable(done, total), optional
         Called after each split (a worker may raise from it to stop).
+    score : {"balanced_accuracy", "log_loss"}
+        What the fusion weights are chosen for (:func:`best_weights`).
 
     Raises
     ------
@@ -286,255 +321,15 @@ def cross_validate(
             raise InputError(f"split {k}: an object is in both the training and the test set.")
         if inner == "cv":
             weights = nested_weights(fit_predict, y, train, grid=grid, folds=inner_folds,
-                                     seed=seed + k)
+                                     seed=seed + k, score=score)
             probas = np.stack(fit_predict(train, test))
         else:
             sss = StratifiedShuffleSplit(n_splits=1, test_size=0.25, random_state=seed + k)
             itr, iva = next(sss.split(np.zeros(len(train)), y[train]))
             both = np.stack(fit_predict(train[itr], np.concatenate([train[iva], test])))
-            weights = best_weights(both[:, :len(iva)], y[train[iva]], grid)
+            weights = best_weights(both[:, :len(iva)], y[train[iva]], grid, score)
             probas = both[:, len(iva):]
         folds.append(Fold(k, train, test, weights, probas))
         if progress is not None:
             progress(k + 1, len(splits))
     return folds
-
-
-# ------------------------------------------------------------------------ on a table
-@dataclass
-class Prediction:
-    """What :func:`predict_outcome` found.
-
-    Attributes
-    ----------
-    groups : (str, str)
-        The two groups; probabilities are given for both (``p_<group>`` columns).
-    frames : list of int
-        The frames whose features were used.
-    scores : DataFrame
-        Balanced accuracy per split and method (``fused``, each channel alone).
-    summary : DataFrame
-        Mean and standard deviation of the balanced accuracy per method, with ``chance``.
-    curve : DataFrame
-        ``last_frame``, ``mean``, ``std``: the fused model's balanced accuracy using the frames
-        up to that one (how early the outcome can be predicted).
-    probabilities : DataFrame
-        One row per object: the object id column and ``p_<group>`` for both groups.
-    channels : list of str
-        The channels used.
-    """
-
-    groups: tuple[str, str]
-    frames: list[int]
-    scores: pd.DataFrame
-    summary: pd.DataFrame
-    curve: pd.DataFrame
-    probabilities: pd.DataFrame
-    channels: list[str] = field(default_factory=list)
-
-    def columns(self) -> list[str]:
-        """The probability columns, ``p_<group>`` (spaces become underscores)."""
-        return [probability_column(g) for g in self.groups]
-
-    def on_rows(self, table: pd.DataFrame, object_col: str) -> pd.DataFrame:
-        """``table`` (its options kept) with each row's :meth:`columns`: its object's
-        probabilities (NaN for the rows of objects that were not scored)."""
-        probs = self.probabilities.set_index(object_col)
-        out = table.copy()
-        for name in self.columns():
-            out[name] = probs[name].reindex(table[object_col].to_numpy()).to_numpy()
-        return carry_options(table, out)
-
-
-def probability_column(group: str) -> str:
-    """``p_<group>``: the column of the probability of ``group``."""
-    return "p_" + "_".join(str(group).split())
-
-
-def _channel_columns(table: pd.DataFrame, channel: str) -> list[str]:
-    if channel == "classic":
-        names = (*SHAPE_MEASURES_2D, *SHAPE_MEASURES_3D, *REPORTER_MEASURES, "area", "volume")
-        return [c for c in dict.fromkeys(names) if c in table.columns]
-    return [c for c in table.columns if str(c).startswith(f"{channel}_r")]
-
-
-def _vectors(table: pd.DataFrame, columns: list[str], frames: list[int], object_col: str,
-             objects: np.ndarray) -> np.ndarray:
-    """(n_objects, n_frames × n_columns): each object's values at the frames, concatenated;
-    an object missing from a frame gets that frame's mean (and so says nothing there)."""
-    blocks = []
-    for f in frames:
-        rows = table[table["frame"] == f].drop_duplicates(object_col).set_index(object_col)
-        values = rows.reindex(objects)[columns].to_numpy(float)
-        mean = np.nanmean(values, axis=0) if np.isfinite(values).any() else np.zeros(
-            values.shape[1])
-        mean = np.where(np.isfinite(mean), mean, 0.0)
-        values = np.where(np.isfinite(values), values, mean)
-        blocks.append(values)
-    return np.concatenate(blocks, axis=1)
-
-
-def _evaluate(model: FitPredict, y, splits, seed, tick, grid) -> list[dict]:
-    """Balanced accuracy of the fused model (weights from the training split) and of each
-    channel alone, on every split."""
-    rows = []
-    for fold in cross_validate(model, y, splits, grid=grid, seed=seed, progress=tick):
-        y_te = y[fold.test]
-        rows.append({"split": fold.split, "method": "fused",
-                     "balanced_accuracy": balanced_accuracy_score(
-                         y_te, (fold.fused() >= 0.5).astype(int)),
-                     "weights": fold.weights})
-        for i, px in enumerate(fold.probas):
-            rows.append({"split": fold.split, "method": f"channel {i}", "balanced_accuracy":
-                         balanced_accuracy_score(y_te, (px >= 0.5).astype(int)),
-                         "weights": None})
-    return rows
-
-
-def predict_outcome(
-    table: pd.DataFrame,
-    groups: Mapping,
-    frames: Sequence[int] | None = None,
-    *,
-    object_col: str | None = None,
-    channels: Sequence[str] | None = None,
-    n_splits: int = 5,
-    n_repeats: int = 2,
-    curve: bool = True,
-    seed: int = 0,
-    progress: Callable[[int, int], None] | None = None,
-) -> Prediction:
-    """Predict each object's group from its features at ``frames``.
-
-    Parameters
-    ----------
-    table : DataFrame
-        A feature table (:func:`napari_pfsdm.measure`), with its classic measures.
-    groups : mapping
-        Object id → group (exactly two groups); objects without a group are predicted only.
-    frames : sequence of int, optional
-        The frames whose features are used (default: all frames of the table).
-    object_col : str, optional
-        The object id column: ``track_id`` when the table has one, else ``label``.
-    channels : sequence of str, optional
-        Among ``"shape"``, ``"intensity"``, ``"classic"`` (default: those the table has).
-    n_splits, n_repeats : int
-        Stratified shuffle splits (20 % test each) and their repeats.
-    curve : bool
-        Also score the fused model on the frames up to each of (at most
-        :data:`CURVE_POINTS`, evenly spread) chosen frames.
-    progress : callable(done, total), optional
-        Called as the work goes on (a worker may raise from it to stop).
-
-    Raises
-    ------
-    InputError
-        Not two groups, a group with fewer than two objects, no such frames.
-    """
-    object_col = object_col or ("track_id" if "track_id" in table.columns else "label")
-    if object_col not in table.columns:
-        raise InputError(f"the table has no {object_col!r} column to name the objects")
-    ok = (table["error"].fillna("").astype(str).eq("").to_numpy(copy=True)
-          if "error" in table.columns else np.ones(len(table), bool))
-    ok &= left_out_reasons(table, table_options(table)) == ""  # the options' choice
-    ids = table[object_col]
-    if pd.api.types.is_numeric_dtype(ids):  # track_id -1: rows no track reaches
-        ok &= ids.to_numpy() >= 0
-    table = table.loc[ok]
-    all_frames = sorted(int(f) for f in table["frame"].unique())
-    frames = all_frames if frames is None else sorted(int(f) for f in frames)
-    missing = sorted(set(frames) - set(all_frames))
-    if missing:
-        raise InputError(f"frames {missing} are not in the table (it has {all_frames[0]} … "
-                         f"{all_frames[-1]})")
-    if not frames:
-        raise InputError("choose at least one frame")
-    known = {k: str(v) for k, v in groups.items() if str(v).strip()}
-    names = sorted(set(known.values()))
-    if len(names) != 2:
-        raise InputError(f"prediction needs exactly two groups, got {len(names)}: "
-                         f"{', '.join(names) or 'none'}")
-    objects = np.array(sorted(table[object_col].unique()))
-    def group(o):  # ids given as numbers or as text
-        for key in (o, str(o)):
-            if key in known:
-                return known[key]
-        try:
-            return known.get(int(o))
-        except (TypeError, ValueError):
-            return None
-
-    group_of = [group(o) for o in objects]
-    labelled = np.array([g is not None for g in group_of])
-    y_all = np.array([names.index(g) if g is not None else -1 for g in group_of])
-    y = y_all[labelled]
-    counts = np.bincount(y, minlength=2)
-    if counts.min() < 2:
-        raise InputError(f"the group '{names[int(np.argmin(counts))]}' has "
-                         f"{counts.min()} object(s) with features; each needs at least two")
-    if channels is None:
-        channels = [c for c in CHANNELS if c == "classic" or has_channel(table.columns, c)]
-    channels = [c for c in channels if _channel_columns(table, c)]
-    if not channels:
-        raise InputError("the table has no features to predict from")
-    cs = [C_CLASSIC if c == "classic" else C_FEATURES for c in channels]
-
-    def matrices(use_frames):
-        return [_vectors(table, _channel_columns(table, c), use_frames, object_col, objects)
-                for c in channels]
-
-    xs_all = matrices(frames)
-    xs = [x[labelled] for x in xs_all]
-    splits = make_splits(y, n_splits=n_splits, test_size=0.2, n_repeats=n_repeats, seed=seed)
-    n_curve = min(CURVE_POINTS, len(frames)) - 1 if curve and len(frames) > 1 else 0
-    steps = len(splits) * (1 + n_curve) + 1
-    done = [0]
-
-    def tick(*_):
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], steps)
-
-    grid = weight_grid(len(channels))
-    rows = _evaluate(channel_model(xs, y, cs), y, splits, seed, tick, grid)
-    scores = pd.DataFrame(rows)
-    scores["method"] = scores["method"].map(
-        lambda m: m if m == "fused" else f"{channels[int(m.split()[1])]} alone")
-    order = ["fused"] + [f"{c} alone" for c in channels]
-    g = scores.groupby("method")["balanced_accuracy"]
-    summary = pd.DataFrame({"mean": g.mean(), "std": g.std(ddof=1), "n_splits": g.size()})
-    summary = summary.loc[order]
-    summary.loc["chance"] = [0.5, 0.0, len(splits)]
-    curve_rows = []
-    if curve and len(frames) > 1:
-        # at most CURVE_POINTS last frames, evenly spread (each point is a whole evaluation)
-        ends = np.unique(np.round(np.linspace(1, len(frames), min(CURVE_POINTS, len(frames))))
-                         ).astype(int)
-        for j in ends:
-            if j == len(frames):
-                s = scores[scores["method"] == "fused"]["balanced_accuracy"]
-            else:
-                sub = [x[labelled] for x in matrices(frames[:j])]
-                r = _evaluate(channel_model(sub, y, cs), y, splits, seed, tick, grid)
-                s = pd.DataFrame(r).query("method == 'fused'")["balanced_accuracy"]
-            curve_rows.append({"last_frame": frames[j - 1], "mean": float(s.mean()),
-                               "std": float(s.std(ddof=1))})
-    # probabilities: out-of-fold for the labelled objects, the full model for the others
-    lab_idx = np.flatnonzero(labelled)
-    p = np.full(len(objects), np.nan)
-    model = channel_model(xs, y, cs)
-    w_all = nested_weights(model, y, np.arange(len(y)), grid=grid, seed=seed)
-    n_folds = min(5, int(counts.min()))
-    skf = StratifiedKFold(n_splits=max(2, n_folds), shuffle=True, random_state=seed)
-    for tr, te in skf.split(np.zeros(len(y)), y):
-        p[lab_idx[te]] = fuse(model(tr, te), w_all)
-    rest = np.flatnonzero(~labelled)
-    if len(rest):
-        p[rest] = fuse(channel_model(xs_all, y_all, cs)(lab_idx, rest), w_all)
-    tick()
-    probabilities = pd.DataFrame({object_col: objects,
-                                  probability_column(names[0]): 1 - p,
-                                  probability_column(names[1]): p})
-    return Prediction(groups=(names[0], names[1]), frames=list(frames), scores=scores,
-                      summary=summary, curve=pd.DataFrame(curve_rows),
-                      probabilities=probabilities, channels=list(channels))

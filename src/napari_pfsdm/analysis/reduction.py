@@ -9,34 +9,21 @@ scikit-learn; the classical MDS is an eigendecomposition in plain numpy.
 
 from __future__ import annotations
 
-import os
-import warnings
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
-from ..core.table_options import carry_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 
 __all__ = [
-    "KEY_COLUMNS",
-    "attach_groups",
     "distance_table",
     "graph_coordinates",
     "neighbour_table",
     "mds_coordinates",
     "object_ids",
     "pca_scores",
-    "read_groups",
     "row_ids",
 ]
-
-#: Columns that identify an object across frames in a groups file (``track_id`` for a linked
-#: table, whose labels may change between frames).
-KEY_COLUMNS = ("movie", "label", TRACK_COLUMN)
-
 
 def object_ids(table: pd.DataFrame) -> pd.Series:
     """One id per object of a table, which trajectories follow through time.
@@ -286,114 +273,3 @@ def distance_table(table: pd.DataFrame, d: np.ndarray) -> pd.DataFrame:
     return pd.DataFrame(np.asarray(d), index=pd.Index(ids, name="object"), columns=ids)
 
 
-def read_groups(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a groups CSV: a ``group`` column plus ``label``, ``track_id`` and/or ``movie``
-    columns (``track_id`` names the objects of a linked table, whose labels change between
-    frames).
-
-    Examples of valid files::
-
-        label,group            movie,group               movie,label,group
-        1,single-axis          gastruloid01,single-axis  plate1,3,multi-axes
-        2,multi-axes           gastruloid02,multi-axes
-
-    Returns
-    -------
-    DataFrame
-        The key columns (as text) and ``group``.
-
-    Raises
-    ------
-    ValueError
-        A missing file, missing columns, a ``label`` that is not a whole number, or two groups
-        for the same object.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such groups file" if not p.exists() else
-                         f"{p} is not a file (a folder or a pipe?); give a groups CSV file")
-    try:
-        groups = pd.read_csv(p, dtype=str, comment="#", keep_default_na=False)
-    except pd.errors.EmptyDataError:
-        raise InputError(f"the groups file {p} is empty; write a header such as label,group "
-                         "and one row per object") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"the groups file {p} is not a readable CSV table ({first}); save it "
-                         "as CSV (UTF-8) with a header such as label,group") from None
-    groups.columns = [str(c).strip().lower() for c in groups.columns]
-    keys = [k for k in KEY_COLUMNS if k in groups.columns]
-    if "group" not in groups.columns or not keys:
-        raise InputError(
-            f"{p} must have a 'group' column and a 'label', 'track_id' and/or 'movie' column "
-            f"(it has {list(groups.columns)}), e.g. label,group then 3,multi-axes"
-        )
-    groups = groups[keys + ["group"]]
-    blank = groups.apply(lambda col: col.str.strip() == "").any(axis=1)
-    if blank.any():
-        rows = [str(i + 2) for i in np.flatnonzero(blank.to_numpy())]  # +2: header, from 1
-        warnings.warn(
-            f"the groups file {p.name}: row{'s' if len(rows) > 1 else ''} "
-            f"{', '.join(rows[:10])}{' …' if len(rows) > 10 else ''} (counting the header as "
-            "row 1) left out: a cell is empty", UserWarning, stacklevel=2)
-        groups = groups[~blank.to_numpy()]
-    for key in ("label", TRACK_COLUMN):
-        if key not in keys:
-            continue
-        try:
-            groups[key] = groups[key].str.strip().astype(int).astype(str)
-        except ValueError:
-            raise InputError(
-                f"The {key!r} column of the group file {p.name} must hold whole numbers."
-            ) from None
-    if groups.duplicated(keys).any():
-        raise InputError(f"{p} gives several groups to the same {'/'.join(keys)}")
-    return groups.reset_index(drop=True)
-
-
-def attach_groups(table: pd.DataFrame, groups: pd.DataFrame) -> pd.DataFrame:
-    """Add a ``group`` column to a feature table (objects without a group get ``""``)."""
-    keys = [k for k in KEY_COLUMNS if k in groups.columns]
-    missing = [k for k in keys if k not in table.columns]
-    if missing:
-        raise InputError(
-            f"the groups file has a {missing[0]!r} column but the feature table has none"
-        )
-    left = table.drop(columns=["group"], errors="ignore").copy()
-    for k in keys:
-        left["_key_" + k] = left[k].astype(str)
-    right = groups.rename(columns={k: "_key_" + k for k in keys})
-    out = left.merge(right, on=["_key_" + k for k in keys], how="left")
-    out = out.drop(columns=["_key_" + k for k in keys])
-    out["group"] = out["group"].fillna("")
-    unmatched = unmatched_groups(table, groups)
-    if unmatched:
-        warnings.warn(
-            f"{len(unmatched)} row{'s' if len(unmatched) > 1 else ''} of the groups file "
-            f"match{'es' if len(unmatched) == 1 else ''} no object of the table and "
-            f"{'are' if len(unmatched) > 1 else 'is'} not used: {'; '.join(unmatched[:5])}"
-            f"{' …' if len(unmatched) > 5 else ''} (check the movie names and labels)",
-            UserWarning, stacklevel=2)
-    return carry_options(table, out)
-
-
-def unmatched_groups(table: pd.DataFrame, groups: pd.DataFrame) -> list[str]:
-    """The rows of a groups table (:func:`read_groups`) that name no object of ``table``, in
-    words (``"movie e9, label 3 -> single-axis"``).
-
-    Examples
-    --------
-    >>> t = pd.DataFrame({"label": [1, 2]})
-    >>> unmatched_groups(t, pd.DataFrame({"label": ["1", "7"], "group": ["a", "b"]}))
-    ['label 7 -> b']
-    """
-    keys = [k for k in KEY_COLUMNS if k in groups.columns and k in table.columns]
-    if not keys or not len(groups):
-        return []
-    have = set(zip(*(table[k].astype(str) for k in keys), strict=True))
-    out = []
-    for row in groups[keys + ["group"]].itertuples(index=False):
-        if tuple(row[:-1]) not in have:
-            out.append(", ".join(f"{k} {v}" for k, v in zip(keys, row[:-1], strict=True))
-                       + f" -> {row[-1]}")
-    return out

@@ -161,7 +161,7 @@ def _with_groups(table: pd.DataFrame, groups) -> pd.DataFrame:
             return carry_options(table, out)
         return table
     if isinstance(groups, pd.DataFrame):
-        from .reduction import attach_groups
+        from .groups import attach_groups
 
         return attach_groups(table, groups)
     if not isinstance(groups, Mapping):
@@ -591,7 +591,7 @@ def report_html(
         table (:func:`~napari_pfsdm.analysis.reduction.read_groups`); default: the table's
         own ``group`` column, if any.
     predictions : Prediction or DataFrame, optional
-        What :func:`~napari_pfsdm.analysis.prediction.predict_outcome` returned, or a
+        What :func:`~napari_pfsdm.analysis.outcome.predict_outcome` returned, or a
         predictions table (``p_<group>`` columns) with ``prediction_info``, its sidecar (the
         ``curve`` and ``balanced_accuracy`` that ``pfsdm predict`` writes there).
     labels : ndarray or mapping, optional

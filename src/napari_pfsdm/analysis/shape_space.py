@@ -29,7 +29,7 @@ from ..core.table_schema import TRACK_COLUMN, pc_column, table_ndim
 from ..errors import InputError
 from .tables import embeddings_from_table, left_out_reasons, weighted_features
 
-__all__ = ["ShapePCA", "shape_modes", "HARMONIC_WORDS"]
+__all__ = ["HARMONIC_WORDS", "ShapePCA", "check_same_options", "method_options", "shape_modes"]
 
 #: What each Fourier harmonic of a ring describes, in words (harmonic 0 … 4).
 HARMONIC_WORDS = ("thickness", "off-centre", "elongation", "triangularity", "squareness")
@@ -44,10 +44,26 @@ _METHOD_KEYS = tuple(o.name for o in OPTIONS
                      if o.name not in SELECTION_OPTIONS + MIDLINE_OPTIONS) + ("ndim",)
 
 
-def _method_options(table: pd.DataFrame) -> dict:
+def method_options(table: pd.DataFrame) -> dict:
+    """The options of a table that another must share to be compared with it (the method's,
+    and the objects' dimension)."""
     opts = table_options(table)
     return {k: opts[k] for k in _METHOD_KEYS if k in opts}
 
+
+def check_same_options(reference: dict, table: pd.DataFrame, what: str = "the reference"
+                       ) -> None:
+    """Refuse ``table`` when its :func:`method_options` differ from ``reference``'s (another
+    table's), naming each option: their features are then not comparable."""
+    theirs = method_options(table)
+    differ = sorted(k for k in set(reference) | set(theirs)
+                    if reference.get(k) != theirs.get(k))
+    if differ:
+        said = "; ".join(f"{k}: {what} {reference.get(k)!r}, this table {theirs.get(k)!r}"
+                         for k in differ)
+        raise InputError(
+            f"this table was measured with other options than {what}, so its features are "
+            f"not comparable ({said}). Measure both with the same options.")
 
 class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
     """PCA of PF-SDM features as a model fitted on one table and applied to others.
@@ -164,7 +180,7 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         x, ok = self._features(table)
         if len(x) < 2:
             raise InputError("PCA needs at least two measured objects (rows without error)")
-        self.options_ = _method_options(table)
+        self.options_ = method_options(table)
         if self._regressors():
             c = table.loc[ok, self._regressors()].to_numpy(float)
             self.covariate_mean_ = c.mean(axis=0)
@@ -199,15 +215,8 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
     def _check(self, table: pd.DataFrame) -> None:
         if not hasattr(self, "components_"):
             raise InputError("fit the shape space on a reference table first")
-        theirs = _method_options(table)
-        differ = sorted(k for k in set(self.options_) | set(theirs)
-                        if self.options_.get(k) != theirs.get(k))
-        if differ:
-            said = "; ".join(f"{k}: reference {self.options_.get(k)!r}, this table "
-                             f"{theirs.get(k)!r}" for k in differ)
-            raise InputError(
-                "this table was measured with other options than the reference, so its "
-                f"features are not comparable ({said}). Measure both with the same options.")
+        check_same_options(self.options_, table)
+
 
     def transform(self, table: pd.DataFrame) -> pd.DataFrame:
         """Scores of ``table``'s measured rows in the reference's space: the key columns

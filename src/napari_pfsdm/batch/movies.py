@@ -56,10 +56,10 @@ def match_name(name: str, names: list[str]) -> str | None:
     >>> match_name("e01", ["e1.tif"]) is None
     True
     """
-    key = movie_name(Path(str(name).replace("\\", "/")).name).lower()
-    hits = [n for n in names if movie_name(Path(str(n).strip().replace("\\", "/")).name)
-            .lower() == key]
-    if len(set(hits)) > 1:
+    from ..analysis.groups import match_movies
+
+    hits = [n for n, movie in match_movies(list(names), [name]).items() if movie == name]
+    if len(hits) > 1:
         raise InputError(f"{', '.join(map(repr, hits))} all name the movie {name!r}: name each "
                          "movie once")
     return hits[0] if hits else None
@@ -132,7 +132,14 @@ def _refuse_twice(paths: list[Path], what: str) -> None:
 
 def unique_names(paths: list[Path]) -> list[str]:
     """One movie name per path (the ``movie`` column): the file name without its suffix, or,
-    where two files share it in different folders, the path without the suffix.
+    where files share it in different folders, as few of the folders before it as tell them
+    apart (``plateA/e1``, ``plateB/e1``).
+
+    Examples
+    --------
+    >>> unique_names([Path("/data/2024/plateA/e1.tif"), Path("/data/2024/plateB/e1.tif"),
+    ...               Path("/data/2024/plateB/e2.tif")])
+    ['plateA/e1', 'plateB/e1', 'e2']
 
     Raises
     ------
@@ -141,9 +148,8 @@ def unique_names(paths: list[Path]) -> list[str]:
         one folder): their rows could not be told apart, so they are refused by name.
     """
     names = [movie_name(p) for p in paths]
-    if len(set(names)) != len(names):
-        # keep names unique (e.g. same file name in two folders)
-        names = [_path_name(p) for p in paths]
+    if len(set(names)) != len(names):  # the same file name in several folders
+        names = _short_names(paths, names)
     groups: dict[str, list[Path]] = {}
     for n, p in zip(names, paths, strict=True):
         groups.setdefault(n, []).append(p)
@@ -160,9 +166,20 @@ def unique_names(paths: list[Path]) -> list[str]:
     return names
 
 
-def _path_name(path: Path) -> str:
-    """The path without the movie suffix (``.ome.tif``, ``.zarr``, …), with "/"."""
-    return str(path.with_name(movie_name(path))).replace(os.sep, "/")
+def _short_names(paths: list[Path], names: list[str]) -> list[str]:
+    """Each name that several paths share, with as many of its folders as tell them apart."""
+    out = list(names)
+    shared = {n for n in names if names.count(n) > 1}
+    for name in shared:
+        at = [i for i, n in enumerate(names) if n == name]
+        parents = [Path(os.path.abspath(paths[i])).parent.parts for i in at]
+        for depth in range(1, max(len(p) for p in parents) + 1):
+            tried = ["/".join((*p[len(p) - depth:], name)) for p in parents]
+            if len(set(tried)) == len(tried):
+                break
+        for i, t in zip(at, tried, strict=True):
+            out[i] = t
+    return out
 
 
 def pair_movies(labels: list[Path], intensity: list[Path] | None = None) -> list[Movie]:

@@ -1,9 +1,9 @@
 """Plots made from a feature table (PCA trajectories, MDS map) and the checked reading of a
 features CSV, for the command line.
 
-The reductions themselves (PCA, MDS, the distance-table layout, groups) are
-:mod:`napari_pfsdm.analysis.reduction`, shared with the napari plugin; their names are
-re-exported here. Headless: figures are drawn with :class:`matplotlib.figure.Figure` (no
+The reductions themselves (PCA, MDS, the distance-table layout) are
+:mod:`napari_pfsdm.analysis.reduction`, shared with the napari plugin. Headless: figures are
+drawn with :class:`matplotlib.figure.Figure` (no
 pyplot, no GUI backend) and saved to PNG atomically.
 """
 
@@ -16,34 +16,14 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import FOLDED_WARNING
-from ..analysis.reduction import (
-    KEY_COLUMNS,
-    attach_groups,
-    distance_table,
-    mds_coordinates,
-    object_ids,
-    pca_scores,
-    read_groups,
-    row_ids,
-)
+from ..analysis.reduction import object_ids
 from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
 from ..errors import InputError
 from ..io import read_table_csv, save_figure
 
-__all__ = [
-    "KEY_COLUMNS",
-    "attach_groups",
-    "distance_table",
-    "load_features",
-    "mds_coordinates",
-    "object_ids",
-    "pca_scores",
-    "plot_mds",
-    "plot_trajectories",
-    "read_groups",
-    "row_ids",
-]
+__all__ = ["load_features", "plot_mds", "plot_trajectories"]
+
 
 def _colour_key(frame: pd.DataFrame, by: str) -> tuple[np.ndarray, list[str] | None]:
     if by == "group" and "group" in frame.columns:

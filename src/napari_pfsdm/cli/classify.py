@@ -1,181 +1,200 @@
-"""``pfsdm classify`` and ``pfsdm predict``: a later outcome (two groups) from the objects'
-features at chosen frames."""
+"""``pfsdm classify`` and ``pfsdm predict``: the objects' groups (two or more) from their
+features at chosen frames, and a model of one table applied to another."""
 
 from __future__ import annotations
 
 import argparse
 
-from .common import UserError, _add_force, _check_output, _fraction, _note, _say, _whole
-from .tables import _follow_objects, _measured, _with_groups
+from .common import (
+    UserError,
+    _add_force,
+    _add_groups,
+    _check_output,
+    _note,
+    _say,
+    _whole,
+)
+from .tables import _follow_objects, _with_groups
 
 
-def _check_groups(table, groups, path: str) -> None:
-    """Say in plain words when the groups file does not name the table's objects."""
-    from ..analysis.classification import format_frames
-
-    named = sorted(set(groups["group"]))
-    matched = sorted(set(table["group"]) - {""})
-    if len(named) != 2:
-        raise UserError(f"classify needs exactly two groups; {path} gives {len(named)}: "
-                        f"{', '.join(named) or '(none)'}")
-    if len(matched) == 2:
-        return
-    keys = [k for k in ("movie", "label") if k in groups.columns]
-    have = {k: sorted(set(table[k].astype(str))) for k in keys}
-    desc = "; ".join(
-        f"the table's {k}s are {format_frames(map(int, v)) if k == 'label' else ', '.join(v[:5])}"
-        for k, v in have.items()
-    )
-    missing = sorted(set(named) - set(matched))
-    raise UserError(
-        f"{path} names groups {' and '.join(named)}, but no measured object of the table "
-        f"belongs to {' or '.join(missing)} ({desc}; the groups file gives "
-        f"{', '.join(f'{k} ' + ', '.join(sorted(set(groups[k]))[:5]) for k in keys)}): "
-        "its labels/movies must be those of the table"
-    )
-
-
-def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> None:
-    """Refuse, in plain words, splits that scikit-learn cannot make."""
-    import math
-
-    n = len(y)
-    n1 = int(y.sum())
-    counts = {positive: n1, next(g for g in names if g != positive): n - n1}
-    n_test = math.ceil(test_size * n)
-    n_train = n - n_test
-    small = [g for g, c in counts.items() if c < 2]
-    txt = ", ".join(f"{c} {g}" for g, c in counts.items())
-    if small:
-        raise UserError(f"classify needs at least 2 objects in each group; there are {txt}. "
-                        "Measure more objects or choose frames where more are present")
-    if n_test < 2 or n_train < 2:
-        raise UserError(
-            f"{n} objects ({txt}) are too few for a {test_size:.0%} test split: it would hold "
-            f"{n_test} object(s), and each side of a split needs one of each group. Measure "
-            "more objects, or change --test-size (e.g. --test-size 0.5)"
-        )
-
-
-def cmd_predict(args: argparse.Namespace) -> int:
-    """Run ``pfsdm predict``: each object's probability of a group, out of fold."""
+def _prepared(args: argparse.Namespace, path: str):
+    """The table at ``path`` with its groups (``args.groups``, ``args.group_column``), its
+    objects followed over several frames, and the frames chosen."""
     from ..analysis import classification as clf
-    from ..analysis.prediction import predict_outcome
-    from ..analysis.reduction import object_ids
     from ..batch.reports import load_features
-    from ..core.table_options import table_options
-    from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
-    table = load_features(args.features)
-    table, _ = _with_groups(table, args.groups, args.quiet)
+    table = load_features(path)
+    table, groups = _with_groups(table, args.groups, args.quiet, args.group_column)
     frames = clf.parse_frames(args.frames) if args.frames else None
-    if frames is None or len(frames) > 1:
+    if frames is not None and not table["frame"].isin(frames).any():
+        raise UserError(f"no rows in frames {args.frames}: the table has frames "
+                        f"{clf.format_frames(table['frame'])}; choose frames among these")
+    if frames is None or len(frames) > 1:  # one object over several frames: its id follows it
         table = _follow_objects(table, None, args.quiet, command="predict")
-    table = table.assign(object=object_ids(table).to_numpy())
-    groups = {o: g for o, g in zip(table["object"], table["group"], strict=True) if g}
+    return table, groups, frames
 
+
+def _object_groups(table) -> dict[str, str]:
+    """Object id (``movie/track`` or ``movie/label``) → group, for the objects with one."""
+    from ..analysis.reduction import object_ids
+
+    ids = object_ids(table).to_numpy()
+    return {o: g for o, g in zip(ids, table["group"], strict=True) if g}
+
+
+def _ticker(what: str, quiet: bool):
     def tick(done: int, total: int) -> None:
         if done == total or done % max(1, total // 5) == 0:
-            _note(f"predicting: step {done}/{total}", args.quiet)
+            _note(f"{what}: step {done}/{total}", quiet)
 
-    pred = predict_outcome(table, groups, frames, object_col="object", n_splits=args.splits,
-                           n_repeats=args.repeats, seed=args.seed, progress=tick)
-    summary = pred.summary.reset_index().rename(columns={"index": "method"})
-    write_table_csv(pred.probabilities, out, table_options(table), table_type="predictions",
-                    extra={"features": str(args.features), "groups": str(args.groups),
-                           "frames": pred.frames, "channels": pred.channels,
-                           "balanced_accuracy": summary.to_dict("records"),
-                           "curve": pred.curve.to_dict("records")})
-    for row in summary.itertuples():
-        _say(f"{row.method:>16}: balanced accuracy {row.mean:.2f} ± {row.std:.2f}",
-             args.quiet)
-    _say(f"wrote {out}: {', '.join(pred.columns())} for {len(pred.probabilities)} objects "
-         "(out-of-fold for those with a group)", args.quiet)
-    return 0
+    return tick
+
+
+def _evaluation(args: argparse.Namespace, table, frames):
+    """The cross-validated prediction of the groups (analysis.outcome.predict_outcome)."""
+    from ..analysis.outcome import predict_outcome
+
+    try:
+        return predict_outcome(table, _object_groups(table), frames, n_splits=args.splits,
+                               n_repeats=args.repeats, seed=args.seed,
+                               progress=_ticker("predicting", args.quiet))
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _print_scores(pred, quiet: bool) -> None:
+    """The balanced accuracy of each family and of the fusion, and the confusion matrix."""
+    from ..analysis.outcome import FAMILY_WORDS
+
+    counts = pred.probabilities.loc[pred.probabilities["group"] != "", "group"].value_counts()
+    _say(f"{pred.n_scored} objects with a group ("
+         + ", ".join(f"{counts.get(g, 0)} {g}" for g in pred.groups)
+         + f"), frames {', '.join(map(str, pred.frames))}, "
+         f"{int(pred.summary.loc['fused', 'n_splits'])} stratified splits (20 % test), each "
+         "object with all its frames on one side", quiet)
+    for method, row in pred.summary.iterrows():
+        words = "fused (weights chosen inside each training split)" if method == "fused" \
+            else FAMILY_WORDS.get(method.replace(" alone", ""), method) + (
+                " alone" if method.endswith("alone") else "")
+        sd = f" ± {row['std']:.2f}" if method != "chance" else ""
+        _say(f"  {words:>52}: balanced accuracy {row['mean']:.2f}{sd}", quiet)
+    _say("confusion matrix of the fused model (rows: true group, columns: predicted; counts "
+         "over the test splits):", quiet)
+    _say(pred.confusion.to_string(), quiet)
+
+
+def _family_rows(pred):
+    """One row per family (and the fusion, chance): what ``classify -o`` writes."""
+    import pandas as pd
+
+    from ..analysis.outcome import FAMILY_WORDS
+
+    rows = []
+    for method, row in pred.summary.iterrows():
+        family = method.replace(" alone", "")
+        rows.append({"family": FAMILY_WORDS.get(family, family), "balanced_accuracy":
+                     float(row["mean"]), "sd": float(row["std"]), "splits": int(row["n_splits"]),
+                     "objects": pred.n_scored, "groups": len(pred.groups)})
+    return pd.DataFrame(rows)
 
 
 def cmd_classify(args: argparse.Namespace) -> int:
-    """Run ``pfsdm classify``: the balanced accuracy of shape, reporter and their fusion."""
-    import numpy as np
-
-    from ..analysis import classification as clf
-    from ..analysis.reduction import object_ids
-    from ..batch.reports import load_features
-    from ..core.table_schema import has_channel
+    """Run ``pfsdm classify``: how well each feature family and their fusion tell the groups
+    apart (balanced accuracy, confusion matrix)."""
     from ..io import write_table_csv
 
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])
-    table = load_features(args.features)
-    table, groups = _with_groups(table, args.groups, args.quiet)
-    frames = clf.parse_frames(args.frames)
-    if not table["frame"].isin(frames).any():
-        raise UserError(f"no rows in frames {args.frames}: the table has frames "
-                        f"{clf.format_frames(table['frame'])}; choose frames among these")
-    table = table[table["frame"].isin(frames)]
-    if len(frames) > 1:  # one object over several frames: its id must follow it
-        table = _follow_objects(table, None, args.quiet, command="classify")
-    _check_groups(table, groups, args.groups)
-    table = table[table["group"] != ""].copy()
-    table["object"] = object_ids(table)
-    has_int = has_channel(table.columns, "intensity")
-    ok, left = _measured(table, ["shape", "intensity"] if has_int else ["shape"], "rows",
-                         args.quiet, need=0)
-    # an object is used only when it has features in every chosen frame
-    bad_objects = set(object_ids(left)) if len(left) else set()
-    seen = ok.groupby("object")["frame"].nunique()
-    incomplete = set(seen.index[seen < len(frames)]) | (set(table["object"]) - set(seen.index))
-    dropped = sorted(bad_objects | incomplete)
-    if incomplete - bad_objects:
-        shown = ", ".join(sorted(incomplete - bad_objects)[:5])
-        _note(f"left out {len(incomplete - bad_objects)} object(s) absent from some of frames "
-              f"{clf.format_frames(frames)}: {shown}", args.quiet)
-    table = ok[~ok["object"].isin(dropped)]
-    names = sorted(set(groups["group"]))
-    positive = args.positive or names[1]
-    if positive not in names:
-        raise UserError(f"--positive {positive!r} is not one of the groups {names}")
-    group_of = table.drop_duplicates("object").set_index("object")["group"]
-    objects = sorted(group_of.index)
-    y = (group_of.loc[objects].to_numpy() == positive).astype(int)
-    _check_class_sizes(y, names, positive, args.test_size)
-    xs, objects = clf.feature_matrix(table, "shape", frames, object_col="object")
-    xi = clf.feature_matrix(table, "intensity", frames, object_col="object")[0] if has_int else xs
-    y = (group_of.loc[objects].to_numpy() == positive).astype(int)
-    splits = clf.make_splits(y, n_splits=args.splits, test_size=args.test_size,
-                             n_repeats=args.repeats, seed=args.seed)
-
-    def tick(done: int, total: int) -> None:
-        if done == total or done % max(1, total // 5) == 0:
-            _note(f"classifying: split {done}/{total}", args.quiet)
-
-    scores = clf.evaluate(clf.logistic_model(xs, xi, y), y, splits, seed=args.seed,
-                          progress=tick)
-    summary = clf.summarize(scores)
-    if not has_int:
-        summary = summary.loc[["shape"]]
-    n1 = int(y.sum())
-    other = names[0] if positive == names[1] else names[1]
-    _say(f"{len(y)} objects ({n1} {positive}, {len(y) - n1} {other}), frames "
-         f"{clf.format_frames(frames)}, {len(splits)} stratified splits "
-         f"({args.test_size:.0%} test)", args.quiet)
-    with np.printoptions(precision=3):
-        import pandas as pd
-
-        with pd.option_context("display.width", 120, "display.precision", 3):
-            print(summary.to_string())
-    if "fusion (optimistic, test-tuned)" in summary.index:
-        _say("note: 'optimistic' tunes the fusion weight on the test split as the paper did; "
-             "'nested' is the honest estimate", args.quiet)
+    table, groups, frames = _prepared(args, args.features)
+    pred = _evaluation(args, table, frames)
+    _print_scores(pred, args.quiet)
     if args.output:
-        out = summary.reset_index().rename(columns={"index": "features"})
-        write_table_csv(out, args.output, {}, table_type="classification", extra={
-            "features": str(args.features), "frames": frames, "positive": positive,
-            "splits": len(splits), "objects_left_out": dropped,
-            "left_out": left.to_dict("records")})
-        _say(f"wrote {args.output}", args.quiet)
+        write_table_csv(_family_rows(pred), args.output, {}, table_type="classification",
+                        extra={"features": str(args.features), "groups": str(args.groups),
+                               "group_column": args.group_column, "frames": pred.frames,
+                               "confusion": {"groups": list(pred.groups),
+                                             "counts": pred.confusion.to_numpy().tolist()}})
+        _say(f"wrote {args.output}: one row per family with its balanced_accuracy", args.quiet)
     return 0
+
+
+def cmd_predict(args: argparse.Namespace) -> int:
+    """Run ``pfsdm predict``: each object's probability of every group, out of fold; or, with
+    ``--on``, of another table's objects from a model of this table's."""
+    from ..core.table_options import table_options
+    from ..io import write_table_csv
+
+    inputs = [args.features] + ([args.on] if args.on else [])
+    out = _check_output(args.output, force=args.force, inputs=inputs)
+    table, groups, frames = _prepared(args, args.features)
+    if args.on:
+        return _predict_other(args, table, frames, out)
+    pred = _evaluation(args, table, frames)
+    _print_scores(pred, args.quiet)
+    summary = pred.summary.reset_index().rename(columns={"index": "method"})
+    probs = _with_keys(pred.probabilities, table)
+    write_table_csv(probs, out, table_options(table), table_type="predictions",
+                    extra={"features": str(args.features), "groups": str(args.groups),
+                           "frames": pred.frames, "channels": pred.channels,
+                           "balanced_accuracy": summary.to_dict("records"),
+                           "confusion": {"groups": list(pred.groups),
+                                         "counts": pred.confusion.to_numpy().tolist()},
+                           "curve": pred.curve.to_dict("records")})
+    _say(f"wrote {out}: predicted and {', '.join(pred.columns())} for {len(probs)} objects "
+         "(out-of-fold for those with a group)", args.quiet)
+    return 0
+
+
+def _with_keys(probabilities, table):
+    """The probabilities with the key columns of each object's first row (movie, track_id,
+    label) before them."""
+    from ..analysis.reduction import object_ids
+
+    keys = [c for c in ("movie", "track_id", "label") if c in table.columns]
+    first = table.assign(object=object_ids(table).to_numpy()).drop_duplicates("object")
+    out = probabilities.merge(first[["object", *keys]], on="object", how="left")
+    return out[["object", *keys, *[c for c in probabilities.columns if c != "object"]]]
+
+
+def _predict_other(args: argparse.Namespace, table, frames, out) -> int:
+    """``pfsdm predict TRAIN --on OTHER``: the model of TRAIN's labelled objects applied to
+    OTHER's objects."""
+    from ..analysis.outcome import fit_outcome
+    from ..batch.reports import load_features
+    from ..core.table_options import table_options
+    from ..io import write_table_csv
+
+    try:
+        model = fit_outcome(table, _object_groups(table), frames, seed=args.seed)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    other = load_features(args.on)
+    if len(model.frames) > 1:
+        other = _follow_objects(other, None, args.quiet, command="predict")
+    try:
+        got = model.predict(other, say=lambda m: _note(f"warning: {m}"))
+    except ValueError as exc:
+        raise UserError(f"{args.on}: {exc}") from None
+    write_table_csv(got, out, table_options(other), table_type="predictions", extra={
+        "trained_on": str(args.features), "groups": str(args.groups),
+        "predicted": str(args.on), "frames": model.frames, "channels": model.channels,
+        "weights": list(model.weights)})
+    counts = got["predicted"].value_counts()
+    _say(f"wrote {out}: {len(got)} objects of {args.on} predicted by the model of "
+         f"{args.features} (" + ", ".join(f"{counts.get(g, 0)} {g}" for g in model.groups)
+         + ")", args.quiet)
+    return 0
+
+
+def _add_common(p: argparse.ArgumentParser, frames_required: bool) -> None:
+    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    p.add_argument("--frames", required=frames_required, metavar="RANGE",
+                   help="frames whose features are used, e.g. 0-5 or 0,5,10"
+                        + ("" if frames_required else " (default: all)"))
+    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+                   help="splits per repeat (default 5)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
+    p.add_argument("--seed", type=int, default=0)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -184,58 +203,53 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     fmt = argparse.RawDescriptionHelpFormatter
     p = sub.add_parser(
         "classify", formatter_class=fmt,
-        help="predict a later outcome (two groups) from early frames",
+        help="how well shape, reporter and classic measures tell the groups apart",
         description="""\
-Predict each object's group (e.g. single-axis vs multi-axes) from its features at chosen
-(early) frames, as in the paper: logistic regression with balanced class weights on shape and
-on reporter features, and their late fusion, scored by repeated stratified shuffle splits.
-Every object must be present, without error, in every chosen frame.
+How well each family of features tells the objects' groups apart (two groups or more: clones,
+genotypes, an outcome such as single vs multiple axes) from their features at chosen frames:
+the shape, the reporter and the classic measures (area, circularity, ...) each alone, and their
+late fusion with weights chosen inside each training split. Scored by the balanced accuracy
+over repeated stratified splits (each object, with all its frames, on one side of every
+split) against chance (1 / groups), with the fused model's confusion matrix.
 
 example:
-  pfsdm classify features.csv --groups groups.csv --frames 0-10
+  pfsdm classify features.csv --groups groups.csv --group-column clone --frames 0-3 \\
+      -o scores.csv
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
-                   help="CSV with a 'group' column (two groups) and 'label'/'movie' columns")
-    p.add_argument("--frames", required=True, metavar="RANGE",
-                   help="frames whose features are used, e.g. 0-10 or 0,5,10")
-    p.add_argument("--positive", metavar="GROUP",
-                   help="the group to detect (default: the second name alphabetically)")
-    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
-                   help="splits per repeat (default 5)")
-    p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
-                   help="test fraction (default 0.2)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1), default=3, help="repeats (default 3)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
+    _add_common(p, frames_required=True)
+    _add_groups(p, required=True)
+    p.add_argument("-o", "--output", metavar="SCORES.csv",
+                   help="also write the scores: one row per family with its balanced_accuracy "
+                        "(the confusion matrix in SCORES.csv.json)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
 
     p = sub.add_parser(
         "predict", formatter_class=fmt,
-        help="each object's probability of a group, from shape, reporter and classic measures",
+        help="each object's probability of every group; or of another table's objects",
         description="""\
 Predict each object's group from its features at the chosen frames: the shape, the reporter
-and the classic measures (area, circularity, ...) as three channels, fused late with weights
-chosen inside each training split only. Prints the balanced accuracy of the fusion, of each
-channel alone and of chance over repeated stratified splits; writes each object's p_<group>
-(out-of-fold for the objects with a group, predicted for the others) with the scores and the
-accuracy against the last frame used in its .csv.json.
+and the classic measures (area, circularity, ...) fused late with weights chosen inside each
+training split only. Prints the balanced accuracy of the fusion, of each family alone and of
+chance, and the confusion matrix; writes each object's predicted group and p_<group> for every
+group (out-of-fold for the objects with a group, predicted for the others).
 
-example:
+With --on OTHER.csv, a model of all the objects of FEATURES.csv that have a group predicts
+the objects of OTHER.csv (a second microscope, a new plate): one row per object of OTHER
+(movie, label or track_id, predicted, p_<group>). OTHER must be measured with the same
+options; when the classic measures' sizes are in pixels of different or unknown pixel sizes,
+a warning says so.
+
+examples:
   pfsdm predict features.csv --groups groups.csv --frames 0-5 -o predictions.csv
+  pfsdm predict labA.csv --groups groups.csv --group-column clone --frames 0-3 \\
+      --on labB.csv -o labB_predicted.csv
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
-                   help="CSV with a 'group' column (two groups) and 'label'/'track_id'/"
-                        "'movie' columns; objects without a group are predicted only")
-    p.add_argument("--frames", metavar="RANGE",
-                   help="frames whose features are used, e.g. 0-5 (default: all)")
-    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
-                   help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
-    p.add_argument("--seed", type=int, default=0)
+    _add_common(p, frames_required=False)
+    _add_groups(p, required=True, use="objects without a group are predicted only")
+    p.add_argument("--on", metavar="OTHER.csv",
+                   help="predict this table's objects with a model of FEATURES.csv's")
     p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")

@@ -156,10 +156,21 @@ def _fraction(flag: str) -> Callable[[str], float]:
     return parse
 
 
+def _add_groups(p: argparse.ArgumentParser, required: bool = False, use: str = "") -> None:
+    """``--groups`` and ``--group-column``, as every command that reads groups takes them."""
+    p.add_argument("--groups", metavar="GROUPS.csv", required=required,
+                   help="CSV of the objects' groups as the lab keeps it: a 'movie' column "
+                        "(names with or without folder and extension), and/or 'label' or "
+                        "'track_id', and grouping columns (group, clone, genotype, …)"
+                        + (f"; {use}" if use else ""))
+    p.add_argument("--group-column", metavar="COLUMN",
+                   help="the groups file's column to group by (default: 'group', or its only "
+                        "grouping column); its other columns are kept in the outputs")
+
+
 def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
     """``--groups``, ``--link``, ``--force`` and ``-q`` as the table-reading commands take them."""
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
+    _add_groups(p)
     p.add_argument("--link", choices=TABLE_LINKS, help="as for 'pfsdm trajectories'")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")

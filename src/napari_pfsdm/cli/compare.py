@@ -10,7 +10,17 @@ from typing import Any
 # when a map is drawn from the neighbour graph, and how: one set of numbers for the command
 # line and the plugin (napari_pfsdm.analysis.reduction)
 from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
-from .common import UserError, _add_force, _check_output, _note, _option_type, _say, _Step, _whole
+from .common import (
+    UserError,
+    _add_force,
+    _add_groups,
+    _check_output,
+    _note,
+    _option_type,
+    _say,
+    _Step,
+    _whole,
+)
 from .tables import _measured, _with_groups
 
 #: Column that carries a row's position in the feature file through the selections.
@@ -133,7 +143,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet)
+        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
     channels = ["shape"] + (["intensity"] if args.intensity_weight else [])
     table, left = _measured(table, channels, "objects", args.quiet)
     n = len(table)
@@ -296,7 +306,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                    help=f"neighbours per object for --rerank (default {RERANK_K}: about the "
                         "number of objects per kind, at most); with --neighbours the graph "
                         "holds 3 K")
-    p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
+    _add_groups(p, use="the map coloured by group")
     p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
                    help="refuse larger matrices (default 5000; --neighbours has no limit)")
     _add_force(p)

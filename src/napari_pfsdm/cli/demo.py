@@ -176,7 +176,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         return rc
     # the map of the last frame, titled with what it shows
     from ..analysis.features import drop_failed
-    from ..analysis.reduction import attach_groups, mds_coordinates, read_groups
+    from ..analysis.groups import attach_groups, read_groups
+    from ..analysis.reduction import mds_coordinates
     from ..analysis.tables import distance_matrix
     from ..batch.reports import load_features, plot_mds
 

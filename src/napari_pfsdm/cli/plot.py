@@ -36,7 +36,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
                         f"columns that can be drawn: {', '.join(numeric_columns(table)[:25])}")
     table = _follow_objects(table, args.link, args.quiet, command="plot")
     if args.groups:
-        table, _groups = _with_groups(table, args.groups, args.quiet)
+        table, _groups = _with_groups(table, args.groups, args.quiet, args.group_column)
     fig = plt.figure(figsize=(7, 4.5))
     ax = fig.add_subplot()
     lines = plot_over_time(ax, table, args.column, selected=args.objects or ())

@@ -53,7 +53,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     table = load_features(args.features)
     table = _follow_objects(table, args.link, args.quiet, command="report")
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet)
+        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
     labels = None
     if args.labels:
         from ..analysis.report import check_labels

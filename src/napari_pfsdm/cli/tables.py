@@ -8,17 +8,18 @@ from typing import Any
 from .common import UserError, _note, _Step
 
 
-def _with_groups(table, path: str, quiet: bool = False):
-    """The table with its ``group`` column from the groups file at ``path``, and the groups;
-    rows of the file that were left out or match no object are named on stderr (even with
-    ``-q``: they are warnings, not progress)."""
+def _with_groups(table, path: str, quiet: bool = False, column: str | None = None):
+    """The table with its ``group`` column (the groups file's ``column``) and the file's other
+    grouping columns, from the groups file at ``path``, and the groups; rows of the file that
+    were left out or match no object are named on stderr (even with ``-q``: they are
+    warnings, not progress)."""
     import warnings
 
-    from ..analysis.reduction import attach_groups, read_groups
+    from ..analysis.groups import attach_groups, read_groups
 
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always", UserWarning)
-        groups = read_groups(path)
+        groups = read_groups(path, column)
         out = attach_groups(table, groups)
     for w in said:
         if issubclass(w.category, UserWarning):

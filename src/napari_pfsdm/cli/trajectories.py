@@ -5,7 +5,16 @@ from __future__ import annotations
 
 import argparse
 
-from .common import TABLE_LINKS, UserError, _add_force, _check_output, _say, _Step, _whole
+from .common import (
+    TABLE_LINKS,
+    UserError,
+    _add_force,
+    _add_groups,
+    _check_output,
+    _say,
+    _Step,
+    _whole,
+)
 from .tables import _follow_objects, _measured, _with_groups
 
 
@@ -29,7 +38,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     table = load_features(args.features)
     table = _follow_objects(table, args.link, args.quiet)
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet)
+        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
     has_int = has_channel(table.columns, "intensity")
     channels = {"shape": ["shape"], "intensity": ["intensity"],
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
@@ -98,8 +107,7 @@ examples:
     p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
     p.add_argument("--plot", metavar="PNG", help="draw the trajectories")
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label' and/or 'movie' columns")
+    _add_groups(p, use="trajectories coloured by group")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
     p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",

@@ -144,7 +144,7 @@ class Analysis:
     comparison : dict
         Distances computed by the comparison view, by what was compared.
     prediction : object or None
-        The last prediction (:func:`napari_pfsdm.analysis.prediction.predict_outcome`).
+        The last prediction (:func:`napari_pfsdm.analysis.outcome.predict_outcome`).
     """
 
     layer_id: str

@@ -2,7 +2,7 @@
 
 Groups come from the plugin's model (a groups CSV, the layer's ``metadata["groups"]``) or from
 clicks: select a label in the viewer and give it a class. The model is the paper's late fusion,
-:func:`napari_pfsdm.analysis.prediction.predict_outcome` (weights chosen inside each training
+:func:`napari_pfsdm.analysis.outcome.predict_outcome` (weights chosen inside each training
 split), run in a napari worker with Cancel. Each object's probabilities go into the table, the
 layer's ``features`` and the export (``p_<group>``).
 """
@@ -25,7 +25,7 @@ from ._widgets import PluginDock, analysed_layers, scrolled, stack
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
     """Object → group from a CSV with ``label,group`` or ``track_id,group`` columns; on a
     linked time-lapse a label names the track it starts."""
-    from ..analysis.reduction import read_groups
+    from ..analysis.groups import read_groups
 
     groups = read_groups(path)
     col = "track_id" if "track_id" in groups.columns else "label"
@@ -51,7 +51,7 @@ def _predict(analysis: Analysis, table, groups, frames, object_col, stopped):
     """The prediction from ``table`` (the analysis's when the prediction started), and that
     table with its probabilities, indexed, with the layer's features made from it (the GUI
     thread only shows them)."""
-    from ..analysis.prediction import predict_outcome
+    from ..analysis.outcome import predict_outcome
 
     def progress(done, total):
         if stopped():
