@@ -11,7 +11,7 @@ scikit-learn always, a small CNN when ``torch`` is installed) on the very same s
   contrast": two plain numbers per frame (relative growth, reporter mean/peak) that PF-SDM's
   scale and brightness invariances remove on purpose; it shows how much of the task they
   solve on their own;
-* ``gastruloid_fused.csv``: :func:`napari_pfsdm.analysis.prediction.predict_outcome` on the same
+* ``gastruloid_fused.csv``: :func:`napari_pfsdm.analysis.outcome.predict_outcome` on the same
   measured table, with the classic measures (:mod:`napari_pfsdm.analysis.classic`: area,
   perimeter, axis lengths, eccentricity, solidity, circularity, the reporter's mean, integral
   and polarity) as a third channel beside PF-SDM shape and intensity: balanced accuracy (mean,
@@ -429,7 +429,7 @@ def score_fused(
     """PF-SDM shape and intensity with the classic measures as a third channel (pure).
 
     Measures the chosen frames, then runs
-    :func:`napari_pfsdm.analysis.prediction.predict_outcome` with the channels shape,
+    :func:`napari_pfsdm.analysis.outcome.predict_outcome` with the channels shape,
     intensity and classic (its own stratified splits: 5 × 20 % test × ``n_repeats``, seeded
     by ``seed``; the fusion weights chosen inside each training split).
 
@@ -454,7 +454,7 @@ def score_fused(
         (predict_outcome scores the balanced accuracy only); ``time_s`` end to end
         (measure and all fits).
     """
-    from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.outcome import predict_outcome
 
     t0 = time.perf_counter()
     table = cl.measure_movies(data.labels, data.intensity, frames=sel, **(measure_options or {}))
@@ -471,7 +471,7 @@ def score_fused(
             "accuracy_std": np.nan, "balanced_accuracy_mean": float(r["mean"]),
             "balanced_accuracy_std": float(r["std"]), "alpha_mean": np.nan,
             "n_splits": int(r["n_splits"]), "time_s": seconds,
-            "notes": "napari_pfsdm.analysis.prediction.predict_outcome, channels shape + "
+            "notes": "napari_pfsdm.analysis.outcome.predict_outcome, channels shape + "
                      "intensity + classic (regionprops measures and reporter mean, integral, "
                      "polarity); fusion weights chosen inside each training split",
         })

@@ -10,9 +10,10 @@ tests; ``python tests/recorded.py`` writes the files again).
   ``classification.evaluate`` (inner CV and hold-out), ``predict_outcome`` (default call and
   variants).
 
-Recorded with the numpy SVD PCA and the two fusion loops of commit aca1214, before the PCA
-became one ``ShapePCA`` over scikit-learn's and the fusion one protocol; the tests hold the
-package to them at 1e-10 (scores, probabilities) and exactly (accuracies, weights).
+The PCA and ``classification.evaluate`` were recorded with the numpy SVD PCA and the two
+fusion loops of commit aca1214; ``predict_outcome`` with its fusion weights chosen by the
+out-of-fold log-loss and the classic measures' C = 10 (any number of groups). The tests hold
+the package to them at 1e-10 (scores, probabilities) and exactly (accuracies, weights).
 """
 
 from __future__ import annotations

@@ -115,7 +115,7 @@ def test_four_groups_are_predicted_above_chance_and_the_fusion_keeps_the_best_fa
     pred = predict_outcome(table, by_object, n_repeats=2, curve=False)
     s = pred.summary["mean"]
     assert pred.groups == ("clone0", "clone1", "clone2", "clone3")
-    assert s["chance"] == 0.25 and s["classic alone"] > 0.8
+    assert s["chance"] == 0.25 and s["classic alone"] >= 0.7  # the best rule: 0.9
     assert s["fused"] >= s.drop(["fused", "chance"]).max() - 0.05  # within noise
     assert s["intensity alone"] < 0.5  # the reporter says nothing here
     truth = pred.confusion.to_numpy()

@@ -151,7 +151,7 @@ def _with_keys(probabilities, table):
     from ..analysis.reduction import object_ids
 
     keys = [c for c in ("movie", "track_id", "label") if c in table.columns]
-    first = table.assign(object=object_ids(table).to_numpy()).drop_duplicates("object")
+    first = table[keys].assign(object=object_ids(table).to_numpy()).drop_duplicates("object")
     out = probabilities.merge(first[["object", *keys]], on="object", how="left")
     return out[["object", *keys, *[c for c in probabilities.columns if c != "object"]]]
 
