@@ -16,8 +16,8 @@ Messages and progress go to stderr
 Here: the parser (:func:`build_parser`) and :func:`main`, which turns errors into exit
 statuses. Each command is a module of this package that declares its own subparser
 (``add_parser``) beside its ``cmd_*`` function: :mod:`.measure`, :mod:`.compare`,
-:mod:`.trajectories`, :mod:`.classify` (classify and predict), :mod:`.plot`, :mod:`.report`,
-:mod:`.demo`; what they share is in :mod:`.common` (messages, errors, output checks, option
+:mod:`.trajectories`, :mod:`.classify` (classify and predict), :mod:`.stats`, :mod:`.plot`,
+:mod:`.report`, :mod:`.demo`; what they share is in :mod:`.common` (messages, errors, output checks, option
 types) and :mod:`.tables` (a table as the commands read it).
 """
 
@@ -29,13 +29,13 @@ import traceback
 from collections.abc import Sequence
 
 from ..errors import InputError
-from . import classify, compare, demo, measure, plot, report, trajectories
+from . import classify, compare, demo, measure, plot, report, stats, trajectories
 from .common import BUG_REPORT, EXIT_BUG, EXIT_USAGE
 
 __all__ = ["build_parser", "main"]
 
 #: The commands in the order ``pfsdm --help`` lists them; each module adds its own parser.
-COMMANDS = (measure, compare, trajectories, classify, plot, report, demo)
+COMMANDS = (measure, compare, trajectories, classify, stats, plot, report, demo)
 
 DESCRIPTION = """\
 PF-SDM shape analysis of segmented objects, from the command line.
