@@ -99,3 +99,26 @@ def test_the_librarys_pca_table_is_explained_as_its_columns_say():
     assert explain_components(scores, measures, ratios) == want
     other = scores.rename(columns={"shape_PC1": "intensity_PC1", "shape_PC2": "intensity_PC2"})
     assert explain_components(other, measures, ratios) == want
+
+
+def test_the_pc_sentence_matches_rows_by_movie_frame_and_label():
+    """Two movies whose labels repeat: the PCs and the measures are matched row by row, not by
+    frame and label alone (which would pair each row with the other movie's label 1 too)."""
+    import numpy as np
+    import pandas as pd
+
+    from napari_pfsdm.analysis.interpretation import component_correlations, table_measures
+
+    rng = np.random.default_rng(0)
+    rows = []
+    for movie in ("a", "b"):
+        for label in range(1, 11):
+            c = rng.uniform(0.3, 0.95)
+            rows.append({"movie": movie, "frame": 0, "label": label, "circularity": c,
+                         "solidity": rng.uniform(0.8, 1), "axis_major_length": 10.0,
+                         "axis_minor_length": 10.0 * rng.uniform(0.3, 1)})
+    table = pd.DataFrame(rows)
+    scores = table[["movie", "frame", "label"]].assign(PC1=2 * table["circularity"])
+    shuffled = table.sample(frac=1, random_state=1).reset_index(drop=True)
+    r = component_correlations(scores, table_measures(shuffled))
+    assert r.loc["PC1", "circularity"] == pytest.approx(1.0)

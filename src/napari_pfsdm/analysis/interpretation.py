@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from .tables import key_rows
+from .tables import match_rows
 
 __all__ = ["MEASURES", "table_measures", "outline_measures", "component_correlations",
            "explain_components"]
@@ -41,8 +41,8 @@ def table_measures(table: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame
-        ``frame``, ``label`` and the :data:`MEASURES` columns, one row per table row (``frame``
-        0 when the table has none).
+        ``movie`` (when the table has movies), ``frame``, ``label`` and the :data:`MEASURES`
+        columns, one row per table row (``frame`` 0 when the table has none).
     """
     major = table["axis_major_length"].to_numpy(float)
     minor = table["axis_minor_length"].to_numpy(float)
@@ -50,7 +50,8 @@ def table_measures(table: pd.DataFrame) -> pd.DataFrame:
     np.divide(minor, major, out=ratio, where=major > 0)
     frames = (table["frame"].to_numpy() if "frame" in table
               else np.zeros(len(table), np.int64))
-    return pd.DataFrame({"frame": frames, "label": table["label"].to_numpy(),
+    keys = {"movie": table["movie"].to_numpy()} if "movie" in table.columns else {}
+    return pd.DataFrame({**keys, "frame": frames, "label": table["label"].to_numpy(),
                          "circularity": table["circularity"].to_numpy(float),
                          "aspect_ratio": ratio,
                          "solidity": table["solidity"].to_numpy(float)})
@@ -112,14 +113,15 @@ def outline_measures(points: np.ndarray) -> dict[str, float]:
 def component_correlations(scores: pd.DataFrame, measures: pd.DataFrame) -> pd.DataFrame:
     """Pearson r between each PC column of ``scores`` and each measure.
 
-    Both tables have ``frame`` and ``label``; rows are matched on them, NaNs left out. The PC
+    Both tables have ``frame`` and ``label`` (and ``movie`` for many movies); rows are matched
+    on all of them (:func:`~napari_pfsdm.analysis.tables.match_rows`), NaNs left out. The PC
     columns are ``PC1`` … or, as :func:`~napari_pfsdm.analysis.reduction.pca_scores` names
     them, ``shape_PC1`` …. Returns a DataFrame: one row per PC (``PC1``…), one column per
     measure.
     """
     pcs = [c for c in scores.columns if re.fullmatch(r"(\w+_)?PC\d+", str(c))]
     cols = [c for c in MEASURES if c in measures.columns]
-    at = key_rows(scores["frame"], scores["label"], measures["frame"], measures["label"])
+    at = match_rows(scores, measures)
     left = scores[pcs].to_numpy(float)[at >= 0][:, :, None]  # rows × PCs × 1
     right = measures[cols].to_numpy(float)[at[at >= 0]][:, None, :]  # rows × 1 × measures
     ok = np.isfinite(left) & np.isfinite(right)  # the rows of each pair

@@ -40,6 +40,7 @@ __all__ = [
     "embeddings_from_table",
     "failed_rows",
     "left_out_reasons",
+    "match_rows",
     "is_table",
     "key_rows",
     "outlines_from_table",
@@ -67,6 +68,38 @@ def key_rows(frames, labels, at_frames, at_labels) -> np.ndarray:
     order = np.argsort(at_key, kind="stable")
     pos = np.minimum(np.searchsorted(at_key[order], key), len(at_key) - 1)
     return np.where(at_key[order][pos] == key, order[pos], -1)
+
+
+#: What names a row of a table of many movies: its movie, frame and label.
+ROW_KEYS = ("movie", "frame", "label")
+
+
+def match_rows(left, right) -> np.ndarray:
+    """Where each row of ``left`` lies among the rows of ``right``, matched by every key of
+    :data:`ROW_KEYS` both tables have (movie, frame and label: two movies' label 1 are two
+    objects), −1 where it is absent; the first of repeated rows of ``right``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> a = pd.DataFrame({"movie": ["m1", "m2"], "frame": [0, 0], "label": [1, 1]})
+    >>> b = pd.DataFrame({"movie": ["m2", "m1", "m3"], "frame": [0, 0, 0], "label": [1, 1, 1]})
+    >>> match_rows(a, b).tolist()
+    [1, 0]
+    """
+    import pandas as pd
+
+    keys = [k for k in ROW_KEYS if k in left.columns and k in right.columns]
+    if not keys:
+        raise InputError("the two tables share no movie, frame or label column to match rows")
+    there = pd.DataFrame({k: np.asarray(right[k]) for k in keys})
+    there["_row"] = np.arange(len(there))
+    here = pd.DataFrame({k: np.asarray(left[k]) for k in keys})
+    for k in keys:  # text and numbers alike (a label read as 1.0 is label 1)
+        kind = "str" if k == "movie" else "int64"
+        there[k], here[k] = there[k].astype(kind), here[k].astype(kind)
+    found = here.merge(there.drop_duplicates(keys), on=keys, how="left")["_row"]
+    return found.fillna(-1).to_numpy(np.int64)
 
 
 def is_table(items: Any) -> bool:

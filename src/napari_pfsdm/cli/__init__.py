@@ -17,8 +17,8 @@ Here: the parser (:func:`build_parser`) and :func:`main`, which turns errors int
 statuses. Each command is a module of this package that declares its own subparser
 (``add_parser``) beside its ``cmd_*`` function: :mod:`.measure`, :mod:`.compare`,
 :mod:`.trajectories`, :mod:`.classify` (classify and predict), :mod:`.stats`, :mod:`.plot`,
-:mod:`.report`, :mod:`.demo`; what they share is in :mod:`.common` (messages, errors, output checks, option
-types) and :mod:`.tables` (a table as the commands read it).
+:mod:`.report`, :mod:`.demo`; what they share is in :mod:`.common` (messages, errors, output
+checks, option types) and :mod:`.tables` (a table as the commands read it).
 """
 
 from __future__ import annotations
