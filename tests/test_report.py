@@ -29,7 +29,9 @@ from napari_pfsdm.report import write_report
 
 #: A group name a person could type, that HTML must not read as markup.
 ODD = "multi <b>&\"axes\""
-SECTIONS = ("options", "counts", "trajectories", "over-time", "pcs", "gallery")
+SECTIONS = ("findings", "trajectories", "over-time", "pcs", "gallery", "counts", "options")
+#: What the findings say when predictions are given.
+PREDICTED = "Predicting the groups from the features"
 CHROMIUM = Path("/usr/bin/chromium")
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -97,15 +99,22 @@ def _check_self_contained(text: str) -> None:
 def test_the_library_writes_one_self_contained_page(library_report):
     text = library_report.read_text(encoding="utf-8")
     _check_self_contained(text)
-    for section in (*SECTIONS, "prediction"):
-        assert f'<section id="{section}">' in text, section
+    sections = re.findall(r'<section id="([^"]+)">', text)
+    assert sections == list(SECTIONS)  # findings first; counts, options and methods last
+    assert PREDICTED in text
     # user text is escaped: no markup from a group name or the title
     assert "<b>&" not in text and "<i>&" not in text
     assert "multi &lt;b&gt;&amp;&quot;axes&quot;" in text
     assert "<title>Gastruloids &lt;i&gt;&amp;</title>" in text
     # what the sections say
     assert "follows circularity" in text  # PC1, from the classic measures
-    assert 'alt="prediction curve' in text
+    assert 'alt="balanced accuracy against the last frame used' in text
+    findings = text.split('<section id="findings">')[1].split("</section>")[0]
+    assert "the groups differ" in findings.lower() or "do not differ" in findings
+    assert "Mann-Whitney U <span class=\"gloss\">(" in findings  # glossed where first said
+    assert findings.count('class="gloss"') == len(set(re.findall(
+        r'(\w[\w\' -]*) <span class="gloss">', findings)))  # each term glossed once
+    assert "confusion matrix" in findings and "chance 0.50" in findings
     assert text.count('alt="real objects at') == 3  # -2σ … +2σ of PC1 … PC3, from the labels
     assert "need the labels" not in text
     n_gallery = 3 * 2 * 3  # PCs x ends x objects
@@ -119,7 +128,7 @@ def test_without_labels_the_report_says_the_outlines_need_them(run, tmp_path):
     text = out.read_text(encoding="utf-8")
     _check_self_contained(text)
     assert "need the labels" in text
-    assert '<section id="prediction">' not in text  # none given: no section
+    assert PREDICTED not in text  # none given: no prediction
 
 
 def test_several_movies_tracks_and_left_out_rows(run):
@@ -175,10 +184,10 @@ def test_pfsdm_report_writes_the_page_from_files(files, capsys):
     assert f"wrote {out}" in capsys.readouterr().out
     text = out.read_text(encoding="utf-8")
     _check_self_contained(text)
-    for section in (*SECTIONS, "prediction"):
-        assert f'<section id="{section}">' in text, section
+    assert re.findall(r'<section id="([^"]+)">', text) == list(SECTIONS)
     assert "Batch &lt;3 &amp; co" in text and "multi &lt;b&gt;&amp;" in text
-    assert 'alt="prediction curve' in text  # from the predictions' sidecar
+    assert PREDICTED in text and "confusion matrix" in text  # from the predictions' sidecar
+    assert 'alt="balanced accuracy against the last frame used' in text
     assert text.count('alt="real objects at') == 3
     assert main([*args, "-q"]) == 0  # its own report: replaced without --force
 
@@ -267,3 +276,38 @@ def test_the_report_opens_in_a_real_browser(library_report, tmp_path):
         if os.environ.get("PFSDM_DOCS_SCREENSHOTS") == "1":
             # full colour: a 256-colour palette loses either viridis or the faint loadings
             im.convert("RGB").save(DOCS / "report.png", optimize=True)
+
+
+def test_the_captions_of_the_objects_along_a_pc_never_overlap():
+    """Five objects of movies with long names, each captioned under its picture: no two
+    texts of the figure (titles, captions) share a pixel once it is drawn."""
+    from napari_pfsdm.analysis.report import modes_figure
+
+    rng = np.random.default_rng(0)
+    n = 40
+    scores = pd.DataFrame({"movie": [f"plate_2024_{i:02d}_very_long_organoid_name"
+                                     for i in range(n)],
+                           "frame": rng.integers(0, 30, n), "label": rng.integers(1, 500, n),
+                           "shape_PC1": rng.normal(size=n)})
+
+    class NoMasks:
+        ndim = 2
+
+        def mask(self, row):
+            yy, xx = np.mgrid[:20, :20]
+            return (yy - 10) ** 2 + (xx - 10) ** 2 < 60
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = modes_figure(scores, 1, NoMasks(), several=True)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    boxes = []
+    for ax in fig.axes:
+        for text in (ax.title, ax.xaxis.label):
+            if text.get_text():
+                boxes.append(text.get_window_extent(renderer))
+    assert len(boxes) == 2 * len(fig.axes) == 10
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)

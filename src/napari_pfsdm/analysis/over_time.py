@@ -2,8 +2,10 @@
 
 :func:`over_time` turns a table's column (a classic measure, a PC score, a probability, a
 midline measure: any number per row) into one line per object (its track through the frames)
-and, per group, the mean and standard deviation at each frame; :func:`plot_over_time` draws
-them with matplotlib (the napari plugin's "Over time" tab and ``pfsdm plot`` draw the same).
+and, per group, the mean and standard deviation at each time (the table's ``time`` when it has
+one: uneven, in its unit, two frames at one time pooled; else the frame);
+:func:`plot_over_time` draws them with matplotlib, time on the axis with its unit (the napari
+plugin's "Over time" tab and ``pfsdm plot`` draw the same).
 
 Examples
 --------
@@ -13,8 +15,8 @@ Examples
 >>> lines["object"].tolist(), lines["value"].tolist()
 (['1', '1', '2', '2'], [10.0, 12.0, 20.0, 26.0])
 >>> b = groups[groups["group"] == "b"]
->>> b["frame"].tolist(), b["mean"].tolist(), b["n"].tolist()
-([0, 1], [20.0, 26.0], [1, 1])
+>>> b["time"].tolist(), b["mean"].tolist(), b["n"].tolist()
+([0.0, 1.0], [20.0, 26.0], [1, 1])
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .physical import column_label, time_label, time_values
 from .reduction import object_ids
 
 __all__ = ["numeric_columns", "over_time", "plot_over_time"]
@@ -41,7 +44,7 @@ def numeric_columns(table: pd.DataFrame, raw: bool = False) -> list[str]:
     """
     raw_prefixes = ("shape_r", "intensity_r", "outline_", "surface_l")
     return [c for c in table.columns
-            if c not in ("frame", "label", "track_id", "movie", "index")
+            if c not in ("frame", "time", "label", "track_id", "movie", "index")
             and pd.api.types.is_numeric_dtype(table[c]) and not pd.api.types.is_bool_dtype(
                 table[c]) and (raw or not str(c).startswith(raw_prefixes))]
 
@@ -65,11 +68,12 @@ def over_time(table: pd.DataFrame, column: str,
     Returns
     -------
     lines : DataFrame
-        ``object`` (:func:`~napari_pfsdm.analysis.reduction.object_ids`), ``frame``, ``label``,
-        ``value``, ``group`` ("" without one), sorted by object and frame; rows whose value is
-        not finite are left out.
+        ``object`` (:func:`~napari_pfsdm.analysis.reduction.object_ids`), ``frame``, ``time``
+        (the frame's time, or the frame), ``label``, ``value``, ``group`` ("" without one),
+        sorted by object, time and frame; rows whose value is not finite are left out.
     per_group : DataFrame
-        ``group``, ``frame``, ``mean``, ``sd`` (0 for one object), ``n`` (objects).
+        ``group``, ``time``, ``mean``, ``sd`` (0 for one value), ``n`` (values: two frames of
+        one object at one time count twice).
 
     Raises
     ------
@@ -91,12 +95,13 @@ def over_time(table: pd.DataFrame, column: str,
         group = [""] * len(table)
     lines = pd.DataFrame({"object": object_ids(table).to_numpy(),
                           "frame": table["frame"].to_numpy().astype(np.int64),
+                          "time": time_values(table),
                           "label": table["label"].to_numpy().astype(np.int64),
                           "value": values, "group": group})
-    lines = lines[np.isfinite(values)].sort_values(["object", "frame"], kind="stable")
+    lines = lines[np.isfinite(values)].sort_values(["object", "time", "frame"], kind="stable")
     lines = lines.reset_index(drop=True)
     named = lines[lines["group"] != ""]
-    per_group = (named.groupby(["group", "frame"])["value"]
+    per_group = (named.groupby(["group", "time"])["value"]
                  .agg(mean="mean", sd=lambda v: float(np.std(v, ddof=1)) if len(v) > 1 else 0.0,
                       n="count").reset_index())
     return lines, per_group
@@ -123,22 +128,22 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
     shown = set(objects[::every])
     for obj, rows in lines.groupby("object", sort=False):
         if obj in shown:
-            ax.plot(rows["frame"], rows["value"], color=(0.6, 0.6, 0.6, 0.45), lw=0.7,
+            ax.plot(rows["time"], rows["value"], color=(0.6, 0.6, 0.6, 0.45), lw=0.7,
                     zorder=1)
     tab = matplotlib.colormaps["tab10"]
     for k, (name, rows) in enumerate(per_group.groupby("group", sort=True)):
         colour = tab(k % 10)
-        ax.fill_between(rows["frame"], rows["mean"] - rows["sd"], rows["mean"] + rows["sd"],
+        ax.fill_between(rows["time"], rows["mean"] - rows["sd"], rows["mean"] + rows["sd"],
                         color=colour, alpha=0.2, lw=0, zorder=2)
-        ax.plot(rows["frame"], rows["mean"], color=colour, lw=2, zorder=3,
+        ax.plot(rows["time"], rows["mean"], color=colour, lw=2, zorder=3,
                 label=f"{name} (mean ± sd)")
     for obj in selected:
         rows = lines[lines["object"] == obj]
         if len(rows):
-            ax.plot(rows["frame"], rows["value"], "-o", color="#ff3c3c", ms=3, lw=1.6,
+            ax.plot(rows["time"], rows["value"], "-o", color="#ff3c3c", ms=3, lw=1.6,
                     zorder=4)
-    ax.set_xlabel("frame")
-    ax.set_ylabel(column)
+    ax.set_xlabel(time_label(table))
+    ax.set_ylabel(column_label(table, column))
     if len(per_group):
         ax.legend(fontsize=7, loc="best")
     return lines

@@ -1,14 +1,16 @@
 """A report to share: one self-contained HTML page of a run, readable offline in any browser.
 
-:func:`report_html` turns a feature table (with its options record) into one HTML text: the
-run's options with their meaning, the counts (objects, frames, tracks, rows left out and why),
-the trajectories per group in the PCA plane, a few measures over time (each group's mean ± sd),
-what each of PC1 … PC3 means (the classic measure it follows, its loadings as a ring × Fourier
-index map, the real objects at −2σ … +2σ), the prediction curve when predictions are given,
-and a gallery of the most extreme objects per PC. Figures are inline PNGs
-(``data:image/png;base64``), the style is inline CSS, there are no links out and no script:
-the file can be mailed, archived, and opened offline. Every text that comes from the user
-(movie and group names, the title) is HTML-escaped.
+:func:`report_html` turns a feature table (with its options record) into one HTML text, the
+findings first: what differs between the groups (a test per measure, in physical units and
+times, :mod:`napari_pfsdm.analysis.findings`) and how well the features predict the groups
+(balanced accuracy, confusion matrix); then the trajectories per group in the PCA plane, a few
+measures over time (each group's mean ± sd), what each of PC1 … PC3 means (the classic measure
+it follows, its loadings as a ring × Fourier index map, the real objects at −2σ … +2σ) and a
+gallery of the most extreme objects per PC; counts, methods and options last. Terms are glossed
+where they first appear. Figures are inline PNGs (``data:image/png;base64``), the style is
+inline CSS, there are no links out and no script: the file can be mailed, archived, and
+opened offline. Every text that comes from the user (movie and group names, the title) is
+HTML-escaped.
 
 Headless: figures are drawn with :class:`matplotlib.figure.Figure` (no pyplot, no GUI
 backend). Writing the file (atomically, never over a file napari-pfsdm did not write) is
@@ -16,16 +18,13 @@ backend). Writing the file (atomically, never over a file napari-pfsdm did not w
 the napari plugin call: this module only builds the text, since the layers below the file
 layer write no files (tests/test_layering.py).
 
-Its length (about 670 lines) is the page's sections, each a small figure-and-words function
+Its length (about 650 lines) is the page's sections, each a small figure-and-words function
 in page order, and the page's CSS and skeleton; they share one table and its derived PCA.
 """
 
 from __future__ import annotations
 
-import base64
 import datetime
-import html
-import io
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -37,16 +36,17 @@ from ..core.params import DERIVED, WEIGHT_OPTIONS, option
 from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
+from .html_parts import GENERATOR
+from .html_parts import escaped as _e
+from .html_parts import figure as _figure
+from .html_parts import image as _img
+from .html_parts import table_html as _table_html
+from .physical import space_unit_of, time_label, time_unit_of, time_values
 
 __all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
-#: The ``<meta name="generator">`` a report carries: how napari-pfsdm recognises a report it
-#: wrote (``io.written_by_pfsdm``), so that writing it again needs no ``--force``.
-GENERATOR = "napari-pfsdm"
 #: The measures drawn over time by default (those the table has).
 REPORT_COLUMNS = ("area", "circularity", "solidity", "intensity_mean")
-#: Resolution of the inline figures: small files, sharp enough on a screen.
-DPI = 100
 #: Objects per end of each PC in the gallery.
 GALLERY = 3
 #: Components explained, drawn and shown in the gallery.
@@ -78,44 +78,12 @@ figure{margin:0;text-align:center;font-size:.8em;color:#444}
 figure img{border:1px solid #ddd;background:#fff}.row{margin:.2em 0 .6em}
 .muted{color:#888}.end{writing-mode:vertical-rl;transform:rotate(180deg);
 text-align:center;color:#555;font-size:.85em;margin-left:8px}
+.gloss{color:#666;font-size:.92em}.row img,.row table{display:inline-block;vertical-align:top;
+margin-right:14px}
 """
 
 
 # ------------------------------------------------------------------------------- helpers
-def _e(value: Any) -> str:
-    """``value`` as text safe inside HTML (quotes too)."""
-    return html.escape(str(value), quote=True)
-
-
-def _png(fig) -> str:
-    """A matplotlib figure as an ``<img>`` of an inline PNG (``data:`` URI)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": GENERATOR})
-    data = base64.b64encode(buf.getvalue()).decode("ascii")
-    return f'<img src="data:image/png;base64,{data}" alt="">'
-
-
-def _img(fig, alt: str) -> str:
-    return _png(fig).replace('alt=""', f'alt="{_e(alt)}"')
-
-
-def _figure(w: float, h: float):
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=(w, h), layout="constrained")
-
-
-def _table_html(rows: Sequence[Sequence[Any]], header: Sequence[str],
-                numeric: Sequence[int] = ()) -> str:
-    head = "".join(f"<th>{_e(h)}</th>" for h in header)
-    body = []
-    for row in rows:
-        cells = "".join(f'<td class="num">{_e(v)}</td>' if i in numeric else f"<td>{_e(v)}</td>"
-                        for i, v in enumerate(row))
-        body.append(f"<tr>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
-
-
 def _shown(value: Any, limit: int = 80) -> str:
     if isinstance(value, np.ndarray):
         value = value.tolist()
@@ -178,6 +146,15 @@ def _colours(names: Sequence[str]) -> dict[str, Any]:
 
     tab = colormaps["tab10"]
     return {n: tab(i % 10) for i, n in enumerate(names)}
+
+
+def _wrapped(text: str, width: int) -> str:
+    """``text`` on lines of at most ``width`` characters (a long movie name cut), at most
+    three lines: a caption that stays under its picture."""
+    import textwrap
+
+    lines = textwrap.wrap(str(text), width, break_long_words=True) or [""]
+    return "\n".join(lines[:3]) + (" …" if len(lines) > 3 else "")
 
 
 def _where(row: Mapping[str, Any], several_movies: bool) -> str:
@@ -305,6 +282,27 @@ def _options_section(table: pd.DataFrame) -> str:
     return _table_html(rows, ("option", "value", "what it means"))
 
 
+def _methods_html(table: pd.DataFrame) -> str:
+    """How the numbers were made, in a few plain sentences, with the table's units."""
+    from .findings import time_words
+
+    unit = space_unit_of(table)
+    sizes = (f"Sizes are in {unit} (areas in {unit}², from each movie's pixel size)" if unit
+             else "Sizes are in pixels (no pixel size was known)")
+    sizes += f"; {time_words(table)}."
+    return (
+        "<p>Each object of each frame was measured by napari-pfsdm: its outline, its signed "
+        "distance function pushed forward onto the unit disk, and the Fourier magnitudes of "
+        "that picture ring by ring: shape features that do not change when the object is "
+        "moved, turned, mirrored or scaled (its size is in the classic measures: area, "
+        "lengths, as scikit-image's regionprops gives them). " + _e(sizes) + " An object is "
+        "followed through time by its track (or its label when the labels follow it); the "
+        "tests and predictions take each object once, with all its frames. Group tests are "
+        "rank tests (Kruskal–Wallis, Mann–Whitney with Holm's correction); predictions are "
+        "logistic regressions per family of features, fused, scored by repeated stratified "
+        "splits of the objects.</p>")
+
+
 def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFrame) -> str:
     from .reduction import object_ids
 
@@ -319,7 +317,10 @@ def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFr
         rows.append(("tracks", f"{object_ids(table)[tracked].nunique():,}"))
     groups = _group_names(table)
     if groups:
-        per = table.assign(_o=object_ids(table)).groupby("group")["_o"].nunique()
+        ids = object_ids(table)
+        per = table.assign(_o=ids).groupby("group")["_o"].nunique()
+        with_group = int(ids[table["group"].astype(str) != ""].nunique())
+        rows.append(("objects with a group", f"{with_group:,} of {ids.nunique():,}"))
         rows.append(("groups", "; ".join(f"{g}: {int(per.get(g, 0))} objects" for g in groups)))
     rows.append(("rows with features (in the analysis)", f"{len(measured):,}"))
     rows.append(("rows left out", f"{len(left):,}"))
@@ -357,7 +358,8 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
                          ).ravel()
     ids = object_ids(scores)
     x, y = scores["shape_PC1"].to_numpy(float), scores["shape_PC2"].to_numpy(float)
-    fmin, fmax = float(scores["frame"].min()), float(scores["frame"].max())
+    when = time_values(scores)
+    fmin, fmax = float(when.min()), float(when.max())
     sc = None
     for ax, name in zip(axes, panels, strict=False):
         ax.scatter(x, y, s=4, color="0.88", zorder=0)  # every object, for reference
@@ -369,9 +371,10 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
             ax.text(0.01, 0.99, f"every {every}th of {len(objects):,} objects", fontsize=7,
                     va="top", transform=ax.transAxes, color="0.4")
         for oid in objects[::every]:
-            obj = sub[ids[sub.index] == oid].sort_values("frame")
+            obj = sub[ids[sub.index] == oid]
+            obj = obj.iloc[np.argsort(time_values(obj), kind="stable")]
             ax.plot(obj["shape_PC1"], obj["shape_PC2"], "-", color="0.45", lw=0.8, zorder=1)
-            sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=obj["frame"], s=12,
+            sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=time_values(obj), s=12,
                             cmap="viridis", vmin=fmin, vmax=fmax, zorder=2)
         ax.set_title(name or "all objects", fontsize=10)
         ax.set_xlabel(f"PC1 ({100 * explained[0]:.2g} %)")
@@ -380,7 +383,7 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
     for ax in axes[n:]:
         ax.set_visible(False)
     if sc is not None:
-        fig.colorbar(sc, ax=axes[:n].tolist(), label="frame", shrink=0.8)
+        fig.colorbar(sc, ax=axes[:n].tolist(), label=time_label(scores), shrink=0.8)
     return _img(fig, "trajectories per group in the PC1-PC2 plane")
 
 
@@ -400,13 +403,15 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, col in zip(axes, cols, strict=False):
         plot_over_time(ax, table, col)
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
+        if "time" not in table.columns:
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
         ax.set_title(col, fontsize=10)
     for ax in axes[len(cols):]:
         ax.set_visible(False)
     from .glossary import describe_column
 
-    notes = "".join(f"<li><b>{_e(c)}</b>: {_e(describe_column(c))}</li>" for c in cols)
+    notes = "".join(f"<li><b>{_e(c)}</b>: {_e(describe_column(c, space_unit=space_unit_of(table), time_unit=time_unit_of(table)))}</li>"  # noqa: E501
+                    for c in cols)
     return (_img(fig, "measures over time") + "<p class=\"note\">Thin grey lines: each "
             "object; bands: each group's mean ± sd.</p>" f"<ul class=\"note\">{notes}</ul>")
 
@@ -436,16 +441,24 @@ def _loadings_figure(space, k: int, ndim: int = 2) -> str:
             f"its largest loadings are at {index.rsplit(' ', 1)[0]} {n_max}{word}")
 
 
-def _modes_figure(scores: pd.DataFrame, k: int, masks: _Masks, several: bool) -> str:
+def modes_figure(scores: pd.DataFrame, k: int, masks, several: bool):
+    """The real objects nearest the mean −2σ … +2σ along PC ``k``, each captioned under its
+    picture (where it is, on at most three lines): a figure whose captions never overlap."""
     from .shape_space import shape_modes
 
     modes = shape_modes(scores, k)
-    fig = _figure(6.4, 1.9)
+    fig = _figure(1.45 * len(modes), 2.3)
     axes = fig.subplots(1, len(modes))
     for ax, row in zip(axes, modes.to_dict("records"), strict=True):
         _draw_mask(ax, masks.mask(row))
-        ax.set_title(f"{row['sigma']:+g}σ\n{_where(row, several)}", fontsize=7)
-    return _img(fig, f"real objects at -2 sigma to +2 sigma along PC{k}")
+        ax.set_title(f"{row['sigma']:+g}σ", fontsize=8)
+        ax.set_xlabel(_wrapped(_where(row, several), 16), fontsize=6)
+    return fig
+
+
+def _modes_figure(scores: pd.DataFrame, k: int, masks: _Masks, several: bool) -> str:
+    return _img(modes_figure(scores, k, masks, several),
+                f"real objects at -2 sigma to +2 sigma along PC{k}")
 
 
 def _pc_section(table: pd.DataFrame, measured: pd.DataFrame, space, scores: pd.DataFrame,
@@ -512,61 +525,6 @@ def _gallery_section(scores: pd.DataFrame, masks: _Masks, several: bool, n_pcs: 
     return "".join(out)
 
 
-def _prediction_parts(predictions, info: Mapping[str, Any] | None):
-    """(curve, summary, probabilities, groups) from a Prediction or a predictions table."""
-    if predictions is None:
-        return None
-    if isinstance(predictions, pd.DataFrame):
-        info = dict(info or {})
-        curve = pd.DataFrame(info.get("curve") or [])
-        summary = pd.DataFrame(info.get("balanced_accuracy") or [])
-        if len(summary) and "method" in summary.columns:
-            summary = summary.set_index("method")
-        groups = [c[2:] for c in predictions.columns if str(c).startswith("p_")]
-        return curve, summary, predictions, groups, info.get("frames")
-    curve = getattr(predictions, "curve", None)
-    if curve is None:
-        raise InputError("predictions must be a Prediction (predict_outcome) or a "
-                         "predictions table with p_<group> columns")
-    return (predictions.curve, predictions.summary, predictions.probabilities,
-            list(predictions.groups), predictions.frames)
-
-
-def _prediction_section(parts) -> str:
-    curve, summary, probs, groups, frames = parts
-    out = []
-    if len(summary):
-        rows = [(m, f"{r['mean']:.2f}", f"{r['std']:.2f}" if pd.notna(r["std"]) else "")
-                for m, r in summary.iterrows()]
-        out.append(_table_html(rows, ("method", "balanced accuracy", "sd"), numeric=(1, 2)))
-    if len(curve) and {"last_frame", "mean"} <= set(curve.columns):
-        fig = _figure(5.4, 3.2)
-        ax = fig.subplots()
-        x = curve["last_frame"].to_numpy(float)
-        m = curve["mean"].to_numpy(float)
-        s = curve["std"].fillna(0).to_numpy(float) if "std" in curve else np.zeros_like(m)
-        ax.fill_between(x, m - s, m + s, alpha=0.25, color="tab:blue", lw=0)
-        ax.plot(x, m, "-o", color="tab:blue", ms=4, label="fused model (mean ± sd)")
-        ax.axhline(0.5, color="0.5", ls="--", lw=1, label="chance")
-        ax.set_ylim(0, 1.02)
-        ax.set_xlabel("last frame used")
-        ax.set_ylabel("balanced accuracy")
-        ax.legend(fontsize=8, loc="lower right")
-        ax.set_title("How early the outcome can be predicted", fontsize=10)
-        out.append(_img(fig, "prediction curve: balanced accuracy against the last frame"))
-        out.append('<p class="note">Each point: the balanced accuracy over repeated '
-                   "stratified splits, using the frames up to that one; the fusion weights "
-                   "are chosen inside each training split only.</p>")
-    else:
-        out.append('<p class="note">No accuracy curve (one frame used, or the predictions '
-                   "file has no sidecar).</p>")
-    if frames:
-        out.append(f'<p class="note">Frames used: {_e(", ".join(map(str, frames)))}; '
-                   f"groups: {_e(' vs '.join(map(str, groups)))}; "
-                   f"{len(probs):,} objects scored.</p>")
-    return "".join(out)
-
-
 # ------------------------------------------------------------------------------- the page
 def report_html(
     table: pd.DataFrame,
@@ -578,22 +536,26 @@ def report_html(
     title: str | None = None,
     columns: Sequence[str] = REPORT_COLUMNS,
     source: str | None = None,
+    findings: Sequence[tuple[str, str | float]] | None = None,
 ) -> str:
-    """The report of a run as one self-contained HTML text (no links out, no script).
+    """The report of a run as one self-contained HTML text (no links out, no script): the
+    findings first (what differs between the groups, the prediction), then the trajectories,
+    the measures over time, what each PC means, a gallery; counts, options and methods last.
 
     Parameters
     ----------
     table : DataFrame
         A feature table with its options (:func:`napari_pfsdm.measure`,
-        :func:`napari_pfsdm.read_table`).
+        :func:`napari_pfsdm.read_table`), of one movie or many.
     groups : mapping or DataFrame, optional
         Object → group (the ``track_id`` of a linked table, else the label), or a groups
-        table (:func:`~napari_pfsdm.analysis.reduction.read_groups`); default: the table's
-        own ``group`` column, if any.
+        table (:func:`~napari_pfsdm.analysis.groups.read_groups`); default: the table's own
+        ``group`` column, if any.
     predictions : Prediction or DataFrame, optional
         What :func:`~napari_pfsdm.analysis.outcome.predict_outcome` returned, or a
         predictions table (``p_<group>`` columns) with ``prediction_info``, its sidecar (the
-        ``curve`` and ``balanced_accuracy`` that ``pfsdm predict`` writes there).
+        ``curve``, ``balanced_accuracy`` and ``confusion`` that ``pfsdm predict`` writes
+        there).
     labels : ndarray or mapping, optional
         The label movie (T, Y, X) or image (Y, X); a mapping movie → array for a table of
         several movies. Without it the report says the outlines need it.
@@ -602,6 +564,9 @@ def report_html(
         Measures drawn over time (those the table has).
     source : str, optional
         Where the table came from (a file name), shown under the title.
+    findings : sequence of (measure, summary or time), optional
+        The measures tested between the groups (:func:`~napari_pfsdm.analysis.findings.
+        default_findings` when not given; ``shape_PC1`` is the report's own PCA).
 
     Returns
     -------
@@ -609,6 +574,7 @@ def report_html(
         The HTML page.
     """
     from .features import split_failed
+    from .findings import Terms, default_findings, findings_html, prediction_html, prediction_parts
     from .shape_space import ShapePCA
 
     if not {"frame", "label"} <= set(table.columns):
@@ -620,39 +586,47 @@ def report_html(
     several = "movie" in table.columns and table["movie"].nunique() > 1
     masks = _Masks(labels, table)
     masks.check(table)
-    sections: list[tuple[str, str, str]] = []
-    sections.append(("options", "The run's options", _options_section(table)))
-    sections.append(("counts", "Counts", _counts_section(table, measured, left)))
+    terms = Terms()
+    scores = space = None
     if len(measured) >= 2:
         space = ShapePCA(n_components=N_PCS, channel="shape")
         scores = space.fit_transform(measured)
         if "group" in measured.columns and "group" not in scores.columns:
             scores["group"] = measured["group"].to_numpy()
+    tested = measured if scores is None else measured.assign(
+        shape_PC1=scores["shape_PC1"].to_numpy())
+    parts = prediction_parts(predictions, prediction_info)
+    colours = _colours(_group_names(table))
+    found = findings_html(tested, default_findings(tested) if findings is None else findings,
+                          colours, terms)
+    if parts is not None:
+        found += "<h3>Predicting the groups from the features</h3>" + prediction_html(parts,
+                                                                                     terms)
+    sections: list[tuple[str, str, str]] = [("findings", "What differs between the groups",
+                                             found)]
+    if scores is not None:
         n_pcs = min(N_PCS, len(space.components_))
-        if n_pcs >= 2:
-            traj = _trajectories_figure(scores, space.explained_variance_ratio_)
-        else:
-            traj = '<p class="note">Only one principal component: no plane to draw.</p>'
+        traj = (_trajectories_figure(scores, space.explained_variance_ratio_) if n_pcs >= 2
+                else '<p class="note">Only one principal component: no plane to draw.</p>')
         sections.append(("trajectories", "Trajectories per group",
-                         traj + '<p class="note">Each object\'s path through the PC1–PC2 '
-                         "plane of the shape features (weighted as the PF-SDM distance), "
-                         "points coloured by frame; grey dots: every object.</p>"))
+                         traj + f'<p class="note">Each object\'s path through the PC1–PC2 '
+                         f"plane ({terms('PC')}) of the shape features, weighted as the "
+                         f"PF-SDM distance; points coloured by {_e(time_label(scores))}; grey "
+                         "dots: every object.</p>"))
         sections.append(("over-time", "Measures over time", _over_time_section(measured,
                                                                                columns)))
         sections.append(("pcs", "What each PC means",
                          _pc_section(table, measured, space, scores, masks, several)))
-    else:
-        no = (f'<p class="note">Only {len(measured)} row(s) have features: no PCA.</p>')
-        sections.append(("trajectories", "Trajectories per group", no))
-        sections.append(("over-time", "Measures over time", _over_time_section(measured,
-                                                                               columns)))
-        sections.append(("pcs", "What each PC means", no))
-    parts = _prediction_parts(predictions, prediction_info)
-    if parts is not None:
-        sections.append(("prediction", "Prediction", _prediction_section(parts)))
-    if len(measured) >= 2:
         sections.append(("gallery", "Gallery: the most extreme objects per PC",
                          _gallery_section(scores, masks, several, n_pcs)))
+    else:
+        sections.append(("over-time", "Measures over time", _over_time_section(measured,
+                                                                               columns)))
+        sections.append(("pcs", "What each PC means", f'<p class="note">Only {len(measured)} '
+                         "row(s) have features: no PCA.</p>"))
+    sections.append(("counts", "Counts", _counts_section(table, measured, left)))
+    sections.append(("options", "Options and methods", _methods_html(table)
+                     + _options_section(table)))
     when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     toc = "".join(f'<a href="#{a}">{_e(h)}</a>' for a, h, _ in sections)
     body = "".join(f'<section id="{a}"><h2>{_e(h)}</h2>{content}</section>'

@@ -35,7 +35,7 @@ __all__ = ["HARMONIC_WORDS", "ShapePCA", "check_same_options", "method_options",
 HARMONIC_WORDS = ("thickness", "off-centre", "elongation", "triangularity", "squareness")
 
 #: The columns of a table that the scores keep, when it has them.
-_SCORE_KEYS = ("movie", "frame", "label", TRACK_COLUMN, "group")
+_SCORE_KEYS = ("movie", "frame", "time", "label", TRACK_COLUMN, "group")
 
 #: The options two tables must share to live in one shape space: the method's (core.params,
 #: without those that only choose which objects are measured or how the midline is measured)

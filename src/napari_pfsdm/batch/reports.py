@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import FOLDED_WARNING
+from ..analysis.physical import time_label, time_values
 from ..analysis.reduction import object_ids
 from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
@@ -39,12 +40,14 @@ def plot_trajectories(
     components: tuple[int, int] = (1, 2),
     explained: np.ndarray | dict[str, np.ndarray] | None = None,
     title: str = "PF-SDM trajectories",
+    time_unit: str | None = None,
 ) -> Path:
     """One line per object through time in the PCA plane; points coloured by time or group.
 
     Several channels (e.g. ``shape_PC*`` and ``intensity_PC*`` columns) give side-by-side
     panels. ``explained``: each channel's explained-variance ratios (a dict by channel, or one
-    array for ``shape``), shown in the axis labels. Returns the PNG path.
+    array for ``shape``), shown in the axis labels; ``time_unit``: the unit of the scores'
+    ``time`` column (the colour bar's title). Returns the PNG path.
     """
     if explained is not None and not isinstance(explained, dict):
         explained = {"shape": explained}
@@ -60,13 +63,15 @@ def plot_trajectories(
     ids = object_ids(scores)
     names = sorted(set(scores["group"].astype(str))) if by_group else None
     tab10 = colormaps["tab10"]
+    when = time_values(scores)
     for ax, ch in zip(axes, channels, strict=True):
         cx, cy = pc_column(ch, components[0]), pc_column(ch, components[1])
         if cx not in scores or cy not in scores:
             raise InputError(f"no {cx}/{cy} in the PCA table; choose other components")
         sc = None
         for oid in pd.unique(ids):
-            obj = scores[ids == oid].sort_values("frame")
+            obj = scores[ids == oid].sort_values(["time", "frame"] if "time" in scores
+                                                 else "frame")
             colour = (tab10(names.index(str(obj["group"].iloc[0])) % 10) if by_group
                       else "0.6")
             ax.plot(obj[cx], obj[cy], "-", color=colour, lw=1.0, alpha=0.7, zorder=1)
@@ -75,8 +80,8 @@ def plot_trajectories(
                 ax.scatter(obj[cx].iloc[-1:], obj[cy].iloc[-1:], s=40, marker="s",
                            color=colour, edgecolor="k", lw=0.5, zorder=3)
             else:
-                sc = ax.scatter(obj[cx], obj[cy], c=obj["frame"], cmap="viridis", s=14,
-                                vmin=scores["frame"].min(), vmax=scores["frame"].max(), zorder=2)
+                sc = ax.scatter(obj[cx], obj[cy], c=time_values(obj), cmap="viridis", s=14,
+                                vmin=when.min(), vmax=when.max(), zorder=2)
         ev = explained.get(ch)
         if ev is not None and len(ev) < max(components):
             ev = None
@@ -90,9 +95,11 @@ def plot_trajectories(
         if by_group:
             for i, n in enumerate(names):
                 ax.plot([], [], "-o", color=tab10(i % 10), label=n or "(no group)", ms=4)
-            ax.legend(fontsize=8, title="group (■ = last frame)", title_fontsize=8)
+            last = "time" if "time" in scores else "frame"
+            ax.legend(fontsize=8, title=f"group (■ = last {last})", title_fontsize=8)
         elif sc is not None:
-            fig.colorbar(sc, ax=ax, label="frame")
+            fig.colorbar(sc, ax=ax, label=time_label(scores) if time_unit is None
+                         else f"time ({time_unit})")
     fig.suptitle(title)
     save_figure(fig, path, dpi=120)
     return Path(path)

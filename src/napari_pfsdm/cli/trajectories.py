@@ -75,7 +75,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     if args.plot:
         with _Step(f"drawing {args.plot}", args.quiet):
             plot_trajectories(scores, args.plot, components=tuple(args.show),
-                              explained=explained)
+                              explained=explained, time_unit=opts.get("time_unit"))
         _say(f"wrote {args.plot}", args.quiet)
     return 0
 

@@ -46,7 +46,7 @@ class OverTimePlot(Plot):
         self.objects = object_ids(features)
         ax.set_title(f"{column} of '{self.layer.name}' over time", fontsize=9)
         self.points_axes = ax
-        self.xy = self.lines[["frame", "value"]].to_numpy(float)
+        self.xy = self.lines[["time", "value"]].to_numpy(float)
         self.keys = self.lines[["frame", "label"]].to_numpy().astype(np.int64)
         n = self.lines["object"].nunique()
         self.info.value = (f"{n:,} objects; " + ("thick lines: each group's mean ± sd; "
