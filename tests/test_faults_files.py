@@ -600,14 +600,16 @@ COUNTS = [("measure", "--workers", "0"), ("measure", "--workers", "-2"),
           ("measure", "--frames-per-task", "0"), ("measure", "--frames-per-task", "-1"),
           ("trajectories", "--components", "-1"), ("trajectories", "--components", "0"),
           ("compare", "--rerank-k", "0"), ("compare", "--max-objects", "-1"),
-          ("classify", "--test-size", "1.5"), ("classify", "--splits", "1")]
+          ("classify", "--test-size", "1.5"), ("classify", "--splits", "1"),
+          ("predict", "--test-size", "0")]
 
 
 @pytest.mark.parametrize(("command", "flag", "value"), COUNTS)
 def test_an_odd_count_on_the_command_line_is_refused_in_words(tmp_path, one_movie, measured,
                                                               capsys, command, flag, value):
     first = str(one_movie) if command == "measure" else str(measured)
-    extra = ["--groups", str(measured), "--frames", "0"] if command == "classify" else []
+    extra = ["--groups", str(measured), "--frames", "0"] if command in ("classify", "predict") \
+        else []
     with pytest.raises(SystemExit) as stop:
         main([command, first, "-o", str(tmp_path / "r.csv"), flag, value, *extra, "-q"])
     assert stop.value.code == 2

@@ -348,9 +348,9 @@ def test_classify_accepts_the_smallest_split_it_can_make():
     """Two objects of each group, --test-size 0.5: 2 test and 2 training objects, the least a
     split may hold (allowed); five objects at 0.2 leave 1 test object (refused in plain
     words). Mutant: ``n_train <= 2``."""
-    from napari_pfsdm.cli.classify import _check_class_sizes
-    from napari_pfsdm.cli.common import UserError
+    from napari_pfsdm.analysis.prediction import make_splits
 
-    _check_class_sizes(np.array([1, 1, 0, 0]), ["a", "b"], "a", 0.5)
-    with pytest.raises(UserError, match="too few for a 20% test split"):
-        _check_class_sizes(np.array([1, 1, 1, 0, 0]), ["a", "b"], "a", 0.2)
+    splits = make_splits(np.array([1, 1, 0, 0]), test_size=0.5)
+    assert all(len(test) == 2 and len(train) == 2 for train, test in splits)
+    with pytest.raises(InputError, match="too few for a 20% test split"):
+        make_splits(np.array([1, 1, 1, 0, 0]), test_size=0.2)

@@ -288,6 +288,7 @@ def predict_outcome(
     curve: bool = True,
     seed: int = 0,
     progress: Callable[[int, int], None] | None = None,
+    test_size: float = 0.2,
 ) -> Prediction:
     """Predict each object's group from its features at ``frames``.
 
@@ -307,12 +308,14 @@ def predict_outcome(
     channels : sequence of str, optional
         Among ``"shape"``, ``"intensity"``, ``"classic"`` (default: those the table has).
     n_splits, n_repeats : int
-        Stratified shuffle splits (20 % test each) and their repeats.
+        Stratified shuffle splits and their repeats.
     curve : bool
         Also score the fused model on the frames up to each of (at most
         :data:`CURVE_POINTS`, evenly spread) chosen frames.
     progress : callable(done, total), optional
         Called as the work goes on (a worker may raise from it to stop).
+    test_size : float
+        The share of the objects each split tests (default 20 %).
 
     Raises
     ------
@@ -325,7 +328,8 @@ def predict_outcome(
     lab = np.flatnonzero(prob.labelled)
     y = prob.y_all[lab]
     k = len(prob.names)
-    splits = make_splits(y, n_splits=n_splits, test_size=0.2, n_repeats=n_repeats, seed=seed)
+    splits = make_splits(y, n_splits=n_splits, test_size=test_size, n_repeats=n_repeats,
+                         seed=seed, names=prob.names)
     n_curve = min(CURVE_POINTS, len(prob.frames)) - 1 if curve and len(prob.frames) > 1 else 0
     steps = len(splits) * (1 + n_curve) + 1
     done = [0]

@@ -76,6 +76,7 @@ def make_splits(
     test_size: float = 0.2,
     n_repeats: int = 3,
     seed: int = 0,
+    names: Sequence[str] | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Repeated stratified shuffle splits of the objects.
 
@@ -89,6 +90,8 @@ def make_splits(
         Independent repeats (seeds ``seed``, ``seed + 1``, ...).
     seed : int
         Seed of the first repeat.
+    names : sequence of str, optional
+        The classes' names (class ``k`` is ``names[k]``), for messages.
 
     Returns
     -------
@@ -105,10 +108,12 @@ def make_splits(
             "least 2.")
     n_test = int(np.ceil(test_size * len(y)))
     if n_test < len(classes) or len(y) - n_test < len(classes):
+        counts_words = ", ".join(f"{c} {names[int(k)] if names is not None else k}"
+                                 for k, c in zip(classes, counts, strict=True))
         raise InputError(
-            f"{len(y)} objects in {len(classes)} groups are too few for a {test_size:.0%} test "
+            f"{len(y)} objects ({counts_words}) are too few for a {test_size:.0%} test "
             f"split: each side of a split needs an object of every group ({n_test} would be "
-            "tested). Use more objects, or fewer groups")
+            "tested). Measure more objects, or change the test size (--test-size, e.g. 0.5)")
     out = []
     for r in range(n_repeats):
         sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=test_size, random_state=seed + r)

@@ -10,6 +10,7 @@ from .common import (
     _add_force,
     _add_groups,
     _check_output,
+    _fraction,
     _note,
     _say,
     _whole,
@@ -17,7 +18,7 @@ from .common import (
 from .tables import _follow_objects, _with_groups
 
 
-def _prepared(args: argparse.Namespace, path: str):
+def _prepared(args: argparse.Namespace, path: str, command: str = "predict"):
     """The table at ``path`` with its groups (``args.groups``, ``args.group_column``), its
     objects followed over several frames, and the frames chosen."""
     from ..analysis import classification as clf
@@ -30,7 +31,7 @@ def _prepared(args: argparse.Namespace, path: str):
         raise UserError(f"no rows in frames {args.frames}: the table has frames "
                         f"{clf.format_frames(table['frame'])}; choose frames among these")
     if frames is None or len(frames) > 1:  # one object over several frames: its id follows it
-        table = _follow_objects(table, None, args.quiet, command="predict")
+        table = _follow_objects(table, None, args.quiet, command=command)
     return table, groups, frames
 
 
@@ -50,14 +51,15 @@ def _ticker(what: str, quiet: bool):
     return tick
 
 
-def _evaluation(args: argparse.Namespace, table, frames):
+def _evaluation(args: argparse.Namespace, table, frames, what: str = "predicting",
+                curve: bool = True):
     """The cross-validated prediction of the groups (analysis.outcome.predict_outcome)."""
     from ..analysis.outcome import predict_outcome
 
     try:
         return predict_outcome(table, _object_groups(table), frames, n_splits=args.splits,
-                               n_repeats=args.repeats, seed=args.seed,
-                               progress=_ticker("predicting", args.quiet))
+                               n_repeats=args.repeats, seed=args.seed, curve=curve,
+                               test_size=args.test_size, progress=_ticker(what, args.quiet))
     except ValueError as exc:
         raise UserError(str(exc)) from None
 
@@ -70,8 +72,8 @@ def _print_scores(pred, quiet: bool) -> None:
     _say(f"{pred.n_scored} objects with a group ("
          + ", ".join(f"{counts.get(g, 0)} {g}" for g in pred.groups)
          + f"), frames {', '.join(map(str, pred.frames))}, "
-         f"{int(pred.summary.loc['fused', 'n_splits'])} stratified splits (20 % test), each "
-         "object with all its frames on one side", quiet)
+         f"{int(pred.summary.loc['fused', 'n_splits'])} stratified splits, each object with "
+         "all its frames on one side", quiet)
     for method, row in pred.summary.iterrows():
         words = "fused (weights chosen inside each training split)" if method == "fused" \
             else FAMILY_WORDS.get(method.replace(" alone", ""), method) + (
@@ -105,8 +107,8 @@ def cmd_classify(args: argparse.Namespace) -> int:
 
     if args.output:
         _check_output(args.output, force=args.force, inputs=[args.features])
-    table, groups, frames = _prepared(args, args.features)
-    pred = _evaluation(args, table, frames)
+    table, groups, frames = _prepared(args, args.features, command="classify")
+    pred = _evaluation(args, table, frames, what="classifying", curve=False)
     _print_scores(pred, args.quiet)
     if args.output:
         write_table_csv(_family_rows(pred), args.output, {}, table_type="classification",
@@ -194,6 +196,8 @@ def _add_common(p: argparse.ArgumentParser, frames_required: bool) -> None:
     p.add_argument("--splits", type=_whole("--splits", 2), default=5,
                    help="splits per repeat (default 5)")
     p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
+    p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
+                   help="the share of the objects each split tests (default 0.2)")
     p.add_argument("--seed", type=int, default=0)
 
 
