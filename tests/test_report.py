@@ -303,9 +303,10 @@ def test_the_captions_of_the_objects_along_a_pc_never_overlap():
     renderer = FigureCanvasAgg(fig).get_renderer()
     fig.draw(renderer)
     boxes = []
-    for ax in fig.axes:
-        for text in (ax.title, ax.xaxis.label):
-            if text.get_text():
+    for ax in fig.axes:  # the texts drawn: each picture's title and caption
+        for text in (ax.title, ax.xaxis.label, *ax.texts):
+            if text.get_text() and text.get_visible() and (
+                    text is not ax.xaxis.label or ax.axison):
                 boxes.append(text.get_window_extent(renderer))
     assert len(boxes) == 2 * len(fig.axes) == 10
     for i, a in enumerate(boxes):

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .group_stats import compare_groups, object_values, value_words
+from .group_stats import compare_groups, number, object_values, value_words
 from .html_parts import escaped, figure, image, table_html
 from .physical import time_unit_of, time_values
 
@@ -96,7 +96,7 @@ def _strip_figure(values: pd.DataFrame, names: Sequence[str], colours: Mapping, 
 
 
 def _group_rows(test) -> list[tuple]:
-    return [(r.group, r.n, f"{r.median:.4g}", f"{r.q1:.4g} – {r.q3:.4g}")
+    return [(r.group, r.n, number(r.median), f"{number(r.q1)} – {number(r.q3)}")
             for r in test.groups.itertuples()]
 
 
@@ -122,7 +122,7 @@ def findings_html(table: pd.DataFrame, findings: Sequence[tuple[str, str | float
         except InputError as exc:
             out.append(f'<p class="note">{escaped(measure)}: {escaped(exc)}</p>')
             continue
-        out.append(f"<h3>{escaped(what[0].upper() + what[1:])}</h3>")
+        out.append(f"<h3>{escaped(what)}</h3>")
         out.append(f"<p>{_test_words(test, terms)}</p>")
         img = image(_strip_figure(values, list(test.groups["group"]), colours, what),
                     f"each group's objects: {what}")
@@ -160,9 +160,32 @@ def _test_words(test, terms: Terms) -> str:
     return words
 
 
-def prediction_html(parts: tuple, terms: Terms) -> str:
+def frame_times(table: pd.DataFrame | None) -> dict[int, float]:
+    """frame → its time in a table (the first movie's), {} without times."""
+    if table is None or "time" not in table.columns or not len(table):
+        return {}
+    first = table[table["movie"] == table["movie"].iloc[0]] if "movie" in table else table
+    return {int(f): float(t) for f, t in first.drop_duplicates("frame")[["frame", "time"]]
+            .itertuples(index=False)}
+
+
+def _frames_words(frames: Sequence[int] | None, table: pd.DataFrame | None) -> str:
+    """``frames 0, 1, 2 (days 2, 5, 8)``: the frames used and, when known, their times."""
+    if not frames:
+        return "the frames given"
+    words = f"frames {', '.join(map(str, frames))}"
+    at = frame_times(table)
+    if at and all(int(f) in at for f in frames):
+        unit = time_unit_of(table)
+        name = "days" if unit == "day" else (f"times ({unit})" if unit else "times")
+        words += f" ({name} {', '.join(f'{at[int(f)]:g}' for f in frames)})"
+    return words
+
+
+def prediction_html(parts: tuple, terms: Terms, table: pd.DataFrame | None = None) -> str:
     """The prediction's HTML: balanced accuracy per family and fused against chance, the
-    confusion matrix, in words."""
+    confusion matrix, in words; with the feature ``table``, frames are said with their
+    times."""
     curve, summary, probs, groups, frames, confusion = parts
     out = []
     if len(summary):
@@ -173,7 +196,7 @@ def prediction_html(parts: tuple, terms: Terms) -> str:
             best = summary.drop(index=[i for i in ("fused", "chance") if i in summary.index])
             alone = "; ".join(f"{_family(m)} alone {r['mean']:.2f}"
                               for m, r in best.iterrows())
-            used = f"frames {', '.join(map(str, frames))}" if frames else "the frames given"
+            used = _frames_words(frames, table)
             out.append(
                 f"<p>From {escaped(used)}, the {terms('fused')} model tells the "
                 f"{len(groups)} groups apart with a {terms('balanced accuracy')} of "
@@ -198,7 +221,7 @@ def prediction_html(parts: tuple, terms: Terms) -> str:
     out.append(f'<p class="note">{escaped(counted)}; groups: '
                f"{escaped(', '.join(map(str, groups)))}.</p>")
     if len(curve) and {"last_frame", "mean"} <= set(curve.columns):
-        out.append(_curve_figure(curve, chance=1.0 / max(len(groups), 2)))
+        out.append(_curve_figure(curve, chance=1.0 / max(len(groups), 2), table=table))
     return "".join(out)
 
 
@@ -209,17 +232,28 @@ def _family(method: str) -> str:
     return FAMILY_WORDS.get(name, name)
 
 
-def _curve_figure(curve: pd.DataFrame, chance: float) -> str:
+def _curve_figure(curve: pd.DataFrame, chance: float, table: pd.DataFrame | None = None
+                  ) -> str:
+    from matplotlib.ticker import MaxNLocator
+
     fig = figure(5.4, 3.0)
     ax = fig.subplots()
-    x = curve["last_frame"].to_numpy(float)
+    at = frame_times(table)
+    timed = bool(at) and all(int(f) in at for f in curve["last_frame"])
+    x = np.array([at[int(f)] for f in curve["last_frame"]]) if timed else \
+        curve["last_frame"].to_numpy(float)
     m = curve["mean"].to_numpy(float)
     s = curve["std"].fillna(0).to_numpy(float) if "std" in curve else np.zeros_like(m)
     ax.fill_between(x, m - s, m + s, alpha=0.25, color="tab:blue", lw=0)
     ax.plot(x, m, "-o", color="tab:blue", ms=4, label="fused model (mean ± sd)")
     ax.axhline(chance, color="0.5", ls="--", lw=1, label="chance")
     ax.set_ylim(0, 1.02)
-    ax.set_xlabel("last frame used")
+    if timed:
+        unit = time_unit_of(table)
+        ax.set_xlabel(f"last time used{f' ({unit})' if unit else ''}")
+    else:
+        ax.set_xlabel("last frame used")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("balanced accuracy")
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title("How early the groups can be predicted", fontsize=10)

@@ -38,7 +38,8 @@ from ..core.columns import unit_text
 from ..errors import InputError
 from .physical import space_unit_of, time_label, time_unit_of, time_values
 
-__all__ = ["GroupTest", "SUMMARIES", "compare_groups", "object_values", "value_words"]
+__all__ = ["GroupTest", "SUMMARIES", "compare_groups", "number", "object_values",
+           "value_words"]
 
 #: The summaries of a measure over an object's time course.
 SUMMARIES = ("slope", "mean", "first", "last")
@@ -87,8 +88,10 @@ def object_values(table: pd.DataFrame, measure: str, *, at: float | None = None,
     ok = np.isfinite(table[measure].to_numpy(float))
     if "error" in table.columns:
         ok &= table["error"].fillna("").astype(str).eq("").to_numpy()
-    rows = table.loc[ok].assign(_object=_objects(table.loc[ok]).to_numpy(),
-                                _time=time_values(table.loc[ok]))
+    kept = table.loc[ok]
+    wanted = list(dict.fromkeys([c for c in ("movie", group, *keep) if c in kept.columns]
+                                + [measure]))
+    rows = kept[wanted].assign(_object=_objects(kept).to_numpy(), _time=time_values(kept))
     if summary == "at":
         rows = _at(rows, float(at), table)
     keys = [c for c in ("movie", group) if c in rows.columns]
@@ -136,7 +139,12 @@ def value_words(table: pd.DataFrame, measure: str, summary: str, at: float | Non
     unit = unit_text(unit_of(measure), space_unit_of(table), time_unit_of(table))
     t_unit = time_unit_of(table) or ("frame" if "time" not in table.columns else "")
     if summary == "at":
-        when = f"{time_label(table).split(' (')[0]} {at:g}" + (f" {t_unit}" if t_unit else "")
+        if t_unit == "day":
+            when = f"day {at:g}"
+        elif t_unit == "frame":
+            when = f"frame {at:g}"
+        else:
+            when = f"{at:g} {t_unit}".strip() if t_unit else f"time {at:g}"
         return f"{measure} at {when}" + (f" ({unit})" if unit else "")
     if summary == "slope":
         per = f" per {t_unit}" if t_unit else " per unit of time"
@@ -190,7 +198,7 @@ class GroupTest:
     def sentences(self, alpha: float = 0.05) -> list[str]:
         """The findings in plain words."""
         o = self.overall
-        medians = "; ".join(f"{r.group} {r.median:.3g} (n = {r.n})"
+        medians = "; ".join(f"{r.group} {number(r.median)} (n = {r.n})"
                             for r in self.groups.itertuples())
         verdict = "differ" if o["p_value"] < alpha else "do not differ detectably"
         out = [f"{self.value}: the groups {verdict} ({o['test']}, p {_p(o['p_value'])}, "
@@ -207,6 +215,23 @@ class GroupTest:
             else:
                 out.append("No pair of groups differs after Holm's correction.")
         return out
+
+
+def number(x: float) -> str:
+    """A value as a person reads it: three significant digits, thousands grouped.
+
+    >>> [number(v) for v in (3234567.0, 75412.3, 999.7, 123.4, 0.8721)]
+    ['3,230,000', '75,400', '1,000', '123', '0.872']
+    """
+    if not np.isfinite(x):
+        return "n/a"
+    size = abs(float(x))
+    if size >= 999.5:
+        digits = int(np.floor(np.log10(size))) + 1
+        return f"{round(float(x), 3 - digits):,.0f}"
+    if size >= 99.95:
+        return f"{float(x):.0f}"
+    return f"{float(x):.3g}"
 
 
 def _p(p: float) -> str:

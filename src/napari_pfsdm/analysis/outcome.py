@@ -511,7 +511,8 @@ def _pixel_sizes(table: pd.DataFrame) -> dict:
 def _keys_of(table: pd.DataFrame, ids: pd.Series, objects: np.ndarray) -> pd.DataFrame:
     """One row per object: its id and the key columns of its first row."""
     keys = [c for c in ("movie", "track_id", "label") if c in table.columns]
-    first = table.assign(object=ids.to_numpy()).drop_duplicates("object").set_index("object")
+    first = table[keys].assign(object=ids.to_numpy()).drop_duplicates("object") \
+        .set_index("object")
     out = pd.DataFrame({"object": objects})
     for c in keys:
         out[c] = first[c].reindex(objects).to_numpy()

@@ -341,7 +341,7 @@ def _counts_section(table: pd.DataFrame, measured: pd.DataFrame, left: pd.DataFr
     return out
 
 
-def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
+def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray, when: str) -> str:
     from .reduction import object_ids
 
     names = _group_names(scores) or [""]
@@ -383,7 +383,7 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
     for ax in axes[n:]:
         ax.set_visible(False)
     if sc is not None:
-        fig.colorbar(sc, ax=axes[:n].tolist(), label=time_label(scores), shrink=0.8)
+        fig.colorbar(sc, ax=axes[:n].tolist(), label=when, shrink=0.8)
     return _img(fig, "trajectories per group in the PC1-PC2 plane")
 
 
@@ -452,7 +452,8 @@ def modes_figure(scores: pd.DataFrame, k: int, masks, several: bool):
     for ax, row in zip(axes, modes.to_dict("records"), strict=True):
         _draw_mask(ax, masks.mask(row))
         ax.set_title(f"{row['sigma']:+g}σ", fontsize=8)
-        ax.set_xlabel(_wrapped(_where(row, several), 16), fontsize=6)
+        ax.text(0.5, -0.03, _wrapped(_where(row, several), 16), transform=ax.transAxes,
+                ha="center", va="top", fontsize=6, color="0.25")
     return fig
 
 
@@ -600,18 +601,19 @@ def report_html(
     found = findings_html(tested, default_findings(tested) if findings is None else findings,
                           colours, terms)
     if parts is not None:
-        found += "<h3>Predicting the groups from the features</h3>" + prediction_html(parts,
-                                                                                     terms)
+        found += ("<h3>Predicting the groups from the features</h3>"
+                  + prediction_html(parts, terms, measured))
     sections: list[tuple[str, str, str]] = [("findings", "What differs between the groups",
                                              found)]
     if scores is not None:
         n_pcs = min(N_PCS, len(space.components_))
-        traj = (_trajectories_figure(scores, space.explained_variance_ratio_) if n_pcs >= 2
+        traj = (_trajectories_figure(scores, space.explained_variance_ratio_,
+                                     time_label(measured)) if n_pcs >= 2
                 else '<p class="note">Only one principal component: no plane to draw.</p>')
         sections.append(("trajectories", "Trajectories per group",
                          traj + f'<p class="note">Each object\'s path through the PC1–PC2 '
                          f"plane ({terms('PC')}) of the shape features, weighted as the "
-                         f"PF-SDM distance; points coloured by {_e(time_label(scores))}; grey "
+                         f"PF-SDM distance; points coloured by {_e(time_label(measured))}; grey "
                          "dots: every object.</p>"))
         sections.append(("over-time", "Measures over time", _over_time_section(measured,
                                                                                columns)))

@@ -56,7 +56,7 @@ from .metadata import read_metadata
 from .movies import Movie
 from .tasks import environment_fault, measure_dask
 
-__all__ = ["default_parts_dir", "run_batch"]
+__all__ = ["default_parts_dir", "rows_words", "run_batch"]
 
 
 def _have_parquet() -> bool:
@@ -369,7 +369,7 @@ def _run_batch_locked(
                 table = table.copy()
                 table.insert(0, "movie", m.name)
                 _write_part(table, part, to_jsonable(table_options(table) or {}))
-                say(f"measured {m.name}: {_objects(len(table))}")
+                say(f"measured {m.name}: {rows_words(table)}")
             attrs = attrs or to_jsonable(table_options(table) or {})
             empty[m.name] = _empty_frames(table, lab, axes)
             if empty[m.name]:
@@ -407,8 +407,19 @@ def _run_batch_locked(
 Progress = Callable[[str, int, int, str], None]
 
 
-def _objects(n: int) -> str:
-    return f"{n} object{'s' if n != 1 else ''}"
+def rows_words(table: pd.DataFrame) -> str:
+    """What a table's rows count, in words: ``"24 objects in 11 frames (263 rows)"`` (an
+    object is its label in each movie, not yet followed through time)."""
+    if not len(table):
+        return "no objects"
+    keys = [c for c in ("movie", "label") if c in table.columns]
+    n_objects = len(table[keys].drop_duplicates()) if keys else len(table)
+    n_frames = table["frame"].nunique() if "frame" in table.columns else 1
+    if n_frames == 1 and n_objects == len(table):
+        return f"{n_objects} object{'s' if n_objects != 1 else ''}"
+    return (f"{n_objects} object{'s' if n_objects != 1 else ''} in {n_frames} "
+            f"frame{'s' if n_frames != 1 else ''} ({len(table):,} rows: one per object and "
+            "frame)")
 
 
 def _open_movies(movies: Sequence[Movie], frames_per_task: int | None, axes: str | None,

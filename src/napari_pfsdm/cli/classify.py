@@ -64,14 +64,28 @@ def _evaluation(args: argparse.Namespace, table, frames, what: str = "predicting
         raise UserError(str(exc)) from None
 
 
-def _print_scores(pred, quiet: bool) -> None:
+def _times_of(table, frames) -> str:
+    """`` (days 2, 5, 8)``: the frames' times when the table has them (the first movie's)."""
+    from ..analysis.physical import time_unit_of
+
+    if "time" not in table.columns:
+        return ""
+    first = table[table["movie"] == table["movie"].iloc[0]] if "movie" in table else table
+    at = first.drop_duplicates("frame").set_index("frame")["time"]
+    shown = ", ".join(f"{at[f]:g}" for f in frames if f in at.index)
+    unit = time_unit_of(table)
+    words = f"{unit}s" if unit == "day" else (unit or "time")
+    return f" ({words} {shown})" if shown else ""
+
+
+def _print_scores(pred, quiet: bool, table) -> None:
     """The balanced accuracy of each family and of the fusion, and the confusion matrix."""
     from ..analysis.outcome import FAMILY_WORDS
 
     counts = pred.probabilities.loc[pred.probabilities["group"] != "", "group"].value_counts()
     _say(f"{pred.n_scored} objects with a group ("
          + ", ".join(f"{counts.get(g, 0)} {g}" for g in pred.groups)
-         + f"), frames {', '.join(map(str, pred.frames))}, "
+         + f"), frames {', '.join(map(str, pred.frames))}{_times_of(table, pred.frames)}, "
          f"{int(pred.summary.loc['fused', 'n_splits'])} stratified splits, each object with "
          "all its frames on one side", quiet)
     for method, row in pred.summary.iterrows():
@@ -109,7 +123,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
         _check_output(args.output, force=args.force, inputs=[args.features])
     table, groups, frames = _prepared(args, args.features, command="classify")
     pred = _evaluation(args, table, frames, what="classifying", curve=False)
-    _print_scores(pred, args.quiet)
+    _print_scores(pred, args.quiet, table)
     if args.output:
         write_table_csv(_family_rows(pred), args.output, {}, table_type="classification",
                         extra={"features": str(args.features), "groups": str(args.groups),
@@ -132,7 +146,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     if args.on:
         return _predict_other(args, table, frames, out)
     pred = _evaluation(args, table, frames)
-    _print_scores(pred, args.quiet)
+    _print_scores(pred, args.quiet, table)
     summary = pred.summary.reset_index().rename(columns={"index": "method"})
     probs = _with_keys(pred.probabilities, table)
     write_table_csv(probs, out, table_options(table), table_type="predictions",

@@ -97,7 +97,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     """Run ``pfsdm measure``: the label movies measured into one feature table."""
     from ..analysis.features import warnings_summary
     from ..batch.movies import find_movies, pair_movies
-    from ..batch.run import default_parts_dir, run_batch
+    from ..batch.run import default_parts_dir, rows_words, run_batch
 
     if not args.labels:
         if args.intensity and len(args.intensity) > 1:
@@ -149,7 +149,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         space_unit=args.space_unit,
     )
     dt = time.perf_counter() - t0
-    _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
+    _say(f"wrote {out} (options in {out.name}.json): {rows_words(table)} from "
          f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
     summary = warnings_summary(table)
     if summary:
