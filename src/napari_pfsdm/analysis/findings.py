@@ -90,7 +90,9 @@ def _strip_figure(values: pd.DataFrame, names: Sequence[str], colours: Mapping, 
         ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=10, color=colours[g],
                    alpha=0.8, zorder=3)
     ax.set_xticks(range(len(names)), [str(n) for n in names], fontsize=8)
-    ax.set_ylabel(what, fontsize=8)
+    import textwrap
+
+    ax.set_ylabel("\n".join(textwrap.wrap(what, 30)), fontsize=8)  # fits beside the axis
     ax.tick_params(labelsize=8)
     return fig
 
