@@ -44,6 +44,9 @@ def _lay_out(folder: Path) -> None:
         tifffile.imwrite(folder / "movies" / f"e{i:02d}_reporter.tif", reporter)
         rows += [{"movie": f"e{i:02d}", "label": k, "group": g} for k, g in groups.items()]
     pd.DataFrame(rows).to_csv(folder / "groups.csv", index=False)
+    days = [1, 2, 3, 5, 5, 7, 9, 12, 14, 17, 20, 24]  # uneven, one day twice
+    pd.DataFrame([{"movie": f"e{i:02d}.tif", "frame": t, "time": d} for i in (1, 2)
+                  for t, d in enumerate(days)]).to_csv(folder / "times.csv", index=False)
     (folder / "stacks").mkdir()
     spacing = (2.0, 0.5, 0.5)
     stack = np.zeros((2, 16, 40, 80), np.uint16)  # T × Z × Y × X, two objects
