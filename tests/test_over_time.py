@@ -29,7 +29,7 @@ def test_objects_are_their_tracks_and_groups_their_mean_and_sd():
     assert one["frame"].tolist() == [0, 1, 2, 3, 4] and one["label"].tolist() == [2, 12, 22,
                                                                                    32, 42]
     want = table.groupby(["group", "frame"])["area"].agg(["mean", "std", "count"])
-    got = groups.set_index(["group", "frame"])
+    got = groups.set_index(["group", "time"]).rename_axis(["group", "frame"])  # time = frame
     np.testing.assert_allclose(got["mean"], want["mean"])
     np.testing.assert_allclose(got["sd"], want["std"])
     assert (got["n"] == 3).all()
@@ -40,7 +40,7 @@ def test_groups_from_a_mapping_and_non_numbers_left_out():
     table.loc[3, "area"] = np.nan
     lines, groups = over_time(table, "area", groups={1: "a", 2: "a"})
     assert len(lines) == 29 and set(groups["group"]) == {"a"}
-    assert groups.loc[groups["frame"] == 3, "n"].item() == 1  # track 1's frame 3 was NaN
+    assert groups.loc[groups["time"] == 3, "n"].item() == 1  # track 1's frame 3 was NaN
 
 
 def test_a_column_that_cannot_be_drawn_is_refused_with_the_ones_that_can():
@@ -64,7 +64,7 @@ def test_the_drawing_has_a_line_per_object_and_a_band_per_group():
     red = [line for line in ax.get_lines() if line.get_color() == "#ff3c3c"]
     assert len(grey) == 6 and len(means) == 2 and len(ax.collections) == 2
     np.testing.assert_allclose(red[0].get_ydata(), _table().query("track_id == 5")["area"])
-    assert ax.get_ylabel() == "area" and ax.get_xlabel() == "frame"
+    assert ax.get_ylabel() == "area (pixels)" and ax.get_xlabel() == "frame"
 
 
 def test_pfsdm_plot_draws_the_column_and_writes_what_it_drew(tmp_path, capsys):
@@ -91,3 +91,27 @@ def test_pfsdm_plot_draws_the_column_and_writes_what_it_drew(tmp_path, capsys):
     assert main(["plot", str(path), "--column", "area", "-o", str(tmp_path / "y.png"),
                  "--objects", "track99"]) == 2
     assert "no object called track99" in capsys.readouterr().err
+
+
+def test_time_is_on_the_axis_and_frames_at_one_time_pool():
+    """A table with uneven times, one time imaged twice: each group's mean is over every value
+    at that time (both frames), the axis says the time and its unit, the measure its unit."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from napari_pfsdm.analysis.physical import add_times
+    from napari_pfsdm.core.table_options import set_options
+
+    table = pd.DataFrame({"frame": [0, 1, 2] * 2, "label": [1, 1, 1, 2, 2, 2],
+                          "area": [1.0, 2.0, 4.0, 3.0, 5.0, 8.0], "group": "g"})
+    table = set_options(table, {"space_unit": "µm"})
+    table = add_times(table, [2, 12, 12], "day")
+    lines, groups = over_time(table, "area")
+    assert groups["time"].tolist() == [2.0, 12.0]
+    assert groups["n"].tolist() == [2, 4]  # day 12: both frames of both objects
+    assert groups["mean"].tolist() == [2.0, (2 + 4 + 5 + 8) / 4]
+    ax = plt.figure().add_subplot()
+    plot_over_time(ax, table, "area")
+    assert ax.get_xlabel() == "time (day)" and ax.get_ylabel() == "area (µm²)"

@@ -181,7 +181,6 @@ def groups_table(groups: pd.DataFrame, group_column: str | None = None, *,
     matched = out.assign(movie=out["movie"].map(movie_key)) if "movie" in keys else out
     if matched.duplicated(keys).any():
         raise InputError(f"{where} gives several rows to the same {'/'.join(keys)}")
-    out.attrs["group_column"] = chosen
     return out.reset_index(drop=True)
 
 

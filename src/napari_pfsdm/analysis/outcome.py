@@ -458,7 +458,7 @@ class OutcomeModel:
         measures' sizes are in pixels of different (or unknown) pixel sizes."""
         from .shape_space import check_same_options
 
-        check_same_options(self.options, table, "the training table")
+        check_same_options(self.options, table, "training table")
         self._check_sizes(table, say)
         ids = _object_ids(table, object_col)
         ok = _usable(table, ids)

@@ -51,7 +51,7 @@ def method_options(table: pd.DataFrame) -> dict:
     return {k: opts[k] for k in _METHOD_KEYS if k in opts}
 
 
-def check_same_options(reference: dict, table: pd.DataFrame, what: str = "the reference"
+def check_same_options(reference: dict, table: pd.DataFrame, what: str = "reference"
                        ) -> None:
     """Refuse ``table`` when its :func:`method_options` differ from ``reference``'s (another
     table's), naming each option: their features are then not comparable."""
@@ -62,7 +62,7 @@ def check_same_options(reference: dict, table: pd.DataFrame, what: str = "the re
         said = "; ".join(f"{k}: {what} {reference.get(k)!r}, this table {theirs.get(k)!r}"
                          for k in differ)
         raise InputError(
-            f"this table was measured with other options than {what}, so its features are "
+            f"this table was measured with other options than the {what}, so its features are "
             f"not comparable ({said}). Measure both with the same options.")
 
 class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):

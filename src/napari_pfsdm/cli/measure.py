@@ -36,6 +36,10 @@ def _progress_printer(quiet: bool):
     units = {"checking": ("checking movies", "movie"), "measuring": ("measuring", "frame")}
 
     def show(stage: str, done: int, total: int, what: str) -> None:
+        if stage == "close":  # the run ended (or failed): no bar left open before a message
+            for other in bars.values():
+                other.close()
+            return
         bar = bars.get(stage)
         if bar is None:
             for other in bars.values():
@@ -97,7 +101,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     """Run ``pfsdm measure``: the label movies measured into one feature table."""
     from ..analysis.features import warnings_summary
     from ..batch.movies import find_movies, pair_movies
-    from ..batch.run import default_parts_dir, rows_words, run_batch
+    from ..batch.run import default_parts_dir, rows_words
 
     if not args.labels:
         if args.intensity and len(args.intensity) > 1:
@@ -129,12 +133,35 @@ def cmd_measure(args: argparse.Namespace) -> int:
     movies = pair_movies(labels, intensity)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
     t0 = time.perf_counter()
-    table = run_batch(
+    progress = _progress_printer(args.quiet)
+    try:
+        table = _measured_table(args, movies, out, params, progress)
+    finally:
+        if progress is not None:
+            progress("close", 0, 0, "")
+    dt = time.perf_counter() - t0
+    _say(f"wrote {out} (options in {out.name}.json): {rows_words(table)} from "
+         f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
+    summary = warnings_summary(table)
+    if summary:
+        _say(summary[0].upper() + summary[1:], args.quiet)
+    if args.link == "labels":
+        _warn_untracked(table, args.quiet)
+    parts = Path(args.parts) if args.parts else default_parts_dir(out)
+    _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
+    return 0
+
+
+def _measured_table(args: argparse.Namespace, movies, out: Path, params, progress):
+    """``run_batch`` with the command line's options."""
+    from ..batch.run import run_batch
+
+    return run_batch(
         movies, out,
         scheduler=args.scheduler, num_workers=args.workers,
         frames_per_task=args.frames_per_task,
         parts_dir=args.parts,
-        progress=_progress_printer(args.quiet),
+        progress=progress,
         log=lambda m: _say("  " + m, args.quiet),
         allow_empty=args.allow_empty,
         params=params,
@@ -148,17 +175,6 @@ def cmd_measure(args: argparse.Namespace) -> int:
         pixel_size=args.pixel_size,
         space_unit=args.space_unit,
     )
-    dt = time.perf_counter() - t0
-    _say(f"wrote {out} (options in {out.name}.json): {rows_words(table)} from "
-         f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
-    summary = warnings_summary(table)
-    if summary:
-        _say(summary[0].upper() + summary[1:], args.quiet)
-    if args.link == "labels":
-        _warn_untracked(table, args.quiet)
-    parts = Path(args.parts) if args.parts else default_parts_dir(out)
-    _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
-    return 0
 
 
 def _times(text: str | None) -> Any:
