@@ -380,14 +380,20 @@ def test_written_files_follow_the_umask(tmp_path, umask, mode):
         assert (tmp_path / name).stat().st_mode & 0o777 == mode
 
 
-def test_the_demo_runs_again_over_an_older_demos_folder(tmp_path):
+def test_the_demo_runs_again_over_an_older_demos_folder(tmp_path, capsys):
     """An earlier version's results (a table with the old comment line, plots without
-    pfsdm's PNG mark) are the demo's own: a new run replaces them instead of refusing."""
+    pfsdm's PNG mark) cannot be told from a user's files: the demo names them and replaces
+    them with --force; its own files of this version it replaces on every run."""
     (tmp_path / "features.csv").write_text('# pfsdm: {"n_fourier": 10}\nframe,label\n0,1\n')
     (tmp_path / "pca.png").write_bytes(b"\x89PNG\r\n\x1a\n an old plot")
-    assert main(["demo", "--quick-only", "-o", str(tmp_path), "--scheduler", "sync", "-q"]) == 0
+    demo = ["demo", "--quick-only", "-o", str(tmp_path), "--scheduler", "sync", "-q"]
+    assert main(demo) == 2
+    assert "pca.png" in capsys.readouterr().err
+    assert (tmp_path / "pca.png").read_bytes() == b"\x89PNG\r\n\x1a\n an old plot"
+    assert main([*demo, "--force"]) == 0
     assert pd.read_csv(tmp_path / "features.csv").shape[0] == 72
     assert b"napari-pfsdm" in (tmp_path / "pca.png").read_bytes()[:4096]
+    assert main(demo) == 0  # its own files, again
     # a folder of someone else's files is still protected
     other = tmp_path / "other"
     other.mkdir()

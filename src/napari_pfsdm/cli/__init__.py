@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from ..errors import InputError
 from . import classify, compare, demo, measure, plot, report, trajectories
-from .common import BUG_REPORT, EXIT_BUG, EXIT_USAGE
+from .common import BUG_REPORT, EXIT_BUG, EXIT_USAGE, check_command_files
 
 __all__ = ["build_parser", "main"]
 
@@ -85,6 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.debug:  # tifffile logs a damaged file's details; the error line says it
         logging.getLogger("tifffile").setLevel(logging.CRITICAL)
     try:
+        check_command_files(args)  # every declared output against the others and the inputs
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("pfsdm: interrupted (finished movies are kept; run again to resume)",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import UserError, _add_force, _check_output, _fraction, _note, _say, _whole
+from .common import UserError, _add_force, _fraction, _note, _say, _whole, file_argument
 from .tables import _follow_objects, _measured, _with_groups
 
 
@@ -66,7 +66,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     from ..core.table_options import table_options
     from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     table = load_features(args.features)
     table, _ = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames) if args.frames else None
@@ -105,8 +105,6 @@ def cmd_classify(args: argparse.Namespace) -> int:
     from ..core.table_schema import has_channel
     from ..io import write_table_csv
 
-    if args.output:
-        _check_output(args.output, force=args.force, inputs=[args.features])
     table = load_features(args.features)
     table, groups = _with_groups(table, args.groups, args.quiet)
     frames = clf.parse_frames(args.frames)
@@ -194,8 +192,9 @@ Every object must be present, without error, in every chosen frame.
 example:
   pfsdm classify features.csv --groups groups.csv --frames 0-10
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "--groups", role="input", kind="file", required=True, metavar="GROUPS.csv",
                    help="CSV with a 'group' column (two groups) and 'label'/'movie' columns")
     p.add_argument("--frames", required=True, metavar="RANGE",
                    help="frames whose features are used, e.g. 0-10 or 0,5,10")
@@ -207,7 +206,8 @@ example:
                    help="test fraction (default 0.2)")
     p.add_argument("--repeats", type=_whole("--repeats", 1), default=3, help="repeats (default 3)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("-o", "--output", metavar="SCORES.csv", help="also write the score table")
+    file_argument(p, "-o", "--output", role="output", kind="table", metavar="SCORES.csv",
+                  help="also write the score table")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
@@ -226,8 +226,9 @@ accuracy against the last frame used in its .csv.json.
 example:
   pfsdm predict features.csv --groups groups.csv --frames 0-5 -o predictions.csv
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("--groups", required=True, metavar="GROUPS.csv",
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "--groups", role="input", kind="file", required=True, metavar="GROUPS.csv",
                    help="CSV with a 'group' column (two groups) and 'label'/'track_id'/"
                         "'movie' columns; objects without a group are predicted only")
     p.add_argument("--frames", metavar="RANGE",
@@ -236,7 +237,8 @@ example:
                    help="splits per repeat (default 5)")
     p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="PREDICTIONS.csv")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_predict)

@@ -5,10 +5,10 @@ argument types several commands take."""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -66,30 +66,76 @@ class _Step:
 # outputs
 # --------------------------------------------------------------------------------------------
 
-def _check_output(
-    path: str | os.PathLike, what: str = "output", *, force: bool = False,
-    inputs: Sequence[str | os.PathLike] = (),
-) -> Path:
-    """Fail early (before any long work) when ``path`` cannot or must not be written."""
-    from ..io import check_overwrite
+@dataclass(frozen=True)
+class FileArgument:
+    """An argument of a command that names a file it writes (``role="output"``) or reads
+    (``"input"``): ``kind`` as :class:`napari_pfsdm.io.outputs.Output` and ``Input`` take it,
+    ``name`` the option as the user types it (``-o``, ``--plot``) or what a positional is."""
 
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise UserError(f"the {what} {p} is a folder; give a file name such as {p / 'out.csv'}")
-    if not folder.is_dir():
-        raise UserError(f"cannot write the {what} {p}: the folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise UserError(f"cannot write the {what} {p}: the folder {folder} is not writable")
-    for q in inputs:
-        if Path(q).exists() and p.exists() and os.path.samefile(p, q):
-            raise UserError(f"the {what} {p} is also an input; choose another output name")
-    check_overwrite(p, force=force, what=what, table=what not in ("plot", "report"))
-    if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
-        from ..io import require_pyarrow
+    dest: str
+    role: str
+    kind: str
+    name: str
 
-        require_pyarrow(p, "writing")
-    return p
+
+def file_argument(p: argparse.ArgumentParser, *flags: str, role: str, kind: str,
+                  name: str | None = None, **kw: Any) -> argparse.Action:
+    """Add an argument that names a file the command writes or reads, and declare it: every
+    command's declared files are checked before it runs (:func:`check_command_files`), so
+    that a new command gets the checks by declaring its files this way."""
+    if role not in ("output", "input"):
+        raise ValueError(f"role must be 'output' or 'input', not {role!r}")
+    action = p.add_argument(*flags, **kw)
+    files = p.get_default("pfsdm_files")
+    if files is None:
+        files = []
+        p.set_defaults(pfsdm_files=files)
+    shown = name or (action.option_strings[0] if action.option_strings else action.dest)
+    files.append(FileArgument(action.dest, role, kind, shown))
+    return action
+
+
+def declared_files(args: argparse.Namespace) -> tuple[list, list]:
+    """The outputs and inputs a command's arguments name (:func:`file_argument`), as
+    :class:`napari_pfsdm.io.outputs.Output` and ``Input``; movie inputs given as folders or
+    globs are the movies found there."""
+    from ..io.outputs import Input, Output
+
+    outputs, inputs = [], []
+    for f in getattr(args, "pfsdm_files", None) or []:
+        value = getattr(args, f.dest, None)
+        values = value if isinstance(value, list | tuple) else [value]
+        for v in values:
+            if v is None or str(v) == "":
+                continue
+            if f.role == "output":
+                outputs.append(Output(Path(v), f.kind, f.name))
+            else:
+                inputs += [Input(p, f.kind, f.name) for p in _input_paths(str(v), f.kind)]
+    return outputs, inputs
+
+
+def _input_paths(text: str, kind: str) -> list[Path]:
+    """The files an input argument names: a movie folder or glob is the movies found there
+    (an error there is the command's to say, in its own words)."""
+    if kind != "movie":
+        return [Path(text)]
+    from ..batch.movies import find_movies
+
+    try:
+        return list(find_movies(text))
+    except (InputError, OSError):
+        return [Path(text)]
+
+
+def check_command_files(args: argparse.Namespace) -> None:
+    """Before a command runs: its declared outputs can be written, replace no file pfsdm did
+    not write (without ``--force``), and are neither each other nor one of its inputs
+    (:func:`napari_pfsdm.io.outputs.check_outputs`)."""
+    from ..io.outputs import check_outputs
+
+    outputs, inputs = declared_files(args)
+    check_outputs(outputs, inputs, force=bool(getattr(args, "force", False)))
 
 
 def _check_parts(parts: Path) -> None:
@@ -153,8 +199,8 @@ def _fraction(flag: str) -> Callable[[str], float]:
 
 def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
     """``--groups``, ``--link``, ``--force`` and ``-q`` as the table-reading commands take them."""
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
+    file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
+                  help="CSV with a 'group' column and 'label', 'track_id' and/or 'movie'")
     p.add_argument("--link", choices=("centroid", "laptrack", "none"),
                    help="as for 'pfsdm trajectories'")
     _add_force(p)

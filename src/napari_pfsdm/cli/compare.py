@@ -10,7 +10,16 @@ from typing import Any
 # when a map is drawn from the neighbour graph, and how: one set of numbers for the command
 # line and the plugin (napari_pfsdm.analysis.reduction)
 from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
-from .common import UserError, _add_force, _check_output, _note, _option_type, _say, _Step, _whole
+from .common import (
+    UserError,
+    _add_force,
+    _note,
+    _option_type,
+    _say,
+    _Step,
+    _whole,
+    file_argument,
+)
 from .tables import _measured, _with_groups
 
 #: Column that carries a row's position in the feature file through the selections.
@@ -120,9 +129,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..core.table_options import carry_options, table_options
     from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
-    if args.mds:
-        _check_output(args.mds, "plot", force=args.force, inputs=[args.features])
+    out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     if args.neighbours is not None and args.neighbours < 1:
         raise UserError(f"--neighbours must be a whole number >= 1, got {args.neighbours}")
     if args.neighbours is not None and args.rerank == "transduction":
@@ -259,15 +266,17 @@ Many objects: --neighbours K writes each object's K nearest (an edge list, no n 
 above 2,000 objects the --mds map is drawn from the neighbour graph (t-SNE), and the output
 says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual).
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv",
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="DISTANCES.csv",
                    help="the square distance table, or with --neighbours the edge list "
                         "(.parquet: written as Parquet)")
     p.add_argument("--neighbours", type=_whole("--neighbours", 1), metavar="K",
                    help="write each object's K nearest neighbours as an edge list (columns "
                         "row, neighbour, rank, distance and the frame/label keys of both "
                         "ends) instead of the n x n matrix: any number of objects")
-    p.add_argument("--mds", metavar="PNG",
+    file_argument(p, "--mds", role="output", kind="plot", metavar="PNG",
                    help="also draw a 2-D map of the distances: classical MDS up to "
                         f"{FULL_MATRIX_LIMIT:,} objects, above that t-SNE of each object's "
                         f"{MAP_NEIGHBOURS} nearest neighbours (--map)")
@@ -296,7 +305,8 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                    help=f"neighbours per object for --rerank (default {RERANK_K}: about the "
                         "number of objects per kind, at most); with --neighbours the graph "
                         "holds 3 K")
-    p.add_argument("--groups", metavar="GROUPS.csv", help="colour the map by group")
+    file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
+                  help="colour the map by group")
     p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
                    help="refuse larger matrices (default 5000; --neighbours has no limit)")
     _add_force(p)

@@ -11,11 +11,11 @@ from typing import Any
 from .common import (
     UserError,
     _add_force,
-    _check_output,
     _check_parts,
     _option_type,
     _say,
     _whole,
+    file_argument,
 )
 from .tables import _warn_untracked
 
@@ -113,8 +113,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         params.check_dimension(3 if "z" in args.axes else 2)
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
-    out = _check_output(args.output, force=args.force,
-                        inputs=[*labels, *(intensity or [])])
+    out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
     movies = pair_movies(labels, intensity)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
@@ -189,11 +188,13 @@ examples:
   pfsdm measure archive/ -o archive.csv --scheduler tcp://10.0.0.5:8786
 """)
     # "*" rather than "+": a labels file swallowed by -i gets a message that says so
-    p.add_argument("labels", nargs="*", metavar="LABELS",
-                   help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
-    p.add_argument("-i", "--intensity", nargs="+", metavar="IMAGE",
-                   help="reporter movie(s) of the same size as the labels")
-    p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
+    file_argument(p, "labels", role="input", kind="movie", name="label movie", nargs="*",
+                  metavar="LABELS",
+                  help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
+    file_argument(p, "-i", "--intensity", role="input", kind="movie", nargs="+",
+                  metavar="IMAGE", help="reporter movie(s) of the same size as the labels")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="FEATURES.csv",
                    help="the feature table to write (plain CSV; the options go into "
                         "FEATURES.csv.json beside it: keep the two together). A name "
                         "ending in .parquet writes Parquet (faster for large tables; pip "
@@ -219,7 +220,7 @@ examples:
                         "('centroid'); 'centroid', 'overlap' (of the label masks) or "
                         "'laptrack' (pip install laptrack) always link; 'none' never (a "
                         "warning says when the labels look untracked)")
-    p.add_argument("--parts", metavar="DIR",
+    file_argument(p, "--parts", role="output", kind="folder", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     g3 = p.add_argument_group("3-D objects (Z-stacks)")

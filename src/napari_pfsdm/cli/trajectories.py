@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import UserError, _add_force, _check_output, _say, _Step, _whole
+from .common import UserError, _add_force, _say, _Step, _whole, file_argument
 from .tables import _follow_objects, _measured, _with_groups
 
 
@@ -19,9 +19,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     from ..core.table_schema import has_channel, pc_columns
     from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     if args.plot:
-        _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
         if max(args.show) > args.components:
             raise UserError(f"--show {args.show[0]} {args.show[1]} names a component above "
                             f"--components {args.components}; show components from 1 to "
@@ -95,16 +94,19 @@ examples:
   pfsdm trajectories cellpose_features.csv --link centroid -o pca.csv --plot pca.png
   pfsdm trajectories treated_features.csv --reference control_features.csv -o pca.csv
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
-    p.add_argument("--plot", metavar="PNG", help="draw the trajectories")
-    p.add_argument("--groups", metavar="GROUPS.csv",
-                   help="CSV with a 'group' column and 'label' and/or 'movie' columns")
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="PCA.csv")
+    file_argument(p, "--plot", role="output", kind="plot", metavar="PNG",
+                  help="draw the trajectories")
+    file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
+                  help="CSV with a 'group' column and 'label' and/or 'movie' columns")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
     p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
                    help="principal components to keep (default 3)")
-    p.add_argument("--reference", metavar="REFERENCE.csv",
+    file_argument(p, "--reference", role="input", kind="table", metavar="REFERENCE.csv",
                    help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
                         "FEATURES.csv is projected into that space; both must be measured "
                         "with the same options")

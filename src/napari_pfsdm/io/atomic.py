@@ -4,8 +4,8 @@
 target's folder (never through a file or symbolic link already there), and moves it onto the
 target in one step: an error or a killed process never leaves a half-written file under the
 final name. The file gets ``0o666`` less the umask, not the ``0o600`` of a temporary file.
-:func:`save_figure` writes a matplotlib figure so, marked as written by napari-pfsdm
-(:data:`PNG_SOFTWARE`), so that a re-run may replace it.
+:func:`save_figure` writes a matplotlib figure so, and :func:`save_tiff` an image, marked as
+written by napari-pfsdm (:data:`PNG_SOFTWARE`), so that a re-run may replace them.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from typing import IO, Any
 
 from ..errors import InputError
 
-__all__ = ["PNG_SOFTWARE", "atomic_write", "new_file_mode", "save_figure", "unlink_quietly",
-           "write_temp", "writer_name"]
+__all__ = ["PNG_SOFTWARE", "atomic_write", "new_file_mode", "save_figure", "save_tiff",
+           "unlink_quietly", "write_temp", "writer_name"]
 
 #: Marker written into PNG files (metadata ``Software``) so that a re-run may replace them.
 PNG_SOFTWARE = "napari-pfsdm"
@@ -123,3 +123,20 @@ def save_figure(fig: Any, path: str | os.PathLike, **kwargs: Any) -> Path:
         path, lambda h: fig.savefig(h, format="png", metadata=meta, **kwargs), binary=True
     )
 
+
+
+def save_tiff(path: str | os.PathLike, data: Any, **kwargs: Any) -> Path:
+    """Write an image as TIFF atomically (``tifffile.imwrite``'s keywords, e.g.
+    ``compression="zlib"``), its Software tag naming napari-pfsdm so that a re-run may
+    replace it."""
+    import tifffile
+
+    path = Path(path)
+    tmp = write_temp(path, lambda handle: None, binary=True)  # ours: made exclusively, empty
+    try:
+        tifffile.imwrite(tmp, data, software=writer_name(), **kwargs)
+        os.replace(tmp, path)
+    except BaseException:
+        unlink_quietly(tmp)
+        raise
+    return path
