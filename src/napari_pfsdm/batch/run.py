@@ -40,7 +40,9 @@ from ..io import (
     sidecar_path,
     to_jsonable,
     write_table_csv,
+    written_by_pfsdm,
 )
+from ..io.sidecar import is_pfsdm_sidecar
 from .fingerprint import data_fingerprint
 from .io import (
     check_labels,
@@ -104,8 +106,20 @@ def _read_part(path: Path) -> pd.DataFrame:
 def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
     """The table of a movie measured by an earlier run, or None when it must be measured: no
     part yet, or a damaged one (truncated, not matching its sidecar), which is removed."""
+    side = sidecar_path(part)
     if not part.exists():
+        if (side.exists() or side.is_symlink()) and not is_pfsdm_sidecar(side):
+            raise InputError(
+                f"{side} has the name of the sidecar of {name}'s saved part but pfsdm did not "
+                "write it; nothing was changed. Move that file out of the parts folder, or "
+                "give another folder with --parts")
         return None
+    if not (sidecar_path(part).exists() or part.with_suffix(".json").is_file()
+            or written_by_pfsdm(part)):  # a part pfsdm wrote has a sidecar, damaged or not
+        raise InputError(
+            f"{part} has the name of {name}'s saved part but pfsdm did not write it (it has "
+            "no pfsdm sidecar); nothing was changed. Move that file out of the parts folder, "
+            "or give another folder with --parts")
     try:
         table = _read_part(part)
     except Exception as exc:  # noqa: BLE001 - any reader's error: the part is not usable

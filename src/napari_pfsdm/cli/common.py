@@ -97,8 +97,9 @@ def file_argument(p: argparse.ArgumentParser, *flags: str, role: str, kind: str,
 
 def declared_files(args: argparse.Namespace) -> tuple[list, list]:
     """The outputs and inputs a command's arguments name (:func:`file_argument`), as
-    :class:`napari_pfsdm.io.outputs.Output` and ``Input``; movie inputs given as folders or
-    globs are the movies found there."""
+    :class:`napari_pfsdm.io.outputs.Output` and ``Input``, with the outputs it derives from
+    them (``pfsdm_derived``, e.g. the default parts folder of ``pfsdm measure``); movie
+    inputs given as folders or globs are the movies found there."""
     from ..io.outputs import Input, Output
 
     outputs, inputs = [], []
@@ -112,6 +113,9 @@ def declared_files(args: argparse.Namespace) -> tuple[list, list]:
                 outputs.append(Output(Path(v), f.kind, f.name))
             else:
                 inputs += [Input(p, f.kind, f.name) for p in _input_paths(str(v), f.kind)]
+    derived = getattr(args, "pfsdm_derived", None)  # files a command derives from others
+    if derived is not None:
+        outputs += derived(args)
     return outputs, inputs
 
 

@@ -83,6 +83,16 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                         "as the local process pool plans them)")
 
 
+def _parts_folder(args: argparse.Namespace) -> list:
+    """The default parts folder, an output of its own (``--parts`` when not given)."""
+    from ..batch.run import default_parts_dir
+    from ..io import Output
+
+    if args.parts is not None or not args.output:
+        return []
+    return [Output(default_parts_dir(args.output), "folder", "parts folder (--parts)")]
+
+
 def cmd_measure(args: argparse.Namespace) -> int:
     """Run ``pfsdm measure``: the label movies measured into one feature table."""
     from ..analysis.features import warnings_summary
@@ -233,4 +243,4 @@ examples:
                          "with --axes zyx or tzyx (default 1 1 1)")
     _add_method_options(p)
     _add_compute_options(p)
-    p.set_defaults(func=cmd_measure)
+    p.set_defaults(func=cmd_measure, pfsdm_derived=_parts_folder)

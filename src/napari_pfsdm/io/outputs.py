@@ -307,28 +307,29 @@ def folds_case(folder: str | os.PathLike) -> tuple[bool, bool]:
     return case, normalisation
 
 
-def _identity(path: Path) -> tuple:
-    """What one file is, for :func:`same_file`: (device, inode) of an existing file (links,
-    hard links and other spellings of its name included); for a file still to be written, its
-    folder's (device, inode) and its name as the file system compares names."""
+def _identity(path: Path) -> set[tuple]:
+    """What one file is, for :func:`same_file`: its folder's (device, inode) with its name as
+    the file system compares names (upper and lower case folded where it folds them), and for
+    an existing file also its own (device, inode) (links and hard links included). Two paths
+    are one file when these share a key."""
     path = Path(os.path.abspath(path))
-    try:
+    keys: set[tuple] = set()
+    with contextlib.suppress(OSError):
         st = os.stat(path)
-        return ("file", st.st_dev, st.st_ino)
-    except OSError:
-        pass
-    folder = path.parent
+        keys.add(("file", st.st_dev, st.st_ino))
     try:
-        st = os.stat(folder)
+        st = os.stat(path.parent)
     except OSError:
-        return ("path", os.path.normcase(os.path.realpath(path)))
+        keys.add(("path", os.path.normcase(os.path.realpath(path))))
+        return keys
     name = path.name
-    case, normalisation = folds_case(folder)
+    case, normalisation = folds_case(path.parent)
     if normalisation:
         name = unicodedata.normalize("NFD", name)
     if case:
         name = name.casefold()
-    return ("new", st.st_dev, st.st_ino, name)
+    keys.add(("name", st.st_dev, st.st_ino, name))
+    return keys
 
 
 def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
@@ -343,7 +344,7 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
     >>> same_file(os.path.join(d, "a.csv"), os.path.join(d, "sub", "..", "a.csv"))
     True
     """
-    return _identity(Path(a)) == _identity(Path(b))
+    return bool(_identity(Path(a)) & _identity(Path(b)))
 
 
 def _inside(path: Path, folder: Path) -> bool:
@@ -499,19 +500,21 @@ def _check_no_collision(outputs: Sequence[Output], inputs: Sequence[Input]) -> N
     seen: dict[tuple, tuple[Output, str, Path]] = {}
     for out in outputs:
         for f, words in _named_files(out):
-            key = _identity(f)
-            if key in seen and seen[key][0] is not out:
-                raise InputError(
-                    f"{words} and {seen[key][1]} are one file{_caseless_note(f)}: one output "
-                    "would replace the other; nothing was changed. Give them different names")
-            seen[key] = (out, words, f)
+            keys = _identity(f)
+            for key in keys:
+                if key in seen and seen[key][0] is not out:
+                    raise InputError(
+                        f"{words} and {seen[key][1]} are one file{_caseless_note(f)}: one "
+                        "output would replace the other; nothing was changed. Give them "
+                        "different names")
+            seen.update(dict.fromkeys(keys, (out, words, f)))
     for inp in inputs:
         for f, words in _named_files(inp):
             if not (f.exists() or f.is_symlink()):
                 continue
-            key = _identity(f)
-            if key in seen:
-                _, out_words, g = seen[key]
+            hit = next((seen[k] for k in _identity(f) if k in seen), None)
+            if hit is not None:
+                _, out_words, g = hit
                 what = (f"is also an input of this command ({words})" if f == inp.path else
                         f"would replace {words}, an input of this command")
                 raise InputError(f"{out_words} {what}{_caseless_note(g)}; nothing was "
