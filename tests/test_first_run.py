@@ -17,6 +17,7 @@ import pytest
 import tifffile
 from skimage import data, filters, measure
 
+import napari_pfsdm as pf
 from napari_pfsdm.cli import main
 from napari_pfsdm.errors import InputError
 
@@ -143,6 +144,14 @@ def test_a_table_resaved_by_pandas_gives_the_same_numbers(coins, tmp_path, capsy
     cut.to_csv(tmp_path / "cut.csv", index=False)
     shutil.copy(folder / "features.csv.json", tmp_path / "cut.csv.json")
     assert main(["trajectories", str(tmp_path / "cut.csv"), "-o", str(tmp_path / "y.csv")]) == 2
+    assert "do not belong together: the table has no columns shape_r07_n00, " \
+        "shape_r07_n01, shape_r07_n02 …" in last_error(capsys)
+    # without the content in its sidecar (an older version's), the columns are counted
+    side = json.loads((folder / "features.csv.json").read_text())
+    del side["content"]
+    (tmp_path / "cut.csv.json").write_text(json.dumps(side))
+    os.utime(tmp_path / "cut.csv", ns=(0, (tmp_path / "cut.csv.json").stat().st_mtime_ns + 10**9))
+    assert main(["trajectories", str(tmp_path / "cut.csv"), "-o", str(tmp_path / "y.csv")]) == 2
     assert "misses 7 of its 56 shape feature columns (shape_r07_n00 … shape_r07_n06" \
         in last_error(capsys)
     assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
@@ -189,6 +198,12 @@ def test_failed_rows_are_left_out_and_named(tmp_path, capsys):
     only_bad = only_bad[(only_bad["frame"] == 0) & only_bad["label"].isin([1, 3])]
     only_bad.to_csv(tmp_path / "bad.csv", index=False)
     shutil.copy(tmp_path / "features.csv.json", tmp_path / "bad.csv.json")
+    # rows cut from a table are not the table its sidecar describes: refused, saying so
+    assert main(["compare", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "f.csv")]) == 2
+    assert "do not belong together: the table has 2 rows where it had 6" in last_error(capsys)
+    # written with pfsdm (the options travel with the table read), they are a table
+    table = pf.read_table(features)
+    pf.write_table(table[(table["frame"] == 0) & table["label"].isin([1, 3])], tmp_path / "bad.csv")
     assert main(["compare", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "f.csv")]) == 2
     assert "only 1 of 2 objects have features; at least 2 are needed" in last_error(capsys)
 

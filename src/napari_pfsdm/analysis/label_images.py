@@ -7,6 +7,8 @@ frames asked for that the movie does not have (:func:`check_frames`), the voxel 
 objects (:func:`voxel_spacing`). Then the objects: their ids (:func:`present_ids`), bounding
 boxes (:func:`object_boxes`) and crops (:func:`crop_of`), found in time and memory that follow
 the pixels, whatever the ids; :func:`count_objects` is the package's one count of them.
+Whether labels are those a table was measured from is checked by content, frame by frame
+(:func:`frame_objects`: ids, pixel counts, centroids; :func:`check_labels_match`).
 """
 
 from __future__ import annotations
@@ -19,9 +21,9 @@ from scipy import ndimage as ndi
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
 
-__all__ = ["AXES", "check_arrays", "check_frames", "count_objects", "crop_of", "frame_at",
-           "looks_like_colour", "object_boxes", "present_ids", "refuse_colour",
-           "refuse_zero_size", "resolve_axes", "voxel_spacing"]
+__all__ = ["AXES", "check_arrays", "check_frames", "check_labels_match", "count_objects",
+           "crop_of", "frame_at", "frame_objects", "looks_like_colour", "object_boxes",
+           "present_ids", "refuse_colour", "refuse_zero_size", "resolve_axes", "voxel_spacing"]
 
 
 #: The axis orders a label image may have (docs/design.md §5, "axes"): ``t`` time, ``z``, ``y``,
@@ -280,3 +282,137 @@ def crop_of(box, shape) -> tuple[slice, ...]:
     side, within a frame of ``shape``."""
     return tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
                  zip(box, shape, strict=True))
+
+
+def frame_objects(frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The objects of one frame as a table reports them: ``(ids, pixel counts, centroids)``
+    (centroids as the mean pixel coordinates, one row per id, one column per axis), in time
+    and memory that follow the pixels, whatever the ids.
+
+    Examples
+    --------
+    >>> f = np.zeros((4, 6), np.uint16); f[0:2, 0:2] = 7; f[3, 3:6] = 2
+    >>> ids, n, c = frame_objects(f)
+    >>> ids.tolist(), n.tolist(), c.tolist()
+    ([2, 7], [3, 4], [[3.0, 4.0], [0.5, 0.5]])
+    """
+    frame = np.asarray(frame)
+    if frame.dtype == bool:
+        frame = frame.astype(np.uint8)
+    flat = frame.ravel()
+    if flat.size == 0 or not flat.any():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, frame.ndim))
+    if _small_ids(flat):
+        index = _as_counts(flat)
+        ids = None
+    else:
+        ids, index = np.unique(flat, return_inverse=True)
+        index = index.ravel()
+    counts = np.bincount(index)
+    sums = []
+    for axis, n in enumerate(frame.shape):
+        shape = [1] * frame.ndim
+        shape[axis] = n
+        coord = np.broadcast_to(np.arange(n, dtype=float).reshape(shape), frame.shape).ravel()
+        sums.append(np.bincount(index, weights=coord, minlength=len(counts)))
+    all_ids = np.arange(len(counts)) if ids is None else ids
+    keep = (counts > 0) & (all_ids != 0)
+    centroids = np.stack(sums, axis=1)[keep] / counts[keep, None]
+    return all_ids[keep], counts[keep], centroids
+
+
+def _has_physical_units(table) -> bool:
+    """Whether a table's sizes may be in physical units (its options record a pixel or voxel
+    size other than 1): then sizes are a constant multiple of pixel counts."""
+    opts = getattr(table, "attrs", {}).get("pfsdm") or {}
+    for key in ("pixel_size", "spacing"):
+        value = opts.get(key)
+        if value is not None and not np.allclose(np.asarray(value, float), 1.0):
+            return True
+    return False
+
+
+def check_labels_match(labels, table, where: str = "the labels",
+                       movie: str | None = None) -> None:
+    """Refuse, in plain words, labels that are not the segmentation ``table`` was measured
+    from: every row's object must be in its frame of ``labels`` with the row's size (``area``
+    or ``volume``, pixel counts or a constant multiple of them, as a pixel size gives) and,
+    in pixel units, its centroid. Objects of the labels that the table lacks are allowed (rows
+    left out of a table). Each frame the table names is read once.
+
+    Parameters
+    ----------
+    labels : array_like
+        One image or volume, or a movie (time first), numpy, dask or zarr.
+    table : pandas.DataFrame
+        Rows of one movie (``frame``, ``label`` and ``area`` or ``volume``; centroids when
+        it has them).
+    where : str
+        The labels' name (a file), for the message.
+    movie : str, optional
+        The movie's name in the table, for the message.
+
+    Raises
+    ------
+    InputError
+        Naming the first objects that differ, the frames, and what to do.
+    """
+    size_col = "area" if "area" in table.columns else "volume"
+    if size_col not in table.columns or not len(table):
+        return
+    axes = [c for c in ("centroid_z", "centroid_y", "centroid_x") if c in table.columns]
+    ndim = getattr(labels, "ndim", np.ndim(labels))
+    obj_ndim = 3 if "volume" in table.columns or "centroid_z" in table.columns else 2
+    movie_like = ndim == obj_ndim + 1
+    bad: list[str] = []
+    bad_frames: set[int] = set()
+    ratios: list[np.ndarray] = []
+    cents: list[tuple[np.ndarray, np.ndarray]] = []
+    n_frames = int(labels.shape[0]) if movie_like else 1
+    for t, rows in table.groupby("frame", sort=True):
+        if not (isinstance(t, int | np.integer) and 0 <= t < n_frames):
+            bad.append(f"frame {t} is not in the labels ({n_frames} frame"
+                       f"{'s' if n_frames > 1 else ''})")
+            bad_frames.add(-1)
+            continue
+        t = int(t)
+        image = np.asarray(labels[t]) if movie_like else np.asarray(labels)
+        ids, counts, centroids = frame_objects(image)
+        pos = {int(i): k for k, i in enumerate(ids.tolist())}
+        for row in rows.itertuples(index=False):
+            lab = int(row.label)
+            size = float(getattr(row, size_col))
+            k = pos.get(lab)
+            if k is None:
+                bad.append(f"frame {t}: label {lab} is not there")
+                bad_frames.add(t)
+                continue
+            if np.isfinite(size):
+                ratios.append(np.array([size / counts[k], counts[k], t, lab], float))
+            if axes and len(axes) == centroids.shape[1]:
+                cents.append((np.array([getattr(row, a) for a in axes], float),
+                              np.append(centroids[k], [t, lab])))
+    if ratios:
+        r = np.array(ratios)
+        scale = float(np.median(r[:, 0])) if _has_physical_units(table) else 1.0
+        off = np.abs(r[:, 0] - scale) > 1e-6 * abs(scale)
+        for ratio, n, t, lab in r[off][:3]:
+            bad.append(f"frame {int(t)}: label {int(lab)} has {int(n):,} pixels there, "
+                       f"{size_col} {ratio * n:g} in the table")
+        bad_frames.update(int(t) for t in r[off, 2])
+        if abs(scale - 1.0) <= 1e-9 and cents and not off.any():
+            for want, got in cents:
+                if np.nanmax(np.abs(want - got[:-2])) > 1e-6:
+                    t, lab = int(got[-2]), int(got[-1])
+                    at = ", ".join(a.split("_")[1] for a in axes)
+                    bad.append(f"frame {t}: label {lab} is centred at {at} = "
+                               f"{', '.join(f'{v:.1f}' for v in got[:-2])} there, "
+                               f"{', '.join(f'{v:.1f}' for v in want)} in the table")
+                    bad_frames.add(t)
+    if bad:
+        from_ = f" of {movie}" if movie else ""
+        more = f" (objects differ in {len(bad_frames)} frame{'s' if len(bad_frames) > 1 else ''})"
+        raise InputError(
+            f"{where} is not the segmentation the table{from_} was measured from: "
+            f"{'; '.join(bad[:3])}{more}. Give the label movie the table was measured from "
+            "(the same file, not another segmentation of the same images)")

@@ -37,6 +37,7 @@ from ..core.params import DERIVED, WEIGHT_OPTIONS, option
 from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
+from .label_images import check_labels_match
 
 __all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
@@ -191,10 +192,11 @@ def _where(row: Mapping[str, Any], several_movies: bool) -> str:
 class _Masks:
     """The mask of (movie, frame, label) from the label movie(s), or None."""
 
-    def __init__(self, labels, table: pd.DataFrame):
+    def __init__(self, labels, table: pd.DataFrame, names=None):
         from ..core.table_schema import table_ndim
 
         self.labels = labels
+        self.names = names  # the labels' files (one, or movie -> file), for messages
         self.movies = (sorted(set(table["movie"].astype(str))) if "movie" in table.columns
                        else [])
         self.ndim = table_ndim(table_options(table))  # 3: volumes, drawn projected along z
@@ -209,7 +211,7 @@ class _Masks:
         arrays = (self.labels.items() if isinstance(self.labels, Mapping)
                   else [("", self.labels)])
         for movie, arr in arrays:
-            name = f"the labels of {movie}" if movie else "the labels"
+            name = self.where(movie) + (" (the labels)" if self.names else "")
             dtype = np.dtype(getattr(arr, "dtype", np.asarray(arr).dtype))
             if dtype.kind not in "iub":  # signed, unsigned, boolean
                 raise InputError(f"{name} hold {dtype} values, not whole numbers: give the "
@@ -224,6 +226,21 @@ class _Masks:
                 raise InputError(f"{name} have {arr.shape[0]} frames but the table has frame "
                                  f"{int(rows['frame'].max())}: give the label movie the table "
                                  "was measured from")
+            if ndim == self.ndim and len(rows) and rows["frame"].nunique() > 1:
+                raise InputError(f"{name} are one image but the table's objects are in "
+                                 f"{rows['frame'].nunique()} frames: give the label movie the "
+                                 "table was measured from")
+            if not movie and "movie" in rows and rows["movie"].nunique() > 1:
+                continue  # one array for several movies: drawn for none of them
+            # by content: each row's object in its frame, with its size and centroid
+            check_labels_match(arr, carry_options(table, rows), where=self.where(movie),
+                               movie=movie or None)
+
+    def where(self, movie: str) -> str:
+        """The labels' name for a message: their file when known."""
+        names = self.names if isinstance(self.names, Mapping) else {"": self.names}
+        name = names.get(movie) or names.get("")
+        return str(name) if name else (f"the labels of {movie}" if movie else "the labels")
 
     def movie_array(self, movie: str | None):
         labels = self.labels
@@ -265,12 +282,15 @@ class _Masks:
         return np.pad(mask[r0:r1, c0:c1], 1)
 
 
-def check_labels(labels, table: pd.DataFrame) -> None:
+def check_labels(labels, table: pd.DataFrame, names=None) -> None:
     """Refuse, in plain words (:class:`~napari_pfsdm.errors.InputError`), label arrays that
-    cannot be the table's segmentation: not whole numbers (an image given by mistake), the
-    wrong number of axes, fewer frames than the table has. ``labels`` as for
-    :func:`report_html`; None passes."""
-    _Masks(labels, table).check(table)
+    are not the table's segmentation: not whole numbers (an image given by mistake), the
+    wrong number of axes, fewer frames than the table has, or other objects than the table's
+    rows in any frame (by id, size and centroid: another segmentation of the same shape, ids
+    swapped, frames in another order; :func:`~napari_pfsdm.analysis.label_images.
+    check_labels_match`). ``labels`` as for :func:`report_html`; None passes. ``names``: the
+    labels' file (or movie → file), named in the message."""
+    _Masks(labels, table, names).check(table)
 
 
 def _draw_mask(ax, mask: np.ndarray | None, colour="0.25") -> None:

@@ -54,9 +54,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     labels = None
     if args.labels:
         from ..analysis.report import check_labels
+        from ..batch.movies import movie_name
 
         labels = _report_labels(args.labels, table, args.quiet)
-        check_labels(labels, table)
+        names = ({movie_name(p): p for p in args.labels} if isinstance(labels, dict)
+                 else args.labels[0])
+        check_labels(labels, table, names)  # by content: the objects of every frame
     predictions = info = None
     if args.predictions:
         if not Path(args.predictions).is_file():
