@@ -340,8 +340,8 @@ def read_groups(path: str | os.PathLike) -> pd.DataFrame:
     for key in ("label", TRACK_COLUMN):
         if key not in keys:
             continue
-        try:
-            groups[key] = groups[key].str.strip().astype(int).astype(str)
+        try:  # exact, whatever the size (ids up to 2**64 - 1): Python's int, not int64
+            groups[key] = [str(int(v)) for v in groups[key].str.strip()]
         except ValueError:
             raise InputError(
                 f"The {key!r} column of the group file {p.name} must hold whole numbers."

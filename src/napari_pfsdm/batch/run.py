@@ -26,7 +26,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
+from ..analysis.schedulers import (
+    LOCAL_SCHEDULERS,
+    check_workers,
+    client_for,
+    process_pool,
+    resolve_scheduler,
+)
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -252,6 +258,8 @@ def run_batch(
     if not os.access(out_dir, os.W_OK):
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
+    if client is None and (scheduler is None or scheduler in LOCAL_SCHEDULERS):
+        check_workers(num_workers, "num_workers")  # this machine's cores, at most
     _refuse_collisions(movies)
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         require_pyarrow(output, "writing")  # a missing package fails here, not after measuring

@@ -5,7 +5,17 @@ from __future__ import annotations
 
 import argparse
 
-from .common import UserError, _add_force, _fraction, _note, _say, _whole, file_argument
+from .common import (
+    UserError,
+    _add_force,
+    _fraction,
+    _note,
+    _say,
+    _seed,
+    _whole,
+    file_argument,
+    selected_frames,
+)
 from .tables import _follow_objects, _measured, _with_groups
 
 
@@ -59,7 +69,6 @@ def _check_class_sizes(y, names: list[str], positive: str, test_size: float) -> 
 
 def cmd_predict(args: argparse.Namespace) -> int:
     """Run ``pfsdm predict``: each object's probability of a group, out of fold."""
-    from ..analysis import classification as clf
     from ..analysis.prediction import predict_outcome
     from ..analysis.reduction import object_ids
     from ..batch.reports import load_features
@@ -69,7 +78,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     out = args.output  # checked with the inputs before the command ran (cli.main)
     table = load_features(args.features)
     table, _ = _with_groups(table, args.groups, args.quiet)
-    frames = clf.parse_frames(args.frames) if args.frames else None
+    frames = selected_frames(args.frames, table) if args.frames else None
     if frames is None or len(frames) > 1:
         table = _follow_objects(table, None, args.quiet, command="predict")
     table = table.assign(object=object_ids(table).to_numpy())
@@ -107,10 +116,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
 
     table = load_features(args.features)
     table, groups = _with_groups(table, args.groups, args.quiet)
-    frames = clf.parse_frames(args.frames)
-    if not table["frame"].isin(frames).any():
-        raise UserError(f"no rows in frames {args.frames}: the table has frames "
-                        f"{clf.format_frames(table['frame'])}; choose frames among these")
+    frames = selected_frames(args.frames, table)
     table = table[table["frame"].isin(frames)]
     if len(frames) > 1:  # one object over several frames: its id must follow it
         table = _follow_objects(table, None, args.quiet, command="classify")
@@ -200,12 +206,14 @@ example:
                    help="frames whose features are used, e.g. 0-10 or 0,5,10")
     p.add_argument("--positive", metavar="GROUP",
                    help="the group to detect (default: the second name alphabetically)")
-    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+    p.add_argument("--splits", type=_whole("--splits", 2, 1000), default=5,
                    help="splits per repeat (default 5)")
     p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
                    help="test fraction (default 0.2)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1), default=3, help="repeats (default 3)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=_whole("--repeats", 1, 1000), default=3,
+                   help="repeats (default 3)")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of the random splits (default 0)")
     file_argument(p, "-o", "--output", role="output", kind="table", metavar="SCORES.csv",
                   help="also write the score table")
     _add_force(p)
@@ -233,10 +241,12 @@ example:
                         "'movie' columns; objects without a group are predicted only")
     p.add_argument("--frames", metavar="RANGE",
                    help="frames whose features are used, e.g. 0-5 (default: all)")
-    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+    p.add_argument("--splits", type=_whole("--splits", 2, 1000), default=5,
                    help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=_whole("--repeats", 1, 1000), default=2,
+                   help="repeats (default 2)")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of the random splits (default 0)")
     file_argument(p, "-o", "--output", role="output", kind="table", required=True,
                   metavar="PREDICTIONS.csv")
     _add_force(p)

@@ -168,18 +168,55 @@ def _option_type(opt: Any) -> Callable[[str], Any]:
     return parse
 
 
-def _whole(flag: str, low: int) -> Callable[[str], int]:
-    """argparse's ``type`` of a count: a whole number of at least ``low``, else one line
-    saying so (``--workers 0`` was once taken as the default without a word)."""
+def _whole(flag: str, low: int, high: int | None = None,
+           why: str = "") -> Callable[[str], int]:
+    """argparse's ``type`` of a count: a whole number from ``low`` to ``high`` (no upper bound
+    when None), else one line saying so (``--workers 0`` was once taken as the default
+    without a word); ``why`` says what the upper bound is."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = None
-        if value is None or value < low:
+        if value is None or value < low or (high is not None and value > high):
+            span = f"of at least {low}" if high is None else f"from {low} to {high:,}"
             raise argparse.ArgumentTypeError(
-                f"{flag} must be a whole number of at least {low}; got {text!r}")
+                f"{flag} must be a whole number {span}{why}; got {text!r}")
         return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _seed(text: str) -> int:
+    """argparse's ``type`` of ``--seed``: a whole number from 0 to
+    :data:`napari_pfsdm.analysis.prediction.MAX_SEED` (scikit-learn's range, less the seeds
+    the splits add to it)."""
+    from ..analysis.prediction import check_seed
+
+    try:
+        value: Any = int(text)
+    except ValueError:
+        value = text
+    try:
+        return check_seed(value, "--seed")
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _workers(flag: str = "--workers") -> Callable[[str], int]:
+    """argparse's ``type`` of a number of local workers: at least 1, at most the cores this
+    process may use (:func:`napari_pfsdm.analysis.schedulers.check_workers`)."""
+    from ..analysis.schedulers import check_workers
+
+    count = _whole(flag, 1)
+
+    def parse(text: str) -> int:
+        value = count(text)
+        try:
+            return int(check_workers(value, flag))
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
 
     parse.__name__ = flag.lstrip("-")
     return parse
@@ -199,6 +236,18 @@ def _fraction(flag: str) -> Callable[[str], float]:
 
     parse.__name__ = flag.lstrip("-")
     return parse
+
+
+def selected_frames(text: str, table) -> list[int]:
+    """``--frames`` read against the table's frames: ranges are never listed frame by frame,
+    and frames the table does not have are refused, naming them
+    (:func:`napari_pfsdm.analysis.classification.parse_frames`)."""
+    from ..analysis.classification import parse_frames
+
+    try:
+        return parse_frames(text, available=table["frame"])
+    except InputError as exc:
+        raise UserError(f"--frames {text}: {exc}") from None
 
 
 def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:

@@ -26,18 +26,25 @@ from .tables import _measured, _with_groups
 _FILE_ROW = "_pfsdm_file_row"
 
 
+def _matrix_limit() -> int | None:
+    """The most objects whose n x n distance matrix (with the copies its work makes, about
+    four of 8 bytes per pair) fits in this machine's memory; None where it cannot be told."""
+    import os
+
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+    return max(2, int((memory / 32) ** 0.5))
+
+
 def _select_frames(table, frames: str | None):
     """The rows of ``frames`` (``--frames``, e.g. ``0-10``); all rows when None."""
     if frames is None:
         return table
-    from ..analysis.classification import format_frames, parse_frames
+    from .common import selected_frames
 
-    sel = parse_frames(frames)
-    sub = table[table["frame"].isin(sel)]
-    if sub.empty:
-        raise UserError(f"no rows in frames {frames}: the table has frames "
-                        f"{format_frames(table['frame'])}; choose frames among these")
-    return sub
+    return table[table["frame"].isin(selected_frames(frames, table))]
 
 
 def _nearest(table, k: int, args: argparse.Namespace):
@@ -307,8 +314,13 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                         "holds 3 K")
     file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
                   help="colour the map by group")
-    p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
-                   help="refuse larger matrices (default 5000; --neighbours has no limit)")
+    p.add_argument("--max-objects", type=_whole("--max-objects", 1, _matrix_limit(),
+                                                " (a larger matrix and its work would not "
+                                                "fit in this machine's memory; use "
+                                                "--neighbours K)"),
+                   default=5000, metavar="N",
+                   help="refuse larger matrices (default 5000, at most what this machine's "
+                        "memory holds; --neighbours has no limit)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_compare)

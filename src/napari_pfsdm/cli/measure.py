@@ -15,9 +15,13 @@ from .common import (
     _option_type,
     _say,
     _whole,
+    _workers,
     file_argument,
 )
 from .tables import _warn_untracked
+
+#: Frames of one task at most (--frames-per-task): more than any movie holds.
+MAX_FRAMES = 1_000_000
 
 
 def _progress_printer(quiet: bool):
@@ -75,10 +79,10 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                    help="'processes' (default: one process per core of this machine), "
                         "'threads', 'sync' (one at a time, for debugging), or the address of a "
                         "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
-    g.add_argument("--workers", type=_whole("--workers", 1), metavar="N",
-                   help="local workers (default: the number of cores)")
+    g.add_argument("--workers", type=_workers("--workers"), metavar="N",
+                   help="local workers, at most the number of cores (default: one per core)")
     g.add_argument("--frames-per-task", dest="frames_per_task",
-                   type=_whole("--frames-per-task", 1), metavar="N",
+                   type=_whole("--frames-per-task", 1, MAX_FRAMES), metavar="N",
                    help="whole frames measured per task (default: tasks planned by objects, "
                         "as the local process pool plans them)")
 

@@ -50,6 +50,11 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
                 table if reference is None else reference)
             s, ev = space.transform(table), space.explained_variance_ratio_
             explained[ch] = ev
+            if len(ev) < args.components:  # the PCA keeps at most rows or features
+                raise UserError(
+                    f"--components {args.components}: the {len(table):,} rows of "
+                    f"{'the reference' if reference is not None else 'the table'} give at "
+                    f"most {len(ev)} {ch} components; ask for at most {len(ev)}")
             scores = s if scores is None else pd.concat(
                 [scores, s[pc_columns(s.columns, ch)]], axis=1)
     opts = table_options(table)
