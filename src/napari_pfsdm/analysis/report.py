@@ -38,6 +38,7 @@ from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 from .label_images import check_labels_match
+from .plot_text import plot_text
 
 __all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
@@ -393,7 +394,7 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray) -> str:
             ax.plot(obj["shape_PC1"], obj["shape_PC2"], "-", color="0.45", lw=0.8, zorder=1)
             sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=obj["frame"], s=12,
                             cmap="viridis", vmin=fmin, vmax=fmax, zorder=2)
-        ax.set_title(name or "all objects", fontsize=10)
+        ax.set_title(plot_text(name) if name else "all objects", fontsize=10)
         ax.set_xlabel(f"PC1 ({100 * explained[0]:.2g} %)")
         if len(explained) > 1:
             ax.set_ylabel(f"PC2 ({100 * explained[1]:.2g} %)")
@@ -421,7 +422,7 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
     for ax, col in zip(axes, cols, strict=False):
         plot_over_time(ax, table, col)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
-        ax.set_title(col, fontsize=10)
+        ax.set_title(plot_text(col), fontsize=10)
     for ax in axes[len(cols):]:
         ax.set_visible(False)
     from ..core.glossary import describe_column
@@ -464,7 +465,7 @@ def _modes_figure(scores: pd.DataFrame, k: int, masks: _Masks, several: bool) ->
     axes = fig.subplots(1, len(modes))
     for ax, row in zip(axes, modes.to_dict("records"), strict=True):
         _draw_mask(ax, masks.mask(row))
-        ax.set_title(f"{row['sigma']:+g}σ\n{_where(row, several)}", fontsize=7)
+        ax.set_title(f"{row['sigma']:+g}σ\n{plot_text(_where(row, several))}", fontsize=7)
     return _img(fig, f"real objects at -2 sigma to +2 sigma along PC{k}")
 
 

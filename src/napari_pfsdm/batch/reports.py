@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.features import FOLDED_WARNING
+from ..analysis.plot_text import plot_text
 from ..analysis.reduction import (
     KEY_COLUMNS,
     attach_groups,
@@ -109,11 +110,12 @@ def plot_trajectories(
         ax.set_title(f"{ch} features")
         if by_group:
             for i, n in enumerate(names):
-                ax.plot([], [], "-o", color=tab10(i % 10), label=n or "(no group)", ms=4)
+                ax.plot([], [], "-o", color=tab10(i % 10), label=plot_text(n) or "(no group)",
+                        ms=4)
             ax.legend(fontsize=8, title="group (■ = last frame)", title_fontsize=8)
         elif sc is not None:
             fig.colorbar(sc, ax=ax, label="frame")
-    fig.suptitle(title)
+    fig.suptitle(plot_text(title))
     save_figure(fig, path, dpi=120)
     return Path(path)
 
@@ -137,7 +139,7 @@ def plot_mds(
         for i, n in enumerate(names):
             m = (table["group"].astype(str) == n).to_numpy()
             ax.scatter(coords[m, 0], coords[m, 1], s=size, color=tab10(i % 10),
-                       label=n or "(no group)")
+                       label=plot_text(n) or "(no group)")
         ax.legend(fontsize=8)
     elif table["frame"].nunique() > 1:
         sc = ax.scatter(coords[:, 0], coords[:, 1], c=table["frame"], cmap="viridis", s=size)
@@ -164,11 +166,12 @@ def plot_mds(
             names = table["movie"].astype(str) + "/" + names
         for (x, y), oid in zip(coords, names, strict=True):
             if np.isfinite(x):
-                ax.annotate(oid, (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+                ax.annotate(plot_text(oid), (x, y), fontsize=7, xytext=(3, 3),
+                            textcoords="offset points")
     ax.set_xlabel(f"{axis_name} 1")
     ax.set_ylabel(f"{axis_name} 2")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(title or "PF-SDM distances, 2-D MDS")
+    ax.set_title(plot_text(title) if title else "PF-SDM distances, 2-D MDS")
     save_figure(fig, path, dpi=120)
     return Path(path)
 

@@ -17,6 +17,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from ..analysis.over_time import numeric_columns, plot_over_time
+    from ..analysis.plot_text import plot_text
     from ..io import read_table_csv, save_figure, write_table_csv
 
     out = args.output  # checked with the inputs before the command ran (cli.main)
@@ -42,7 +43,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if unknown:
         raise UserError(f"no object called {', '.join(unknown)}; objects are named as in "
                         f"the table's tracks, e.g. {', '.join(lines['object'].unique()[:3])}")
-    ax.set_title(f"{args.column} over time ({lines['object'].nunique():,} objects)", fontsize=9)
+    ax.set_title(f"{plot_text(args.column)} over time ({lines['object'].nunique():,} objects)",
+                 fontsize=9)
     fig.tight_layout()
     save_figure(fig, out, dpi=120)
     plt.close(fig)
