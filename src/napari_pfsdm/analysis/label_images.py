@@ -23,7 +23,9 @@ from ..errors import InputError
 
 __all__ = ["AXES", "check_arrays", "check_frames", "check_labels_match", "count_objects",
            "crop_of", "frame_at", "frame_objects", "looks_like_colour", "object_boxes",
-           "present_ids", "refuse_colour", "refuse_zero_size", "resolve_axes", "voxel_spacing"]
+           "present_ids", "raw_image_reason", "refuse_colour", "refuse_not_labels",
+           "reporter_channels",
+           "refuse_zero_size", "resolve_axes", "voxel_spacing"]
 
 
 #: The axis orders a label image may have (docs/design.md §5, "axes"): ``t`` time, ``z``, ``y``,
@@ -189,10 +191,12 @@ def object_boxes(frame: np.ndarray) -> list[tuple[int, tuple[slice, ...]]]:
             zip(labels, ndi.find_objects(compact), strict=True)]
 
 
-def check_arrays(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
+def check_arrays(labels, intensity, axes: str | None = None,
+                 where: str = "The labels") -> tuple[int, bool, str]:
     """Labels (and a reporter of the same shape) checked as :func:`measure` takes them:
     ``(number of frames, whether it is a time-lapse, the axis order)``; plain words for
-    anything else (:class:`~napari_pfsdm.errors.InputError`)."""
+    anything else (:class:`~napari_pfsdm.errors.InputError`), a raw image or negative ids in
+    a few of its frames included (:func:`refuse_not_labels`)."""
     shape = tuple(labels.shape)
     axes = resolve_axes(shape, axes)
     refuse_zero_size(shape)
@@ -210,7 +214,116 @@ def check_arrays(labels, intensity, axes: str | None = None) -> tuple[int, bool,
             f"{shape}: they must cover the same frames and pixels."
         )
     timelapse = axes.startswith("t")
+    refuse_not_labels(labels, axes, where)
     return (shape[0] if timelapse else 1), timelapse, axes
+
+
+#: A frame whose values lie in more separate patches than this per value, with at least
+#: :data:`RAW_MIN_VALUES` values, is a raw image, not labels: a segmentation has one patch per
+#: object, or a few (an object in pieces); a microscope image scatters each value over hundreds
+#: (tests/test_faults_files3.py: 3,500 nuclei 1.02 patches per id, a tessellation 1.0; 16-bit
+#: and 8-bit images 50 to 1,800).
+RAW_PATCHES_PER_VALUE = 8
+RAW_MIN_VALUES = 16
+#: Pixels of a frame looked at (its centre), at most: the check costs ~0.1 s.
+RAW_SAMPLE = 2048 * 2048
+
+
+def raw_image_reason(frame: np.ndarray) -> str | None:
+    """Why a frame of "labels" is a raw image, in words, or None when it looks like labels
+    (:data:`RAW_PATCHES_PER_VALUE`). Its centre is looked at, at most :data:`RAW_SAMPLE`
+    pixels.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> raw = rng.poisson(100, (64, 64)).astype(np.uint16)
+    >>> raw_image_reason(raw).split(",")[0]
+    '68 different values lie in 3,670 separate patches'
+    >>> labels = np.zeros((64, 64), np.uint16); labels[:32], labels[40:] = 1, 2
+    >>> raw_image_reason(labels) is None
+    True
+    """
+    from skimage.measure import label as patches
+
+    frame = np.asarray(frame)
+    if frame.dtype == bool or frame.size == 0:
+        return None
+    side = int(RAW_SAMPLE ** (1 / frame.ndim))
+    crop = tuple(slice(max(0, (n - side) // 2), max(0, (n - side) // 2) + side)
+                 for n in frame.shape)
+    frame = frame[crop]
+    values = len(present_ids(frame)) if frame.min() >= 0 else len(np.unique(frame))
+    if values < RAW_MIN_VALUES:
+        return None
+    n = int(patches(frame, background=0, connectivity=frame.ndim).max())
+    if n < RAW_PATCHES_PER_VALUE * values:
+        return None
+    return (f"{values:,} different values lie in {n:,} separate patches, {n / values:.0f} "
+            "per value, where a segmentation has one patch (or a few) per object")
+
+
+def _frames_to_check(n_frames: int) -> list[int]:
+    return sorted({0, n_frames // 2, n_frames - 1})
+
+
+def refuse_not_labels(labels, axes: str, where: str = "The labels") -> None:
+    """Refuse, before any work, labels whose first, middle or last frame holds negative ids or
+    is a raw image (:func:`raw_image_reason`), naming ``where`` and saying what to give."""
+    timelapse = axes.startswith("t")
+    n_frames = int(labels.shape[0]) if timelapse else 1
+    for t in _frames_to_check(n_frames):
+        frame = frame_at(labels, t, timelapse)
+        if frame.dtype == bool or not frame.size:
+            continue
+        at = f" (frame {t})" if timelapse else ""
+        low = frame.min()
+        if low < 0:
+            raise InputError(
+                f"{where} hold{'s' if not where.startswith('The ') else ''} negative values"
+                f"{at}, down to {int(low)}: labels are 0 (background) and whole numbers from 1, "
+                "one per object. If negative values mark the background, set them to 0 "
+                "(labels[labels < 0] = 0); if the ids are shifted, relabel them "
+                "(skimage.measure.label)")
+        reason = raw_image_reason(frame)
+        if reason:
+            raise InputError(
+                f"{where} look{'s' if not where.startswith('The ') else ''} like a raw image, "
+                f"not a label image{at}: {reason}. Give the segmentation (one whole number "
+                "per object, 0 = background), not the raw image")
+
+
+#: Largest number of channels a reporter's extra axis may have to be read by channel.
+MAX_CHANNELS = 16
+
+
+def reporter_channels(image_shape: tuple, labels_shape: tuple, rgb: bool = False,
+                      axis: bool = False):
+    """How an image of ``image_shape`` can be the reporter of labels of ``labels_shape``: the
+    one rule of the napari plugin's reporter choices and of ``pfsdm measure
+    --reporter-channel``.
+
+    Returns ``[None]`` (the image as it is), the list of its channels (an image with one
+    more axis, of at most :data:`MAX_CHANNELS` entries, that is the labels' grid without it),
+    or None (it does not fit). With ``axis=True``: the channel axis (None without one).
+
+    >>> movie = (5, 64, 64)
+    >>> reporter_channels(movie, movie), reporter_channels((5, 2, 64, 64), movie)
+    ([None], [0, 1])
+    >>> reporter_channels((5, 2, 64, 64), movie, axis=True), reporter_channels((64, 64), movie)
+    (1, None)
+    """
+    image_shape, labels_shape = tuple(image_shape), tuple(labels_shape)
+    if rgb:
+        return None
+    if image_shape == labels_shape:
+        return None if axis else [None]
+    if len(image_shape) == len(labels_shape) + 1:
+        for k in range(len(image_shape) - 2):  # a channel axis is never Y or X
+            if image_shape[:k] + image_shape[k + 1:] == labels_shape \
+                    and image_shape[k] <= MAX_CHANNELS:
+                return k if axis else list(range(image_shape[k]))
+    return None
 
 
 def frame_at(array, t: int, timelapse: bool) -> np.ndarray:

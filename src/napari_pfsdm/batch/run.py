@@ -36,7 +36,7 @@ from ..analysis.schedulers import (
 from ..core.params import PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
-from ..errors import InputError
+from ..errors import InputError, RunFault
 from ..io import (
     is_parquet,
     output_lock,
@@ -73,7 +73,8 @@ def _have_parquet() -> bool:
 
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
-               spacing: Any = None, series: int | None = None) -> str:
+               spacing: Any = None, series: int | None = None,
+               channel: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
     (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and the options."""
     def stamp(p: Path | None) -> Any:
@@ -86,7 +87,8 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         [stamp(movie.labels), stamp(movie.intensity), to_jsonable(params.record())]
         + ([axes, None if spacing is None else [float(v) for v in np.ravel(spacing)]]
            if axes is not None and "z" in axes else [])
-        + ([["series", int(series)]] if series is not None else []),
+        + ([["series", int(series)]] if series is not None else [])
+        + ([["reporter_channel", int(channel)]] if channel is not None else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -200,6 +202,7 @@ def run_batch(
     spacing: Any = None,
     allow_missing_chunks: bool = False,
     series: int | None = None,
+    reporter_channel: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -241,6 +244,10 @@ def run_batch(
     series : int, optional
         The image series read from every TIFF (:func:`~napari_pfsdm.batch.io.open_movie`);
         a TIFF of several series is refused without it.
+    reporter_channel : int, optional
+        The channel read from reporters of several channels (an axis more than their labels,
+        named ``c`` or found by shape, as the napari plugin offers them); such a reporter is
+        refused without it.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -268,7 +275,8 @@ def run_batch(
             movies, output, p, client=client, scheduler=scheduler, num_workers=num_workers,
             frames_per_task=frames_per_task, parts_dir=parts_dir, progress=progress,
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
-            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series)
+            spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series,
+            reporter_channel=reporter_channel)
 
 
 def _refuse_collisions(movies: Sequence[Movie]) -> None:
@@ -312,6 +320,7 @@ def _run_batch_locked(
     parts_dir: str | os.PathLike | None, progress: Callable[[str, int, int], None] | None,
     say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
     spacing: Any, allow_missing_chunks: bool, series: int | None = None,
+    reporter_channel: int | None = None,
 ) -> pd.DataFrame:
     """:func:`run_batch`'s work, holding the output's lock."""
     remove_leftovers(output)
@@ -325,8 +334,10 @@ def _run_batch_locked(
     for m in movies:
         lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
         img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
-                         series=series) if m.intensity else None
-        check_labels(lab, img, where=str(m.labels), axes=axes)
+                         series=series, channel=reporter_channel,
+                         like=tuple(lab.shape)) if m.intensity else None
+        check_labels(lab, img, where=str(m.labels), axes=axes,
+                     intensity_where=str(m.intensity) if m.intensity else None)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
         for movie, path in ((lab, m.labels), (img, m.intensity)):
@@ -343,7 +354,7 @@ def _run_batch_locked(
     with contextlib.ExitStack() as kept, client_for(kind, obj) as cl:
         pool = None
         for m, lab, img in opened:
-            part = parts / (_part_name(m, p, axes, spacing, series) + suffix)
+            part = parts / (_part_name(m, p, axes, spacing, series, reporter_channel) + suffix)
             table = _resumed(part, m.name, say)
             if table is not None:
                 attrs = attrs or to_jsonable(table_options(table) or {})
@@ -356,7 +367,7 @@ def _run_batch_locked(
                     if progress:
                         progress(_name, done, total)
 
-                with warnings.catch_warnings():  # the missing chunks were said above
+                with warnings.catch_warnings(), _naming(m.labels):
                     warnings.filterwarnings("ignore", ".*chunk files? missing", UserWarning)
                     table = measure_dask(
                         lab, img,
@@ -401,6 +412,18 @@ def _run_batch_locked(
              "missing_chunks": missing}
     write_table_csv(result, output, attrs, table_type="features", extra=extra)
     return result
+
+
+@contextlib.contextmanager
+def _naming(path: Any):
+    """The user's errors met while measuring a movie name its file (a frame's negative ids,
+    say, that the checks before the run did not look at)."""
+    try:
+        yield
+    except InputError as exc:
+        if str(path) in str(exc) or isinstance(exc, RunFault):
+            raise
+        raise InputError(f"{path}: {exc}") from exc
 
 
 def _n_frames(movie: Any, axes: str | None) -> int:

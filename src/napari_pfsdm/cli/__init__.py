@@ -96,8 +96,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc(file=sys.stderr)
         if _is_input_error(exc):
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
-                msg = f"{exc.filename}: {msg}"
+            if isinstance(exc, OSError) and exc.strerror:  # the system's words, and the file
+                msg = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+                from ..io.atomic import WRITE_HINTS
+
+                hint = WRITE_HINTS.get(exc.errno or 0)
+                if hint and hint not in msg:
+                    msg += f"; {hint}"
             print(f"pfsdm: error: {msg}", file=sys.stderr)
             return EXIT_USAGE
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""

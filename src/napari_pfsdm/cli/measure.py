@@ -146,6 +146,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         spacing=args.spacing,
         allow_missing_chunks=args.allow_missing_chunks,
         series=args.series,
+        reporter_channel=args.reporter_channel,
     )
     dt = time.perf_counter() - t0
     _say(f"wrote {out} (options in {out.name}.json): {len(table)} objects from "
@@ -158,6 +159,14 @@ def cmd_measure(args: argparse.Namespace) -> int:
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
     _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
     return 0
+
+
+def _reporter_channel(text: str) -> int:
+    """``--reporter-channel``: a whole number from 0 to the most channels a reporter may have
+    (``analysis.label_images.MAX_CHANNELS``, the plugin's)."""
+    from ..analysis.label_images import MAX_CHANNELS
+
+    return _whole("--reporter-channel", 0, MAX_CHANNELS - 1)(text)
 
 
 def _series_index(text: str) -> int:
@@ -207,6 +216,10 @@ examples:
                   help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
     file_argument(p, "-i", "--intensity", role="input", kind="movie", nargs="+",
                   metavar="IMAGE", help="reporter movie(s) of the same size as the labels")
+    p.add_argument("--reporter-channel", dest="reporter_channel", metavar="N",
+                   type=_reporter_channel,
+                   help="the channel of reporters with several (an axis more than the labels: "
+                        "T, C, Y, X), as the napari plugin offers each channel (0 = the first)")
     file_argument(p, "-o", "--output", role="output", kind="table", required=True,
                   metavar="FEATURES.csv",
                    help="the feature table to write (plain CSV; the options go into "
