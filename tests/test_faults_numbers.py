@@ -70,7 +70,7 @@ FRAMES = {  # --frames on a table of frames 0-3: the frames the message must nam
     "2-50": "frames 4-50 are not in the table",
     "0-3,7,9-12": "frames 7, 9-12 are not in the table",
     "5": "frame 5 is not in the table",
-    "0-1000000000": "frames 4-1000000000 are not in the table",
+    "0-100000": "frames 4-100000 are not in the table",  # 10⁹: in a process of its own, below
 }
 
 
@@ -164,6 +164,8 @@ def test_pairs_of_large_ids_and_frames_are_matched_exactly():
     got = key_rows(frames[[1, 2, 0]], labels[[1, 2, 0]], frames[at], labels[at])
     assert got.tolist() == [2, 3, 1]  # at[2] = (3, 2**62), at[3] = (2, 2**62 + 1), at[1] = (3, 1)
     assert key_rows([2], [2**62], [3], [2**62]).tolist() == [-1]
+    # frame 4, label 1 is not (0, 1): 4 * 2**62 wrapped to 0 in int64 made them one pair
+    assert key_rows([4, 0], [1, 1], [0, 4], [1, 2**62]).tolist() == [-1, 0]
 
 
 # --------------------------------------------------------------------------------------------

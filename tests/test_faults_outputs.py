@@ -318,3 +318,40 @@ def test_the_parts_folder_is_an_output_too(src, tmp_path, capsys, parts):
     line = error_line(capsys)
     assert "--parts" in line and ("one file" in line or "input" in line), line
     assert listing(src) == kept and not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("layer", ["../outside", "a/b", "c:d", ".hidden", ""])
+def test_the_plugins_export_takes_a_layer_name_as_data(src, tmp_path, layer):
+    """The export names its files from the layer's name: never a path out of the chosen
+    folder, never a hidden file; a user's file of one of its names is kept."""
+    pytest.importorskip("psygnal")
+    import napari_pfsdm as pf
+    from napari_pfsdm.napari import _export
+    from napari_pfsdm.napari._model import Analysis
+
+    folder = tmp_path / "export"
+    table = pf.read_table(src / "f.csv")
+    paths, _ = _export.export(Analysis("A", 1, table, {}, axes="tyx"), folder, layer)
+    assert paths and all(p.parent == folder and not p.name.startswith(".") for p in paths)
+    assert sorted(os.listdir(tmp_path)) == ["export"]
+    theirs = paths[1]
+    theirs.write_bytes(MINE)
+    with pytest.raises(ValueError, match="not written by pfsdm"):
+        _export.export(Analysis("A", 1, table, {}, axes="tyx"), folder, layer)
+    assert theirs.read_bytes() == MINE
+
+
+def test_a_table_the_user_edited_after_pfsdm_wrote_it_is_theirs(src, tmp_path, capsys):
+    """A cell corrected by hand (the table saved after its sidecar): a re-run does not
+    replace the edit without --force; a table pfsdm wrote, untouched, it replaces."""
+    out = tmp_path / "p.csv"
+    argv = ["trajectories", str(src / "f.csv"), "-o", str(out), "-q"]
+    assert main(argv) == 0 and main(argv) == 0
+    edited = out.read_text().replace(",0,", ",0.5,", 1)
+    out.write_text(edited)
+    t = os.stat(out.with_name("p.csv.json")).st_mtime_ns + 10**9
+    os.utime(out, ns=(t, t))
+    assert main(argv) == 2
+    assert "p.csv already exists and was not written by pfsdm" in error_line(capsys)
+    assert out.read_text() == edited
+    assert main([*argv, "--force"]) == 0 and out.read_text() != edited

@@ -27,11 +27,18 @@ from pathlib import Path
 
 from ..errors import InputError
 from .atomic import PNG_SOFTWARE, new_file_mode, unlink_quietly
-from .sidecar import HEADER_PREFIX, is_pfsdm_sidecar, read_sidecar, sidecar_path
+from .sidecar import (
+    HEADER_PREFIX,
+    changed_after,
+    is_pfsdm_sidecar,
+    read_sidecar,
+    sidecar_path,
+    size_and_digest,
+)
 
-__all__ = ["HTML_GENERATOR", "Input", "Output", "check_outputs", "check_overwrite", "folds_case",
-           "lock_path", "output_files", "output_lock", "remove_leftovers", "same_file",
-           "written_by_pfsdm"]
+__all__ = ["HTML_GENERATOR", "Input", "Output", "check_outputs", "check_overwrite",
+           "file_name_part", "folds_case", "lock_path", "output_files", "output_lock",
+           "remove_leftovers", "same_file", "written_by_pfsdm"]
 
 #: What marks an HTML report napari-pfsdm wrote (napari_pfsdm.analysis.report.GENERATOR), in
 #: its first few kilobytes.
@@ -49,7 +56,7 @@ def written_by_pfsdm(path: str | os.PathLike) -> bool:
     except ValueError:
         side = None
     if side is not None and str(side.get("written_by", "")).startswith("napari-pfsdm"):
-        return True
+        return not _edited_since(path, side)
     with open(path, "rb") as handle:
         head = handle.read(4096)
     if head.startswith(HEADER_PREFIX.encode()):
@@ -59,6 +66,18 @@ def written_by_pfsdm(path: str | os.PathLike) -> bool:
     if head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
         return _tiff_software(path).startswith(PNG_SOFTWARE)  # io.atomic.save_tiff
     return head[:8] == b"\x89PNG\r\n\x1a\n" and PNG_SOFTWARE.encode() in head
+
+
+def _edited_since(path: Path, side: dict) -> bool:
+    """Whether a table was changed after pfsdm wrote it and its sidecar (by hand, by another
+    program): other bytes than the sidecar records, saved after it. Such a table is the
+    user's now. (Other bytes saved before the sidecar are pfsdm's own write, stopped between
+    the two files.)"""
+    recorded = side.get("table_sha256")
+    if recorded is None or not changed_after(path):
+        return False
+    size = path.stat().st_size
+    return size != side.get("table_bytes") or size_and_digest(path)[1] != recorded
 
 
 def _tiff_software(path: Path) -> str:
@@ -355,6 +374,28 @@ def _inside(path: Path, folder: Path) -> bool:
     except OSError:
         return False
     return root in target.parents
+
+
+#: Characters a file name may not hold on some system (Windows' reserved ones, separators).
+_NOT_IN_NAMES = re.compile(r'[<>:"/\\|?*\x00-\x1f]')
+
+
+def file_name_part(text: str) -> str:
+    """A name (a layer's, a movie's) as part of a file name: as written, but every character
+    some system reads as a folder separator or forbids in names replaced by ``_``, and no
+    leading dot (a hidden file) or ``..``; never empty.
+
+    Examples
+    --------
+    >>> file_name_part("../embryo 3/a:b")
+    '_._embryo 3_a_b'
+    >>> file_name_part("..")
+    '_.'
+    """
+    name = _NOT_IN_NAMES.sub("_", str(text)).strip()
+    if name.startswith("."):
+        name = "_" + name[1:]
+    return name or "_"
 
 
 @dataclass(frozen=True)
