@@ -309,21 +309,26 @@ def folds_case(folder: str | os.PathLike) -> tuple[bool, bool]:
     key = (st.st_dev, st.st_ino)
     if key in _FOLDING:
         return _FOLDING[key]
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".pfsdm-case-\u00e9-", suffix=".tmp", dir=folder)
-    except OSError:
-        return False, False
-    os.close(fd)
-    try:
-        name = os.path.basename(probe)
-        other = os.path.join(folder, name.swapcase())
-        case = os.path.exists(other) and os.path.samefile(probe, other)
-        nfd = os.path.join(folder, unicodedata.normalize("NFD", name))
-        normalisation = os.path.exists(nfd) and os.path.samefile(probe, nfd)
-    finally:
-        unlink_quietly(probe)
+    case = _same_under(folder, ".pfsdm-case-", str.swapcase)
+    normalisation = _same_under(folder, ".pfsdm-case-\u00e9-",
+                                lambda name: unicodedata.normalize("NFD", name))
     _FOLDING[key] = (case, normalisation)
     return case, normalisation
+
+
+def _same_under(folder: Path, prefix: str, spell) -> bool:
+    """Whether a probe file made in ``folder`` is found under ``spell(name)`` too (False when
+    no probe can be made there, e.g. a name with an accent on an old file system)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=folder)
+    except OSError:
+        return False
+    os.close(fd)
+    try:
+        other = os.path.join(folder, spell(os.path.basename(probe)))
+        return other != probe and os.path.exists(other) and os.path.samefile(probe, other)
+    finally:
+        unlink_quietly(probe)
 
 
 def _identity(path: Path) -> set[tuple]:
