@@ -50,7 +50,7 @@ from napari_pfsdm.analysis.retrieval import loo_1nn_fraction
 from napari_pfsdm.core import DEFAULTS, distance_matrix, pfsdm
 from napari_pfsdm.data.shapes import base_shapes, make_benchmark_set
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import save_figure
+from napari_pfsdm.io import save_figure, write_table_csv
 
 __all__ = [
     "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",
@@ -434,6 +434,10 @@ def benchmark_table(
     return table
 
 
+#: The files :func:`run` writes into its folder (``pfsdm demo`` checks them before any work).
+OUTPUT_FILES = ("synthetic_benchmark.csv", "synthetic_mds.png")
+
+
 def write_outputs(
     table: pd.DataFrame,
     out: Path,
@@ -468,10 +472,10 @@ def write_outputs(
     list of Path
         The files written.
     """
-    written = [out / "synthetic_benchmark.csv"]
-    table.to_csv(written[0], index=False)
+    written = [out / OUTPUT_FILES[0]]
+    write_table_csv(table, written[0], {}, table_type="benchmark")
     if plot:
-        written.append(out / "synthetic_mds.png")
+        written.append(out / OUTPUT_FILES[1])
         _plot_mds(written[1], table.attrs["matrices"], labels_by_set, names, sets, seed)
     return written
 

@@ -484,9 +484,14 @@ def test_a_sidecar_from_another_write_is_refused_in_plain_words(tmp_path):
     shutil.copy(b.with_name("a.csv.json"), a.with_name("a.csv.json"))  # v2's sidecar by v1's
     with pytest.raises(ValueError, match="do not belong together"):
         read_table_csv(a)
-    # a copy under another name, with its sidecar beside it, is the user's own pair
+    # under another name too: the sidecar's file name does not make a pair, the content does
     shutil.copy(a, tmp_path / "copy.csv")
     shutil.copy(tmp_path / "b" / "a.csv.json", tmp_path / "copy.csv.json")
+    with pytest.raises(ValueError, match="do not belong together.*other values in column "
+                                         "area"):
+        read_table_csv(tmp_path / "copy.csv")
+    # a copy of a table with its own sidecar, under another name, is that table
+    shutil.copy(b, tmp_path / "copy.csv")
     assert read_table_csv(tmp_path / "copy.csv").attrs["pfsdm"] == {"v": 2}
 
 

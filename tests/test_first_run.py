@@ -17,6 +17,7 @@ import pytest
 import tifffile
 from skimage import data, filters, measure
 
+import napari_pfsdm as pf
 from napari_pfsdm.cli import main
 from napari_pfsdm.errors import InputError
 
@@ -143,6 +144,14 @@ def test_a_table_resaved_by_pandas_gives_the_same_numbers(coins, tmp_path, capsy
     cut.to_csv(tmp_path / "cut.csv", index=False)
     shutil.copy(folder / "features.csv.json", tmp_path / "cut.csv.json")
     assert main(["trajectories", str(tmp_path / "cut.csv"), "-o", str(tmp_path / "y.csv")]) == 2
+    assert "do not belong together: the table has no columns shape_r07_n00, " \
+        "shape_r07_n01, shape_r07_n02 …" in last_error(capsys)
+    # without the content in its sidecar (an older version's), the columns are counted
+    side = json.loads((folder / "features.csv.json").read_text())
+    del side["content"]
+    (tmp_path / "cut.csv.json").write_text(json.dumps(side))
+    os.utime(tmp_path / "cut.csv", ns=(0, (tmp_path / "cut.csv.json").stat().st_mtime_ns + 10**9))
+    assert main(["trajectories", str(tmp_path / "cut.csv"), "-o", str(tmp_path / "y.csv")]) == 2
     assert "misses 7 of its 56 shape feature columns (shape_r07_n00 … shape_r07_n06" \
         in last_error(capsys)
     assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
@@ -189,6 +198,12 @@ def test_failed_rows_are_left_out_and_named(tmp_path, capsys):
     only_bad = only_bad[(only_bad["frame"] == 0) & only_bad["label"].isin([1, 3])]
     only_bad.to_csv(tmp_path / "bad.csv", index=False)
     shutil.copy(tmp_path / "features.csv.json", tmp_path / "bad.csv.json")
+    # rows cut from a table are not the table its sidecar describes: refused, saying so
+    assert main(["compare", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "f.csv")]) == 2
+    assert "do not belong together: the table has 2 rows where it had 6" in last_error(capsys)
+    # written with pfsdm (the options travel with the table read), they are a table
+    table = pf.read_table(features)
+    pf.write_table(table[(table["frame"] == 0) & table["label"].isin([1, 3])], tmp_path / "bad.csv")
     assert main(["compare", str(tmp_path / "bad.csv"), "-o", str(tmp_path / "f.csv")]) == 2
     assert "only 1 of 2 objects have features; at least 2 are needed" in last_error(capsys)
 
@@ -252,10 +267,10 @@ def test_classify_messages(tmp_path, capsys):
     assert "no row of the groups file names an object of the table" in msg
     assert "the groups file has label 11; label 12" in msg and "the table has label 1" in msg
     assert main(["classify", str(features), "--groups", str(groups), "--frames", "7-9"]) == 2
-    assert "the table has frames 0-1" in last_error(capsys)
+    assert "frames 7-9 are not in the table (it has frames 0-1)" in last_error(capsys)
     assert main(["compare", str(features), "--frames", "7-9", "-o", str(tmp_path / "d.csv")]) \
         == 2
-    assert "the table has frames 0-1" in last_error(capsys)
+    assert "frames 7-9 are not in the table (it has frames 0-1)" in last_error(capsys)
 
 
 def test_classify_progress_and_quiet(tmp_path, capsys):
@@ -337,7 +352,7 @@ def test_a_bug_says_it_is_a_bug_and_where_to_report_it(tmp_path, capsys, monkeyp
 @pytest.mark.parametrize("exc, shown", [
     (InputError("the table has no intensity features"), "the table has no intensity features"),
     (FileNotFoundError(2, "No such file or directory", "x.csv"),
-     "[Errno 2] No such file or directory: 'x.csv'"),
+     "x.csv: No such file or directory"),
     (ImportError("linking with 'laptrack' needs the laptrack package", name="laptrack"),
      "linking with 'laptrack' needs the laptrack package"),
 ])
@@ -380,14 +395,20 @@ def test_written_files_follow_the_umask(tmp_path, umask, mode):
         assert (tmp_path / name).stat().st_mode & 0o777 == mode
 
 
-def test_the_demo_runs_again_over_an_older_demos_folder(tmp_path):
+def test_the_demo_runs_again_over_an_older_demos_folder(tmp_path, capsys):
     """An earlier version's results (a table with the old comment line, plots without
-    pfsdm's PNG mark) are the demo's own: a new run replaces them instead of refusing."""
+    pfsdm's PNG mark) cannot be told from a user's files: the demo names them and replaces
+    them with --force; its own files of this version it replaces on every run."""
     (tmp_path / "features.csv").write_text('# pfsdm: {"n_fourier": 10}\nframe,label\n0,1\n')
     (tmp_path / "pca.png").write_bytes(b"\x89PNG\r\n\x1a\n an old plot")
-    assert main(["demo", "--quick-only", "-o", str(tmp_path), "--scheduler", "sync", "-q"]) == 0
+    demo = ["demo", "--quick-only", "-o", str(tmp_path), "--scheduler", "sync", "-q"]
+    assert main(demo) == 2
+    assert "pca.png" in capsys.readouterr().err
+    assert (tmp_path / "pca.png").read_bytes() == b"\x89PNG\r\n\x1a\n an old plot"
+    assert main([*demo, "--force"]) == 0
     assert pd.read_csv(tmp_path / "features.csv").shape[0] == 72
     assert b"napari-pfsdm" in (tmp_path / "pca.png").read_bytes()[:4096]
+    assert main(demo) == 0  # its own files, again
     # a folder of someone else's files is still protected
     other = tmp_path / "other"
     other.mkdir()

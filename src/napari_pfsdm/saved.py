@@ -176,7 +176,8 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
             sources[key] = {"name": (names or {}).get(key), "path": (paths or {}).get(key),
                             **fingerprint(array)}
     manifest = {"written_by": f"napari-pfsdm {writer_name().split()[-1]}", "format": FORMAT,
-                "files": files, "sources": sources, "rows": len(table)}
+                "files": files, "sources": sources, "rows": len(table),
+                "checksums": _checksums(folder, files)}
     atomic_write(manifest_path, lambda h: h.write(json.dumps(manifest, indent=1)))
     return folder
 
@@ -211,9 +212,11 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
     except (ValueError, UnicodeDecodeError) as err:
         raise InputError(f"{manifest_path} is damaged ({err}); save the analysis again") \
             from None
-    if not _written_by_us(manifest_path) or manifest.get("format") != FORMAT:
+    form = manifest.get("format") if isinstance(manifest, dict) else None
+    if not _written_by_us(manifest_path) or form != FORMAT:
         raise InputError(f"{manifest_path} was not written by this napari-pfsdm (format "
-                         f"{manifest.get('format')!r}); save the analysis again")
+                         f"{form!r}); save the analysis again")
+    _check_manifest(manifest, manifest_path)
     if labels is None and read_labels:
         path = manifest.get("sources", {}).get("labels", {}).get("path")
         if not path or not Path(path).exists():
@@ -243,25 +246,209 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
     if missing:
         raise InputError(f"{folder} lacks {', '.join(missing)}: the analysis is incomplete; "
                          "save it again")
-    table = read_table_csv(folder / files["features"])
+    _warn_changed(folder, manifest)
+    table = _read(folder / files["features"], read_table_csv)
+    from .analysis.tables import check_table_cells
+    from .core.table_schema import check_feature_table
+
+    where = str(folder / files["features"])
+    if not {"frame", "label"} <= set(table.columns):
+        raise InputError(f"{where} has no frame and label columns: it is not the analysis's "
+                         "table; save the analysis again")
+    check_feature_table(table, ["shape"], where=where)  # its columns and cells, as measured
+    check_table_cells(table, ["shape"], where=where)
+    if len(table) != manifest.get("rows", len(table)):
+        raise InputError(f"{folder / files['features']} holds {len(table)} rows but the "
+                         f"analysis saved {manifest['rows']}: it is not this analysis's table "
+                         "(replaced or edited?); save the analysis again")
+    if labels is not None:  # the table's objects are the labels' objects, frame by frame
+        from .analysis.label_images import check_labels_match
+
+        check_labels_match(labels, table, where=f"the labels of {folder}")
     pca, explained = {}, {}
     for key, name in files.items():
         if key.startswith("pca_"):
-            scores = read_table_csv(folder / name)
-            ratios = (scores.attrs.get("pfsdm") or {}).get("explained_variance_ratio", [])
-            explained[key[4:]] = [float(r) for r in ratios]
-            pca[key[4:]] = scores
-    g = read_table_csv(folder / files["groups"])
-    groups = {int(o): str(v) for o, v in zip(g["object"], g["group"], strict=True)} \
-        if len(g) else {}
-    b = read_table_csv(folder / files["boxes"])
-    starts = [c for c in b.columns if c.startswith("start")]
-    boxes = {}
+            pca[key[4:]], explained[key[4:]] = _read_scores(folder / name, table)
+    groups = _read_groups(folder / files["groups"], table)
+    boxes = _read_boxes(folder / files["boxes"], table, labels)
+    return SavedAnalysis(table, pca, groups, boxes, manifest, explained, labels)
+
+
+# ------------------------------------------------------------------------------------------
+# every file of a saved folder checked as it is read: refused or read with a warning in
+# words, never a raw exception
+# ------------------------------------------------------------------------------------------
+
+def _checksums(folder: Path, files: dict) -> dict[str, list]:
+    """Size and SHA-256 of each file of the analysis and of its sidecar, as saved."""
+    from .io.sidecar import sidecar_path, size_and_digest
+
+    out = {}
+    for name in files.values():
+        for path in (folder / name, sidecar_path(folder / name)):
+            if path.is_file():
+                out[path.name] = list(size_and_digest(path))
+    return out
+
+
+def _check_manifest(manifest: Any, path: Path) -> None:
+    """Refuse, in words, a manifest whose fields are not what :func:`save_analysis` writes:
+    ``files`` names of files inside the folder (never a path out of it) for the features,
+    groups and boxes; ``sources`` a mapping of fingerprints; ``rows`` a count."""
+    def bad(what: str) -> InputError:
+        return InputError(f"{path} is damaged or was edited ({what}); save the analysis again")
+
+    if not isinstance(manifest, dict):
+        raise bad("it is not a set of named fields")
+    files = manifest.get("files")
+    if not isinstance(files, dict) or not {"features", "groups", "boxes"} <= set(files):
+        raise bad("its 'files' do not name the features, groups and boxes tables")
+    for key, name in files.items():
+        if (not isinstance(name, str) or not name or Path(name).name != name
+                or name in (".", "..") or not name.endswith((".csv", ".parquet"))):
+            raise bad(f"its file {key!r} is {name!r}, not a table's name inside the folder")
+    sources = manifest.get("sources", {})
+    if not isinstance(sources, dict) or not all(
+            isinstance(v, dict) and isinstance(v.get("shape"), list)
+            and isinstance(v.get("sha256"), str) for v in sources.values()):
+        raise bad("its 'sources' are not the data's fingerprints")
+    rows = manifest.get("rows", 0)
+    if not isinstance(rows, int) or isinstance(rows, bool) or rows < 0:
+        raise bad(f"its row count is {rows!r}")
+    checks = manifest.get("checksums", {})
+    if not isinstance(checks, dict) or not all(
+            isinstance(v, list) and len(v) == 2 for v in checks.values()):
+        raise bad("its checksums are not sizes and SHA-256 digests")
+
+
+def _warn_changed(folder: Path, manifest: dict) -> None:
+    """Say (a ``UserWarning``) which files changed since the analysis was saved: they are
+    read with their own checks, and refused when they do not fit the analysis."""
+    import warnings
+
+    from .io.sidecar import size_and_digest
+
+    changed = []
+    for name, (size, digest) in (manifest.get("checksums") or {}).items():
+        path = folder / name
+        if not path.is_file() or list(size_and_digest(path)) != [size, digest]:
+            changed.append(name)
+    if changed:
+        warnings.warn(f"{', '.join(changed)} in {folder} changed since the analysis was "
+                      "saved (edited by hand or by another program?); opened as they are now",
+                      UserWarning, stacklevel=3)
+
+
+def _read(path: Path, reader: Any) -> pd.DataFrame:
+    """A table of the folder read by ``reader``; any reader's error in words naming it."""
+    try:
+        return reader(path)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged file: pandas', pyarrow's, json's
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path} cannot be read ({first[:160]}); save the analysis "
+                         "again") from None
+
+
+def _keys(table: pd.DataFrame) -> pd.MultiIndex:
+    cols = [c for c in ("movie", "frame", "label") if c in table.columns]
+    return pd.MultiIndex.from_frame(table[cols].astype(str))
+
+
+def _whole(df: pd.DataFrame, cols: list[str], path: Path) -> None:
+    """Refuse a table whose ``cols`` are not whole numbers (an edited cell), naming it."""
+    for c in cols:
+        if c not in df.columns:
+            raise InputError(f"{path} has no column {c!r}: it is not the analysis's file; "
+                             "save the analysis again")
+        v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
+        if not (np.isfinite(v).all() and np.array_equal(v, np.round(v))):
+            raise InputError(f"{path}: column {c!r} holds values that are not whole numbers "
+                             "(an edited cell?); save the analysis again")
+
+
+def _read_scores(path: Path, table: pd.DataFrame) -> tuple[pd.DataFrame, list[float]]:
+    """A channel's PCA scores: rows of the table's objects, numbers in every PC column."""
+    from .io import read_table_csv
+
+    scores = _read(path, read_table_csv)
+    _whole(scores, [c for c in ("frame", "label") if c in table.columns], path)
+    if _keys(scores).has_duplicates:
+        raise InputError(f"{path} has two rows of scores for one object (an edited file?); "
+                         "save the analysis again")
+    unknown = ~_keys(scores).isin(_keys(table))
+    if unknown.any():
+        row = scores[unknown].iloc[0]
+        raise InputError(f"{path} has scores of objects the analysis's table does not have "
+                         f"(frame {row['frame']}, label {row['label']}, and "
+                         f"{int(unknown.sum()) - 1} more): it is not this analysis's file; "
+                         "save the analysis again")
+    pcs = [c for c in scores.columns if "_PC" in str(c)]
+    if not pcs or not all(pd.api.types.is_numeric_dtype(scores[c]) for c in pcs):
+        raise InputError(f"{path} has no principal-component columns of numbers (an edited "
+                         "file?); save the analysis again")
+    ratios = (scores.attrs.get("pfsdm") or {}).get("explained_variance_ratio", [])
+    try:
+        ratios = [float(r) for r in ratios]
+    except (TypeError, ValueError):
+        raise InputError(f"the sidecar of {path} holds explained variances that are not "
+                         "numbers; save the analysis again") from None
+    return scores, ratios
+
+
+def _read_groups(path: Path, table: pd.DataFrame) -> dict:
+    """Object → group: objects are whole numbers (track ids or labels) of the table; groups
+    of objects it does not have are left out with a warning."""
+    import warnings
+
+    from .core.table_schema import TRACK_COLUMN
+    from .io import read_table_csv
+
+    g = _read(path, read_table_csv)
+    if not len(g):
+        return {}
+    _whole(g, ["object"], path)
+    if "group" not in g.columns:
+        raise InputError(f"{path} has no column 'group': it is not the analysis's groups "
+                         "file; save the analysis again")
+    groups = {int(o): str(v) for o, v in zip(g["object"], g["group"], strict=True)}
+    key = TRACK_COLUMN if TRACK_COLUMN in table.columns else "label"
+    unknown = sorted(set(groups) - set(table[key].astype(int)))
+    if unknown:
+        warnings.warn(f"{path} gives groups to {len(unknown)} object(s) the table does not "
+                      f"have ({', '.join(map(str, unknown[:5]))}); they are left out",
+                      UserWarning, stacklevel=3)
+        groups = {o: v for o, v in groups.items() if o not in set(unknown)}
+    return groups
+
+
+def _read_boxes(path: Path, table: pd.DataFrame, labels: Any) -> dict:
+    """``(frame, label)`` → bounding box, for the table's objects, inside the labels."""
+    import warnings
+
+    from .io import read_table_csv
+
+    b = _read(path, read_table_csv)
+    starts = [c for c in b.columns if str(c).startswith("start")]
+    _whole(b, ["frame", "label", *starts, *("stop" + str(c)[5:] for c in starts)], path)
+    known = set(zip(table["frame"].astype(int), table["label"].astype(int), strict=True))
+    shape = None if labels is None else tuple(labels.shape[-len(starts):]) if starts else ()
+    boxes, dropped = {}, 0
     for row in b.itertuples(index=False):
         values = row._asdict()
         first = [int(values[c]) for c in starts]
         last = [int(values["stop" + c[5:]]) for c in starts]
         key = (int(values["frame"]), int(values["label"]))
+        inside = shape is None or all(0 <= a < z <= n for a, z, n in
+                                      zip(first, last, shape, strict=True))
+        if key not in known or (first and first[0] >= 0 and not inside):
+            dropped += 1
+            continue
         boxes[key] = None if not first or first[0] < 0 else tuple(
             slice(a, z) for a, z in zip(first, last, strict=True))
-    return SavedAnalysis(table, pca, groups, boxes, manifest, explained, labels)
+    if dropped:
+        warnings.warn(f"{path}: {dropped} bounding box(es) of objects the table does not have "
+                      "or outside the labels are left out (they are found again when needed)",
+                      UserWarning, stacklevel=3)
+    return boxes

@@ -65,10 +65,77 @@ ALPHAS = np.round(np.linspace(0.0, 1.0, 21), 10)
 FEATURE_SETS = ("shape", "intensity", "fusion (nested)", "fusion (optimistic, test-tuned)")
 
 
+#: A selection of frames given as text, with neither the movie's length nor the table's frames
+#: to bound it, may name at most this many frames (a movie has fewer).
+MAX_FRAMES = 1_000_000
+
+
+def frame_ranges(text: str) -> list[tuple[int, int]]:
+    """The inclusive ranges of frames ``"0-9"``, ``"0,2,4"`` or ``"0-4, 8"`` name, sorted and
+    merged: never a list of every frame (``"0-1000000000"`` is one range).
+
+    Examples
+    --------
+    >>> frame_ranges("8, 0-4,3-5")
+    [(0, 5), (8, 8)]
+    """
+    out = []
+    for part in text.replace(" ", "").split(","):
+        if not part:
+            continue
+        lo, sep, hi = part.partition("-")
+        try:
+            a = int(lo)
+            b = int(hi) if sep else a
+        except ValueError:
+            raise InputError(
+                f"could not read the frame{' range' if sep else ''} {part!r}; write frames as "
+                "whole numbers from 0, e.g. '0-9' or '0,3,5'."
+            ) from None
+        if b < a:
+            raise InputError(f"frame range {part!r} is empty: write it low-high.")
+        out.append((a, b))
+    out.sort()
+    merged: list[tuple[int, int]] = []
+    for a, b in out:
+        if merged and a <= merged[-1][1] + 1:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], b))
+        else:
+            merged.append((a, b))
+    return merged
+
+
+def _outside(ranges: list[tuple[int, int]], have: list[int]) -> list[tuple[int, int]]:
+    """The parts of ``ranges`` not in the sorted frames ``have`` (time: ranges + frames)."""
+    out, i = [], 0
+    for a, b in ranges:
+        start = a
+        while i < len(have) and have[i] < a:
+            i += 1
+        j = i
+        while j < len(have) and have[j] <= b:
+            if have[j] > start:
+                out.append((start, have[j] - 1))
+            start = have[j] + 1
+            j += 1
+        if start <= b:
+            out.append((start, b))
+    return out
+
+
+def _ranges_text(ranges: list[tuple[int, int]], limit: int = 6) -> str:
+    shown = [f"{a}" if a == b else f"{a}-{b}" for a, b in ranges[:limit]]
+    return ", ".join(shown) + (" …" if len(ranges) > limit else "")
+
+
 def parse_frames(
-    frames: str | int | Iterable[int] | None, n_frames: int | None = None
+    frames: str | int | Iterable[int] | None, n_frames: int | None = None, *,
+    available: Iterable[int] | None = None,
 ) -> list[int]:
     """Frame indices from ``"0-9"``, ``"0,2,4"``, ``"0-4,8"``, an int, a sequence or None (all).
+
+    Ranges are read as ranges (:func:`frame_ranges`): ``"0-1000000000"`` is checked against
+    the movie or the table without a list of its frames being made.
 
     Parameters
     ----------
@@ -76,51 +143,72 @@ def parse_frames(
         The selection; ranges are inclusive (``"0-9"`` is ten frames).
     n_frames : int, optional
         Number of frames available; needed for ``None`` and used to check the selection.
+    available : iterable of int, optional
+        The frames there are (a table's ``frame`` column): frames asked for that are not
+        among them are refused, naming them.
 
     Returns
     -------
     list of int
         Sorted, unique frame indices.
+
+    Raises
+    ------
+    InputError
+        A selection that cannot be read, that is empty, or that names frames outside the
+        movie (``n_frames``) or the table (``available``).
+
+    Examples
+    --------
+    >>> parse_frames("0-2", available=[0, 1, 2, 3])
+    [0, 1, 2]
+    >>> try:
+    ...     parse_frames("0-1000000000", available=[0, 1, 2, 3])
+    ... except ValueError as exc:
+    ...     print(str(exc).split(" (")[0])
+    frames 4-1000000000 are not in the table
     """
     if frames is None:
-        if n_frames is None:
+        if n_frames is None and available is None:
             raise InputError("frames=None means all frames, which needs n_frames.")
-        out = list(range(n_frames))
+        ranges = [(0, int(n_frames) - 1)] if n_frames is not None else None
     elif isinstance(frames, str):
-        out = []
-        for part in frames.replace(" ", "").split(","):
-            if not part:
-                continue
-            if "-" in part:
-                lo, hi = part.split("-", 1)
-                try:
-                    a, b = int(lo), int(hi)
-                except ValueError:
-                    raise InputError(
-                        f"could not read the frame range {part!r}; write e.g. '0-9' or '0,3,5'."
-                    ) from None
-                if b < a:
-                    raise InputError(f"frame range {part!r} is empty: write it low-high.")
-                out.extend(range(a, b + 1))
-            else:
-                try:
-                    out.append(int(part))
-                except ValueError:
-                    raise InputError(
-                        f"could not read the frame {part!r}; write e.g. '0-9' or '0,3,5'."
-                    ) from None
+        ranges = frame_ranges(frames)
     elif isinstance(frames, int | np.integer):
-        out = [int(frames)]
+        ranges = [(int(frames), int(frames))]
     else:
-        out = [int(f) for f in frames]
-    out = sorted(set(out))
-    if not out:
+        ranges = []
+        for f in sorted({int(f) for f in frames}):
+            if ranges and f == ranges[-1][1] + 1:
+                ranges[-1] = (ranges[-1][0], f)
+            else:
+                ranges.append((f, f))
+    have = sorted({int(f) for f in available}) if available is not None else None
+    if ranges is None:  # all the table's frames
+        ranges = [(f, f) for f in have]
+    if not ranges:
         raise InputError("no frames selected; give e.g. frames='0-9'.")
-    if out[0] < 0 or (n_frames is not None and out[-1] >= n_frames):
+    if ranges[0][0] < 0 or (n_frames is not None and ranges[-1][1] >= n_frames):
+        outside = [(a, min(b, -1)) for a, b in ranges if a < 0]
+        if n_frames is not None:
+            outside += [(max(a, int(n_frames)), b) for a, b in ranges if b >= n_frames]
         raise InputError(
-            f"frames {out[0]}..{out[-1]} are outside the movie's 0..{(n_frames or 0) - 1}."
-        )
-    return out
+            f"frames {_ranges_text(outside)} are outside the movie's 0-"
+            f"{(n_frames or 0) - 1}; choose frames among these.")
+    if have is not None:
+        missing = _outside(ranges, have)
+        if missing:
+            one = len(missing) == 1 and missing[0][0] == missing[0][1]
+            raise InputError(
+                f"frame{'' if one else 's'} {_ranges_text(missing)} {'is' if one else 'are'} "
+                f"not in the table (it has frames {format_frames(have)}); choose frames among "
+                "these.")
+        return [f for f in have if any(a <= f <= b for a, b in ranges)]
+    count = sum(b - a + 1 for a, b in ranges)
+    if n_frames is None and count > MAX_FRAMES:
+        raise InputError(f"frames {_ranges_text(ranges)} are {count:,} frames; no movie has "
+                         f"so many (at most {MAX_FRAMES:,} here): choose the frames you mean.")
+    return [f for a, b in ranges for f in range(a, b + 1)]
 
 
 def format_frames(frames: Iterable[int]) -> str:
@@ -187,7 +275,7 @@ def feature_matrix(
             "intensity image."
         )
     all_frames = sorted(table["frame"].unique())
-    frames = all_frames if frames is None else parse_frames(frames)
+    frames = all_frames if frames is None else parse_frames(frames, available=all_frames)
     sub = table[table["frame"].isin(frames)]
     missing = sorted(set(frames) - set(sub["frame"].unique()))
     if missing:

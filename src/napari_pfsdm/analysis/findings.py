@@ -10,6 +10,7 @@ where they first appear (:class:`Terms`).
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -20,6 +21,7 @@ from ..errors import InputError
 from .group_stats import compare_groups, number, object_values, value_words
 from .html_parts import escaped, figure, image, table_html
 from .physical import time_unit_of, time_values
+from .plot_text import plot_text
 
 __all__ = ["TERMS", "Terms", "default_findings", "findings_html", "prediction_html"]
 
@@ -89,10 +91,8 @@ def _strip_figure(values: pd.DataFrame, names: Sequence[str], colours: Mapping, 
     for i, (g, v) in enumerate(zip(names, data, strict=True)):
         ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=10, color=colours[g],
                    alpha=0.8, zorder=3)
-    ax.set_xticks(range(len(names)), [str(n) for n in names], fontsize=8)
-    import textwrap
-
-    ax.set_ylabel("\n".join(textwrap.wrap(what, 30)), fontsize=8)  # fits beside the axis
+    ax.set_xticks(range(len(names)), [plot_text(n) for n in names], fontsize=8)
+    ax.set_ylabel("\n".join(textwrap.wrap(plot_text(what), 30)), fontsize=8)  # fits beside the axis
     ax.tick_params(labelsize=8)
     return fig
 

@@ -173,8 +173,8 @@ def groups_table(groups: pd.DataFrame, group_column: str | None = None, *,
     for key in ("label", TRACK_COLUMN):
         if key not in keys:
             continue
-        try:
-            out[key] = out[key].str.strip().astype(int).astype(str)
+        try:  # exact, whatever the size (ids up to 2**64 - 1): Python's int, not int64
+            out[key] = [str(int(v)) for v in out[key].str.strip()]
         except ValueError:
             raise InputError(f"The {key!r} column of {where} must hold whole numbers.") \
                 from None

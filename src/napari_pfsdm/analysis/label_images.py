@@ -7,6 +7,8 @@ frames asked for that the movie does not have (:func:`check_frames`), the voxel 
 objects (:func:`voxel_spacing`). Then the objects: their ids (:func:`present_ids`), bounding
 boxes (:func:`object_boxes`) and crops (:func:`crop_of`), found in time and memory that follow
 the pixels, whatever the ids; :func:`count_objects` is the package's one count of them.
+Whether labels are those a table was measured from is checked by content, frame by frame
+(:func:`frame_objects`: ids, pixel counts, centroids; :func:`check_labels_match`).
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ from scipy import ndimage as ndi
 from ..core.volume_sdf import check_spacing
 from ..errors import InputError
 
-__all__ = ["AXES", "check_arrays", "check_frames", "count_objects", "crop_of", "frame_at",
-           "looks_like_colour", "object_boxes", "present_ids", "refuse_colour",
+__all__ = ["AXES", "check_arrays", "check_frames", "check_labels_match", "count_objects",
+           "crop_of", "frame_at", "frame_objects", "looks_like_colour", "object_boxes",
+           "present_ids", "raw_image_reason", "refuse_colour", "refuse_not_labels",
+           "reporter_channels",
            "refuse_zero_size", "resolve_axes", "voxel_spacing"]
 
 
@@ -187,10 +191,12 @@ def object_boxes(frame: np.ndarray) -> list[tuple[int, tuple[slice, ...]]]:
             zip(labels, ndi.find_objects(compact), strict=True)]
 
 
-def check_arrays(labels, intensity, axes: str | None = None) -> tuple[int, bool, str]:
+def check_arrays(labels, intensity, axes: str | None = None,
+                 where: str = "The labels") -> tuple[int, bool, str]:
     """Labels (and a reporter of the same shape) checked as :func:`measure` takes them:
     ``(number of frames, whether it is a time-lapse, the axis order)``; plain words for
-    anything else (:class:`~napari_pfsdm.errors.InputError`)."""
+    anything else (:class:`~napari_pfsdm.errors.InputError`), a raw image or negative ids in
+    a few of its frames included (:func:`refuse_not_labels`)."""
     shape = tuple(labels.shape)
     axes = resolve_axes(shape, axes)
     refuse_zero_size(shape)
@@ -208,7 +214,116 @@ def check_arrays(labels, intensity, axes: str | None = None) -> tuple[int, bool,
             f"{shape}: they must cover the same frames and pixels."
         )
     timelapse = axes.startswith("t")
+    refuse_not_labels(labels, axes, where)
     return (shape[0] if timelapse else 1), timelapse, axes
+
+
+#: A frame whose values lie in more separate patches than this per value, with at least
+#: :data:`RAW_MIN_VALUES` values, is a raw image, not labels: a segmentation has one patch per
+#: object, or a few (an object in pieces); a microscope image scatters each value over hundreds
+#: (tests/test_faults_files3.py: 3,500 nuclei 1.02 patches per id, a tessellation 1.0; 16-bit
+#: and 8-bit images 50 to 1,800).
+RAW_PATCHES_PER_VALUE = 8
+RAW_MIN_VALUES = 16
+#: Pixels of a frame looked at (its centre), at most: the check costs ~0.1 s.
+RAW_SAMPLE = 2048 * 2048
+
+
+def raw_image_reason(frame: np.ndarray) -> str | None:
+    """Why a frame of "labels" is a raw image, in words, or None when it looks like labels
+    (:data:`RAW_PATCHES_PER_VALUE`). Its centre is looked at, at most :data:`RAW_SAMPLE`
+    pixels.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> raw = rng.poisson(100, (64, 64)).astype(np.uint16)
+    >>> raw_image_reason(raw).split(",")[0]
+    '68 different values lie in 3,670 separate patches'
+    >>> labels = np.zeros((64, 64), np.uint16); labels[:32], labels[40:] = 1, 2
+    >>> raw_image_reason(labels) is None
+    True
+    """
+    from skimage.measure import label as patches
+
+    frame = np.asarray(frame)
+    if frame.dtype == bool or frame.size == 0:
+        return None
+    side = int(RAW_SAMPLE ** (1 / frame.ndim))
+    crop = tuple(slice(max(0, (n - side) // 2), max(0, (n - side) // 2) + side)
+                 for n in frame.shape)
+    frame = frame[crop]
+    values = len(present_ids(frame)) if frame.min() >= 0 else len(np.unique(frame))
+    if values < RAW_MIN_VALUES:
+        return None
+    n = int(patches(frame, background=0, connectivity=frame.ndim).max())
+    if n < RAW_PATCHES_PER_VALUE * values:
+        return None
+    return (f"{values:,} different values lie in {n:,} separate patches, {n / values:.0f} "
+            "per value, where a segmentation has one patch (or a few) per object")
+
+
+def _frames_to_check(n_frames: int) -> list[int]:
+    return sorted({0, n_frames // 2, n_frames - 1})
+
+
+def refuse_not_labels(labels, axes: str, where: str = "The labels") -> None:
+    """Refuse, before any work, labels whose first, middle or last frame holds negative ids or
+    is a raw image (:func:`raw_image_reason`), naming ``where`` and saying what to give."""
+    timelapse = axes.startswith("t")
+    n_frames = int(labels.shape[0]) if timelapse else 1
+    for t in _frames_to_check(n_frames):
+        frame = frame_at(labels, t, timelapse)
+        if frame.dtype == bool or not frame.size:
+            continue
+        at = f" (frame {t})" if timelapse else ""
+        low = frame.min()
+        if low < 0:
+            raise InputError(
+                f"{where} hold{'s' if not where.startswith('The ') else ''} negative values"
+                f"{at}, down to {int(low)}: labels are 0 (background) and whole numbers from 1, "
+                "one per object. If negative values mark the background, set them to 0 "
+                "(labels[labels < 0] = 0); if the ids are shifted, relabel them "
+                "(skimage.measure.label)")
+        reason = raw_image_reason(frame)
+        if reason:
+            raise InputError(
+                f"{where} look{'s' if not where.startswith('The ') else ''} like a raw image, "
+                f"not a label image{at}: {reason}. Give the segmentation (one whole number "
+                "per object, 0 = background), not the raw image")
+
+
+#: Largest number of channels a reporter's extra axis may have to be read by channel.
+MAX_CHANNELS = 16
+
+
+def reporter_channels(image_shape: tuple, labels_shape: tuple, rgb: bool = False,
+                      axis: bool = False):
+    """How an image of ``image_shape`` can be the reporter of labels of ``labels_shape``: the
+    one rule of the napari plugin's reporter choices and of ``pfsdm measure
+    --reporter-channel``.
+
+    Returns ``[None]`` (the image as it is), the list of its channels (an image with one
+    more axis, of at most :data:`MAX_CHANNELS` entries, that is the labels' grid without it),
+    or None (it does not fit). With ``axis=True``: the channel axis (None without one).
+
+    >>> movie = (5, 64, 64)
+    >>> reporter_channels(movie, movie), reporter_channels((5, 2, 64, 64), movie)
+    ([None], [0, 1])
+    >>> reporter_channels((5, 2, 64, 64), movie, axis=True), reporter_channels((64, 64), movie)
+    (1, None)
+    """
+    image_shape, labels_shape = tuple(image_shape), tuple(labels_shape)
+    if rgb:
+        return None
+    if image_shape == labels_shape:
+        return None if axis else [None]
+    if len(image_shape) == len(labels_shape) + 1:
+        for k in range(len(image_shape) - 2):  # a channel axis is never Y or X
+            if image_shape[:k] + image_shape[k + 1:] == labels_shape \
+                    and image_shape[k] <= MAX_CHANNELS:
+                return k if axis else list(range(image_shape[k]))
+    return None
 
 
 def frame_at(array, t: int, timelapse: bool) -> np.ndarray:
@@ -280,3 +395,137 @@ def crop_of(box, shape) -> tuple[slice, ...]:
     side, within a frame of ``shape``."""
     return tuple(slice(max(s.start - 1, 0), min(s.stop + 1, n)) for s, n in
                  zip(box, shape, strict=True))
+
+
+def frame_objects(frame: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The objects of one frame as a table reports them: ``(ids, pixel counts, centroids)``
+    (centroids as the mean pixel coordinates, one row per id, one column per axis), in time
+    and memory that follow the pixels, whatever the ids.
+
+    Examples
+    --------
+    >>> f = np.zeros((4, 6), np.uint16); f[0:2, 0:2] = 7; f[3, 3:6] = 2
+    >>> ids, n, c = frame_objects(f)
+    >>> ids.tolist(), n.tolist(), c.tolist()
+    ([2, 7], [3, 4], [[3.0, 4.0], [0.5, 0.5]])
+    """
+    frame = np.asarray(frame)
+    if frame.dtype == bool:
+        frame = frame.astype(np.uint8)
+    flat = frame.ravel()
+    if flat.size == 0 or not flat.any():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, frame.ndim))
+    if _small_ids(flat):
+        index = _as_counts(flat)
+        ids = None
+    else:
+        ids, index = np.unique(flat, return_inverse=True)
+        index = index.ravel()
+    counts = np.bincount(index)
+    sums = []
+    for axis, n in enumerate(frame.shape):
+        shape = [1] * frame.ndim
+        shape[axis] = n
+        coord = np.broadcast_to(np.arange(n, dtype=float).reshape(shape), frame.shape).ravel()
+        sums.append(np.bincount(index, weights=coord, minlength=len(counts)))
+    all_ids = np.arange(len(counts)) if ids is None else ids
+    keep = (counts > 0) & (all_ids != 0)
+    centroids = np.stack(sums, axis=1)[keep] / counts[keep, None]
+    return all_ids[keep], counts[keep], centroids
+
+
+def _has_physical_units(table) -> bool:
+    """Whether a table's sizes may be in physical units (its options record a pixel or voxel
+    size other than 1): then sizes are a constant multiple of pixel counts."""
+    opts = getattr(table, "attrs", {}).get("pfsdm") or {}
+    for key in ("pixel_size", "spacing"):
+        value = opts.get(key)
+        if value is not None and not np.allclose(np.asarray(value, float), 1.0):
+            return True
+    return False
+
+
+def check_labels_match(labels, table, where: str = "the labels",
+                       movie: str | None = None) -> None:
+    """Refuse, in plain words, labels that are not the segmentation ``table`` was measured
+    from: every row's object must be in its frame of ``labels`` with the row's size (``area``
+    or ``volume``, pixel counts or a constant multiple of them, as a pixel size gives) and,
+    in pixel units, its centroid. Objects of the labels that the table lacks are allowed (rows
+    left out of a table). Each frame the table names is read once.
+
+    Parameters
+    ----------
+    labels : array_like
+        One image or volume, or a movie (time first), numpy, dask or zarr.
+    table : pandas.DataFrame
+        Rows of one movie (``frame``, ``label`` and ``area`` or ``volume``; centroids when
+        it has them).
+    where : str
+        The labels' name (a file), for the message.
+    movie : str, optional
+        The movie's name in the table, for the message.
+
+    Raises
+    ------
+    InputError
+        Naming the first objects that differ, the frames, and what to do.
+    """
+    size_col = "area" if "area" in table.columns else "volume"
+    if size_col not in table.columns or not len(table):
+        return
+    axes = [c for c in ("centroid_z", "centroid_y", "centroid_x") if c in table.columns]
+    ndim = getattr(labels, "ndim", np.ndim(labels))
+    obj_ndim = 3 if "volume" in table.columns or "centroid_z" in table.columns else 2
+    movie_like = ndim == obj_ndim + 1
+    bad: list[str] = []
+    bad_frames: set[int] = set()
+    ratios: list[np.ndarray] = []
+    cents: list[tuple[np.ndarray, np.ndarray]] = []
+    n_frames = int(labels.shape[0]) if movie_like else 1
+    for t, rows in table.groupby("frame", sort=True):
+        if not (isinstance(t, int | np.integer) and 0 <= t < n_frames):
+            bad.append(f"frame {t} is not in the labels ({n_frames} frame"
+                       f"{'s' if n_frames > 1 else ''})")
+            bad_frames.add(-1)
+            continue
+        t = int(t)
+        image = np.asarray(labels[t]) if movie_like else np.asarray(labels)
+        ids, counts, centroids = frame_objects(image)
+        pos = {int(i): k for k, i in enumerate(ids.tolist())}
+        for row in rows.itertuples(index=False):
+            lab = int(row.label)
+            size = float(getattr(row, size_col))
+            k = pos.get(lab)
+            if k is None:
+                bad.append(f"frame {t}: label {lab} is not there")
+                bad_frames.add(t)
+                continue
+            if np.isfinite(size):
+                ratios.append(np.array([size / counts[k], counts[k], t, lab], float))
+            if axes and len(axes) == centroids.shape[1]:
+                cents.append((np.array([getattr(row, a) for a in axes], float),
+                              np.append(centroids[k], [t, lab])))
+    if ratios:
+        r = np.array(ratios)
+        scale = float(np.median(r[:, 0])) if _has_physical_units(table) else 1.0
+        off = np.abs(r[:, 0] - scale) > 1e-6 * abs(scale)
+        for ratio, n, t, lab in r[off][:3]:
+            bad.append(f"frame {int(t)}: label {int(lab)} has {int(n):,} pixels there, "
+                       f"{size_col} {ratio * n:g} in the table")
+        bad_frames.update(int(t) for t in r[off, 2])
+        if abs(scale - 1.0) <= 1e-9 and cents and not off.any():
+            for want, got in cents:
+                if np.nanmax(np.abs(want - got[:-2])) > 1e-6:
+                    t, lab = int(got[-2]), int(got[-1])
+                    at = ", ".join(a.split("_")[1] for a in axes)
+                    bad.append(f"frame {t}: label {lab} is centred at {at} = "
+                               f"{', '.join(f'{v:.1f}' for v in got[:-2])} there, "
+                               f"{', '.join(f'{v:.1f}' for v in want)} in the table")
+                    bad_frames.add(t)
+    if bad:
+        from_ = f" of {movie}" if movie else ""
+        more = f" (objects differ in {len(bad_frames)} frame{'s' if len(bad_frames) > 1 else ''})"
+        raise InputError(
+            f"{where} is not the segmentation the table{from_} was measured from: "
+            f"{'; '.join(bad[:3])}{more}. Give the label movie the table was measured from "
+            "(the same file, not another segmentation of the same images)")

@@ -270,7 +270,7 @@ def _run_threads(index, parts, k, method, n_jobs):
 
 
 def _run_dask(index, parts, k, method, scheduler, client):
-    from .schedulers import client_for, process_pool, resolve_scheduler
+    from .schedulers import available_cores, client_for, process_pool, resolve_scheduler
 
     kind, obj = resolve_scheduler(scheduler, client)
     if kind == "local":
@@ -282,7 +282,7 @@ def _run_dask(index, parts, k, method, scheduler, client):
         if obj != "processes":
             return list(dask.compute(*tasks, scheduler=obj))
         # worker processes that do not run the caller's script again
-        with process_pool(max(1, min(len(parts), os.cpu_count() or 1))) as pool:
+        with process_pool(max(1, min(len(parts), available_cores()))) as pool:
             return list(dask.compute(*tasks, scheduler=obj, pool=pool))
     with client_for(kind, obj) as handle:  # opens a client for a scheduler address
         shared = handle.scatter(index, broadcast=True)

@@ -45,6 +45,7 @@ from .physical import space_unit_of
 from .prediction import (
     C_FEATURES,
     channel_model,
+    check_seed,
     cross_validate,
     fuse,
     logistic_pipeline,
@@ -323,6 +324,7 @@ def predict_outcome(
         Fewer than two groups, a group with fewer than two objects, no such frames, too few
         objects to split.
     """
+    seed = check_seed(seed)  # before any work
     object_col = object_col or "object"
     prob = _problem(table, groups, frames, object_col, channels)
     lab = np.flatnonzero(prob.labelled)
@@ -525,6 +527,7 @@ def fit_outcome(table: pd.DataFrame, groups: Mapping, frames: Sequence[int] | No
     """The model of all the objects of ``table`` that have a group (the fusion weights chosen
     by cross-validation among them), to predict other tables' objects
     (:meth:`OutcomeModel.predict`)."""
+    seed = check_seed(seed)
     prob = _problem(table, groups, frames, object_col, channels)
     lab = np.flatnonzero(prob.labelled)
     y = prob.y_all[lab]

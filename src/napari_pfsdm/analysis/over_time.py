@@ -28,6 +28,7 @@ import pandas as pd
 
 from ..errors import InputError
 from .physical import column_label, time_label, time_values
+from .plot_text import plot_text
 from .reduction import object_ids
 
 __all__ = ["numeric_columns", "over_time", "plot_over_time"]
@@ -136,14 +137,14 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
         ax.fill_between(rows["time"], rows["mean"] - rows["sd"], rows["mean"] + rows["sd"],
                         color=colour, alpha=0.2, lw=0, zorder=2)
         ax.plot(rows["time"], rows["mean"], color=colour, lw=2, zorder=3,
-                label=f"{name} (mean ± sd)")
+                label=f"{plot_text(name)} (mean ± sd)")
     for obj in selected:
         rows = lines[lines["object"] == obj]
         if len(rows):
             ax.plot(rows["time"], rows["value"], "-o", color="#ff3c3c", ms=3, lw=1.6,
                     zorder=4)
     ax.set_xlabel(time_label(table))
-    ax.set_ylabel(column_label(table, column))
+    ax.set_ylabel(plot_text(column_label(table, column)))
     if len(per_group):
         ax.legend(fontsize=7, loc="best")
     return lines

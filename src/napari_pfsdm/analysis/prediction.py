@@ -31,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import product
+from typing import Any
 
 import numpy as np
 from sklearn.linear_model import LogisticRegression
@@ -42,10 +43,13 @@ from sklearn.preprocessing import StandardScaler
 from ..errors import InputError
 
 __all__ = [
+    "MAX_SEED",
+    "MAX_SPLITS",
     "FitPredict",
     "Fold",
     "best_weights",
     "channel_model",
+    "check_seed",
     "cross_validate",
     "fuse",
     "logistic_pipeline",
@@ -70,6 +74,22 @@ FitPredict = Callable[[np.ndarray, np.ndarray], Sequence[np.ndarray]]
 
 
 # ------------------------------------------------------------------------------ protocol
+#: Seeds from 0 to this: each split and repeat adds one to the seed, and scikit-learn takes
+#: seeds below 2**32.
+MAX_SEED = 2**31 - 1
+#: At most this many splits in all (splits per repeat x repeats): each fits every channel's
+#: model, a few tenths of a second on a laptop.
+MAX_SPLITS = 10_000
+
+
+def check_seed(seed: Any, what: str = "seed") -> int:
+    """``seed`` as a whole number from 0 to :data:`MAX_SEED`, else :class:`InputError`."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) \
+            or not 0 <= int(seed) <= MAX_SEED:
+        raise InputError(f"{what} must be a whole number from 0 to {MAX_SEED:,}; got {seed!r}")
+    return int(seed)
+
+
 def make_splits(
     y: np.ndarray,
     n_splits: int = 5,
@@ -98,6 +118,12 @@ def make_splits(
     list of (train_idx, test_idx)
         ``n_splits * n_repeats`` pairs of disjoint index arrays into ``y``.
     """
+    seed = check_seed(seed)
+    if not (isinstance(n_splits, int | np.integer) and isinstance(n_repeats, int | np.integer)
+            and n_splits >= 1 and n_repeats >= 1 and n_splits * n_repeats <= MAX_SPLITS):
+        raise InputError(f"{n_splits!r} splits per repeat x {n_repeats!r} repeats: give whole "
+                         f"numbers of at least 1, at most {MAX_SPLITS:,} splits in all (each "
+                         "fits every channel's model); ask for fewer")
     y = np.asarray(y)
     classes, counts = np.unique(y, return_counts=True)
     if len(classes) < 2:
@@ -318,6 +344,7 @@ def cross_validate(
     """
     if inner not in ("cv", "holdout"):
         raise InputError(f"inner must be 'cv' or 'holdout', got {inner!r}.")
+    seed = check_seed(seed)
     y = np.asarray(y).astype(int)
     folds = []
     for k, (train, test) in enumerate(splits):

@@ -41,7 +41,9 @@ from .html_parts import escaped as _e
 from .html_parts import figure as _figure
 from .html_parts import image as _img
 from .html_parts import table_html as _table_html
+from .label_images import check_labels_match
 from .physical import space_unit_of, time_label, time_unit_of, time_values
+from .plot_text import plot_text
 
 __all__ = ["GENERATOR", "REPORT_COLUMNS", "check_labels", "report_html"]
 
@@ -168,10 +170,11 @@ def _where(row: Mapping[str, Any], several_movies: bool) -> str:
 class _Masks:
     """The mask of (movie, frame, label) from the label movie(s), or None."""
 
-    def __init__(self, labels, table: pd.DataFrame):
+    def __init__(self, labels, table: pd.DataFrame, names=None):
         from ..core.table_schema import table_ndim
 
         self.labels = labels
+        self.names = names  # the labels' files (one, or movie -> file), for messages
         self.movies = (sorted(set(table["movie"].astype(str))) if "movie" in table.columns
                        else [])
         self.ndim = table_ndim(table_options(table))  # 3: volumes, drawn projected along z
@@ -186,7 +189,7 @@ class _Masks:
         arrays = (self.labels.items() if isinstance(self.labels, Mapping)
                   else [("", self.labels)])
         for movie, arr in arrays:
-            name = f"the labels of {movie}" if movie else "the labels"
+            name = self.where(movie) + (" (the labels)" if self.names else "")
             dtype = np.dtype(getattr(arr, "dtype", np.asarray(arr).dtype))
             if dtype.kind not in "iub":  # signed, unsigned, boolean
                 raise InputError(f"{name} hold {dtype} values, not whole numbers: give the "
@@ -201,6 +204,21 @@ class _Masks:
                 raise InputError(f"{name} have {arr.shape[0]} frames but the table has frame "
                                  f"{int(rows['frame'].max())}: give the label movie the table "
                                  "was measured from")
+            if ndim == self.ndim and len(rows) and rows["frame"].nunique() > 1:
+                raise InputError(f"{name} are one image but the table's objects are in "
+                                 f"{rows['frame'].nunique()} frames: give the label movie the "
+                                 "table was measured from")
+            if not movie and "movie" in rows and rows["movie"].nunique() > 1:
+                continue  # one array for several movies: drawn for none of them
+            # by content: each row's object in its frame, with its size and centroid
+            check_labels_match(arr, carry_options(table, rows), where=self.where(movie),
+                               movie=movie or None)
+
+    def where(self, movie: str) -> str:
+        """The labels' name for a message: their file when known."""
+        names = self.names if isinstance(self.names, Mapping) else {"": self.names}
+        name = names.get(movie) or names.get("")
+        return str(name) if name else (f"the labels of {movie}" if movie else "the labels")
 
     def movie_array(self, movie: str | None):
         labels = self.labels
@@ -242,12 +260,15 @@ class _Masks:
         return np.pad(mask[r0:r1, c0:c1], 1)
 
 
-def check_labels(labels, table: pd.DataFrame) -> None:
+def check_labels(labels, table: pd.DataFrame, names=None) -> None:
     """Refuse, in plain words (:class:`~napari_pfsdm.errors.InputError`), label arrays that
-    cannot be the table's segmentation: not whole numbers (an image given by mistake), the
-    wrong number of axes, fewer frames than the table has. ``labels`` as for
-    :func:`report_html`; None passes."""
-    _Masks(labels, table).check(table)
+    are not the table's segmentation: not whole numbers (an image given by mistake), the
+    wrong number of axes, fewer frames than the table has, or other objects than the table's
+    rows in any frame (by id, size and centroid: another segmentation of the same shape, ids
+    swapped, frames in another order; :func:`~napari_pfsdm.analysis.label_images.
+    check_labels_match`). ``labels`` as for :func:`report_html`; None passes. ``names``: the
+    labels' file (or movie → file), named in the message."""
+    _Masks(labels, table, names).check(table)
 
 
 def _draw_mask(ax, mask: np.ndarray | None, colour="0.25") -> None:
@@ -376,7 +397,7 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray, when: str)
             ax.plot(obj["shape_PC1"], obj["shape_PC2"], "-", color="0.45", lw=0.8, zorder=1)
             sc = ax.scatter(obj["shape_PC1"], obj["shape_PC2"], c=time_values(obj), s=12,
                             cmap="viridis", vmin=fmin, vmax=fmax, zorder=2)
-        ax.set_title(name or "all objects", fontsize=10)
+        ax.set_title(plot_text(name) if name else "all objects", fontsize=10)
         ax.set_xlabel(f"PC1 ({100 * explained[0]:.2g} %)")
         if len(explained) > 1:
             ax.set_ylabel(f"PC2 ({100 * explained[1]:.2g} %)")
@@ -405,7 +426,7 @@ def _over_time_section(table: pd.DataFrame, columns: Sequence[str]) -> str:
         plot_over_time(ax, table, col)
         if "time" not in table.columns:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames
-        ax.set_title(col, fontsize=10)
+        ax.set_title(plot_text(col), fontsize=10)
     for ax in axes[len(cols):]:
         ax.set_visible(False)
     from .glossary import describe_column
@@ -452,7 +473,8 @@ def modes_figure(scores: pd.DataFrame, k: int, masks, several: bool):
     for ax, row in zip(axes, modes.to_dict("records"), strict=True):
         _draw_mask(ax, masks.mask(row))
         ax.set_title(f"{row['sigma']:+g}σ", fontsize=8)
-        ax.text(0.5, -0.03, _wrapped(_where(row, several), 16), transform=ax.transAxes,
+        ax.text(0.5, -0.03, _wrapped(plot_text(_where(row, several)), 16),
+                transform=ax.transAxes,
                 ha="center", va="top", fontsize=6, color="0.25")
     return fig
 

@@ -7,6 +7,7 @@ measure_dask` and :func:`napari_pfsdm.nearest_neighbours` (analysis may not impo
 from __future__ import annotations
 
 import contextlib
+import numbers
 import os
 import re
 import socket
@@ -16,7 +17,8 @@ from typing import Any
 
 from ..errors import InputError
 
-__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "client_for", "process_pool", "resolve_scheduler"]
+__all__ = ["CONNECT_TIMEOUT", "LOCAL_SCHEDULERS", "available_cores", "check_workers", "client_for",
+           "process_pool", "resolve_scheduler"]
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
@@ -123,6 +125,33 @@ def probe_scheduler(address: str, timeout: float) -> None:
         )
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system says it, as a
+    batch system or ``taskset`` sets it; else the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # macOS, Windows
+        return max(1, os.cpu_count() or 1)
+
+
+def check_workers(workers: Any, what: str = "workers") -> int | None:
+    """``workers`` (None: one per core) as a whole number from 1 to :func:`available_cores`,
+    else :class:`InputError` saying how many cores there are: more processes than cores only
+    compete for them, and each holds its frames in memory."""
+    if workers is None:
+        return None
+    cores = available_cores()
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
+        raise InputError(f"{what} must be a whole number of at least 1; got {workers!r}")
+    if workers > cores:
+        raise InputError(
+            f"{what} {workers}: this machine offers {cores} core{'s' if cores > 1 else ''} to "
+            f"this process; more workers than cores only compete for them, each holding its "
+            f"frames in memory. Give at most {cores}, or leave it out for one per core (a "
+            "dask cluster's workers are started on its machines, with 'dask worker')")
+    return int(workers)
+
+
 def process_pool(workers: int | None = None) -> Any:
     """A process pool for the ``"processes"`` scheduler: ``workers`` processes (fresh
     interpreters; default: one per core), all started before it is returned, that exit with
@@ -138,7 +167,7 @@ def process_pool(workers: int | None = None) -> Any:
     """
     from loky import ProcessPoolExecutor
 
-    workers = int(workers or os.cpu_count() or 1)
+    workers = check_workers(workers) or available_cores()
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
                                initargs=(os.getpid(),))
     try:

@@ -58,13 +58,18 @@ def key_rows(frames, labels, at_frames, at_labels) -> np.ndarray:
     >>> key_rows([0, 0, 1], [5, 7, 5], [1, 0, 0], [5, 5, 9])
     array([ 1, -1,  0])
     """
-    f, lab = np.asarray(frames, np.int64), np.asarray(labels, np.int64)
-    af, alab = np.asarray(at_frames, np.int64), np.asarray(at_labels, np.int64)
+    f, af = np.asarray(frames, np.int64), np.asarray(at_frames, np.int64)
+    lab, alab = _ids(labels), _ids(at_labels)
     if not len(af) or not len(f):
         return np.full(len(f), -1)
-    low = min(int(lab.min()), int(alab.min()))
-    span = max(int(lab.max()), int(alab.max())) - low + 1
-    key, at_key = f * span + (lab - low), af * span + (alab - low)  # a pair as one number
+    if lab.dtype != alab.dtype:  # ids of any size: both as unsigned when either is
+        lab, alab = lab.astype(np.uint64), alab.astype(np.uint64)
+    # each id by its rank among those present, so that a pair is one number without overflow
+    # whatever the ids (up to 2**64 - 1) and the frames
+    ranks = np.unique(np.concatenate([lab, alab]), return_inverse=True)[1].ravel()
+    span = int(ranks.max()) + 1
+    r, ar = ranks[: len(lab)].astype(np.int64), ranks[len(lab):].astype(np.int64)
+    key, at_key = f * span + r, af * span + ar  # a pair as one number
     order = np.argsort(at_key, kind="stable")
     pos = np.minimum(np.searchsorted(at_key[order], key), len(at_key) - 1)
     return np.where(at_key[order][pos] == key, order[pos], -1)
@@ -100,6 +105,14 @@ def match_rows(left, right) -> np.ndarray:
         there[k], here[k] = there[k].astype(kind), here[k].astype(kind)
     found = here.merge(there.drop_duplicates(keys), on=keys, how="left")["_row"]
     return found.fillna(-1).to_numpy(np.int64)
+def _ids(values) -> np.ndarray:
+    """Object ids as exact whole numbers: int64, or uint64 when they need it (2**63 and up)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind in "iu":
+        return arr
+    as_int = [int(v) for v in arr.ravel().tolist()]
+    big = any(v >= 2**63 for v in as_int)
+    return np.array(as_int, dtype=np.uint64 if big else np.int64)
 
 
 def is_table(items: Any) -> bool:

@@ -82,7 +82,9 @@ class _Frames:
             if self._handle is None:
                 self._handle = self._cached_open()
             return np.asarray(self._handle[tuple(full)])
-        except ImportError:
+        except ImportError as exc:
+            if _codec_missing(exc):
+                raise InputError(_codec_words(self.path, exc)) from exc
             raise
         except MemoryError as exc:
             size = int(np.prod(self.shape[1:], dtype=np.int64)) * self.dtype.itemsize
@@ -91,6 +93,8 @@ class _Frames:
                 f"is {size / 2**20:.0f} MiB); use fewer workers (--workers 1), measure on a "
                 "machine with more memory, or cut the frames into smaller images") from exc
         except Exception as exc:  # noqa: BLE001 - any reader error: name the file
+            if _codec_missing(exc):  # not damaged: a decoder this install lacks
+                raise InputError(_codec_words(self.path, exc)) from exc
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             raise InputError(
                 f"cannot read {self.path}: the file seems damaged or truncated "
@@ -164,6 +168,27 @@ def missing_chunks(arr: Any, folder: str | os.PathLike, t_axis: int | None) -> d
     return missing
 
 
+def _codec_missing(exc: BaseException) -> bool:
+    """Whether reading failed for want of a decoder (tifffile's "requires the 'imagecodecs'
+    package", or a codec's module missing), not because the file is damaged."""
+    text = str(exc)
+    return "imagecodecs" in text or getattr(exc, "name", None) in ("imagecodecs", "compression")
+
+
+def _first_words(what: Any) -> str:
+    """An error's own words (a KeyError's without the quotes its str() adds)."""
+    if isinstance(what, BaseException) and what.args and isinstance(what.args[0], str):
+        return what.args[0]
+    return str(what)
+
+
+def _codec_words(path: Any, what: Any) -> str:
+    return (f"{path} is compressed in a way that needs the imagecodecs package to read "
+            f"({_first_words(what)}), and it is not installed here: pip install "
+            "imagecodecs (a dependency of napari-pfsdm: this install is incomplete). The file "
+            "itself is not damaged")
+
+
 class _ZarrFrames(_Frames):
     def __init__(self, path: str, component: str, shape, dtype, drop):
         self.component = component  # before __init__: part of the file's identity
@@ -212,10 +237,39 @@ def _axes_message(where: str, shape: tuple[int, ...], axes: list[str], bad: str)
     return f"{where} has {len(shape)} dimensions ({dims}); {what}"
 
 
+def _channel_index(channel: int | None, n: int, where: str) -> int:
+    """The reporter's channel to read from an axis of ``n`` channels, or the words to say
+    which (``--reporter-channel``)."""
+    if channel is None:
+        raise InputError(
+            f"{where} has {n} channels: say which one is the reporter with --reporter-channel "
+            f"N (0 to {n - 1}; reporter_channel=N in Python), as the napari plugin offers "
+            "each channel of such an image")
+    if not 0 <= channel < n:
+        raise InputError(f"--reporter-channel {channel}: {where} has {n} channels; give one "
+                         f"from 0 to {n - 1}")
+    return int(channel)
+
+
 def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
-               keep_z: bool = False) -> tuple:
+               keep_z: bool = False, channel: int | None = None,
+               like: tuple[int, ...] | None = None) -> tuple:
     """Decide which stored axes to keep to obtain (T, Y, X) or (Y, X); with ``keep_z`` (the
-    user said the objects are 3-D) also (T, Z, Y, X) or (Z, Y, X)."""
+    user said the objects are 3-D) also (T, Z, Y, X) or (Z, Y, X). A reporter (``like``: the
+    shape of its labels) may have one axis of channels more, named ``c`` by its metadata or
+    found by shape as the plugin finds it (``analysis.label_images.reporter_channels``):
+    ``channel`` of it is read."""
+    drop = _drop_stored_axes(shape, axes, where, keep_z, channel, like)
+    if like is not None and channel is not None and not any(
+            d == channel and n > 1 for d, n in zip(drop, shape, strict=True)):
+        raise InputError(f"--reporter-channel {channel}: {where} has no axis of channels (its "
+                         f"shape {tuple(shape)} is its labels'); leave --reporter-channel out")
+    return drop
+
+
+def _drop_stored_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
+                      keep_z: bool, channel: int | None,
+                      like: tuple[int, ...] | None) -> tuple:
     ndim = len(shape)
     kept = ("t", "z", "y", "x") if keep_z else ("t", "y", "x")
     sizes = (2, 3, 4) if keep_z else (2, 3)
@@ -232,6 +286,8 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
                 drop.append(None)
             elif n == 1:
                 drop.append(0)
+            elif a == "c" and like is not None:  # a reporter's channels: one of them
+                drop.append(_channel_index(channel, n, where))
             else:
                 raise InputError(_axes_message(where, shape, axes, a))
         names = [a for a, d in zip(axes, drop, strict=True) if d is None]
@@ -245,6 +301,22 @@ def _drop_axes(shape: tuple[int, ...], axes: list[str] | None, where: str,
                 "moveaxis, or 'Re-order Hyperstack' in Fiji)")
         if drop.count(None) in sizes:
             return tuple(drop)
+    if like is not None and ndim == len(like) + 1:  # a channel axis found by shape
+        from ..analysis.label_images import MAX_CHANNELS, reporter_channels
+
+        k = reporter_channels(shape, like, axis=True)
+        if k is not None:
+            fits = [j for j in range(ndim - 2) if shape[:j] + shape[j + 1:] == tuple(like)
+                    and shape[j] <= MAX_CHANNELS]
+            if len(fits) > 1:  # axes of one size: which is time cannot be known
+                raise InputError(
+                    f"{where} has shape {tuple(shape)} and its file does not name its axes: "
+                    f"axis {fits[0]} or axis {fits[1]} could be its channels. Save it with its "
+                    "axes named (an ImageJ hyperstack or an OME-TIFF, T C Y X), or one file "
+                    "per channel")
+            found: list[int | None] = [None] * ndim
+            found[k] = _channel_index(channel, shape[k], where)
+            return tuple(found)
     # No usable axis names: drop leading singleton axes until 3-D (4-D with keep_z).
     drop = [None] * ndim
     i = 0
@@ -326,7 +398,8 @@ def _ome_level(path: Path, group: Any, multiscales: list) -> tuple[str, list[str
     return str(datasets[index]["path"]), axes
 
 
-def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
+def _open_zarr(path: Path, keep_z: bool = False, channel: int | None = None,
+               like: tuple | None = None) -> _ZarrFrames:
     try:
         import zarr
     except ImportError as exc:
@@ -362,7 +435,7 @@ def _open_zarr(path: Path, keep_z: bool = False) -> _ZarrFrames:
         if dims and all(dims):
             axes = list(dims)
     shape = tuple(int(n) for n in arr.shape)
-    drop = _drop_axes(shape, axes, str(path), keep_z)
+    drop = _drop_axes(shape, axes, str(path), keep_z, channel, like)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _ZarrFrames(str(path), component, out_shape, arr.dtype, drop)
     timed = len(out_shape) == 4 or (len(out_shape) == 3 and not keep_z)
@@ -406,6 +479,22 @@ def _declared_images(tif: Any) -> int | None:
     return None
 
 
+def _tiff_codec(series: Any) -> str | None:
+    """The decoder a TIFF series needs and this install lacks (tifffile's words), or None:
+    found before any frame is read."""
+    import tifffile
+
+    try:
+        page = series.keyframe
+        if page is not None and int(page.compression) != 1:  # 1: not compressed
+            tifffile.TIFF.DECOMPRESSORS[page.compression]
+    except KeyError as exc:
+        return _first_words(exc)
+    except Exception:  # noqa: BLE001 - anything else is said when its pixels are read
+        return None
+    return None
+
+
 def _tiff_damage(path: Path, tif: Any, series: Any, log: list[str]) -> str | None:
     """Why a TIFF is not what it declares (None: it is): tifffile's own complaints while
     reading its pages and series, data that lies beyond the end of the file, or fewer
@@ -440,18 +529,20 @@ def _tiff_damage(path: Path, tif: Any, series: Any, log: list[str]) -> str | Non
     return None
 
 
-def _open_tiff(path: Path, keep_z: bool = False, series: int | None = None) -> _TiffFrames:
+def _open_tiff(path: Path, keep_z: bool = False, series: int | None = None,
+               channel: int | None = None, like: tuple | None = None) -> _TiffFrames:
     """A TIFF's series as frames, after checking that the file holds what it declares
     (:func:`_tiff_damage`) and that the series to read is known."""
     with _TIFF_LOG_LOCK:  # the logger is shared: one opening at a time changes it
-        return _open_tiff_logged(path, keep_z, series)
+        return _open_tiff_logged(path, keep_z, series, channel, like)
 
 
 #: Held while :func:`_open_tiff` listens to tifffile's logger.
 _TIFF_LOG_LOCK = threading.Lock()
 
 
-def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFrames:
+def _open_tiff_logged(path: Path, keep_z: bool, series: int | None, channel: int | None = None,
+                      like: tuple | None = None) -> _TiffFrames:
     import tifffile
 
     handler = _TiffLog()
@@ -476,6 +567,9 @@ def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFram
                                  f"({listing}); give --series from 0 to {n_series - 1}")
             index %= n_series
             chosen = tif.series[index]
+            missing = _tiff_codec(chosen)
+            if missing is not None:
+                raise InputError(_codec_words(path, missing))
             shape = tuple(int(n) for n in chosen.shape)
             dtype = chosen.dtype
             axes = list(chosen.axes.lower())
@@ -506,7 +600,7 @@ def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFram
         axes[0] = "t"
     # several unnamed axes (a plain 4-D stack is "QQYX"): the file names none of them, so the
     # user's --axes decides (no metadata to obey)
-    drop = _drop_axes(shape, None if generic > 1 else axes, str(path), keep_z)
+    drop = _drop_axes(shape, None if generic > 1 else axes, str(path), keep_z, channel, like)
     out_shape = tuple(n for n, d in zip(shape, drop, strict=True) if d is None)
     frames = _TiffFrames(str(path), index, out_shape, dtype, drop)
     frames.chunks_t = 1
@@ -514,7 +608,8 @@ def _open_tiff_logged(path: Path, keep_z: bool, series: int | None) -> _TiffFram
 
 
 def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
-               axes: str | None = None, series: int | None = None) -> da.Array:
+               axes: str | None = None, series: int | None = None,
+               channel: int | None = None, like: tuple | None = None) -> da.Array:
     """Open a TIFF or Zarr movie lazily as a dask array of shape (T, Y, X) or (Y, X); when
     ``axes`` names a z axis (``"zyx"``, ``"tzyx"``), also (Z, Y, X) or (T, Z, Y, X).
 
@@ -532,6 +627,10 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
         Which image series of a TIFF to read (``tifffile.TiffFile.series``; negative counts
         from the end). A TIFF of several series (positions of an OME-TIFF, a thumbnail beside
         the image) is refused without it.
+    channel, like : int and tuple, optional
+        For a reporter: ``like`` is the shape of its labels (as opened); an image with one
+        axis of channels more (named ``c`` by its metadata, or found by shape as the napari
+        plugin finds it) is read at ``channel``, refused without it.
 
     Raises
     ------
@@ -550,9 +649,9 @@ def open_movie(path: str | os.PathLike, *, frames_per_chunk: int | None = None,
         raise InputError(f"{p}: no such file or folder")
     keep_z = axes is not None and "z" in str(axes).lower()
     if is_zarr(p):
-        frames: _Frames = _open_zarr(p, keep_z)
+        frames: _Frames = _open_zarr(p, keep_z, channel, like)
     elif is_tiff(p):
-        frames = _open_tiff(p, keep_z, series)
+        frames = _open_tiff(p, keep_z, series, channel, like)
     else:
         raise InputError(
             f"{p}: not a TIFF file (.tif/.tiff) or a Zarr store (.zarr folder); "
@@ -621,7 +720,7 @@ def missing_warning(movie: Any, name: str) -> list[str]:
 
 
 def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
-                 axes: str | None = None) -> None:
+                 axes: str | None = None, intensity_where: str | None = None) -> None:
     """Raise a plain-language ValueError if labels/intensity cannot be measured together."""
     dtype = np.dtype(labels.dtype)
     if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_):
@@ -638,11 +737,14 @@ def check_labels(labels: Any, intensity: Any = None, where: str = "labels",
             f"{where} has shape {tuple(labels.shape)}; expected (Y, X) or (T, Y, X), or say "
             "which axes it has (--axes zyx or tzyx for 3-D objects)"
         )
-    from ..analysis.label_images import refuse_zero_size
+    from ..analysis.label_images import refuse_not_labels, refuse_zero_size, resolve_axes
 
     refuse_zero_size(tuple(labels.shape), where)
     if intensity is not None and tuple(intensity.shape) != tuple(labels.shape):
         raise InputError(
-            f"labels and intensity have different shapes {tuple(labels.shape)} and "
-            f"{tuple(intensity.shape)}; they must be the same movie, frame for frame"
-        )
+            f"the labels {where} and the reporter {intensity_where or ''} have different "
+            f"shapes, {tuple(labels.shape)} and {tuple(intensity.shape)}; they must be the "
+            "same movie, frame for frame. Give the reporter recorded with these labels"
+            + (" (one channel of it: --reporter-channel N)" if intensity.ndim == labels.ndim + 1
+               else ""))
+    refuse_not_labels(labels, resolve_axes(tuple(labels.shape), axes), where)

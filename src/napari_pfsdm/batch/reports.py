@@ -17,6 +17,7 @@ import pandas as pd
 
 from ..analysis.features import FOLDED_WARNING
 from ..analysis.physical import time_label, time_values
+from ..analysis.plot_text import plot_text
 from ..analysis.reduction import object_ids
 from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
@@ -94,13 +95,14 @@ def plot_trajectories(
         ax.set_title(f"{ch} features")
         if by_group:
             for i, n in enumerate(names):
-                ax.plot([], [], "-o", color=tab10(i % 10), label=n or "(no group)", ms=4)
+                ax.plot([], [], "-o", color=tab10(i % 10), label=plot_text(n) or "(no group)",
+                        ms=4)
             last = "time" if "time" in scores else "frame"
             ax.legend(fontsize=8, title=f"group (■ = last {last})", title_fontsize=8)
         elif sc is not None:
             fig.colorbar(sc, ax=ax, label=time_label(scores) if time_unit is None
                          else f"time ({time_unit})")
-    fig.suptitle(title)
+    fig.suptitle(plot_text(title))
     save_figure(fig, path, dpi=120)
     return Path(path)
 
@@ -124,7 +126,7 @@ def plot_mds(
         for i, n in enumerate(names):
             m = (table["group"].astype(str) == n).to_numpy()
             ax.scatter(coords[m, 0], coords[m, 1], s=size, color=tab10(i % 10),
-                       label=n or "(no group)")
+                       label=plot_text(n) or "(no group)")
         ax.legend(fontsize=8)
     elif table["frame"].nunique() > 1:
         sc = ax.scatter(coords[:, 0], coords[:, 1], c=table["frame"], cmap="viridis", s=size)
@@ -151,11 +153,12 @@ def plot_mds(
             names = table["movie"].astype(str) + "/" + names
         for (x, y), oid in zip(coords, names, strict=True):
             if np.isfinite(x):
-                ax.annotate(oid, (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+                ax.annotate(plot_text(oid), (x, y), fontsize=7, xytext=(3, 3),
+                            textcoords="offset points")
     ax.set_xlabel(f"{axis_name} 1")
     ax.set_ylabel(f"{axis_name} 2")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(title or "PF-SDM distances, 2-D MDS")
+    ax.set_title(plot_text(title) if title else "PF-SDM distances, 2-D MDS")
     save_figure(fig, path, dpi=120)
     return Path(path)
 

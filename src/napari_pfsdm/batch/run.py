@@ -27,11 +27,17 @@ import numpy as np
 import pandas as pd
 
 from ..analysis.physical import add_times
-from ..analysis.schedulers import client_for, process_pool, resolve_scheduler
+from ..analysis.schedulers import (
+    LOCAL_SCHEDULERS,
+    check_workers,
+    client_for,
+    process_pool,
+    resolve_scheduler,
+)
 from ..core.params import LINK_OPTION, PFSDMParams, as_params
 from ..core.table_options import carry_options, plain, set_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
-from ..errors import InputError
+from ..errors import InputError, RunFault
 from ..io import (
     is_parquet,
     output_lock,
@@ -41,7 +47,9 @@ from ..io import (
     sidecar_path,
     to_jsonable,
     write_table_csv,
+    written_by_pfsdm,
 )
+from ..io.sidecar import is_pfsdm_sidecar
 from .calibration import Calibration, calibrate
 from .fingerprint import data_fingerprint
 from .io import (
@@ -69,7 +77,7 @@ def _have_parquet() -> bool:
 
 def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
                spacing: Any = None, series: int | None = None,
-               calibration: Calibration | None = None) -> str:
+               calibration: Calibration | None = None, channel: int | None = None) -> str:
     """Stable file name of a movie's part: its name plus a hash of its inputs' data
     (:func:`~napari_pfsdm.batch.fingerprint.data_fingerprint`) and of what is measured
     (:meth:`~napari_pfsdm.core.params.PFSDMParams.measured`: the options that leave objects
@@ -87,7 +95,8 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
         + ([["series", int(series)]] if series is not None else [])
         # the pixel size and its unit change the sizes measured (not the times: added later)
         + ([["pixel_size", list(calibration.pixel_size), calibration.space_unit]]
-           if calibration is not None and calibration.pixel_size is not None else []),
+           if calibration is not None and calibration.pixel_size is not None else [])
+        + ([["reporter_channel", int(channel)]] if channel is not None else []),
         sort_keys=True
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:10]
@@ -113,8 +122,20 @@ def _read_part(path: Path) -> pd.DataFrame:
 def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
     """The table of a movie measured by an earlier run, or None when it must be measured: no
     part yet, or a damaged one (truncated, not matching its sidecar), which is removed."""
+    side = sidecar_path(part)
     if not part.exists():
+        if (side.exists() or side.is_symlink()) and not is_pfsdm_sidecar(side):
+            raise InputError(
+                f"{side} has the name of the sidecar of {name}'s saved part but pfsdm did not "
+                "write it; nothing was changed. Move that file out of the parts folder, or "
+                "give another folder with --parts")
         return None
+    if not (sidecar_path(part).exists() or part.with_suffix(".json").is_file()
+            or written_by_pfsdm(part)):  # a part pfsdm wrote has a sidecar, damaged or not
+        raise InputError(
+            f"{part} has the name of {name}'s saved part but pfsdm did not write it (it has "
+            "no pfsdm sidecar); nothing was changed. Move that file out of the parts folder, "
+            "or give another folder with --parts")
     try:
         table = _read_part(part)
     except Exception as exc:  # noqa: BLE001 - any reader's error: the part is not usable
@@ -193,6 +214,7 @@ def run_batch(
     time_unit: str | None = None,
     pixel_size: Any = None,
     space_unit: str | None = None,
+    reporter_channel: int | None = None,
     **options: Any,
 ) -> pd.DataFrame:
     """Measure many movies into one CSV with a ``movie`` column, resumably.
@@ -248,6 +270,10 @@ def run_batch(
         resolution), else sizes stay in pixels.
     space_unit : str, optional
         Its unit (µm when not given); files' pixel sizes are converted to it.
+    reporter_channel : int, optional
+        The channel read from reporters of several channels (an axis more than their labels,
+        named ``c`` or found by shape, as the napari plugin offers them); such a reporter is
+        refused without it.
     **options
         Or the options as keywords, as :func:`napari_pfsdm.measure` takes them.
 
@@ -266,6 +292,8 @@ def run_batch(
         raise InputError(f"cannot write {output}: the folder {out_dir} is not writable")
     p = as_params(params, options)  # a bad option fails here, before any movie is read
     link = LINK_OPTION.check(link)
+    if client is None and (scheduler is None or scheduler in LOCAL_SCHEDULERS):
+        check_workers(num_workers, "num_workers")  # this machine's cores, at most
     _refuse_collisions(movies)
     if is_parquet(output) and output.suffix.lower() == ".parquet":
         require_pyarrow(output, "writing")  # a missing package fails here, not after measuring
@@ -276,7 +304,7 @@ def run_batch(
             say=log or (lambda msg: None), allow_empty=allow_empty, link=link, axes=axes,
             spacing=spacing, allow_missing_chunks=allow_missing_chunks, series=series,
             units={"times": times, "time_unit": time_unit, "pixel_size": pixel_size,
-                   "space_unit": space_unit})
+                   "space_unit": space_unit}, reporter_channel=reporter_channel)
 
 
 def _refuse_collisions(movies: Sequence[Movie]) -> None:
@@ -321,6 +349,7 @@ def _run_batch_locked(
     say: Callable[[str], None], allow_empty: bool, link: str, axes: str | None,
     spacing: Any, allow_missing_chunks: bool, series: int | None = None,
     units: dict | None = None,
+    reporter_channel: int | None = None,
 ) -> pd.DataFrame:
     """:func:`run_batch`'s work, holding the output's lock: open and check every movie, find
     their times and pixel sizes, measure those without a part, put the table together."""
@@ -332,11 +361,12 @@ def _run_batch_locked(
     progress = progress or (lambda *a: None)
 
     opened = _open_movies(movies, frames_per_task, axes, series, allow_missing_chunks,
-                          progress)
+                          progress, reporter_channel)
     missing = _missing_chunks(opened, say)
     cal = _calibrations(opened, axes, series, units or {}, say)
-    plan = [(m, lab, img, parts / (_part_name(m, p, axes, spacing, series, cal[m.name])
-                                  + suffix)) for m, lab, img in opened]
+    plan = [(m, lab, img, parts / (_part_name(m, p, axes, spacing, series, cal[m.name],
+                                             reporter_channel) + suffix))
+            for m, lab, img in opened]
     total = sum(_n_frames(lab, axes) for _, lab, _, part in plan if not part.exists())
     done = 0
     progress("measuring", 0, total, "")
@@ -355,7 +385,7 @@ def _run_batch_locked(
                 def _prog(frames: int, n: int, _name: str = m.name, _at: int = done) -> None:
                     progress("measuring", _at + frames, total, _name)
 
-                with warnings.catch_warnings():  # the missing chunks were said above
+                with warnings.catch_warnings(), _naming(m.labels):  # chunks: said above
                     warnings.filterwarnings("ignore", ".*chunk files? missing", UserWarning)
                     table = measure_dask(
                         lab, img, client=cl if kind != "local" else None,
@@ -423,16 +453,18 @@ def rows_words(table: pd.DataFrame) -> str:
 
 
 def _open_movies(movies: Sequence[Movie], frames_per_task: int | None, axes: str | None,
-                 series: int | None, allow_missing_chunks: bool, progress: Progress
-                 ) -> list[tuple[Movie, Any, Any]]:
+                 series: int | None, allow_missing_chunks: bool, progress: Progress,
+                 reporter_channel: int | None = None) -> list[tuple[Movie, Any, Any]]:
     """Open and check every movie first: a bad file fails the run before any long work."""
     opened = []
     for i, m in enumerate(movies):
         progress("checking", i, len(movies), m.name)
         lab = open_movie(m.labels, frames_per_chunk=frames_per_task, axes=axes, series=series)
         img = open_movie(m.intensity, frames_per_chunk=frames_per_task, axes=axes,
-                         series=series) if m.intensity else None
-        check_labels(lab, img, where=str(m.labels), axes=axes)
+                         series=series, channel=reporter_channel,
+                         like=tuple(lab.shape)) if m.intensity else None
+        check_labels(lab, img, where=str(m.labels), axes=axes,
+                     intensity_where=str(m.intensity) if m.intensity else None)
         if img is not None and tuple(img.shape) != tuple(lab.shape):  # pragma: no cover
             raise InputError(f"{m.labels} and {m.intensity} have different shapes")
         for movie, path in ((lab, m.labels), (img, m.intensity)):
@@ -491,6 +523,18 @@ def _table_record(attrs: dict, p: PFSDMParams, cal: dict[str, Calibration]) -> d
     if any(c.times is not None for c in cal.values()):
         attrs["time_unit"] = units.pop() if units else None
     return attrs
+
+
+@contextlib.contextmanager
+def _naming(path: Any):
+    """The user's errors met while measuring a movie name its file (a frame's negative ids,
+    say, that the checks before the run did not look at)."""
+    try:
+        yield
+    except InputError as exc:
+        if str(path) in str(exc) or isinstance(exc, RunFault):
+            raise
+        raise InputError(f"{path}: {exc}") from exc
 
 
 def _n_frames(movie: Any, axes: str | None) -> int:

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from ..errors import InputError
 from . import classify, compare, demo, measure, plot, report, stats, trajectories
-from .common import BUG_REPORT, EXIT_BUG, EXIT_USAGE
+from .common import BUG_REPORT, EXIT_BUG, EXIT_USAGE, check_command_files
 
 __all__ = ["build_parser", "main"]
 
@@ -85,6 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.debug:  # tifffile logs a damaged file's details; the error line says it
         logging.getLogger("tifffile").setLevel(logging.CRITICAL)
     try:
+        check_command_files(args)  # every declared output against the others and the inputs
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("pfsdm: interrupted (finished movies are kept; run again to resume)",
@@ -95,8 +96,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc(file=sys.stderr)
         if _is_input_error(exc):
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
-                msg = f"{exc.filename}: {msg}"
+            if isinstance(exc, OSError) and exc.strerror:  # the system's words, and the file
+                msg = f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+                from ..io.atomic import WRITE_HINTS
+
+                hint = WRITE_HINTS.get(exc.errno or 0)
+                if hint and hint not in msg:
+                    msg += f"; {hint}"
             print(f"pfsdm: error: {msg}", file=sys.stderr)
             return EXIT_USAGE
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""

@@ -9,11 +9,13 @@ from .common import (
     UserError,
     _add_force,
     _add_groups,
-    _check_output,
     _fraction,
     _note,
     _say,
+    _seed,
     _whole,
+    file_argument,
+    selected_frames,
 )
 from .tables import _follow_objects, _with_groups
 
@@ -21,15 +23,11 @@ from .tables import _follow_objects, _with_groups
 def _prepared(args: argparse.Namespace, path: str, command: str = "predict"):
     """The table at ``path`` with its groups (``args.groups``, ``args.group_column``), its
     objects followed over several frames, and the frames chosen."""
-    from ..analysis import classification as clf
     from ..batch.reports import load_features
 
     table = load_features(path)
     table, groups = _with_groups(table, args.groups, args.quiet, args.group_column)
-    frames = clf.parse_frames(args.frames) if args.frames else None
-    if frames is not None and not table["frame"].isin(frames).any():
-        raise UserError(f"no rows in frames {args.frames}: the table has frames "
-                        f"{clf.format_frames(table['frame'])}; choose frames among these")
+    frames = selected_frames(args.frames, table) if args.frames else None
     if frames is None or len(frames) > 1:  # one object over several frames: its id follows it
         table = _follow_objects(table, None, args.quiet, command=command)
     return table, groups, frames
@@ -119,8 +117,6 @@ def cmd_classify(args: argparse.Namespace) -> int:
     apart (balanced accuracy, confusion matrix)."""
     from ..io import write_table_csv
 
-    if args.output:
-        _check_output(args.output, force=args.force, inputs=[args.features])
     table, groups, frames = _prepared(args, args.features, command="classify")
     pred = _evaluation(args, table, frames, what="classifying", curve=False)
     _print_scores(pred, args.quiet, table)
@@ -140,8 +136,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     from ..core.table_options import table_options
     from ..io import write_table_csv
 
-    inputs = [args.features] + ([args.on] if args.on else [])
-    out = _check_output(args.output, force=args.force, inputs=inputs)
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     table, groups, frames = _prepared(args, args.features)
     if args.on:
         return _predict_other(args, table, frames, out)
@@ -203,16 +198,19 @@ def _predict_other(args: argparse.Namespace, table, frames, out) -> int:
 
 
 def _add_common(p: argparse.ArgumentParser, frames_required: bool) -> None:
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
     p.add_argument("--frames", required=frames_required, metavar="RANGE",
                    help="frames whose features are used, e.g. 0-5 or 0,5,10"
                         + ("" if frames_required else " (default: all)"))
-    p.add_argument("--splits", type=_whole("--splits", 2), default=5,
+    p.add_argument("--splits", type=_whole("--splits", 2, 1000), default=5,
                    help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1), default=2, help="repeats (default 2)")
+    p.add_argument("--repeats", type=_whole("--repeats", 1, 1000), default=2,
+                   help="repeats (default 2)")
     p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
                    help="the share of the objects each split tests (default 0.2)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of the random splits (default 0)")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -236,9 +234,9 @@ example:
 """)
     _add_common(p, frames_required=True)
     _add_groups(p, required=True)
-    p.add_argument("-o", "--output", metavar="SCORES.csv",
-                   help="also write the scores: one row per family with its balanced_accuracy "
-                        "(the confusion matrix in SCORES.csv.json)")
+    file_argument(p, "-o", "--output", role="output", kind="table", metavar="SCORES.csv",
+                  help="also write the scores: one row per family with its balanced_accuracy "
+                       "(the confusion matrix in SCORES.csv.json)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
@@ -266,9 +264,10 @@ examples:
 """)
     _add_common(p, frames_required=False)
     _add_groups(p, required=True, use="objects without a group are predicted only")
-    p.add_argument("--on", metavar="OTHER.csv",
-                   help="predict this table's objects with a model of FEATURES.csv's")
-    p.add_argument("-o", "--output", required=True, metavar="PREDICTIONS.csv")
+    file_argument(p, "--on", role="input", kind="table", name="--on", metavar="OTHER.csv",
+                  help="predict this table's objects with a model of FEATURES.csv's")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="PREDICTIONS.csv")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_predict)

@@ -5,10 +5,10 @@ argument types several commands take."""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -71,30 +71,80 @@ class _Step:
 # outputs
 # --------------------------------------------------------------------------------------------
 
-def _check_output(
-    path: str | os.PathLike, what: str = "output", *, force: bool = False,
-    inputs: Sequence[str | os.PathLike] = (),
-) -> Path:
-    """Fail early (before any long work) when ``path`` cannot or must not be written."""
-    from ..io import check_overwrite
+@dataclass(frozen=True)
+class FileArgument:
+    """An argument of a command that names a file it writes (``role="output"``) or reads
+    (``"input"``): ``kind`` as :class:`napari_pfsdm.io.outputs.Output` and ``Input`` take it,
+    ``name`` the option as the user types it (``-o``, ``--plot``) or what a positional is."""
 
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise UserError(f"the {what} {p} is a folder; give a file name such as {p / 'out.csv'}")
-    if not folder.is_dir():
-        raise UserError(f"cannot write the {what} {p}: the folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise UserError(f"cannot write the {what} {p}: the folder {folder} is not writable")
-    for q in inputs:
-        if Path(q).exists() and p.exists() and os.path.samefile(p, q):
-            raise UserError(f"the {what} {p} is also an input; choose another output name")
-    check_overwrite(p, force=force, what=what, table=what not in ("plot", "report"))
-    if p.suffix.lower() == ".parquet":  # a missing package fails now, not after the work
-        from ..io import require_pyarrow
+    dest: str
+    role: str
+    kind: str
+    name: str
 
-        require_pyarrow(p, "writing")
-    return p
+
+def file_argument(p: argparse.ArgumentParser, *flags: str, role: str, kind: str,
+                  name: str | None = None, **kw: Any) -> argparse.Action:
+    """Add an argument that names a file the command writes or reads, and declare it: every
+    command's declared files are checked before it runs (:func:`check_command_files`), so
+    that a new command gets the checks by declaring its files this way."""
+    if role not in ("output", "input"):
+        raise ValueError(f"role must be 'output' or 'input', not {role!r}")
+    action = p.add_argument(*flags, **kw)
+    files = p.get_default("pfsdm_files")
+    if files is None:
+        files = []
+        p.set_defaults(pfsdm_files=files)
+    shown = name or (action.option_strings[0] if action.option_strings else action.dest)
+    files.append(FileArgument(action.dest, role, kind, shown))
+    return action
+
+
+def declared_files(args: argparse.Namespace) -> tuple[list, list]:
+    """The outputs and inputs a command's arguments name (:func:`file_argument`), as
+    :class:`napari_pfsdm.io.outputs.Output` and ``Input``, with the outputs it derives from
+    them (``pfsdm_derived``, e.g. the default parts folder of ``pfsdm measure``); movie
+    inputs given as folders or globs are the movies found there."""
+    from ..io.outputs import Input, Output
+
+    outputs, inputs = [], []
+    for f in getattr(args, "pfsdm_files", None) or []:
+        value = getattr(args, f.dest, None)
+        values = value if isinstance(value, list | tuple) else [value]
+        for v in values:
+            if v is None or str(v) == "":
+                continue
+            if f.role == "output":
+                outputs.append(Output(Path(v), f.kind, f.name))
+            else:
+                inputs += [Input(p, f.kind, f.name) for p in _input_paths(str(v), f.kind)]
+    derived = getattr(args, "pfsdm_derived", None)  # files a command derives from others
+    if derived is not None:
+        outputs += derived(args)
+    return outputs, inputs
+
+
+def _input_paths(text: str, kind: str) -> list[Path]:
+    """The files an input argument names: a movie folder or glob is the movies found there
+    (an error there is the command's to say, in its own words)."""
+    if kind != "movie":
+        return [Path(text)]
+    from ..batch.movies import find_movies
+
+    try:
+        return list(find_movies(text))
+    except (InputError, OSError):
+        return [Path(text)]
+
+
+def check_command_files(args: argparse.Namespace) -> None:
+    """Before a command runs: its declared outputs can be written, replace no file pfsdm did
+    not write (without ``--force``), and are neither each other nor one of its inputs
+    (:func:`napari_pfsdm.io.outputs.check_outputs`)."""
+    from ..io.outputs import check_outputs
+
+    outputs, inputs = declared_files(args)
+    check_outputs(outputs, inputs, force=bool(getattr(args, "force", False)))
 
 
 def _check_parts(parts: Path) -> None:
@@ -123,17 +173,70 @@ def _option_type(opt: Any) -> Callable[[str], Any]:
     return parse
 
 
-def _whole(flag: str, low: int) -> Callable[[str], int]:
-    """argparse's ``type`` of a count: a whole number of at least ``low``, else one line
-    saying so (``--workers 0`` was once taken as the default without a word)."""
+def _whole(flag: str, low: int, high: int | None = None,
+           why: str = "") -> Callable[[str], int]:
+    """argparse's ``type`` of a count: a whole number from ``low`` to ``high`` (no upper bound
+    when None), else one line saying so (``--workers 0`` was once taken as the default
+    without a word); ``why`` says what the upper bound is."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             value = None
-        if value is None or value < low:
+        if value is None or value < low or (high is not None and value > high):
+            span = f"of at least {low}" if high is None else f"from {low} to {high:,}"
             raise argparse.ArgumentTypeError(
-                f"{flag} must be a whole number of at least {low}; got {text!r}")
+                f"{flag} must be a whole number {span}{why}; got {text!r}")
+        return value
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _seed(text: str) -> int:
+    """argparse's ``type`` of ``--seed``: a whole number from 0 to
+    :data:`napari_pfsdm.analysis.prediction.MAX_SEED` (scikit-learn's range, less the seeds
+    the splits add to it)."""
+    from ..analysis.prediction import check_seed
+
+    try:
+        value: Any = int(text)
+    except ValueError:
+        value = text
+    try:
+        return check_seed(value, "--seed")
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _workers(flag: str = "--workers") -> Callable[[str], int]:
+    """argparse's ``type`` of a number of local workers: at least 1, at most the cores this
+    process may use (:func:`napari_pfsdm.analysis.schedulers.check_workers`)."""
+    from ..analysis.schedulers import check_workers
+
+    count = _whole(flag, 1)
+
+    def parse(text: str) -> int:
+        value = count(text)
+        try:
+            return int(check_workers(value, flag))
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = flag.lstrip("-")
+    return parse
+
+
+def _real(flag: str, low: float, high: float) -> Callable[[str], float]:
+    """argparse's ``type`` of a finite number from ``low`` to ``high``."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:  # NaN fails too
+            raise argparse.ArgumentTypeError(
+                f"{flag} must be a number from {low:g} to {high:g}; got {text!r}")
         return value
 
     parse.__name__ = flag.lstrip("-")
@@ -158,14 +261,27 @@ def _fraction(flag: str) -> Callable[[str], float]:
 
 def _add_groups(p: argparse.ArgumentParser, required: bool = False, use: str = "") -> None:
     """``--groups`` and ``--group-column``, as every command that reads groups takes them."""
-    p.add_argument("--groups", metavar="GROUPS.csv", required=required,
-                   help="CSV of the objects' groups as the lab keeps it: a 'movie' column "
-                        "(names with or without folder and extension), and/or 'label' or "
-                        "'track_id', and grouping columns (group, clone, genotype, …)"
-                        + (f"; {use}" if use else ""))
+    file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
+                  required=required,
+                  help="CSV of the objects' groups as the lab keeps it: a 'movie' column "
+                       "(names with or without folder and extension), and/or 'label' or "
+                       "'track_id', and grouping columns (group, clone, genotype, …)"
+                       + (f"; {use}" if use else ""))
     p.add_argument("--group-column", metavar="COLUMN",
                    help="the groups file's column to group by (default: 'group', or its only "
                         "grouping column); its other columns are kept in the outputs")
+
+
+def selected_frames(text: str, table) -> list[int]:
+    """``--frames`` read against the table's frames: ranges are never listed frame by frame,
+    and frames the table does not have are refused, naming them
+    (:func:`napari_pfsdm.analysis.classification.parse_frames`)."""
+    from ..analysis.classification import parse_frames
+
+    try:
+        return parse_frames(text, available=table["frame"])
+    except InputError as exc:
+        raise UserError(f"--frames {text}: {exc}") from None
 
 
 def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:

@@ -14,12 +14,12 @@ from .common import (
     UserError,
     _add_force,
     _add_groups,
-    _check_output,
     _note,
     _option_type,
     _say,
     _Step,
     _whole,
+    file_argument,
 )
 from .tables import _measured, _with_groups
 
@@ -27,18 +27,25 @@ from .tables import _measured, _with_groups
 _FILE_ROW = "_pfsdm_file_row"
 
 
+def _matrix_limit() -> int | None:
+    """The most objects whose n x n distance matrix (with the copies its work makes, about
+    four of 8 bytes per pair) fits in this machine's memory; None where it cannot be told."""
+    import os
+
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+    return max(2, int((memory / 32) ** 0.5))
+
+
 def _select_frames(table, frames: str | None):
     """The rows of ``frames`` (``--frames``, e.g. ``0-10``); all rows when None."""
     if frames is None:
         return table
-    from ..analysis.classification import format_frames, parse_frames
+    from .common import selected_frames
 
-    sel = parse_frames(frames)
-    sub = table[table["frame"].isin(sel)]
-    if sub.empty:
-        raise UserError(f"no rows in frames {frames}: the table has frames "
-                        f"{format_frames(table['frame'])}; choose frames among these")
-    return sub
+    return table[table["frame"].isin(selected_frames(frames, table))]
 
 
 def _nearest(table, k: int, args: argparse.Namespace):
@@ -130,9 +137,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..core.table_options import carry_options, table_options
     from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
-    if args.mds:
-        _check_output(args.mds, "plot", force=args.force, inputs=[args.features])
+    out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     if args.neighbours is not None and args.neighbours < 1:
         raise UserError(f"--neighbours must be a whole number >= 1, got {args.neighbours}")
     if args.neighbours is not None and args.rerank == "transduction":
@@ -269,15 +274,17 @@ Many objects: --neighbours K writes each object's K nearest (an edge list, no n 
 above 2,000 objects the --mds map is drawn from the neighbour graph (t-SNE), and the output
 says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual).
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("-o", "--output", required=True, metavar="DISTANCES.csv",
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="DISTANCES.csv",
                    help="the square distance table, or with --neighbours the edge list "
                         "(.parquet: written as Parquet)")
     p.add_argument("--neighbours", type=_whole("--neighbours", 1), metavar="K",
                    help="write each object's K nearest neighbours as an edge list (columns "
                         "row, neighbour, rank, distance and the frame/label keys of both "
                         "ends) instead of the n x n matrix: any number of objects")
-    p.add_argument("--mds", metavar="PNG",
+    file_argument(p, "--mds", role="output", kind="plot", metavar="PNG",
                    help="also draw a 2-D map of the distances: classical MDS up to "
                         f"{FULL_MATRIX_LIMIT:,} objects, above that t-SNE of each object's "
                         f"{MAP_NEIGHBOURS} nearest neighbours (--map)")
@@ -307,8 +314,13 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                         "number of objects per kind, at most); with --neighbours the graph "
                         "holds 3 K")
     _add_groups(p, use="the map coloured by group")
-    p.add_argument("--max-objects", type=_whole("--max-objects", 1), default=5000, metavar="N",
-                   help="refuse larger matrices (default 5000; --neighbours has no limit)")
+    p.add_argument("--max-objects", type=_whole("--max-objects", 1, _matrix_limit(),
+                                                " (a larger matrix and its work would not "
+                                                "fit in this machine's memory; use "
+                                                "--neighbours K)"),
+                   default=5000, metavar="N",
+                   help="refuse larger matrices (default 5000, at most what this machine's "
+                        "memory holds; --neighbours has no limit)")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_compare)

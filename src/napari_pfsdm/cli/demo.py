@@ -18,7 +18,7 @@ from pathlib import Path
 from types import ModuleType
 
 from . import compare, trajectories
-from .common import UserError, _check_output, _say
+from .common import UserError, _add_force, _say, check_command_files, file_argument
 
 #: The reports the demo runs first: (title, module of the checkout's ``examples/`` folder).
 EXAMPLES = (
@@ -71,6 +71,30 @@ def load_example(name: str) -> ModuleType:
         sys.path.remove(str(folder))
 
 
+#: The files the time-lapse part of the demo writes into its folder, and what each is.
+DEMO_FILES = (("montage_labels.tif", "file"), ("montage_intensity.tif", "file"),
+              ("groups.csv", "table"), ("features.csv", "table"),
+              ("features.csv.parts", "folder"), ("pca.csv", "table"), ("pca.png", "plot"),
+              ("distances.csv", "table"), ("mds.png", "plot"))
+
+
+def demo_outputs(out: Path, examples: bool = True) -> list:
+    """Every file the demo writes into ``out`` (:class:`napari_pfsdm.io.Output`): its own
+    (:data:`DEMO_FILES`) and, with ``examples``, those each report of :data:`EXAMPLES`
+    declares (its ``OUTPUT_FILES``), all checked before any work."""
+    from ..io import Output
+
+    files = [Output(out / name, kind, "demo's output") for name, kind in DEMO_FILES]
+    for _title, name in EXAMPLES if examples else ():
+        try:
+            mod = load_example(name)
+        except ImportError:
+            continue  # skipped, and said so, when the demo runs
+        files += [Output(out / f, "table" if f.endswith(".csv") else "plot", "demo's output")
+                  for f in mod.OUTPUT_FILES]
+    return files
+
+
 def _run_examples(out: Path) -> list[str]:
     """Run the reports of :data:`EXAMPLES` (quick) into ``out``; the titles of those that
     failed (the demo goes on without them)."""
@@ -100,23 +124,29 @@ def _command_args(module: ModuleType, argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def _run_command(module: ModuleType, argv: list[str]) -> int:
+    """Run a command as ``pfsdm`` runs it: its declared files checked first."""
+    args = _command_args(module, argv)
+    check_command_files(args)
+    return int(args.func(args) or 0)
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Run ``pfsdm demo``: the reports, then the time-lapse measured, traced and compared."""
     import pandas as pd
-    import tifffile
+
+    from ..io import check_outputs, save_tiff, write_table_csv
 
     out = Path(args.output)
+    if (out.exists() or out.is_symlink()) and not out.is_dir():
+        raise UserError(f"the demo's output folder {out} is a file; give a folder name")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create the folder {out}: {exc.strerror}") from exc
-    from ..io import written_by_pfsdm
-
-    # a folder an earlier demo filled (its features.csv is pfsdm's): the demo may replace its
-    # own outputs there, plots of older versions (written without pfsdm's PNG mark) included
-    own_folder = written_by_pfsdm(out / "features.csv")
-    _check_output(out / "features.csv")
-    _check_output(out / "mds.png", force=own_folder)  # drawn by the demo itself, below
+    # every file the demo writes, checked before any work: a file of the same name that pfsdm
+    # did not write (a user's groups.csv) is never replaced without --force
+    check_outputs(demo_outputs(out, not args.quick_only), force=args.force)
     failed = [] if args.quick_only else _run_examples(out)
 
     _say("== synthetic gastruloid time-lapse: measure, trajectories, distances ==")
@@ -125,13 +155,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise UserError(f"the bundled synthetic data is not available ({exc})") from exc
     labels, intensity, groups = make_timelapse_montage(seed=0)
-    tifffile.imwrite(out / "montage_labels.tif", labels, compression="zlib")
-    tifffile.imwrite(out / "montage_intensity.tif", intensity, compression="zlib")
-    pd.DataFrame({"label": list(groups), "group": list(groups.values())}).to_csv(
-        out / "groups.csv", index=False)
+    save_tiff(out / "montage_labels.tif", labels, compression="zlib")
+    save_tiff(out / "montage_intensity.tif", intensity, compression="zlib")
+    write_table_csv(pd.DataFrame({"label": list(groups), "group": list(groups.values())}),
+                    out / "groups.csv", {}, table_type="groups")
     _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
          f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
-    common = (["--quiet"] if args.quiet else []) + (["--force"] if own_folder else [])
+    common = (["--quiet"] if args.quiet else []) + (["--force"] if args.force else [])
     # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
     # bar that counts objects as their frames are measured (every frame holds all objects)
     from ..batch.movies import Movie
@@ -165,13 +195,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     _say(f"wrote {out / 'features.csv'} (options in features.csv.json): {len(table)} objects "
          f"in {time.perf_counter() - t0:.1f} s", args.quiet)
     last = n_frames - 1
-    rc = trajectories.cmd_trajectories(_command_args(trajectories, [
+    rc = _run_command(trajectories, [
         "trajectories", str(out / "features.csv"), "-o", str(out / "pca.csv"),
-        "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"), *common]))
-    rc = rc or compare.cmd_compare(_command_args(compare, [
+        "--plot", str(out / "pca.png"), "--groups", str(out / "groups.csv"), *common])
+    rc = rc or _run_command(compare, [
         "compare", str(out / "features.csv"), "-o", str(out / "distances.csv"),
         "--frames", str(last), "--groups", str(out / "groups.csv"),
-        "--intensity-weight", "0.5", *common]))
+        "--intensity-weight", "0.5", *common])
     if rc:
         return rc
     # the map of the last frame, titled with what it shows
@@ -209,11 +239,13 @@ Run the whole analysis on bundled synthetic data and write tables and plots into
 the five-shape benchmark, the gastruloid axis-number report, and a synthetic gastruloid
 time-lapse measured from TIFF files -> features.csv, pca.csv/pca.png, distances.csv/mds.png.
 """)
-    p.add_argument("-o", "--output", default="results", metavar="DIR",
-                   help="output folder (default: results)")
+    file_argument(p, "-o", "--output", role="output", kind="folder", default="results",
+                  metavar="DIR", help="output folder (default: results); a file there that "
+                                      "pfsdm did not write is never replaced (without --force)")
     p.add_argument("--scheduler", default="processes", metavar="WHERE",
                    help="as for 'pfsdm measure' (default processes)")
     p.add_argument("--quick-only", action="store_true",
                    help="skip the two benchmark reports; only the time-lapse part")
+    _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_demo)

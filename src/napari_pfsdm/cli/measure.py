@@ -12,13 +12,18 @@ from ..core.params import LINK_OPTION
 from .common import (
     UserError,
     _add_force,
-    _check_output,
     _check_parts,
     _option_type,
+    _real,
     _say,
     _whole,
+    _workers,
+    file_argument,
 )
 from .tables import _warn_untracked
+
+#: Frames of one task at most (--frames-per-task): more than any movie holds.
+MAX_FRAMES = 1_000_000
 
 
 def _progress_printer(quiet: bool):
@@ -89,12 +94,22 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                    help="'processes' (default: one process per core of this machine), "
                         "'threads', 'sync' (one at a time, for debugging), or the address of a "
                         "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
-    g.add_argument("--workers", type=_whole("--workers", 1), metavar="N",
-                   help="local workers (default: the number of cores)")
+    g.add_argument("--workers", type=_workers("--workers"), metavar="N",
+                   help="local workers, at most the number of cores (default: one per core)")
     g.add_argument("--frames-per-task", dest="frames_per_task",
-                   type=_whole("--frames-per-task", 1), metavar="N",
+                   type=_whole("--frames-per-task", 1, MAX_FRAMES), metavar="N",
                    help="whole frames measured per task (default: tasks planned by objects, "
                         "as the local process pool plans them)")
+
+
+def _parts_folder(args: argparse.Namespace) -> list:
+    """The default parts folder, an output of its own (``--parts`` when not given)."""
+    from ..batch.run import default_parts_dir
+    from ..io import Output
+
+    if args.parts is not None or not args.output:
+        return []
+    return [Output(default_parts_dir(args.output), "folder", "parts folder (--parts)")]
 
 
 def cmd_measure(args: argparse.Namespace) -> int:
@@ -127,8 +142,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
         params.check_dimension(3 if "z" in args.axes else 2)
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
-    out = _check_output(args.output, force=args.force,
-                        inputs=[*labels, *(intensity or [])])
+    out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
     movies = pair_movies(labels, intensity)
     _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
@@ -174,6 +188,7 @@ def _measured_table(args: argparse.Namespace, movies, out: Path, params, progres
         time_unit=args.time_unit,
         pixel_size=args.pixel_size,
         space_unit=args.space_unit,
+        reporter_channel=args.reporter_channel,
     )
 
 
@@ -192,6 +207,14 @@ def _times(text: str | None) -> Any:
         raise UserError(f"--times must be numbers separated by commas (e.g. --times "
                         f"2,5,8,10) or a CSV file (movie, frame, time); got {text!r}, which "
                         "is neither") from None
+
+
+def _reporter_channel(text: str) -> int:
+    """``--reporter-channel``: a whole number from 0 to the most channels a reporter may have
+    (``analysis.label_images.MAX_CHANNELS``, the plugin's)."""
+    from ..analysis.label_images import MAX_CHANNELS
+
+    return _whole("--reporter-channel", 0, MAX_CHANNELS - 1)(text)
 
 
 def _series_index(text: str) -> int:
@@ -236,11 +259,17 @@ examples:
   pfsdm measure archive/ -o archive.csv --scheduler tcp://10.0.0.5:8786
 """)
     # "*" rather than "+": a labels file swallowed by -i gets a message that says so
-    p.add_argument("labels", nargs="*", metavar="LABELS",
-                   help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
-    p.add_argument("-i", "--intensity", nargs="+", metavar="IMAGE",
-                   help="reporter movie(s) of the same size as the labels")
-    p.add_argument("-o", "--output", required=True, metavar="FEATURES.csv",
+    file_argument(p, "labels", role="input", kind="movie", name="label movie", nargs="*",
+                  metavar="LABELS",
+                  help="label movie(s): TIFF, Zarr or OME-Zarr files, folders or globs")
+    file_argument(p, "-i", "--intensity", role="input", kind="movie", nargs="+",
+                  metavar="IMAGE", help="reporter movie(s) of the same size as the labels")
+    p.add_argument("--reporter-channel", dest="reporter_channel", metavar="N",
+                   type=_reporter_channel,
+                   help="the channel of reporters with several (an axis more than the labels: "
+                        "T, C, Y, X), as the napari plugin offers each channel (0 = the first)")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="FEATURES.csv",
                    help="the feature table to write (plain CSV; the options go into "
                         "FEATURES.csv.json beside it: keep the two together). A name "
                         "ending in .parquet writes Parquet (faster for large tables; pip "
@@ -262,7 +291,7 @@ examples:
                    help=LINK_OPTION.help + " (a track_id column that trajectories follow; "
                         "'laptrack' needs pip install laptrack; with 'labels' a warning says "
                         "when the labels look untracked)")
-    p.add_argument("--parts", metavar="DIR",
+    file_argument(p, "--parts", role="output", kind="folder", metavar="DIR",
                    help="folder for per-movie results (default: FEATURES.csv.parts)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or messages")
     gu = p.add_argument_group(
@@ -275,7 +304,8 @@ examples:
     gu.add_argument("--time-unit", metavar="UNIT",
                     help="the times' unit: s, min, h or day (the files' times are converted "
                          "to it)")
-    gu.add_argument("--pixel-size", nargs="+", type=float, metavar="SIZE",
+    gu.add_argument("--pixel-size", nargs="+", type=_real("--pixel-size", 1e-6, 1e6),
+                    metavar="SIZE",
                     help="the size of a pixel (one number: square pixels; Z Y X for "
                          "Z-stacks): areas, lengths, widths and perimeters are then in "
                          "--space-unit (shape features have no unit)")
@@ -292,4 +322,4 @@ examples:
                          "with --axes zyx or tzyx (default 1 1 1)")
     _add_method_options(p)
     _add_compute_options(p)
-    p.set_defaults(func=cmd_measure)
+    p.set_defaults(func=cmd_measure, pfsdm_derived=_parts_folder)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import UserError, _add_groups_link_force_quiet, _check_output, _say
+from .common import UserError, _add_groups_link_force_quiet, _say, file_argument
 from .tables import _follow_objects, _with_groups
 
 
@@ -17,11 +17,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
 
     from ..analysis.over_time import numeric_columns, plot_over_time
+    from ..analysis.plot_text import plot_text
     from ..io import read_table_csv, save_figure, write_table_csv
 
-    out = _check_output(args.output, "plot", force=args.force, inputs=[args.table])
-    if args.values:
-        _check_output(args.values, force=args.force, inputs=[args.table])
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     if not Path(args.table).is_file():
         raise UserError(f"{args.table}: no such table")
     try:
@@ -44,7 +43,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if unknown:
         raise UserError(f"no object called {', '.join(unknown)}; objects are named as in "
                         f"the table's tracks, e.g. {', '.join(lines['object'].unique()[:3])}")
-    ax.set_title(f"{args.column} over time ({lines['object'].nunique():,} objects)", fontsize=9)
+    ax.set_title(f"{plot_text(args.column)} over time ({lines['object'].nunique():,} objects)",
+                 fontsize=9)
     fig.tight_layout()
     save_figure(fig, out, dpi=120)
     plt.close(fig)
@@ -73,12 +73,14 @@ examples:
   pfsdm plot features.csv --column area -o area.png --groups groups.csv
   pfsdm plot pca.csv --column shape_PC1 -o pc1.png --objects track3 track7
 """)
-    p.add_argument("table", metavar="TABLE.csv", help="table with frame, label and the column")
+    file_argument(p, "table", role="input", kind="table", name="table", metavar="TABLE.csv",
+                  help="table with frame, label and the column")
     p.add_argument("--column", required=True, help="the column drawn (a column of numbers)")
-    p.add_argument("-o", "--output", required=True, metavar="PNG")
+    file_argument(p, "-o", "--output", role="output", kind="plot", required=True, metavar="PNG")
     p.add_argument("--objects", nargs="+", metavar="OBJECT",
                    help="objects drawn in red, named as the table's tracks (track3, or "
                         "movie/track3 with several movies; a label without track_id)")
-    p.add_argument("--values", metavar="CSV", help="also write the values drawn")
+    file_argument(p, "--values", role="output", kind="table", metavar="CSV",
+                  help="also write the values drawn")
     _add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_plot)

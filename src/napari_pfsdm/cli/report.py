@@ -6,7 +6,7 @@ import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
-from .common import UserError, _add_groups_link_force_quiet, _check_output, _note, _say, _Step
+from .common import UserError, _add_groups_link_force_quiet, _note, _say, _Step, file_argument
 from .tables import _follow_objects, _with_groups
 
 
@@ -43,10 +43,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from ..io import read_sidecar, read_table_csv
     from ..report import write_report
 
-    inputs = [args.features, *(args.labels or ()),
-              *([args.groups] if args.groups else []),
-              *([args.predictions] if args.predictions else [])]
-    out = _check_output(args.output, "report", force=args.force, inputs=inputs)
+    out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     if out.suffix.lower() not in (".html", ".htm"):
         raise UserError(f"the report {out} is one HTML file: give a name ending in .html, "
                         "e.g. -o report.html")
@@ -57,9 +54,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     labels = None
     if args.labels:
         from ..analysis.report import check_labels
+        from ..batch.movies import movie_name
 
         labels = _report_labels(args.labels, table, args.quiet)
-        check_labels(labels, table)
+        names = ({movie_name(p): p for p in args.labels} if isinstance(labels, dict)
+                 else args.labels[0])
+        check_labels(labels, table, names)  # by content: the objects of every frame
     predictions = info = None
     if args.predictions:
         if not Path(args.predictions).is_file():
@@ -105,12 +105,14 @@ examples:
   pfsdm report features.csv -o report.html --groups groups.csv --labels labels.tif
   pfsdm report features.csv -o report.html --predictions predictions.csv --title "Batch 3"
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("-o", "--output", required=True, metavar="REPORT.html")
-    p.add_argument("--labels", nargs="+", metavar="LABELS.tif",
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "-o", "--output", role="output", kind="report", required=True,
+                  metavar="REPORT.html")
+    file_argument(p, "--labels", role="input", kind="movie", nargs="+", metavar="LABELS.tif",
                    help="the label movie(s) the table was measured from (TIFF or Zarr), to "
                         "draw the objects' outlines; several movies are matched by file name")
-    p.add_argument("--predictions", metavar="PREDICTIONS.csv",
+    file_argument(p, "--predictions", role="input", kind="table", metavar="PREDICTIONS.csv",
                    help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
                         "curve)")
     p.add_argument("--title", metavar="TEXT", help="the report's title")

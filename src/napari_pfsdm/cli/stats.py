@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
-from .common import UserError, _add_force, _add_groups, _check_output, _say
+from .common import UserError, _add_force, _add_groups, _say, file_argument
 from .tables import _follow_objects, _with_groups
 
 
@@ -16,9 +17,7 @@ def cmd_stats(args: argparse.Namespace) -> int:
     from ..analysis.groups import group_columns
     from ..io import read_table_csv, write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.table])
-    if args.objects:
-        _check_output(args.objects, force=args.force, inputs=[args.table, args.output])
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     if not Path(args.table).is_file():
         raise UserError(f"{args.table}: no such table")
     table = read_table_csv(args.table)
@@ -44,11 +43,15 @@ def cmd_stats(args: argparse.Namespace) -> int:
 
 
 def _number(text: str) -> float:
+    """``--at``: a finite number (the table's times bound it: a time no object has is refused
+    naming the table's times)."""
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--at must be a time (a number); got {text!r}") \
-            from None
+        value = float("nan")
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"--at must be a time (a number); got {text!r}")
+    return value
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -76,8 +79,8 @@ examples:
   pfsdm stats features.csv --groups groups.csv --measure area --summary slope -o growth.csv \\
       --objects growth_per_object.csv
 """)
-    p.add_argument("table", metavar="TABLE.csv", help="a table of 'pfsdm measure' (or "
-                   "'pfsdm trajectories')")
+    file_argument(p, "table", role="input", kind="table", name="table", metavar="TABLE.csv",
+                  help="a table of 'pfsdm measure' (or 'pfsdm trajectories')")
     p.add_argument("--measure", required=True, metavar="COLUMN", help="the column tested")
     when = p.add_mutually_exclusive_group()
     when.add_argument("--at", type=_number, metavar="TIME",
@@ -85,9 +88,10 @@ examples:
     when.add_argument("--summary", choices=SUMMARIES,
                       help="a summary of each object's time course (default mean)")
     _add_groups(p, required=True)
-    p.add_argument("-o", "--output", required=True, metavar="STATS.csv",
-                   help="the tests and the groups' medians")
-    p.add_argument("--objects", metavar="VALUES.csv", help="also write each object's value")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="STATS.csv", help="the tests and the groups' medians")
+    file_argument(p, "--objects", role="output", kind="table", metavar="VALUES.csv",
+                  help="also write each object's value")
     _add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_stats)

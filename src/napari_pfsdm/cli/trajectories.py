@@ -10,10 +10,10 @@ from .common import (
     UserError,
     _add_force,
     _add_groups,
-    _check_output,
     _say,
     _Step,
     _whole,
+    file_argument,
 )
 from .tables import _follow_objects, _measured, _with_groups
 
@@ -28,9 +28,8 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     from ..core.table_schema import has_channel, pc_columns
     from ..io import write_table_csv
 
-    out = _check_output(args.output, force=args.force, inputs=[args.features])
+    out = args.output  # checked with the inputs before the command ran (cli.main)
     if args.plot:
-        _check_output(args.plot, "plot", force=args.force, inputs=[args.features])
         if max(args.show) > args.components:
             raise UserError(f"--show {args.show[0]} {args.show[1]} names a component above "
                             f"--components {args.components}; show components from 1 to "
@@ -60,6 +59,11 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
                 table if reference is None else reference)
             s, ev = space.transform(table), space.explained_variance_ratio_
             explained[ch] = ev
+            if len(ev) < args.components:  # the PCA keeps at most rows or features
+                raise UserError(
+                    f"--components {args.components}: the {len(table):,} rows of "
+                    f"{'the reference' if reference is not None else 'the table'} give at "
+                    f"most {len(ev)} {ch} components; ask for at most {len(ev)}")
             scores = s if scores is None else pd.concat(
                 [scores, s[pc_columns(s.columns, ch)]], axis=1)
     opts = table_options(table)
@@ -104,15 +108,18 @@ examples:
   pfsdm trajectories cellpose_features.csv --link centroid -o pca.csv --plot pca.png
   pfsdm trajectories treated_features.csv --reference control_features.csv -o pca.csv
 """)
-    p.add_argument("features", metavar="FEATURES.csv", help="table from 'pfsdm measure'")
-    p.add_argument("-o", "--output", required=True, metavar="PCA.csv")
-    p.add_argument("--plot", metavar="PNG", help="draw the trajectories")
+    file_argument(p, "features", role="input", kind="table", name="table",
+                  metavar="FEATURES.csv", help="table from 'pfsdm measure'")
+    file_argument(p, "-o", "--output", role="output", kind="table", required=True,
+                  metavar="PCA.csv")
+    file_argument(p, "--plot", role="output", kind="plot", metavar="PNG",
+                  help="draw the trajectories")
     _add_groups(p, use="trajectories coloured by group")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
     p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
                    help="principal components to keep (default 3)")
-    p.add_argument("--reference", metavar="REFERENCE.csv",
+    file_argument(p, "--reference", role="input", kind="table", metavar="REFERENCE.csv",
                    help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
                         "FEATURES.csv is projected into that space; both must be measured "
                         "with the same options")

@@ -336,7 +336,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("min_area", int, DEFAULT_MIN_AREA,
            "objects smaller than this (pixels, or voxels in 3-D) get an error instead of "
            "features",
-           low=1, basic=True),
+           low=1, high=10**9, basic=True),  # above: no object of any image would be kept
     Option("border_objects", str, "keep",
            "objects touching the image border (maybe cut off): 'keep' them in PCA, comparison "
            "and prediction, or 'leave_out' (their rows stay in the table)",

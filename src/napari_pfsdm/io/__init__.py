@@ -18,20 +18,25 @@ and :func:`read_table_csv` reads it back with the options in ``df.attrs["pfsdm"]
 :mod:`.atomic`
     files written atomically with the permissions of any new file (tables, sidecars, PNGs);
 :mod:`.outputs`
-    which files may be replaced (those this program wrote), one writer per output (a lock
-    file), and the leftovers of a killed run.
+    which files may be replaced (those this program wrote), outputs that would collide with
+    each other or with an input, one writer per output (a lock file), and the leftovers of a
+    killed run.
 
 The names below are the package's public ones; the modules' own helpers are for the package.
 """
 
-from .atomic import PNG_SOFTWARE, atomic_write, save_figure, writer_name
+from .atomic import PNG_SOFTWARE, atomic_write, save_figure, save_tiff, writer_name
 from .formulas import escape_formulas, unescape_formulas
 from .outputs import (
+    Input,
+    Output,
+    check_outputs,
     check_overwrite,
     lock_path,
     output_files,
     output_lock,
     remove_leftovers,
+    same_file,
     written_by_pfsdm,
 )
 from .sidecar import (
@@ -46,10 +51,13 @@ from .tables import PARQUET_INSTALL, is_parquet, read_table_csv, require_pyarrow
 
 __all__ = [
     "HEADER_PREFIX",
+    "Input",
+    "Output",
     "PARQUET_INSTALL",
     "PNG_SOFTWARE",
     "SIDECAR_SUFFIX",
     "atomic_write",
+    "check_outputs",
     "check_overwrite",
     "escape_formulas",
     "is_parquet",
@@ -62,6 +70,8 @@ __all__ = [
     "remove_leftovers",
     "require_pyarrow",
     "save_figure",
+    "save_tiff",
+    "same_file",
     "sidecar_path",
     "to_jsonable",
     "unescape_formulas",

@@ -30,7 +30,15 @@ from ..core.table_schema import NO_TRACK, TRACK_COLUMN
 from ..errors import InputError
 from .atomic import atomic_write, unlink_quietly, write_temp, writer_name
 from .formulas import ESCAPE_KEY, escape_formulas, has_carriage_return, unescape_formulas
-from .sidecar import legacy_options, paired_bytes, sidecar_path, size_and_digest, to_jsonable
+from .sidecar import (
+    content_summary,
+    judge_pair,
+    legacy_options,
+    paired_bytes,
+    sidecar_path,
+    size_and_digest,
+    to_jsonable,
+)
 
 __all__ = ["CSV_CHUNK_CELLS", "PARQUET_INSTALL", "TEXT_COLUMNS", "is_parquet", "read_table_csv",
            "require_pyarrow", "write_table_csv"]
@@ -136,6 +144,8 @@ def write_table_csv(
         **to_jsonable(dict(extra or {})),
     }
     out = plain(df)  # pandas must not try to serialise attrs itself
+    side["index"] = bool(index)
+    side["content"] = content_summary(out, index)  # what it holds, for judge_pair
 
     path = Path(path)
     if is_parquet(path):
@@ -239,7 +249,7 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
     if what is not None:
         raise InputError(f"{path} is {what}, not a CSV table")
     old_options = legacy_options(path)  # the first line is read once
-    data, side = paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
+    data, side, matched = paired_bytes(path, strict)  # the table's bytes and its sidecar
     side_options = (side.get("options") or {}) if side is not None else old_options
     if side_options is not None:  # before the table is read: refused in plain words
         check_record(side_options, f"the options of {path}"
@@ -277,15 +287,26 @@ def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
             df[TRACK_COLUMN] = tracks.astype(np.int64)
     if side is not None and side.get(ESCAPE_KEY) == "'":
         unescape_formulas(df)  # what writing added, exactly
+    if not matched:  # other bytes: the same table written again, an edit, or another's pair
+        _judge(df, side, path, data, strict, index_col)
     if side_options is not None:
         set_options(df, side_options)
     return df
 
 
+def _judge(df: pd.DataFrame, side: dict, path: Path, data: bytes, strict: bool,
+           index_col: int | None) -> None:
+    """:func:`~.sidecar.judge_pair` on the table as read (its index as the writer wrote it)."""
+    written_index = bool(side.get("index"))
+    if written_index and index_col is None and len(df.columns):
+        df = df.set_index(df.columns[0])
+    judge_pair(df, side, path, data, strict, index=written_index or index_col is not None)
+
+
 def _read_parquet(path: Path, strict: bool = False) -> pd.DataFrame:
     """A Parquet table with its sidecar's options: the columns and dtypes as written."""
     require_pyarrow(path, "reading")
-    data, side = paired_bytes(path, strict)  # the table's bytes, checked against its sidecar
+    data, side, matched = paired_bytes(path, strict)  # the table's bytes and its sidecar
     if side is not None:  # before the table is read: refused in plain words
         check_record(side.get("options") or {}, f"the options of {path} (its .json file)")
     try:
@@ -293,6 +314,8 @@ def _read_parquet(path: Path, strict: bool = False) -> pd.DataFrame:
     except Exception as exc:  # pyarrow's own errors: a damaged or truncated file
         raise InputError(f"{path} is not a readable Parquet table ({exc})") from None
     df = plain(df)  # pandas restores attrs from the file's metadata: the sidecar's count
+    if not matched:
+        judge_pair(df, side, path, data, strict, index=bool(side.get("index")))
     if side is not None:
         set_options(df, dict(side.get("options") or {}))
     return df

@@ -21,7 +21,8 @@ from ..analysis.features import split_failed
 from ..analysis.glossary import glossary
 from ..analysis.reduction import distance_table, neighbour_table
 from ..core.table_schema import has_channel
-from ..io import check_overwrite, write_table_csv
+from ..io import Output, check_outputs, write_table_csv
+from ..io.outputs import file_name_part
 from ._model import Analysis
 
 #: Largest number of objects whose all-pairs distance matrix is exported.
@@ -45,9 +46,9 @@ def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    prefix = file_name_part(prefix)  # a layer's name is data: never a path out of the folder
     names = file_names(analysis, prefix)
-    for name in names:  # all or nothing
-        check_overwrite(folder / name, what="file")
+    check_outputs([Output(folder / name, "table", "file") for name in names])  # all or none
     table, opts = analysis.table, dict(analysis.options)
     w = float(opts.get("intensity_weight", 0.0)) if has_channel(table.columns, "intensity") \
         else 0.0

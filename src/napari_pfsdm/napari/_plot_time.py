@@ -12,6 +12,7 @@ import numpy as np
 from magicgui.widgets import ComboBox
 
 from ..analysis.over_time import numeric_columns, plot_over_time
+from ..analysis.plot_text import plot_text
 from ..analysis.reduction import object_ids
 from ._plot_base import Plot
 
@@ -44,7 +45,8 @@ class OverTimePlot(Plot):
         ax = self.figure.add_subplot(111)
         self.lines = plot_over_time(ax, features, column, groups=a.groups or None)
         self.objects = object_ids(features)
-        ax.set_title(f"{column} of '{self.layer.name}' over time", fontsize=9)
+        ax.set_title(f"{plot_text(column)} of '{plot_text(self.layer.name)}' over time",
+                     fontsize=9)
         self.points_axes = ax
         self.xy = self.lines[["time", "value"]].to_numpy(float)
         self.keys = self.lines[["frame", "label"]].to_numpy().astype(np.int64)

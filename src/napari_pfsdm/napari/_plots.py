@@ -20,6 +20,7 @@ from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 # above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
 # map of that graph instead of an n × n matrix (the library's limits)
 from ..analysis.classic import FORM_MEASURES_2D
+from ..analysis.plot_text import plot_text
 from ..analysis.reduction import FULL_MATRIX_LIMIT as GRAPH_ROWS
 from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
@@ -107,7 +108,7 @@ class TrajectoryPlot(Plot):
                 "layout": (by_group, tuple(names) if by_group else (), a.time_lapse),
                 "xlabel": f"PC{i}" + _percent(ratios, i),
                 "ylabel": f"PC{j}" + _percent(ratios, j),
-                "title": f"{channel} trajectories of '{self.layer.name}'",
+                "title": f"{channel} trajectories of '{plot_text(self.layer.name)}'",
                 "info": " ".join([warn, "; ".join(words) + ("." if words else "")]).strip()}
 
     def draw(self) -> None:
@@ -124,7 +125,7 @@ class TrajectoryPlot(Plot):
         if by_group:
             tab = matplotlib.colormaps["tab10"]
             for k, name in enumerate(names):
-                ax.scatter([], [], color=tab(k % 10), s=14, label=name)
+                ax.scatter([], [], color=tab(k % 10), s=14, label=plot_text(name))
             ax.legend(fontsize=7, loc="best", title="group", title_fontsize=7)
         elif time_lapse:
             self.figure.colorbar(points, ax=ax, pad=0.01).set_label("frame")

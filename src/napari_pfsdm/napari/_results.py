@@ -14,6 +14,9 @@ from collections.abc import Generator
 import numpy as np
 import pandas as pd
 
+# the reporter's channels as the plugin offers them and pfsdm measure --reporter-channel reads
+# them: one rule, below the plugin
+from ..analysis.label_images import MAX_CHANNELS, reporter_channels  # noqa: F401
 from ..core.params import LINK_OPTION, PFSDMParams
 from ..core.table_options import carry_options
 from ._model import Analysis
@@ -29,8 +32,6 @@ IDENTITY = {f"{name}: {words}": name for name, words in (
     ("auto", "link when ids jump"), ("labels", "the label ids"),
     ("centroid", "link by centroids"), ("overlap", "link by overlap"),
     ("laptrack", "link with laptrack")) if name in LINK_OPTION.choices}
-#: Largest number of channels a reporter image's extra axis may have to be offered by channel.
-MAX_CHANNELS = 16
 
 
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
@@ -180,33 +181,6 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
     return out, "" if check.tracked else (
         f"Warning: {check.message} Trajectories by label id are not meaningful here: "
         "choose 'auto' or a link under Identity.")
-
-
-def reporter_channels(image_shape: tuple, labels_shape: tuple, rgb: bool = False,
-                      axis: bool = False):
-    """How an image of ``image_shape`` can be the reporter of labels of ``labels_shape``.
-
-    Returns ``[None]`` (the image as it is), the list of its channels (an image with one
-    more axis, of at most :data:`MAX_CHANNELS` entries, that is the labels' grid without it),
-    or None (it does not fit). With ``axis=True``: the channel axis (None without one).
-
-    >>> movie = (5, 64, 64)
-    >>> reporter_channels(movie, movie), reporter_channels((5, 2, 64, 64), movie)
-    ([None], [0, 1])
-    >>> reporter_channels((5, 2, 64, 64), movie, axis=True), reporter_channels((64, 64), movie)
-    (1, None)
-    """
-    image_shape, labels_shape = tuple(image_shape), tuple(labels_shape)
-    if rgb:
-        return None
-    if image_shape == labels_shape:
-        return None if axis else [None]
-    if len(image_shape) == len(labels_shape) + 1:
-        for k in range(len(image_shape) - 2):  # a channel axis is never Y or X
-            if image_shape[:k] + image_shape[k + 1:] == labels_shape \
-                    and image_shape[k] <= MAX_CHANNELS:
-                return k if axis else list(range(image_shape[k]))
-    return None
 
 
 #: Pixels of a reporter looked at for :func:`reporter_problem`.
