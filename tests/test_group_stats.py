@@ -105,6 +105,6 @@ def test_pfsdm_stats_prints_the_findings_and_writes_the_table(tmp_path, capsys):
     assert side["measure"] == "area" and side["summary"] == "slope"
     # --at is bounded by the table's times: a time no object has is refused, naming them
     assert main(["stats", str(tmp_path / "f.csv"), "--groups", str(tmp_path / "groups.csv"),
-                 "--group-column", "clone", "--measure", "area", "--at", str(10**40), "-o", str(tmp_path / "t.csv"),
-                 "-q"]) == 2
+                 "--group-column", "clone", "--measure", "area", "--at", str(10**40),
+                 "-o", str(tmp_path / "t.csv"), "-q"]) == 2
     assert "no object has a time (day) of 1e+40; the table's are" in capsys.readouterr().err
