@@ -120,8 +120,9 @@ def shape_measures_2d(mask: np.ndarray) -> dict[str, float]:
     """
     r, c = np.nonzero(mask)
     n = r.size
-    dr = r - r.mean()
-    dc = c - c.mean()
+    # the means as ndarray.mean computes them (a float sum divided by n), without its checks
+    dr = r - np.add.reduce(r, dtype=float) / n
+    dc = c - np.add.reduce(c, dtype=float) / n
     # regionprops' inertia tensor [[mu02, -mu11], [-mu11, mu20]] / mu00, its eigenvalues
     a, b, d = float(dc @ dc) / n, -float(dr @ dc) / n, float(dr @ dr) / n
     mid, radius = 0.5 * (a + d), float(np.hypot(0.5 * (a - d), b))
@@ -258,18 +259,24 @@ def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:
     (finite pixels only)."""
     values = image[mask]
     finite = np.isfinite(values)
-    if not finite.any():
+    coords = np.transpose(np.nonzero(mask))
+    if finite.all():
+        v = values
+        coords = coords.astype(float)
+    elif finite.any():
+        v = values[finite]
+        coords = coords[finite].astype(float)
+    else:
         return dict.fromkeys(REPORTER_MEASURES, np.nan)
-    coords = np.argwhere(mask)[finite].astype(float)
-    v = values[finite]
     total = float(v.sum())
     out = {"intensity_mean": float(v.mean()), "intensity_integrated": total}
-    weights = np.clip(v, 0, None)
-    if weights.sum() <= 0:
+    weights = np.maximum(v, 0)
+    weight = weights.sum()
+    if weight <= 0:
         out["intensity_polarity"] = np.nan
         return out
     centre = coords.mean(axis=0)
-    weighted = (coords * weights[:, None]).sum(axis=0) / weights.sum()
+    weighted = (coords * weights[:, None]).sum(axis=0) / weight
     n = float(mask.sum())
     radius = np.sqrt(n / np.pi) if mask.ndim == 2 else np.cbrt(3 * n / (4 * np.pi))
     out["intensity_polarity"] = float(np.linalg.norm(weighted - centre) / max(radius, 1e-12))

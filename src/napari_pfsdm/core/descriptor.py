@@ -199,7 +199,7 @@ def pfsdm(
     """
     mask = np.asarray(mask)
     p = params_of(options)  # a bad or unknown option fails here, in plain words
-    if mask.ndim in (2, 3):
+    if options and mask.ndim in (2, 3):  # (the defaults apply to every dimension)
         p.check_dimension(mask.ndim)
     radii = np.asarray(p.radii) if isinstance(p.radii, tuple) else p.radii
     if mask.ndim == 3:
