@@ -3,11 +3,10 @@
 OpenBLAS splits every product over all its threads, whatever its size. A small one (an object's
 matrices while measuring, the boundary term's per-shift products, a PCA of a few hundred rows)
 gains little from a second thread on a quiet machine and loses many times over when another
-process or napari's drawing holds a core: each product waits for the busy core's turn, and the
-idle threads keep spinning after it. On the 2-core test machine the default distances of 99 to
-2,000 objects took 1.8-3.1 times as long on the machine's two BLAS threads as on one, quiet or
-beside a busy process, before their products were sized (``benchmarks/blas_threads.py``,
-docs/benchmarks.md).
+process or napari's drawing holds a core: each product waits for the busy core's turn. On the
+2-core test machine the default distances of 99 to 2,000 objects took 1.8-3.1 times as long on
+the machine's two BLAS threads as on one, quiet or beside a busy process, before their products
+were sized (``benchmarks/blas_threads.py``, docs/benchmarks.md).
 
 :func:`one_blas_thread` limits BLAS to one thread within a block (threadpoolctl),
 reference-counted so that concurrent threads restore the original setting only when the last
@@ -31,12 +30,13 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 
 #: Floating-point operations (a complex multiply-add counts 8, a real one 2) below which a
 #: matrix product runs on one BLAS thread. Measured on the 2-core test machine with products of
-#: the distances' shapes (``benchmarks/blas_threads.py --products``, two runs): from 0.09 to 0.5
-#: GFLOP the machine's two threads took 1.3-6 times one thread's time on the quiet machine and
-#: up to 20 times beside a busy process; from 0.8 GFLOP they took 0.55-0.97 of it in both
-#: conditions, with one exception (1.47 for a 2.1 GFLOP product, quiet). The line sits above
-#: that crossover: a product of 0.8-2 GFLOP (the Gram matrix of 1,500-2,400 objects) gives up
-#: at most a third of its time on a quiet machine, never the many-fold losses.
+#: the distances' shapes (``benchmarks/blas_threads.py --products``, three runs), the machine's
+#: two threads took, of one thread's time: from 0.09 to 0.5 GFLOP 1.2-6.2 times on the quiet
+#: machine and up to 20 times beside a busy process; at 0.8 GFLOP 0.56-1.15 times; from 2
+#: GFLOP 0.55-0.97 times in 22 of 24 measurements (the two others 1.24 and 1.47, a 2.1 GFLOP
+#: complex product on the quiet machine). The line sits above the crossover: a product of
+#: 0.8-2 GFLOP (the Gram matrix of 1,500-2,400 objects) gives up at most about a third of its
+#: time on a quiet machine, never the many-fold losses.
 SMALL_PRODUCT = 2e9
 
 _BLAS_LOCK = threading.Lock()
