@@ -169,8 +169,9 @@ def shape_measures_2d(mask: np.ndarray) -> dict[str, float]:
     """
     r, c = np.nonzero(mask)
     n = r.size
-    dr = r - r.mean()
-    dc = c - c.mean()
+    # the means as ndarray.mean computes them (a float sum divided by n), without its checks
+    dr = r - np.add.reduce(r, dtype=float) / n
+    dc = c - np.add.reduce(c, dtype=float) / n
     # regionprops' inertia tensor [[mu02, -mu11], [-mu11, mu20]] / mu00, its eigenvalues
     a, b, d = float(dc @ dc) / n, -float(dr @ dc) / n, float(dr @ dr) / n
     mid, radius = 0.5 * (a + d), float(np.hypot(0.5 * (a - d), b))
@@ -216,15 +217,15 @@ def perimeter_4(mask: np.ndarray) -> float:
     inner &= m[1:-1, :-2]
     inner &= m[1:-1, 2:]
     np.subtract(core, inner, out=border[1:-1, 1:-1])
+    # the border neighbours' counts from sums of pairs: across a row (left + right), then of
+    # those across the rows above and below (the diagonals) and down a column
+    pairs = border[:, :-2] + border[:, 2:]
+    diagonal = pairs[:-2] + pairs[2:]
+    diagonal *= 5
     code = border[:-2, 1:-1] + border[2:, 1:-1]
-    code += border[1:-1, :-2]
-    code += border[1:-1, 2:]
-    code *= 2
-    diagonal = border[:-2, :-2] + border[:-2, 2:]
-    diagonal += border[2:, :-2]
-    diagonal += border[2:, 2:]
-    diagonal *= 10
+    code += pairs[1:-1]
     code += diagonal
+    code *= 2
     code += border[1:-1, 1:-1]
     return float(np.bincount(code.ravel(), minlength=50) @ _PERIMETER_WEIGHTS)
 
@@ -236,11 +237,11 @@ def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
     centres P grown by the diamond D of radius ½ (hull(P ⊕ D) = hull(P) ⊕ D).
 
     That polygon is the intersection of the half-planes u · x ≤ h_P(u) + ½ max(|u_r|, |u_c|)
-    over the outward normals u of hull(P)'s edges and of D's (and the axes', which only
-    support it); in doubled coordinates every number is an integer, so the count of each
-    row's pixels is exact. hull(P)'s sides are the convex minorant of each row's first pixel
-    and the concave majorant of each row's last (:func:`_envelope`). ``rows``, ``cols``: the
-    object's pixels (``np.nonzero(mask)``) if already known.
+    over the outward normals u of hull(P)'s edges and of D's (and the columns' axis, which
+    only supports it); in doubled coordinates every number is an integer, so the count of
+    each row's pixels is exact. hull(P)'s sides are the convex minorant of each row's first
+    pixel and the concave majorant of each row's last (:func:`_minorant`). ``rows``,
+    ``cols``: the object's pixels (``np.nonzero(mask)``) if already known.
 
     Examples
     --------
@@ -253,66 +254,53 @@ def convex_area(mask: np.ndarray, rows: np.ndarray | None = None,
         rows, cols = np.nonzero(mask)
     # each row's first and last pixel (np.nonzero goes row by row): the hull's left side is
     # the convex minorant of the first ones, its right side the concave majorant of the last
-    start = np.flatnonzero(rows[1:] != rows[:-1]) + 1
-    y = np.concatenate((rows[:1], rows[start])).astype(np.int64)
-    left = np.concatenate((cols[:1], cols[start])).astype(np.int64)
-    right = np.concatenate((cols[start - 1], cols[-1:])).astype(np.int64)
-    lk, rk = _envelope(y, left), _envelope(y, -right)
-    if lk is None or rk is None:  # pathological: more than _MAX_PASSES pruning passes
-        from skimage.morphology import convex_hull_image
-
-        return int(np.count_nonzero(convex_hull_image(mask)))
-    # the hull's corners (row, col), left side then right side, and the outward normals of its
-    # edges: left side (dx, −dy), right side (−dx, dy)
-    nl, nr = len(lk), len(rk)
-    corners = np.empty((nl + nr, 2), np.int64)
-    corners[:nl, 0], corners[:nl, 1] = y[lk], left[lk]
-    corners[nl:, 0], corners[nl:, 1] = y[rk], right[rk]
-    step = corners[1:] - corners[:-1]
-    normal = np.empty((nl + nr - 2 + len(_EXTRA_NORMALS), 2), np.int64)
-    normal[:nl - 1, 0], normal[:nl - 1, 1] = step[:nl - 1, 1], -step[:nl - 1, 0]
-    normal[nl - 1:nl + nr - 2, 0] = -step[nl:, 1]
-    normal[nl - 1:nl + nr - 2, 1] = step[nl:, 0]
-    normal[nl + nr - 2:] = _EXTRA_NORMALS
-    # 2 u · x <= k with k = 2 h_P(u) + max(|u_r|, |u_c|), i.e. 2 u_c · col <= rhs on each row
+    start = np.flatnonzero(rows[1:] != rows[:-1])
+    y = rows[:1].tolist() + rows[start + 1].tolist()
+    left = _minorant(y, cols[:1].tolist() + cols[start + 1].tolist())
+    right = _minorant(y, (-cols[start]).tolist() + [-int(cols[-1])])
+    # outward normals (u_r, u_c) of hull(P)'s edges, for 2 u · x <= 2 h_P(u) + max(|u_r|, |u_c|):
+    # the left side's (dc, −dr) bound each row's columns from below, the right side's
+    # (−dc, dr) from above (on the right side the columns are negated: the same numbers),
+    # with the diamond's and the column axis' normals
+    below = [(c1 - c0, r0 - r1) for (r0, c0), (r1, c1) in zip(left, left[1:], strict=False)]
+    above = [(c1 - c0, r1 - r0) for (r0, c0), (r1, c1) in zip(right, right[1:], strict=False)]
+    normal = np.array(above + _ABOVE + below + _BELOW, np.int64).reshape(-1, 2)
+    n_above = len(above) + len(_ABOVE)
+    corners = np.array(left + [(r, -c) for r, c in right], np.int64)
     k = 2 * (normal @ corners.T).max(axis=1) + np.abs(normal).max(axis=1)
-    rhs = k - 2 * normal[:, 0] * np.arange(y[0], y[-1] + 1)[:, None]
-    uc = normal[:, 1]
-    up, down, flat = uc > 0, uc < 0, uc == 0
-    upper = (rhs[:, up] // (2 * uc[up])).min(axis=1)
+    # on each row y: 2 u_c · col <= k − 2 u_r y
+    rhs = k - np.multiply.outer(np.arange(y[0], y[-1] + 1), 2 * normal[:, 0])
+    twice = 2 * normal[:, 1]
+    upper = (rhs[:, :n_above] // twice[:n_above]).min(axis=1)
     # col >= ceil(rhs / 2u_c) = −((−rhs) // 2u_c) where u_c < 0: the largest of these
-    lower = -((-rhs[:, down]) // (2 * uc[down])).min(axis=1)
-    count = np.maximum(upper - lower + 1, 0)
-    if flat.any():
-        count = count[(rhs[:, flat] >= 0).all(axis=1)]
-    return int(count.sum())
+    np.negative(rhs[:, n_above:], out=rhs[:, n_above:])
+    lower = (rhs[:, n_above:] // twice[n_above:]).min(axis=1)
+    upper += lower  # lower is −(the first column in the hull)
+    return int(np.maximum(upper + 1, 0).sum())
 
 
-#: Most pruning passes of :func:`_envelope` (a smooth outline needs a handful).
-_MAX_PASSES = 64
+def _minorant(y: list[int], x: list[int]) -> list[tuple[int, int]]:
+    """The vertices (y, x) of the convex minorant of the points (y, x), y increasing (a
+    monotone chain: a point on or above the chord from the vertex before it to the next
+    point is dropped)."""
+    chain: list[tuple[int, int]] = []
+    for point in zip(y, x, strict=True):
+        py, px = point
+        while len(chain) > 1:
+            (y0, x0), (y1, x1) = chain[-2], chain[-1]
+            if (x1 - x0) * (py - y0) < (px - x0) * (y1 - y0):
+                break
+            chain.pop()
+        chain.append(point)
+    return chain
 
 
-def _envelope(y: np.ndarray, x: np.ndarray) -> np.ndarray | None:
-    """Indices of the vertices of the convex minorant of the points (y, x), y increasing:
-    points on or above the chord of their neighbours are dropped, all at once, until none is
-    (each dropped point lies in the hull of points kept). None after :data:`_MAX_PASSES`."""
-    keep = np.arange(len(y))
-    for _ in range(_MAX_PASSES):
-        if len(keep) < 3:
-            return keep
-        yk, xk = y[keep], x[keep]
-        dy, dx = yk[2:] - yk[:-2], xk[2:] - xk[:-2]
-        drop = (xk[1:-1] - xk[:-2]) * dy >= dx * (yk[1:-1] - yk[:-2])
-        if not drop.any():
-            return keep
-        keep = np.concatenate((keep[:1], keep[1:-1][~drop], keep[-1:]))
-    return None
-
-
-#: The outward normals of the diamond of pixel-edge midpoints around a pixel centre, and the
-#: axes' (supporting lines of any convex polygon: they close a hull of one row or column).
-_EXTRA_NORMALS = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1], [1, 0], [-1, 0], [0, 1],
-                           [0, -1]])
+#: The outward normals of the diamond of pixel-edge midpoints around a pixel centre that bound
+#: a row's columns from above (u_c > 0) and from below (u_c < 0), with the column axis' (a
+#: supporting line of any convex polygon: it closes a hull one column wide). The row axis'
+#: normals (u_c = 0) are left out: they bound the rows, and only the object's rows are counted.
+_ABOVE = [(1, 1), (-1, 1), (0, 1)]
+_BELOW = [(1, -1), (-1, -1), (0, -1)]
 
 
 def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:
@@ -320,18 +308,24 @@ def reporter_measures(mask: np.ndarray, image: np.ndarray) -> dict[str, float]:
     (finite pixels only)."""
     values = image[mask]
     finite = np.isfinite(values)
-    if not finite.any():
+    coords = np.transpose(np.nonzero(mask))
+    if finite.all():
+        v = values
+        coords = coords.astype(float)
+    elif finite.any():
+        v = values[finite]
+        coords = coords[finite].astype(float)
+    else:
         return dict.fromkeys(REPORTER_MEASURES, np.nan)
-    coords = np.argwhere(mask)[finite].astype(float)
-    v = values[finite]
     total = float(v.sum())
     out = {"intensity_mean": float(v.mean()), "intensity_integrated": total}
-    weights = np.clip(v, 0, None)
-    if weights.sum() <= 0:
+    weights = np.maximum(v, 0)
+    weight = weights.sum()
+    if weight <= 0:
         out["intensity_polarity"] = np.nan
         return out
     centre = coords.mean(axis=0)
-    weighted = (coords * weights[:, None]).sum(axis=0) / weights.sum()
+    weighted = (coords * weights[:, None]).sum(axis=0) / weight
     n = float(mask.sum())
     radius = np.sqrt(n / np.pi) if mask.ndim == 2 else np.cbrt(3 * n / (4 * np.pi))
     out["intensity_polarity"] = float(np.linalg.norm(weighted - centre) / max(radius, 1e-12))

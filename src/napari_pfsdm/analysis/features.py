@@ -13,6 +13,7 @@ from ..core import units
 from ..core.params import PFSDMParams, as_params, with_option_keywords
 from ..core.table_options import carry_options, set_options, table_options
 from ..core.table_schema import TRACK_COLUMN, feature_columns
+from ..core.threads import one_blas_thread
 from ..core.units import check_times
 from ..errors import InputError
 from .label_images import (
@@ -31,7 +32,6 @@ from .measuring import (
 )
 from .physical import add_times
 from .tables import failed_rows
-from .threads import one_blas_thread
 
 __all__ = [
     "ObjectResult",

@@ -255,7 +255,7 @@ def _add_elastic(idx: np.ndarray, dist: np.ndarray, signatures: np.ndarray, mu: 
 def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,
                   method: str) -> tuple[np.ndarray, np.ndarray]:
     """One dask task / thread: a block of queries with BLAS on one thread."""
-    from .threads import one_blas_thread
+    from ..core.threads import one_blas_thread
 
     with one_blas_thread():
         return search_rows(index, rows, k, method)

@@ -39,11 +39,11 @@ from typing import Any
 import numpy as np
 
 from ..core.params import PFSDMParams
+from ..core.threads import one_blas_thread
 from .features import iter_objects
 from .label_images import check_arrays, frame_at, object_boxes, present_ids, voxel_spacing
 from .measuring import ObjectMeasurer, ObjectResult, light
 from .row_blocks import RowBlock, block_of
-from .threads import one_blas_thread
 
 __all__ = [
     "MAX_TASK_OBJECTS",

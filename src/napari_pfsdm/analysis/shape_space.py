@@ -194,7 +194,7 @@ class ShapePCA(TransformerMixin, BaseEstimator, auto_wrap_output_keys=None):
         self.scale_ = np.where(sd > 0, sd, 1.0)
         z = (x - self.mean_) / self.scale_
         k = int(min(self.n_components, z.shape[0], z.shape[1]))
-        from .threads import one_blas_thread
+        from ..core.threads import one_blas_thread
 
         # one BLAS thread: as fast on the tables met here, and many times faster while other
         # work (the measuring processes, napari's drawing) holds a core

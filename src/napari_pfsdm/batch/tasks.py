@@ -136,7 +136,7 @@ def _measure_task(measurer: ObjectMeasurer, labels: _Reader, intensity: _Reader 
     the objects wanted); the rows as one block."""
     from ..analysis import parallel
     from ..analysis.label_images import object_boxes
-    from ..analysis.threads import one_blas_thread
+    from ..core.threads import one_blas_thread
 
     rows: list = []
     wanted = dict(parts)

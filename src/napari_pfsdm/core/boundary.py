@@ -30,6 +30,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import InputError
+from .threads import blas_threads_by, blas_threads_for
 
 __all__ = [
     "N_OUTLINE_MODES",
@@ -194,18 +195,7 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     # mirror False: Σ a_n e^{ins} conj(b_n); mirror True: Σ a_n e^{ins} b_n
     partners = [np.ascontiguousarray(np.conj(b0[:, keep]).T.astype(np.complex64)),
                 np.ascontiguousarray(b0[:, keep].T.astype(np.complex64))]
-    # per reflection: the coarse best value and its parabola-refined shift
-    val = np.full((2, len(a), len(b)), -1.0, np.float32)
-    shift = np.zeros((2, len(a), len(b)))
-    for i0 in range(0, len(a), chunk):
-        i1 = min(i0 + chunk, len(a))
-        j0 = i0 if same else 0  # the upper triangle is enough for one set
-        for mirror, partner in enumerate(partners):
-            vals = np.empty((COARSE_SHIFTS, i1 - i0, len(b) - j0), np.float32)
-            for j in range(COARSE_SHIFTS):
-                np.abs((a32[i0:i1] * phase[j]) @ partner[:, j0:], out=vals[j])
-            val[mirror, i0:i1, j0:] = vals.max(axis=0)
-            shift[mirror, i0:i1, j0:] = _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS)
+    val, shift = _coarse_search(a32, partners, phase, same, chunk)
     if same:
         ii, jj = np.triu_indices(len(a), 1)
     else:
@@ -218,6 +208,28 @@ def boundary_distance_matrix(coefs: np.ndarray, others: np.ndarray | None = None
     out[~ok_a] = np.nan
     out[:, ~ok_b] = np.nan
     return out
+
+
+@blas_threads_by(lambda a32, partners, phase, same, chunk:
+                 8.0 * min(chunk, len(a32)) * a32.shape[1] * partners[0].shape[1])
+def _coarse_search(a32: np.ndarray, partners: list[np.ndarray], phase: np.ndarray, same: bool,
+                   chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per reflection (2, n, m): the best of the coarse values |Σ_n a_n e^{ins} b'_n| over the
+    start shifts, and its parabola-refined shift (radians); one product per shift, reflection
+    and chunk of rows. ``same``: one set, only the upper triangle is searched."""
+    n, m = len(a32), partners[0].shape[1]
+    val = np.full((2, n, m), -1.0, np.float32)
+    shift = np.zeros((2, n, m))
+    for i0 in range(0, n, chunk):
+        i1 = min(i0 + chunk, n)
+        j0 = i0 if same else 0  # the upper triangle is enough for one set
+        for mirror, partner in enumerate(partners):
+            vals = np.empty((COARSE_SHIFTS, i1 - i0, m - j0), np.float32)
+            for j in range(COARSE_SHIFTS):
+                np.abs((a32[i0:i1] * phase[j]) @ partner[:, j0:], out=vals[j])
+            val[mirror, i0:i1, j0:] = vals.max(axis=0)
+            shift[mirror, i0:i1, j0:] = _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS)
+    return val, shift
 
 
 def _best_correlation(a0: np.ndarray, b0: np.ndarray, ii: np.ndarray, jj: np.ndarray,
@@ -284,7 +296,8 @@ def boundary_distance_pairs(coefs: np.ndarray, others: np.ndarray, *,
         shift = np.empty((2, p1 - p0))
         # mirror False: Σ a_n e^{ins} conj(b_n); mirror True: Σ a_n e^{ins} b_n
         for mirror, x in enumerate((ak * np.conj(bk), ak * bk)):
-            vals = np.abs(x.astype(np.complex64) @ phase_t).T  # (S, pairs)
+            with blas_threads_for(8.0 * len(x) * phase_t.size):
+                vals = np.abs(x.astype(np.complex64) @ phase_t).T  # (S, pairs)
             val[mirror] = vals.max(axis=0)
             shift[mirror] = _parabolic_shift(vals) * (2 * np.pi / COARSE_SHIFTS)
         pairs = np.arange(p1 - p0)
@@ -310,7 +323,8 @@ def boundary_lower_bound(coefs: np.ndarray, others: np.ndarray | None = None) ->
     """
     a = np.abs(np.asarray(coefs, complex))
     b = a if others is None else np.abs(np.asarray(others, complex))
-    c = np.minimum(a @ b.T, 1.0)
+    with blas_threads_for(2.0 * a.size * len(b)):
+        c = np.minimum(a @ b.T, 1.0)
     return np.sqrt(np.maximum(1.0 - c * c, 0.0))
 
 
@@ -328,10 +342,12 @@ def _parabolic_shift(vals: np.ndarray) -> np.ndarray:
     return j[0] + np.clip(delta, -0.5, 0.5)
 
 
+@blas_threads_by(lambda a, b, ii, *_, block=65536: 8.0 * a.shape[1] * min(block, len(ii)))
 def _refine(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, s: np.ndarray,
             mirror: np.ndarray, block: int = 65536) -> np.ndarray:
     """C = |g(s)| in double precision after Newton steps on |g|² from the coarse optimum s,
-    for the pairs (a[ii], b[jj]); never below the value at the coarse optimum."""
+    for the pairs (a[ii], b[jj]); never below the value at the coarse optimum. (The mode sums
+    of :func:`_corr` are (2K) × (pairs) products.)"""
     k = a.shape[1] // 2
     out = np.empty(len(ii))
     for p0 in range(0, len(ii), block):

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft as _fft  # pocketfft as numpy.fft, with less overhead per call
 
 from ..errors import InputError
+from . import fourier
 from .choices import DEFAULT_MIN_AREA
 from .marching_squares import _trace, outer_boundary, trace_boundary
 from .pieces import fill_holes, largest_piece
@@ -240,7 +240,9 @@ def _smooth_closed(points: np.ndarray, sigma: float) -> np.ndarray:
 def _smooth_z(z: np.ndarray, sigma: float) -> np.ndarray:
     """:func:`_smooth_closed` of a curve given as complex numbers (M,)."""
     gain = np.exp(_minus_two_pi2_freq2(len(z)) * (sigma * sigma))
-    return _fft.ifft(_fft.fft(z) * gain)
+    spectrum = fourier.fft(z)
+    spectrum *= gain
+    return fourier.ifft(spectrum)
 
 
 @lru_cache(maxsize=16)

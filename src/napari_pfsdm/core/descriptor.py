@@ -203,7 +203,7 @@ def pfsdm(
     mask = np.asarray(mask)
     # a bad or unknown option fails here, in plain words
     p = params_of(options) if params is None else as_params(params, options)
-    if mask.ndim in (2, 3):
+    if (options or params is not None) and mask.ndim in (2, 3):  # defaults fit every dimension
         p.check_dimension(mask.ndim)
     radii = np.asarray(p.radii) if isinstance(p.radii, tuple) else p.radii
     if mask.ndim == 3:

@@ -45,6 +45,7 @@ from .boundary import boundary_distance_matrix
 from .elastic import elastic_distance_matrix
 from .embeddings import Embeddings
 from .params import option
+from .threads import blas_threads_by
 
 __all__ = [
     "BOUNDARY_WEIGHT",
@@ -90,6 +91,7 @@ def magnitude_features(emb: np.ndarray, weights: np.ndarray, modes: np.ndarray) 
     return (emb * np.sqrt(weights)[None, :, None] * modes[None, None, :]).reshape(len(emb), -1)
 
 
+@blas_threads_by(lambda a, b: 2.0 * a.size * len(b))
 def _sq_euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     aa = np.einsum("ij,ij->i", a, a)
     bb = np.einsum("ij,ij->i", b, b)
@@ -100,6 +102,20 @@ def _sq_euclidean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.maximum(g, 0.0, out=g)
 
 
+def _n_shifts(n_modes: int) -> int:
+    """Angles at which :func:`_align_sq` samples the correlation of ``n_modes`` modes."""
+    return max(64, 8 * n_modes)
+
+
+def _align_flops(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> float:
+    """Operations of :func:`_align_sq`'s largest products: a chunk's rings' cross terms, or its
+    correlations times the angles' basis."""
+    n, n_rings, k = spec[0].shape
+    rows = min(chunk, n)
+    return max(8.0 * rows * n_rings * n, 4.0 * rows * n * k * _n_shifts(k))
+
+
+@blas_threads_by(_align_flops)
 def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> np.ndarray:
     """Squared aligned distance for all pairs: min over rotations and the reflection of the
     weighted L2 distance of complex spectra (n, R, K), summed over channels.
@@ -110,7 +126,7 @@ def _align_sq(spec: list[np.ndarray], weights: list[np.ndarray], chunk: int) -> 
     computed apart) are averaged, so that the matrix is exactly symmetric.
     """
     n, _, k = spec[0].shape
-    n_shift = max(64, 8 * k)
+    n_shift = _n_shifts(k)
     m = np.arange(k)
     ang = np.outer(m, 2 * np.pi * np.arange(n_shift) / n_shift)
     # single precision: twice the speed of the matrix products, errors ~1e-7 of ‖a‖‖b‖

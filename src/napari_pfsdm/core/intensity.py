@@ -34,9 +34,9 @@ def intensity_crop(intensity: np.ndarray, offset: np.ndarray, mask: np.ndarray) 
     a = np.maximum(lo, 0)
     b = np.minimum(hi, intensity.shape)
     crop = np.asarray(intensity[tuple(slice(i, j) for i, j in zip(a, b, strict=True))], float)
-    crop = np.pad(crop, [(int(i - j), int(k - m)) for i, j, k, m in zip(a, lo, hi, b,
-                                                                         strict=True)],
-                  mode="edge")
+    widths = [(int(i - j), int(k - m)) for i, j, k, m in zip(a, lo, hi, b, strict=True)]
+    if any(before or after for before, after in widths):  # (np.pad costs ~20 µs even for none)
+        crop = np.pad(crop, widths, mode="edge")
     _refuse_non_finite(crop[mask], mask.ndim)
     mean = float(crop[mask].mean())
     if not mean > 0:

@@ -9,9 +9,9 @@ conjugates it: the magnitudes |c_n(r)| are invariant to both.
 from __future__ import annotations
 
 import numpy as np
-from scipy import fft as _fft  # pocketfft as numpy.fft, with less overhead per call
 
 from ..errors import InputError
+from . import fourier
 
 __all__ = [
     "RADII_PLACEMENTS",
@@ -101,7 +101,7 @@ def mode_weights(n_fourier: int, exponent: float = 0.0) -> np.ndarray:
 def spectrum(samples: np.ndarray) -> np.ndarray:
     """c_n(r) for n = 0 … n_angles/2 of samples (n_radii, n_angles): ``rfft / n_angles``
     (the division done inside the transform)."""
-    return _fft.rfft(samples, axis=-1, norm="forward")
+    return fourier.rfft(samples, norm="forward")
 
 
 def magnitude_embedding(

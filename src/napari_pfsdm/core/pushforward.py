@@ -27,13 +27,13 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft as _fft  # pocketfft as numpy.fft, with less overhead per call
 from scipy import sparse
 from scipy.interpolate import LinearNDInterpolator
 from scipy.sparse.linalg import splu
 from scipy.spatial import Delaunay, cKDTree
 
 from ..errors import InputError
+from . import fourier
 from .choices import MAPPINGS
 from .sdf import ExactSDF
 
@@ -111,7 +111,7 @@ class FourierMap:
         folded.real = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.real))
         folded.imag = np.einsum("rgj,gj->rj", folds, np.ascontiguousarray(c.imag))
         # (norm="forward": the inverse transform unscaled, i.e. ifft · n_angles)
-        z = _fft.ifft(folded, axis=-1, norm="forward").reshape(*factors.shape[:2], n_angles)
+        z = fourier.ifft(folded, norm="forward").reshape(*factors.shape[:2], n_angles)
         # det = Im(conj(∂X/∂r) · ∂X/∂θ) with ∂X/∂θ = i Σ n a_n r^|n| e^{inθ}
         x_r, x_t = z[1], z[2]
         jacobian = x_r.real * x_t.real
@@ -173,7 +173,7 @@ def _on_angles(coefficients: np.ndarray, n_angles: int) -> np.ndarray:
 def harmonic_map(nodes: np.ndarray) -> FourierMap:
     """Arc-length harmonic map of an equispaced, counter-clockwise contour (M, 2)."""
     z = _as_complex(nodes)
-    return FourierMap(_fft.fft(z, norm="forward"))  # fft / M
+    return FourierMap(fourier.fft(z, norm="forward"))  # fft / M
 
 
 def radial_map(nodes: np.ndarray, degree: int = 16) -> FourierMap:
