@@ -72,6 +72,7 @@ __all__ = [
     "elastic_distance_matrix",
     "elastic_distance_pairs",
     "elastic_nearest",
+    "SignatureSet",
 ]
 
 #: Half-width of the DTW band, in signature points (1/8 of the outline; MPEG-7's
@@ -175,36 +176,11 @@ def _irfft_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
     return w * np.cos(ang) / n, w * np.sin(ang) / n
 
 
-def _ordered(sig: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _ordered(key: np.ndarray, ii: np.ndarray, jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each pair (ii[p], jj[p]) in a fixed order: the signature with the smaller sum of
-    squares first (:func:`_distances`)."""
-    key = (sig * sig).sum(axis=(1, 2))
+    squares ``key`` first (:func:`_distances`)."""
     swap = key[jj] < key[ii]
     return (np.where(swap, jj, ii).astype(np.int64), np.where(swap, ii, jj).astype(np.int64))
-
-
-def _costs(sig: np.ndarray, first: np.ndarray, second: np.ndarray, limit: np.ndarray | None,
-           band: int, n_shifts: int, half_steps: bool, chunk: int) -> np.ndarray:
-    """The compiled kernel on the ordered pairs (first[p], second[p]) of ``sig`` (finite,
-    C-contiguous): the least warped cost per point, +inf where it exceeds ``limit[p]``
-    (per point; None: no limit)."""
-    n = sig.shape[2]
-    fr, fi, norm = _spectral_parts(sig)
-    cos_t, sin_t = _irfft_tables(n)
-    cap = min(2 * n, n_shifts + _EXTRA_TIED)
-    kernels = _kernels()
-    sig_c = np.ascontiguousarray(sig, kernels.COST_DTYPE)
-    out = np.empty(len(first))
-    for p0 in range(0, len(first), chunk):
-        sl = slice(p0, p0 + chunk)
-        lim = (np.full(len(first[sl]), np.inf) if limit is None
-               else np.asarray(limit[sl], float) * n)
-        res = np.empty(len(first[sl]))
-        kernels.pairs(sig_c, fr, fi, norm, first[sl], second[sl], lim, cos_t, sin_t, n_shifts,
-                      cap, band, half_steps, res)
-        res[res >= kernels.BIG] = np.inf
-        out[sl] = res / n
-    return out
 
 
 def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, band: int,
@@ -223,9 +199,8 @@ def _distances(a: np.ndarray, b: np.ndarray, ii: np.ndarray, jj: np.ndarray, ban
         sig, jb = a, jj
     else:
         sig, jb = np.concatenate([a, b]), jj + len(a)
-    sig = np.ascontiguousarray(sig, float)
-    first, second = _ordered(sig, np.asarray(ii, np.int64), np.asarray(jb, np.int64))
-    return _costs(sig, first, second, None, band, n_shifts, half_steps, chunk)
+    prepared = SignatureSet(sig, band=band, n_shifts=n_shifts, half_steps=half_steps)
+    return prepared.between(ii, jb, chunk)
 
 
 def _spectral_parts(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -282,32 +257,87 @@ def elastic_nearest(signatures: np.ndarray, candidates: np.ndarray, base: np.nda
     base exceeds the k-th total ends the row. On MPEG-7 this computes d_E fully for a few
     candidates per object (docs/benchmarks.md, "The elastic outline term").
     """
-    a = _check_signatures(signatures, "signatures")
-    _check_search(a, band, n_shifts)
-    cand = np.ascontiguousarray(candidates, np.int64)
-    base = np.ascontiguousarray(base, float)
-    if cand.ndim != 2 or base.shape != cand.shape or len(cand) != len(a):
-        raise InputError(f"candidates and base must be (n, C) for n = {len(a)} objects; got "
-                         f"{cand.shape} and {base.shape}")
-    if not weight > 0 or not 1 <= k:
-        raise InputError(f"weight must be > 0 and k ≥ 1; got {weight} and {k}")
-    if not np.isfinite(a).all():
-        raise InputError("the signatures must be finite")
-    sig = np.ascontiguousarray(a, float)
-    fr, fi, norm = _spectral_parts(sig)
-    cos_t, sin_t = _irfft_tables(sig.shape[2])
-    cap = min(2 * sig.shape[2], n_shifts + _EXTRA_TIED)
-    n = len(sig)
-    idx = np.full((n, k), -1, np.int64)
-    dist = np.full((n, k), np.inf)
-    computed = np.zeros(n, np.int64)
-    exact = np.zeros(n, bool)
-    kernels = _kernels()
-    kernels.nearest(np.ascontiguousarray(sig, kernels.COST_DTYPE), fr, fi, norm, norm,
-                    np.arange(n), cand, base, float(weight), int(k), cos_t, sin_t, n_shifts,
-                    cap, band, half_steps, idx, dist, computed, exact)
-    exact |= (cand >= 0).sum(axis=1) >= n - 1
-    return idx, dist, computed, exact
+    search = SignatureSet(signatures, band=band, n_shifts=n_shifts, half_steps=half_steps)
+    return search.nearest(np.arange(len(search)), candidates, base, weight, k)
+
+
+class SignatureSet:
+    """Signatures prepared once (their spectra, a single-precision copy) for many calls of
+    :meth:`nearest` on some of them: what :func:`elastic_nearest` does for all objects, and
+    a neighbour search (:mod:`.elastic_neighbours`) block by block.
+
+    Parameters
+    ----------
+    signatures : ndarray, shape (n, N_CHANNELS, points)
+        :func:`outline_signature` of every object (finite).
+    band, n_shifts, half_steps
+        As :func:`elastic_distance_pairs`.
+    """
+
+    def __init__(self, signatures: np.ndarray, *, band: int = BAND,
+                 n_shifts: int = N_START_SHIFTS, half_steps: bool = HALF_STEPS) -> None:
+        a = _check_signatures(signatures, "signatures")
+        _check_search(a, band, n_shifts)
+        if not np.isfinite(a).all():
+            raise InputError("the signatures must be finite")
+        sig = np.ascontiguousarray(a, float)
+        kernels = _kernels()
+        self.values = sig
+        self.sig = np.ascontiguousarray(sig, kernels.COST_DTYPE)
+        self.fr, self.fi, self.norm = _spectral_parts(sig)
+        self.cos_t, self.sin_t = _irfft_tables(sig.shape[2])
+        self.band, self.n_shifts, self.half_steps = int(band), int(n_shifts), bool(half_steps)
+        self.cap = min(2 * sig.shape[2], n_shifts + _EXTRA_TIED)
+
+    def __len__(self) -> int:
+        return len(self.sig)
+
+    def between(self, ii: np.ndarray, jj: np.ndarray, chunk: int = 16384,
+                here: bool = False) -> np.ndarray:
+        """d_E(signature ii[p], signature jj[p]) for every p: each pair in the fixed order of
+        :func:`_distances` (the smaller sum of squares first), the least warped cost per
+        point. ``here``: on the calling thread only, without the GIL (for a caller's own
+        threads); else on numba's threads."""
+        first, second = _ordered(self.norm, np.asarray(ii, np.int64), np.asarray(jj, np.int64))
+        n = self.sig.shape[2]
+        kernels = _kernels()
+        run = kernels.pairs_here if here else kernels.pairs
+        out = np.empty(len(first))
+        for p0 in range(0, len(first), chunk):
+            sl = slice(p0, p0 + chunk)
+            res = np.empty(len(first[sl]))
+            run(self.sig, self.fr, self.fi, self.norm, first[sl], second[sl],
+                np.full(len(res), np.inf), self.cos_t, self.sin_t, self.n_shifts, self.cap,
+                self.band, self.half_steps, res)
+            res[res >= kernels.BIG] = np.inf
+            out[sl] = res / n
+        return out
+
+    def nearest(self, queries: np.ndarray, candidates: np.ndarray, base: np.ndarray,
+                weight: float, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`elastic_nearest` for the objects ``queries`` only: row r of
+        ``candidates`` and ``base`` (and of the results) is object ``queries[r]``'s."""
+        queries = np.ascontiguousarray(queries, np.int64)
+        cand = np.ascontiguousarray(candidates, np.int64)
+        base = np.ascontiguousarray(base, float)
+        n = len(self)
+        if cand.ndim != 2 or base.shape != cand.shape or len(cand) != len(queries):
+            raise InputError(f"candidates and base must be (queries, C) for {len(queries)} "
+                             f"queries; got {cand.shape} and {base.shape}")
+        if not weight > 0 or not 1 <= k:
+            raise InputError(f"weight must be > 0 and k ≥ 1; got {weight} and {k}")
+        if len(queries) and (queries.min() < 0 or queries.max() >= n or cand.max() >= n):
+            raise InputError(f"queries and candidates must be objects 0 … {n - 1}")
+        idx = np.full((len(queries), k), -1, np.int64)
+        dist = np.full((len(queries), k), np.inf)
+        computed = np.zeros(len(queries), np.int64)
+        exact = np.zeros(len(queries), bool)
+        _kernels().nearest(self.sig, self.fr, self.fi, self.norm, self.norm, queries, cand,
+                           base, float(weight), int(k), self.cos_t, self.sin_t, self.n_shifts,
+                           self.cap, self.band, self.half_steps, idx, dist, computed,
+                           exact)
+        exact |= (cand >= 0).sum(axis=1) >= n - 1
+        return idx, dist, computed, exact
 
 
 def _check_search(a: np.ndarray, band: int, n_shifts: int) -> None:

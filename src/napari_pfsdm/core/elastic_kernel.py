@@ -36,7 +36,7 @@ import numpy as np
 from .compiled import watch
 from .elastic_signature import N_CHANNELS
 
-__all__ = ["BIG", "COST_DTYPE", "nearest", "pairs"]
+__all__ = ["BIG", "COST_DTYPE", "nearest", "pairs", "pairs_here"]
 
 #: What the kernels hold for "more than the limit" and "no cell" (a finite number: their
 #: arithmetic is compiled with fastmath, which assumes no infinities).
@@ -441,6 +441,17 @@ def pairs(sig, fr, fi, norm, ii, jj, limit, cos_t, sin_t, n_cand, cap, band, hal
                                n_cand, band, half, work)
 
 
+@numba.njit(cache=True, fastmath=True, nogil=True)
+def pairs_here(sig, fr, fi, norm, ii, jj, limit, cos_t, sin_t, n_cand, cap, band, half,
+               out):  # pragma: no cover
+    """:func:`pairs` on the calling thread, without holding the GIL: for callers that run
+    blocks of pairs on threads of their own (the neighbour search's query blocks)."""
+    work = scratch(sig, band, fr.shape[2], cap)
+    for p in range(ii.shape[0]):
+        out[p] = pair_cost(sig, fr, fi, norm, ii[p], jj[p], limit[p], cos_t, sin_t, n_cand,
+                           band, half, work)
+
+
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def nearest(sig, fr, fi, norm, key, queries, cand, base, mu, k, cos_t, sin_t, n_cand,
             cap, band, half, out_idx, out_dist, computed, exact):  # pragma: no cover
@@ -502,4 +513,5 @@ def nearest(sig, fr, fi, norm, key, queries, cand, base, mu, k, cos_t, sin_t, n_
 
 
 watch(pairs, "the distance")
+watch(pairs_here, "the distance, per thread")
 watch(nearest, "the neighbour search")
