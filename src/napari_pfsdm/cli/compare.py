@@ -37,7 +37,7 @@ def _nearest(table, k: int, args: argparse.Namespace):
 
     return nearest_neighbours(
         table, k=k, intensity_weight=args.intensity_weight,
-        boundary_weight=args.boundary_weight)
+        boundary_weight=args.boundary_weight, elastic_weight=args.elastic_weight)
 
 
 def _graph_of_matrix(matrix, k: int):
@@ -63,7 +63,8 @@ def _median_distance(table, args: argparse.Namespace, size: int = 400) -> float:
     pick = np.sort(rng.choice(len(table), size=min(size, len(table)), replace=False))
     sub = carry_options(table, table.iloc[pick].reset_index(drop=True))
     d = distance_matrix(sub, intensity_weight=args.intensity_weight,
-                        boundary_weight=args.boundary_weight)
+                        boundary_weight=args.boundary_weight,
+                        elastic_weight=args.elastic_weight)
     return float(np.median(d[~np.eye(len(d), dtype=bool)]))
 
 
@@ -82,7 +83,8 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 
             with _Step(f"computing the {n:,} x {n:,} distances of the map", args.quiet):
                 matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
-                                         boundary_weight=args.boundary_weight)
+                                         boundary_weight=args.boundary_weight,
+                                         elastic_weight=args.elastic_weight)
                 if args.rerank:
                     from ..analysis.rerank import rerank
 
@@ -110,7 +112,28 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map."""
+    """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map; with
+    ``--elastic``, numba's first compile of the term's kernels said on stderr."""
+    if not args.elastic_weight:
+        return _compare(args)
+    from ..core.compiled import compile_notice
+
+    with compile_notice(lambda message: _note(message, args.quiet)):
+        return _compare(args)
+
+
+def _check_elastic(table, args: argparse.Namespace) -> None:
+    """``--elastic`` needs the outline signatures in the table: say how to measure them."""
+    from ..core.table_schema import has_signature
+
+    if args.elastic_weight and not has_signature(table.columns)[0]:
+        raise UserError(
+            f"--elastic compares the objects' outline signatures, and {args.features} has "
+            "none (no elastic_* columns): measure the movies again with "
+            "'pfsdm measure ... --elastic-signature table', or leave --elastic out")
+
+
+def _compare(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
@@ -129,6 +152,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise UserError("--rerank transduction needs the full matrix (it inverts an n x n "
                         "matrix); with --neighbours use --rerank diffusion or mutual")
     table = load_features(args.features)
+    _check_elastic(table, args)
     rows = pd.Series(np.arange(len(table)), index=table.index, name=_FILE_ROW)
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
@@ -149,7 +173,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         )
     with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
         matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
-                                 boundary_weight=args.boundary_weight)
+                                 boundary_weight=args.boundary_weight,
+                                 elastic_weight=args.elastic_weight)
     if args.rerank:
         from ..analysis.rerank import rerank
 
@@ -159,6 +184,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
+    opts["elastic_weight"] = args.elastic_weight
     opts["rerank"] = args.rerank or "none"
     if args.rerank:
         opts["rerank_k"] = min(args.rerank_k, n - 1)
@@ -191,8 +217,15 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     if args.mds and n > FULL_MATRIX_LIMIT:
         k_graph = max(k_graph, min(n - 1, MAP_NEIGHBOURS))
     with _Step(f"finding the {k_graph} nearest neighbours of {n:,} objects", args.quiet):
-        idx, dist = _nearest(table, k_graph, args)
+        found = _nearest(table, k_graph, args)
+    idx, dist = found
     extra: dict[str, Any] = {}
+    if not found.exact:  # the elastic term's search
+        _note(f"the neighbours with the elastic term are {found.describe()}", args.quiet)
+        extra.update(neighbours_exact=False,
+                     neighbours_certified_share=float(found.certified.mean()),
+                     neighbours_searched=dict(zip(("pool", "candidates"), found.depth,
+                                                  strict=True)))
     graph = (idx, dist)
     m = max(k, min(n - 1, MAP_NEIGHBOURS)) if args.mds and n > FULL_MATRIX_LIMIT else k
     if args.rerank:
@@ -214,6 +247,7 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
+    opts["elastic_weight"] = args.elastic_weight
     opts["rerank"] = args.rerank or "none"
     if args.rerank:
         opts["rerank_k"] = rk
@@ -244,14 +278,19 @@ position, size, rotation or mirror image. Writes a square CSV (rows and columns 
 movie/t<frame>/l<label>) and, with --mds, a 2-D map where close points are similar shapes.
 
 The default distance adds the pushed-forward SDF term and the boundary (outline) term;
---boundary-weight 0 keeps the SDF term alone. --rerank re-ranks the distances by the
-collection's neighbourhoods: it helps retrieval in large collections (tens of objects per
-kind), and can hurt with few objects per kind or when only the single nearest match counts.
+--boundary-weight 0 keeps the SDF term alone. --elastic adds the elastic outline term, which
+lets the outlines' correspondence bend: it helps retrieval among articulated or detailed
+outlines (limbs, notches, appendages), does nothing for round nuclei and can hurt clustering of
+whole silhouettes (the table measured with --elastic-signature table). --rerank re-ranks the
+distances by the collection's neighbourhoods: it helps retrieval in large collections (tens of
+objects per kind), and can hurt with few objects per kind or when only the single nearest
+match counts.
 
 examples:
   pfsdm compare features.csv --frames 0 -o distances.csv --mds mds.png
   pfsdm compare features.csv --frames 20-24 --intensity-weight 0.5 -o d.csv --groups groups.csv
   pfsdm compare features.csv -o reranked.csv --rerank --mds map.png
+  pfsdm compare features.csv --elastic -o elastic.csv
   pfsdm compare features.csv --neighbours 10 -o edges.csv --mds map.png
   pfsdm compare features.parquet --neighbours 10 --rerank -o edges.parquet
 
@@ -286,6 +325,17 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
         p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
                        metavar="W", help=f"{opt.help} (default {opt.default:g}; "
                                          f"{opt.allowed()})")
+    from ..core.distances import RECOMMENDED_ELASTIC_WEIGHT
+
+    elastic = option("elastic_weight")
+    p.add_argument("--elastic", nargs="?", dest="elastic_weight", type=_option_type(elastic),
+                   const=RECOMMENDED_ELASTIC_WEIGHT, default=elastic.default, metavar="W",
+                   help="add the elastic outline term, weight W (default when given "
+                        f"{RECOMMENDED_ELASTIC_WEIGHT:g}, the weight that retrieves best): "
+                        "for articulated or detailed outlines and retrieval; not for round "
+                        "nuclei or clustering silhouettes (docs/method.md). Needs a table "
+                        "measured with --elastic-signature table; about 3x the time; with "
+                        "--neighbours the search is approximate and says so")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "
