@@ -24,7 +24,7 @@ from ..core.table_schema import table_ndim
 from .tables import embeddings as _table_embeddings
 from .tables import is_table
 
-__all__ = ["Neighbours", "nearest_neighbours", "neighbour_index"]
+__all__ = ["NeighbourSearch", "Neighbours", "nearest_neighbours", "neighbour_index"]
 
 
 def neighbour_index(items, intensity_weight: float = 0.0,
@@ -163,23 +163,90 @@ def nearest_neighbours(
     >>> idx[:, 0].tolist()
     [1, 0, 1]
     """
-    mu = _dist.check_elastic_weight(elastic_weight)
-    signatures = _signatures(items) if mu else None
-    index = neighbour_index(items, intensity_weight, boundary_weight)
-    k = check_k(k, len(index))
     if method not in METHODS:
         from ..errors import InputError
 
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    parts = blocks(len(index), max(1, int(block) if not mu else min(int(block), _ELASTIC_BLOCK)))
+    search = NeighbourSearch(items, intensity_weight=intensity_weight,
+                             boundary_weight=boundary_weight, elastic_weight=elastic_weight)
+    k = check_k(k, len(search))
+    mu = search.elastic_weight
+    parts = blocks(len(search), max(1, int(block) if not mu else min(int(block), _ELASTIC_BLOCK)))
+    if mu and method == "brute":
+        out = [search.rows(rows, k, "brute") for rows in parts]
+        return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]))
     if mu:
-        return _elastic_search(index, signatures, mu, k, method, parts, elastic_candidates,
-                               n_jobs, scheduler, client)
-    if scheduler is None and client is None:
-        out = _run_threads(index, parts, k, method, n_jobs)
+        depth = search.depth(k, elastic_candidates)
+        index, method, elastic = search.elastic, "elastic", (mu, *depth)
     else:
-        out = _run_dask(index, parts, k, method, scheduler, client)
-    return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]))
+        depth, index, elastic = None, search.index, ()
+    if scheduler is None and client is None:
+        out = _run_threads(index, parts, k, method, n_jobs, elastic)
+    else:
+        out = _run_dask(index, parts, k, method, scheduler, client, elastic)
+    return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]),
+                      np.concatenate([o[2] for o in out]) if mu else None, depth=depth)
+
+
+class NeighbourSearch:
+    """A neighbour search prepared once, for queries a few rows at a time (the plugin's
+    Similar tab keeps one per run): the same options, checks and results as
+    :func:`nearest_neighbours`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from napari_pfsdm import measure
+    >>> labels = np.zeros((64, 200), int)
+    >>> labels[10:50, 10:50] = 1
+    >>> labels[12:48, 60:100] = 2
+    >>> labels[25:35, 120:190] = 3
+    >>> search = NeighbourSearch(measure(labels))
+    >>> search.rows([2], k=1).indices.tolist()
+    [[1]]
+    """
+
+    def __init__(self, items: Any, *, intensity_weight: float = 0.0,
+                 boundary_weight: float | None = None,
+                 elastic_weight: float | None = None) -> None:
+        self.elastic_weight = _dist.check_elastic_weight(elastic_weight)
+        signatures = _signatures(items) if self.elastic_weight else None
+        self.index = neighbour_index(items, intensity_weight, boundary_weight)
+        self.elastic = None
+        if self.elastic_weight:
+            from ..core.elastic_neighbours import ElasticIndex
+
+            self.elastic = ElasticIndex.build(self.index, signatures)
+        self._depth: dict = {}
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def depth(self, k: int, candidates: int | None = None) -> tuple[int, int]:
+        """With the elastic term: the pool and candidates per object for k neighbours
+        (:func:`napari_pfsdm.core.elastic_neighbours.depth`, measured once per k)."""
+        from ..core import elastic_neighbours as en
+
+        if candidates:
+            return en.sizes(k, len(self), candidates)
+        if k not in self._depth:
+            self._depth[k] = en.depth(self.elastic, self.elastic_weight, k)
+        return self._depth[k]
+
+    def rows(self, rows, k: int, method: str = "bound") -> Neighbours:
+        """The k nearest of the objects ``rows`` among all (:func:`nearest_neighbours`'s
+        rows for them)."""
+        rows = np.asarray(rows, np.intp)
+        k = check_k(k, len(self))
+        if not self.elastic_weight:
+            return Neighbours(*search_rows(self.index, rows, k, method))
+        from ..core import elastic_neighbours as en
+
+        if method == "brute":
+            return Neighbours(*en.brute_rows(self.elastic, rows, k, self.elastic_weight))
+        depth = self.depth(k)
+        idx, dist, cert = en.search_rows(self.elastic, rows, k, self.elastic_weight, *depth)
+        return Neighbours(idx, dist, cert, depth=depth)
 
 
 class Neighbours(tuple):
@@ -240,26 +307,6 @@ class Neighbours(tuple):
 _ELASTIC_BLOCK = 128
 
 
-def _elastic_search(index: NeighbourIndex, signatures: np.ndarray, mu: float, k: int,
-                    method: str, parts, candidates, n_jobs, scheduler, client) -> Neighbours:
-    """:func:`nearest_neighbours` with the elastic term (:mod:`napari_pfsdm.core.
-    elastic_neighbours`): how deep to look measured first, then the query blocks ``parts``
-    on threads or dask tasks, as the default search's."""
-    from ..core import elastic_neighbours as en
-
-    ei = en.ElasticIndex.build(index, signatures)
-    if method == "brute":
-        out = [en.brute_rows(ei, rows, k, mu) for rows in parts]
-        return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]))
-    depth = (en.sizes(k, len(ei), candidates) if candidates else en.depth(ei, mu, k))
-    if scheduler is None and client is None:
-        out = _run_threads(ei, parts, k, "elastic", n_jobs, (mu, *depth))
-    else:
-        out = _run_dask(ei, parts, k, "elastic", scheduler, client, (mu, *depth))
-    return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]),
-                      np.concatenate([o[2] for o in out]), depth=depth)
-
-
 def _signatures(items) -> np.ndarray:
     """The outline signatures of results, :class:`Embeddings` or a table (2-D only)."""
     if is_table(items):
@@ -271,8 +318,7 @@ def _signatures(items) -> np.ndarray:
         if sig is None:
             from ..errors import InputError
 
-            raise InputError("elastic_weight > 0 needs the table's elastic_* columns (a table "
-                             "measured before the elastic term has none): measure again.")
+            raise InputError(_dist.NO_SIGNATURES)
         return sig
     if not isinstance(items, Embeddings):
         items = list(items)
