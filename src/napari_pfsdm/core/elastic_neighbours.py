@@ -5,29 +5,33 @@ for all pairs. d_E has none (docs/benchmarks.md, "Where the search's candidates 
 from": the best measured bounds are a median 9–22 % of it), and on round objects it orders
 the neighbours much more than D does, so candidates taken in D's order miss them. This search
 takes its candidates from the elastic term's own cheaper forms instead, in three stages per
-block of queries:
+block of queries (:func:`search_rows`):
 
-1. **Pool** (all objects, by matrix products): the ``pool`` objects of least
-   LB + μ · :data:`PROFILE_WEIGHT` · ‖p(a) − p(b)‖, LB the default search's lower bound of D
-   (:func:`.neighbours._lower_bound`) and p(s) the signature's value profile
-   (:func:`value_profile`: each channel's values sorted and averaged in
-   :data:`PROFILE_QUANTILES` equal parts; blind to the start point, the mirror and any
-   re-timing along the outline, so it follows d_E's warped matches more closely than the
-   signatures' magnitudes do);
-2. **Coarse** (the pool): the ``candidates`` objects of least LB + μ ·
-   :data:`COARSE_SCALE` · d_E on signatures averaged to :data:`COARSE_POINTS` points (band
-   and start shifts scaled to them: a quarter of the cost per pair), by
-   :meth:`.elastic.SignatureSet.nearest` (its DTWs abandoned once they cannot enter);
-3. **Exact** (the candidates): D computed exactly (:func:`.neighbours._exact_pairs`) and
-   d_E on the full signatures; the k of least D + μ d_E.
+1. **Pool** (all objects, by matrix products; :func:`pool_and_candidates`): the ``pool``
+   objects of least LB + μ · :data:`PROFILE_WEIGHT` · ‖e(a) − e(b)‖, LB the default search's
+   lower bound of D (:func:`.neighbours._lower_bound`) and e a start- and mirror-invariant
+   vector of the signature (:func:`embedding`: each channel's values sorted and averaged in
+   :data:`PROFILE_QUANTILES` parts, blind to any re-timing along the outline as d_E's warps
+   are, and the magnitudes of its first :data:`PROFILE_HARMONICS` harmonics);
+2. **Coarse** (the pool; :func:`_coarse`): the ``candidates`` objects of least LB + μ ·
+   :data:`COARSE_SCALE` · d_E of the signatures averaged to :data:`COARSE_POINTS` points
+   (band scaled to them: less than half the cost per pair), the pairs taken object by
+   object of the pool so that each signature is read once for all its rows;
+3. **Exact** (the candidates; :func:`_exact_totals`): d_E of each on the full signatures,
+   then D (:func:`.neighbours._exact_pairs`, the dearer) in increasing order of LB + μ d_E
+   until the k-th total found is below the next; the k of least D + μ d_E.
 
-The result is approximate: a true neighbour is lost when stage 1 or 2 ranks it below the
-pool or the candidates. A row is *certified* exact when its k-th total is below the lower
-bound LB of every object that is not among its candidates (d_E ≥ 0, so T ≥ D ≥ LB: none of
-them can be nearer); when the candidates are all the other objects every row is. The recall
-against the full matrix (docs/benchmarks.md, "The elastic term's neighbours") is measured by
-``benchmarks/neighbours_elastic.py``. ``method="brute"`` in
-:func:`napari_pfsdm.nearest_neighbours` is the exact reference (every pair).
+How deep stages 1 and 2 look is measured first (:func:`depth`) on :data:`SAMPLE` random
+objects against all: objects whose neighbours the cheap forms rank badly (round nuclei) get a
+deeper pool than kinds far apart (MPEG-7). The result is approximate: a true neighbour is lost
+when stage 1 or 2 ranks it below the pool or the candidates. A row is *certified* exact when
+its k-th total is below the lower bound LB of every object that is not among its candidates
+(d_E ≥ 0, so D + μ d_E ≥ D ≥ LB: none of them can be nearer); when the candidates are all the
+other objects every row is. The recall against the full matrix (docs/benchmarks.md, "The
+elastic term's neighbours") is measured by ``benchmarks/neighbours_elastic.py``;
+:func:`brute_rows` (``method="brute"``) is the exact reference. numpy and the compiled d_E on
+the calling thread only (``here``), so that query blocks run on threads or dask tasks as the
+default search's do.
 """
 
 from __future__ import annotations
@@ -39,8 +43,8 @@ import numpy as np
 from .elastic import BAND, SignatureSet
 from .neighbours import NeighbourIndex, _exact_pairs, _lower_bound, _top_k, _top_k_sparse
 
-__all__ = ["COARSE_POINTS", "ElasticIndex", "pool_and_candidates", "search_rows",
-           "value_profile"]
+__all__ = ["COARSE_POINTS", "ElasticIndex", "brute_rows", "depth", "embedding",
+           "pool_and_candidates", "search_rows", "sizes", "value_profile"]
 
 #: Points of the coarse signatures of stage 2 (pairs of the signature's points averaged).
 COARSE_POINTS = 32
@@ -62,10 +66,10 @@ SAMPLE, SAMPLE_QUANTILE = 48, 0.99
 POOL_MARGIN, CANDIDATE_MARGIN = 1.5, 1.5
 #: Bounds of the pool and the candidates (besides n − 1, and k for the candidates).
 MIN_POOL, MAX_POOL = 150, 600
+MIN_CANDIDATES, MAX_CANDIDATES = 20, 80
 #: Objects of each sampled row given the coarse d_E in :func:`depth` (its first in stage 1's
 #: order; a neighbour further down counts as this deep).
 SAMPLE_DEPTH = 400
-MIN_CANDIDATES, MAX_CANDIDATES = 20, 80
 #: Relative margin of the single-precision bound in the certification (as the default
 #: search's).
 _SAFE = 1 - 1e-6
@@ -160,13 +164,17 @@ def depth(ei: ElasticIndex, mu: float, k: int, sample: int = SAMPLE,
     """(pool, candidates) per query: how deep each stage must look, measured on ``sample``
     random valid objects (seeded) against all objects.
 
-    For each sampled object q: the proxy of stage 1 and the coarse total of stage 2 to every
-    object, and the exact total to its MAX_CANDIDATES of least coarse total. The pool is
-    POOL_MARGIN × the SAMPLE_QUANTILE quantile of the proxy ranks of each q's k nearest by
-    coarse total; the candidates CANDIDATE_MARGIN × that quantile of the coarse ranks of
-    each q's k nearest by exact total (within bounds). On MPEG-7 the pool comes out about
-    three times smaller than on round nuclei, whose neighbours d_E orders and the proxy
-    ranks worse (docs/benchmarks.md). Costs ``sample`` × n coarse pairs."""
+    For each sampled object q: stage 1's order of all objects, the coarse total of stage 2 to
+    its first SAMPLE_DEPTH, and the exact total to its MAX_CANDIDATES of least coarse total.
+    The pool is POOL_MARGIN × the SAMPLE_QUANTILE quantile of the stage-1 ranks of each q's k
+    nearest by coarse total; the candidates CANDIDATE_MARGIN × that quantile of the coarse
+    ranks of each q's k nearest by exact total (within MIN_/MAX_POOL and MIN_/MAX_CANDIDATES,
+    n − 1). The neighbours by coarse total stand in for the true ones in the first (ranks of
+    the true ones run a fifth to a quarter deeper on MPEG-7 and the nuclei: the margin covers
+    it).
+    On MPEG-7 the pool comes out about half as deep as on round nuclei, whose neighbours the
+    cheap forms rank worse (docs/benchmarks.md, "The elastic term's neighbours"). Costs
+    ``sample`` × SAMPLE_DEPTH coarse pairs and ``sample`` × MAX_CANDIDATES exact ones."""
     n = len(ei)
     valid = np.flatnonzero(ei.index.valid)
     if len(valid) <= MIN_POOL + 1:
