@@ -130,3 +130,34 @@ def test_compare_says_when_numba_compiles_the_elastic_kernel(measured, tmp_path,
         err = capsys.readouterr().err
         assert err.count("compiling the elastic kernel, once") == said
     assert isinstance(pd.read_csv(tmp_path / "d1.csv"), pd.DataFrame)
+
+
+def test_the_report_s_nearest_shapes_are_under_the_elastic_distance(measured, tmp_path):
+    # without labels the section lists each object and its nearest shapes with their
+    # distances: each must be the full matrix's entry (with the term when --elastic) and the
+    # nearest of its row
+    import re
+
+    features, _ = measured
+    table = pf.drop_failed(read_table_csv(features))
+    keys = list(zip(table["frame"], table["label"], strict=True))
+    for flag, mu in (([], 0.0), (["--elastic"], pf.RECOMMENDED_ELASTIC_WEIGHT)):
+        out = tmp_path / f"report{mu}.html"
+        assert main(["report", str(features), "-o", str(out), "-q", *flag]) == 0
+        page = out.read_text()
+        section = page[page.index('<section id="nearest">'):]
+        section = section[:section.index("</section>")]
+        d = pf.distance_matrix(table, elastic_weight=mu)
+        np.fill_diagonal(d, np.inf)
+        listed = 0
+        for block in section.split("<table>")[1:]:
+            rows = re.findall(r"<tr><td>frame (\d+), label (\d+)</td><td>([^<]*)</td></tr>",
+                              block)
+            q = keys.index((int(rows[0][0]), int(rows[0][1])))
+            got = [(keys.index((int(f), int(lab))), float(v)) for f, lab, v in rows[1:]]
+            want = np.sort(d[q])[:len(got)]
+            assert np.allclose([v for _, v in got], want, rtol=1e-3)
+            assert np.allclose([d[q, j] for j, _ in got], want, rtol=1e-3)
+            listed += len(got)
+        assert listed >= 8
+        assert ("elastic outline term" in section) == bool(mu)

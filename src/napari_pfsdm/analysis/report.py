@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from .._version import __version__
+from ..core.distances import check_elastic_weight
 from ..core.params import DERIVED, WEIGHT_OPTIONS, option
 from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -51,6 +52,8 @@ DPI = 100
 GALLERY = 3
 #: Components explained, drawn and shown in the gallery.
 N_PCS = 3
+#: Objects whose nearest shapes the report shows (spread along PC1), and how many each.
+NEAREST_QUERIES, NEAREST_SHOWN = 4, 5
 #: At most this many objects' trajectories per panel (every k-th beyond).
 MAX_LINES = 200
 #: At most this many groups get a trajectory panel (the first, by name).
@@ -512,6 +515,50 @@ def _gallery_section(scores: pd.DataFrame, masks: _Masks, several: bool, n_pcs: 
     return "".join(out)
 
 
+def _nearest_section(measured: pd.DataFrame, scores: pd.DataFrame, masks: _Masks,
+                     several: bool, elastic_weight: float) -> str:
+    """A few objects spread along PC1 and their nearest shapes among all measured objects
+    (:class:`~napari_pfsdm.analysis.neighbours.NeighbourSearch`: the PF-SDM distance, with the
+    elastic outline term when ``elastic_weight`` > 0), drawn as outlines (the labels given)
+    or listed."""
+    from .neighbours import NeighbourSearch
+
+    n = len(measured)
+    k = min(NEAREST_SHOWN, n - 1)
+    order = np.argsort(scores["shape_PC1"].to_numpy(float), kind="stable")
+    picks = np.unique(order[np.linspace(0, n - 1, min(NEAREST_QUERIES, n)).round().astype(int)])
+    found = NeighbourSearch(measured, elastic_weight=elastic_weight).rows(picks, k)
+    term = (f"the PF-SDM distance with the elastic outline term (μ = {elastic_weight:g})"
+            if elastic_weight else "the PF-SDM distance")
+    note = (f'<p class="note">{len(picks)} objects spread along PC1 (first column) and their '
+            f"{k} nearest shapes among the {n:,} measured objects, under {term}, with the "
+            "distances.")
+    if not found.exact:
+        note += (" With the elastic term the search is approximate: "
+                 f"{found.certified.mean():.0%} of these rows are certified those of the "
+                 "full distance matrix, the others the nearest among each object's candidates.")
+    out = [note + "</p>"]
+    for q, idx, dist in zip(picks, found.indices, found.distances, strict=True):
+        rows = [(measured.iloc[int(q)].to_dict(), None)]
+        rows += [(measured.iloc[int(j)].to_dict(), d) for j, d in zip(idx, dist, strict=True)
+                 if j >= 0]
+        if not masks:
+            out.append(_table_html([[_where(r, several), "" if d is None else f"{d:.4g}"]
+                                    for r, d in rows], ["object", "distance"]))
+            continue
+        out.append('<div class="gallery">')
+        for r, d in rows:
+            fig = _figure(1.3, 1.3)
+            _draw_mask(fig.subplots(), masks.mask(r),
+                       colour="tab:red" if d is None else "0.25")
+            where = _where(r, several)
+            text = "this one" if d is None else f"d = {d:.3g}"
+            out.append(f"<figure>{_img(fig, where)}<figcaption>{_e(where)}<br>{text}"
+                       "</figcaption></figure>")
+        out.append("</div>")
+    return "".join(out)
+
+
 def _prediction_parts(predictions, info: Mapping[str, Any] | None):
     """(curve, summary, probabilities, groups) from a Prediction or a predictions table."""
     if predictions is None:
@@ -578,6 +625,7 @@ def report_html(
     title: str | None = None,
     columns: Sequence[str] = REPORT_COLUMNS,
     source: str | None = None,
+    elastic_weight: float | None = None,
 ) -> str:
     """The report of a run as one self-contained HTML text (no links out, no script).
 
@@ -602,6 +650,10 @@ def report_html(
         Measures drawn over time (those the table has).
     source : str, optional
         Where the table came from (a file name), shown under the title.
+    elastic_weight : float, optional
+        μ of the elastic outline term in the distance of the "Nearest shapes" section (default
+        0: the PF-SDM distance; :data:`napari_pfsdm.RECOMMENDED_ELASTIC_WEIGHT` for retrieval
+        among articulated or detailed outlines; the table must carry the signatures).
 
     Returns
     -------
@@ -653,6 +705,9 @@ def report_html(
     if len(measured) >= 2:
         sections.append(("gallery", "Gallery: the most extreme objects per PC",
                          _gallery_section(scores, masks, several, n_pcs)))
+        sections.append(("nearest", "Nearest shapes",
+                         _nearest_section(measured, scores, masks, several,
+                                          check_elastic_weight(elastic_weight))))
     when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     toc = "".join(f'<a href="#{a}">{_e(h)}</a>' for a, h, _ in sections)
     body = "".join(f'<section id="{a}"><h2>{_e(h)}</h2>{content}</section>'

@@ -10,7 +10,19 @@ from typing import Any
 # when a map is drawn from the neighbour graph, and how: one set of numbers for the command
 # line and the plugin (napari_pfsdm.analysis.reduction)
 from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
-from .common import UserError, _add_force, _check_output, _note, _option_type, _say, _Step, _whole
+from .common import (
+    UserError,
+    _add_elastic,
+    _add_force,
+    _check_elastic,
+    _check_output,
+    _elastic_notice,
+    _note,
+    _option_type,
+    _say,
+    _Step,
+    _whole,
+)
 from .tables import _measured, _with_groups
 
 #: Column that carries a row's position in the feature file through the selections.
@@ -114,23 +126,8 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 def cmd_compare(args: argparse.Namespace) -> int:
     """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map; with
     ``--elastic``, numba's first compile of the term's kernels said on stderr."""
-    if not args.elastic_weight:
+    with _elastic_notice(args):
         return _compare(args)
-    from ..core.compiled import compile_notice
-
-    with compile_notice(lambda message: _note(message, args.quiet)):
-        return _compare(args)
-
-
-def _check_elastic(table, args: argparse.Namespace) -> None:
-    """``--elastic`` needs the outline signatures in the table: say how to measure them."""
-    from ..core.table_schema import has_signature
-
-    if args.elastic_weight and not has_signature(table.columns)[0]:
-        raise UserError(
-            f"--elastic compares the objects' outline signatures, and {args.features} has "
-            "none (no elastic_* columns): measure the movies again with "
-            "'pfsdm measure ... --elastic-signature table', or leave --elastic out")
 
 
 def _compare(args: argparse.Namespace) -> int:
@@ -325,17 +322,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
         p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
                        metavar="W", help=f"{opt.help} (default {opt.default:g}; "
                                          f"{opt.allowed()})")
-    from ..core.distances import RECOMMENDED_ELASTIC_WEIGHT
-
-    elastic = option("elastic_weight")
-    p.add_argument("--elastic", nargs="?", dest="elastic_weight", type=_option_type(elastic),
-                   const=RECOMMENDED_ELASTIC_WEIGHT, default=elastic.default, metavar="W",
-                   help="add the elastic outline term, weight W (default when given "
-                        f"{RECOMMENDED_ELASTIC_WEIGHT:g}, the weight that retrieves best): "
-                        "for articulated or detailed outlines and retrieval; not for round "
-                        "nuclei or clustering silhouettes (docs/method.md). Needs a table "
-                        "measured with --elastic-signature table; about 3x the time; with "
-                        "--neighbours the search is approximate and says so")
+    _add_elastic(p, "--neighbours: the search is approximate and says so")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "
