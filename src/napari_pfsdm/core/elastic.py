@@ -254,8 +254,9 @@ def elastic_nearest(signatures: np.ndarray, candidates: np.ndarray, base: np.nda
     d_E is below (k-th total − base) / μ, and its DTW is abandoned as soon as the least
     cost of a path through the current row plus the least cell of each row left exceeds
     that (:mod:`module docstring <napari_pfsdm.core.elastic>`); the first candidate whose
-    base exceeds the k-th total ends the row. On MPEG-7 this computes d_E fully for a few
-    candidates per object (docs/benchmarks.md, "The elastic outline term").
+    base exceeds the k-th total ends the row. (The neighbour search with the term,
+    :mod:`.elastic_neighbours`, takes its candidates otherwise: the rows' exactness here
+    needs candidates in the order of a lower bound of the other terms over all objects.)
     """
     search = SignatureSet(signatures, band=band, n_shifts=n_shifts, half_steps=half_steps)
     return search.nearest(np.arange(len(search)), candidates, base, weight, k)
