@@ -96,13 +96,16 @@ def nearest_neighbours(
         λ (default 1, :data:`napari_pfsdm.core.distances.BOUNDARY_WEIGHT`; 0: SDF term only).
     elastic_weight : float, optional
         μ, the weight of the elastic outline term (default 0,
-        :data:`napari_pfsdm.core.distances.ELASTIC_WEIGHT`). With μ > 0 the search is no
-        longer exact: each object's ``elastic_candidates`` nearest under the other terms
-        (found exactly, as above) get the elastic term added, and the k nearest of them are
-        kept (its recall against the full matrix: docs/benchmarks.md).
+        :data:`napari_pfsdm.core.distances.ELASTIC_WEIGHT`;
+        :data:`~napari_pfsdm.core.distances.RECOMMENDED_ELASTIC_WEIGHT` for retrieval). With
+        μ > 0 the search is approximate and says so in its result: candidates from the
+        term's own cheaper forms, then the exact distances of those
+        (:mod:`napari_pfsdm.core.elastic_neighbours`; recall against the full matrix:
+        docs/benchmarks.md, "The elastic term's neighbours").
     elastic_candidates : int, optional
-        Candidates per object for the elastic term (default
-        :data:`ELASTIC_CANDIDATES` × k, at most n − 1).
+        With the elastic term, the candidates per object whose exact distance is computed
+        (and a pool of ten times that); default: measured on a sample of the objects
+        (:func:`napari_pfsdm.core.elastic_neighbours.depth`).
     method : {"bound", "brute"}
         ``"bound"`` (default): exact search by a lower bound (below); ``"brute"``: every
         pair, block by block (the reference, ~2 µs per pair).
@@ -121,6 +124,9 @@ def nearest_neighbours(
 
     Returns
     -------
+    Neighbours
+        The pair ``(indices, distances)`` (unpacked as a tuple), with ``certified`` rows,
+        ``exact`` and ``depth`` (:class:`Neighbours`).
     indices : ndarray of int, shape (n, k)
         Row numbers of each object's neighbours, nearest first, never the object itself.
         Equal distances are ordered by row number.
@@ -132,9 +138,10 @@ def nearest_neighbours(
 
     Notes
     -----
-    The search is exact (the same neighbours as sorting the rows of ``distance_matrix``,
-    tested; on MPEG-7 up to ties within 1e-6, which the matrix itself does not reproduce
-    when the objects are reordered: docs/benchmarks.md, "Nearest neighbours"). For each
+    Without the elastic term the search is exact (the same neighbours as sorting the rows of
+    ``distance_matrix``, tested; on MPEG-7 up to ties within 1e-6, which the matrix itself
+    does not reproduce when the objects are reordered: docs/benchmarks.md, "Nearest
+    neighbours"). For each
     block of queries it computes, for all objects at once and in single precision, a lower
     bound LB ≤ D: the distance of the features projected on their first ≤ 32 principal
     components (a projection never lengthens a difference) plus λ sqrt(1 − min(1,
