@@ -61,15 +61,15 @@ PROFILE_HARMONICS, HARMONICS_FACTOR = 8, 4.0
 PROFILE_WEIGHT = 0.25
 #: Random objects whose rows against all objects set how deep the search looks
 #: (:func:`depth`), and the share of their neighbours that depth must hold.
-SAMPLE, SAMPLE_QUANTILE = 48, 0.99
+SAMPLE, SAMPLE_QUANTILE = 64, 0.99
 #: Margins on the depths the sample asks for (the pool, the candidates).
-POOL_MARGIN, CANDIDATE_MARGIN = 1.5, 1.5
+POOL_MARGIN, CANDIDATE_MARGIN = 1.75, 1.5
 #: Bounds of the pool and the candidates (besides n − 1, and k for the candidates).
 MIN_POOL, MAX_POOL = 150, 600
-MIN_CANDIDATES, MAX_CANDIDATES = 20, 80
+MIN_CANDIDATES, MAX_CANDIDATES = 20, 60
 #: Objects of each sampled row given the coarse d_E in :func:`depth` (its first in stage 1's
 #: order; a neighbour further down counts as this deep).
-SAMPLE_DEPTH = 400
+SAMPLE_DEPTH = 300
 #: Relative margin of the single-precision bound in the certification (as the default
 #: search's).
 _SAFE = 1 - 1e-6
