@@ -119,14 +119,14 @@ def main(argv=None) -> int:
     print(f"| set | score | {head} |\n|---|---|" + "---|" * len(ws))
     d_pf, d_e, y = mpeg7_set()
     for name, fn in (("bull's-eye %", lambda d: bullseye(d, y).score),
-                     ("1-NN %", lambda d: 100 * loo_1nn(d, y)),
+                     ("1-NN %", lambda d: loo_1nn(d, y)),
                      ("silhouette", lambda d: silhouette_score(d, y, metric="precomputed"))):
         print(f"| MPEG-7 | {name} | " + " | ".join(f"{fn(d_pf + w * d_e):.3f}" for w in ws)
               + " |", flush=True)
     for set_name, d_pf, d_e, y in class_sets():
         for name, fn in (("silhouette", lambda d, y=y: silhouette_score(d, y,
                                                                          metric="precomputed")),
-                         ("1-NN %", lambda d, y=y: 100 * loo_1nn(d, y))):
+                         ("1-NN %", lambda d, y=y: loo_1nn(d, y))):
             print(f"| {set_name} | {name} | "
                   + " | ".join(f"{fn(d_pf + w * d_e):.3f}" for w in ws) + " |", flush=True)
     d_pf, d_e, frames, labels = nuclei_set()
