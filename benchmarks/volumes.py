@@ -86,7 +86,7 @@ def matrices(results, masks, harmonic=None) -> dict[str, np.ndarray]:
         out["PF-SDM, harmonic ball map"] = distance_matrix(harmonic)
     shells = Embeddings(shape=np.stack([r.embedding for r in results]),
                         weights=results[0].weights, mode_weights=results[0].mode_weights)
-    out["PF-SDM interior shells only"] = distance_matrix(shells)
+    out["PF-SDM interior shells only"] = distance_matrix(shells, boundary_weight=0)
     mw = results[0].mode_weights
     out["surface radial SH power"] = _euclid(np.stack([r.surface_embedding * mw
                                                        for r in results]))

@@ -29,7 +29,8 @@ from napari_pfsdm.report import write_report
 
 #: A group name a person could type, that HTML must not read as markup.
 ODD = "multi <b>&\"axes\""
-SECTIONS = ("findings", "trajectories", "over-time", "pcs", "gallery", "counts", "options")
+SECTIONS = ("findings", "trajectories", "over-time", "pcs", "gallery", "nearest", "counts",
+            "options")
 #: What the findings say when predictions are given.
 PREDICTED = "Predicting the groups from the features"
 CHROMIUM = Path("/usr/bin/chromium")

@@ -23,7 +23,7 @@ __getattr__, __dir__, __all__ = lazy_names(__name__, {
     "core.descriptor": ["DEFAULTS", "PFSDMResult", "pfsdm", "render_disk"],
     "core.descriptor3d": ["PFSDM3DResult", "shell_maps", "surface_mesh"],
     "core.medial_axis": ["Skeleton", "skeleton"],
-    "core.distances": ["distance"],
+    "core.distances": ["RECOMMENDED_ELASTIC_WEIGHT", "distance"],
     "analysis.tables": ["distance_matrix", "embeddings_from_table", "weighted_features"],
     "analysis.features": ["ObjectResult", "drop_failed", "iter_objects", "measure"],
     "analysis.transformer": ["PFSDMTransformer"],
@@ -43,7 +43,7 @@ if TYPE_CHECKING:  # pragma: no cover - the same names, for type checkers and ID
     from .analysis.transformer import PFSDMTransformer  # noqa: F401
     from .core.descriptor import DEFAULTS, PFSDMResult, pfsdm, render_disk  # noqa: F401
     from .core.descriptor3d import PFSDM3DResult, shell_maps, surface_mesh  # noqa: F401
-    from .core.distances import distance  # noqa: F401
+    from .core.distances import RECOMMENDED_ELASTIC_WEIGHT, distance  # noqa: F401
     from .core.medial_axis import Skeleton, skeleton  # noqa: F401
     from .io import read_table_csv as read_table  # noqa: F401
     from .io import write_table_csv as write_table  # noqa: F401

@@ -36,6 +36,7 @@ def write_report(
     columns: Sequence[str] = REPORT_COLUMNS,
     source: str | None = None,
     force: bool = False,
+    elastic_weight: float | None = None,
 ) -> Path:
     """Write the report of ``table`` to ``path`` (one HTML file that opens offline).
 
@@ -43,8 +44,8 @@ def write_report(
     (object → group, or a groups table), ``predictions`` (a ``Prediction`` from
     ``predict_outcome``, or a predictions table with ``prediction_info``, its sidecar),
     ``labels`` (the label movie, for the outlines), ``title``, ``columns`` (measures over
-    time), ``source`` (shown under the title). ``force`` replaces a file napari-pfsdm did not
-    write.
+    time), ``source`` (shown under the title), ``elastic_weight`` (the distance of its
+    "Nearest shapes"). ``force`` replaces a file napari-pfsdm did not write.
 
     Returns
     -------
@@ -74,5 +75,5 @@ def write_report(
     check_overwrite(path, force=force, what="report", table=False)
     text = report_html(table, groups=groups, predictions=predictions,
                        prediction_info=prediction_info, labels=labels, title=title,
-                       columns=columns, source=source)
+                       columns=columns, source=source, elastic_weight=elastic_weight)
     return atomic_write(path, lambda handle: handle.write(text))

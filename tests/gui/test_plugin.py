@@ -446,7 +446,7 @@ def test_the_plots_follow_the_model(qtbot, viewer_widget):
     viewer.dims.set_current_step(0, 3)
     qtbot.waitUntil(lambda: len(plots.comparison.keys) == 6, timeout=60_000)
     sub = pf.drop_failed(analysis.table[analysis.table["frame"] == 3])
-    np.testing.assert_allclose(analysis.comparison[(3, 0.0, False)]["d"],
+    np.testing.assert_allclose(analysis.comparison[(3, 0.0, False, 0.0)]["d"],
                                pf.distance_matrix(sub), rtol=1e-9)
 
 
@@ -567,7 +567,7 @@ def test_cancelled_distances_say_so_and_a_new_request_computes_them(qtbot, shown
     comp.cancel()
     qtbot.waitUntil(lambda: comp.worker is None, timeout=60_000)
     assert "Cancelled" in comp.info.value and not comp.cancel_button.visible
-    assert (None, 0.0, False) not in analysis.comparison
+    assert (None, 0.0, False, 0.0) not in analysis.comparison
     comp.rerank.value = True  # something else asked: computed
     qtbot.waitUntil(lambda: len(comp.keys) == 72, timeout=60_000)
     assert not comp.cancel_button.visible and "72 objects" in comp.info.value

@@ -24,7 +24,7 @@ from ..core.table_schema import table_ndim
 from .tables import embeddings as _table_embeddings
 from .tables import is_table
 
-__all__ = ["nearest_neighbours", "neighbour_index"]
+__all__ = ["NeighbourSearch", "Neighbours", "nearest_neighbours", "neighbour_index"]
 
 
 def neighbour_index(items, intensity_weight: float = 0.0,
@@ -96,13 +96,16 @@ def nearest_neighbours(
         λ (default 1, :data:`napari_pfsdm.core.distances.BOUNDARY_WEIGHT`; 0: SDF term only).
     elastic_weight : float, optional
         μ, the weight of the elastic outline term (default 0,
-        :data:`napari_pfsdm.core.distances.ELASTIC_WEIGHT`). With μ > 0 the search is no
-        longer exact: each object's ``elastic_candidates`` nearest under the other terms
-        (found exactly, as above) get the elastic term added, and the k nearest of them are
-        kept (its recall against the full matrix: docs/benchmarks.md).
+        :data:`napari_pfsdm.core.distances.ELASTIC_WEIGHT`;
+        :data:`~napari_pfsdm.core.distances.RECOMMENDED_ELASTIC_WEIGHT` for retrieval). With
+        μ > 0 the search is approximate and says so in its result: candidates from the
+        term's own cheaper forms, then the exact distances of those
+        (:mod:`napari_pfsdm.core.elastic_neighbours`; recall against the full matrix:
+        docs/benchmarks.md, "The elastic term's neighbours").
     elastic_candidates : int, optional
-        Candidates per object for the elastic term (default
-        :data:`ELASTIC_CANDIDATES` × k, at most n − 1).
+        With the elastic term, the candidates per object whose exact distance is computed
+        (and a pool of ten times that); default: measured on a sample of the objects
+        (:func:`napari_pfsdm.core.elastic_neighbours.depth`).
     method : {"bound", "brute"}
         ``"bound"`` (default): exact search by a lower bound (below); ``"brute"``: every
         pair, block by block (the reference, ~2 µs per pair).
@@ -121,6 +124,9 @@ def nearest_neighbours(
 
     Returns
     -------
+    Neighbours
+        The pair ``(indices, distances)`` (unpacked as a tuple), with ``certified`` rows,
+        ``exact`` and ``depth`` (:class:`Neighbours`).
     indices : ndarray of int, shape (n, k)
         Row numbers of each object's neighbours, nearest first, never the object itself.
         Equal distances are ordered by row number.
@@ -132,9 +138,10 @@ def nearest_neighbours(
 
     Notes
     -----
-    The search is exact (the same neighbours as sorting the rows of ``distance_matrix``,
-    tested; on MPEG-7 up to ties within 1e-6, which the matrix itself does not reproduce
-    when the objects are reordered: docs/benchmarks.md, "Nearest neighbours"). For each
+    Without the elastic term the search is exact (the same neighbours as sorting the rows of
+    ``distance_matrix``, tested; on MPEG-7 up to ties within 1e-6, which the matrix itself
+    does not reproduce when the objects are reordered: docs/benchmarks.md, "Nearest
+    neighbours"). For each
     block of queries it computes, for all objects at once and in single precision, a lower
     bound LB ≤ D: the distance of the features projected on their first ≤ 32 principal
     components (a projection never lengthens a difference) plus λ sqrt(1 − min(1,
@@ -163,30 +170,148 @@ def nearest_neighbours(
     >>> idx[:, 0].tolist()
     [1, 0, 1]
     """
-    mu = _dist.check_elastic_weight(elastic_weight)
-    signatures = _signatures(items) if mu else None
-    index = neighbour_index(items, intensity_weight, boundary_weight)
-    k = check_k(k, len(index))
     if method not in METHODS:
         from ..errors import InputError
 
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    k_search = k
+    search = NeighbourSearch(items, intensity_weight=intensity_weight,
+                             boundary_weight=boundary_weight, elastic_weight=elastic_weight)
+    k = check_k(k, len(search))
+    mu = search.elastic_weight
+    parts = blocks(len(search), max(1, int(block) if not mu else min(int(block), _ELASTIC_BLOCK)))
+    if mu and method == "brute":
+        out = [search.rows(rows, k, "brute") for rows in parts]
+        return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]))
     if mu:
-        k_search = min(len(index) - 1, max(k, int(elastic_candidates or ELASTIC_CANDIDATES * k)))
-    parts = blocks(len(index), max(1, int(block)))
-    if scheduler is None and client is None:
-        out = _run_threads(index, parts, k_search, method, n_jobs)
+        depth = search.depth(k, elastic_candidates)
+        index, method, elastic = search.elastic, "elastic", (mu, *depth)
     else:
-        out = _run_dask(index, parts, k_search, method, scheduler, client)
-    idx, dist = np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out])
-    if mu:
-        idx, dist = _add_elastic(idx, dist, signatures, mu, k)
-    return idx, dist
+        depth, index, elastic = None, search.index, ()
+    if scheduler is None and client is None:
+        out = _run_threads(index, parts, k, method, n_jobs, elastic)
+    else:
+        out = _run_dask(index, parts, k, method, scheduler, client, elastic)
+    return Neighbours(np.vstack([o[0] for o in out]), np.vstack([o[1] for o in out]),
+                      np.concatenate([o[2] for o in out]) if mu else None, depth=depth)
 
 
-#: Candidates per object (× k) that get the elastic term in :func:`nearest_neighbours`.
-ELASTIC_CANDIDATES = 12
+class NeighbourSearch:
+    """A neighbour search prepared once, for queries a few rows at a time (the plugin's
+    Similar tab keeps one per run): the same options, checks and results as
+    :func:`nearest_neighbours`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from napari_pfsdm import measure
+    >>> labels = np.zeros((64, 200), int)
+    >>> labels[10:50, 10:50] = 1
+    >>> labels[12:48, 60:100] = 2
+    >>> labels[25:35, 120:190] = 3
+    >>> search = NeighbourSearch(measure(labels))
+    >>> search.rows([2], k=1).indices.tolist()
+    [[1]]
+    """
+
+    def __init__(self, items: Any, *, intensity_weight: float = 0.0,
+                 boundary_weight: float | None = None,
+                 elastic_weight: float | None = None) -> None:
+        self.elastic_weight = _dist.check_elastic_weight(elastic_weight)
+        signatures = _signatures(items) if self.elastic_weight else None
+        self.index = neighbour_index(items, intensity_weight, boundary_weight)
+        self.elastic = None
+        if self.elastic_weight:
+            from ..core.elastic_neighbours import ElasticIndex
+
+            self.elastic = ElasticIndex.build(self.index, signatures)
+        self._depth: dict = {}
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def depth(self, k: int, candidates: int | None = None) -> tuple[int, int]:
+        """With the elastic term: the pool and candidates per object for k neighbours
+        (:func:`napari_pfsdm.core.elastic_neighbours.depth`, measured once per k)."""
+        from ..core import elastic_neighbours as en
+
+        if candidates:
+            return en.sizes(k, len(self), candidates)
+        if k not in self._depth:
+            self._depth[k] = en.depth(self.elastic, self.elastic_weight, k)
+        return self._depth[k]
+
+    def rows(self, rows, k: int, method: str = "bound") -> Neighbours:
+        """The k nearest of the objects ``rows`` among all (:func:`nearest_neighbours`'s
+        rows for them)."""
+        rows = np.asarray(rows, np.intp)
+        k = check_k(k, len(self))
+        if not self.elastic_weight:
+            return Neighbours(*search_rows(self.index, rows, k, method))
+        from ..core import elastic_neighbours as en
+
+        if method == "brute":
+            return Neighbours(*en.brute_rows(self.elastic, rows, k, self.elastic_weight))
+        depth = self.depth(k)
+        idx, dist, cert = en.search_rows(self.elastic, rows, k, self.elastic_weight, *depth)
+        return Neighbours(idx, dist, cert, depth=depth)
+
+
+class Neighbours(tuple):
+    """What :func:`nearest_neighbours` returns: the pair ``(indices, distances)`` (unpacked as
+    before), and what is known of it.
+
+    Attributes
+    ----------
+    indices, distances : ndarray, shape (n, k)
+        The two arrays.
+    certified : ndarray of bool, shape (n,)
+        Rows proven to be the k nearest of all objects (every row for the default distance;
+        with the elastic term, rows whose k-th distance is below the lower bound of every
+        object left out of their candidates).
+    exact : bool
+        Every row certified.
+    depth : (int, int) or None
+        With the elastic term: the pool and the candidates per object that the search looked
+        at (:func:`napari_pfsdm.core.elastic_neighbours.depth`).
+    """
+
+    def __new__(cls, indices: np.ndarray, distances: np.ndarray,
+                certified: np.ndarray | None = None,
+                depth: tuple[int, int] | None = None) -> Neighbours:
+        self = super().__new__(cls, (indices, distances))
+        self.certified = (np.ones(len(indices), bool) if certified is None
+                          else np.asarray(certified, bool))
+        self.depth = depth
+        return self
+
+    def __getnewargs__(self):
+        return (self[0], self[1], self.certified, self.depth)
+
+    @property
+    def indices(self) -> np.ndarray:
+        return self[0]
+
+    @property
+    def distances(self) -> np.ndarray:
+        return self[1]
+
+    @property
+    def exact(self) -> bool:
+        return bool(self.certified.all())
+
+    def describe(self) -> str:
+        """One sentence for a user: exact, or which share of the rows is certified."""
+        if self.exact:
+            return "exact: every object's neighbours are those of the full distance matrix"
+        return (f"approximate: {self.certified.mean():.0%} of the objects' neighbours are "
+                "certified those of the full distance matrix; the others are the nearest "
+                "among each object's candidates (recall against the full matrix measured in "
+                "docs/benchmarks.md)")
+
+
+#: Query rows per thread or task with the elastic term (at most): its blocks cost ~100× the
+#: default's per row, and smaller ones share the cores more evenly.
+_ELASTIC_BLOCK = 128
 
 
 def _signatures(items) -> np.ndarray:
@@ -200,8 +325,7 @@ def _signatures(items) -> np.ndarray:
         if sig is None:
             from ..errors import InputError
 
-            raise InputError("elastic_weight > 0 needs the table's elastic_* columns (a table "
-                             "measured before the elastic term has none): measure again.")
+            raise InputError(_dist.NO_SIGNATURES)
         return sig
     if not isinstance(items, Embeddings):
         items = list(items)
@@ -210,66 +334,30 @@ def _signatures(items) -> np.ndarray:
     return _dist.signatures_of(items)
 
 
-def _add_elastic(idx: np.ndarray, dist: np.ndarray, signatures: np.ndarray, mu: float,
-                 k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each row's candidates (idx, dist: the other terms, nearest first) with μ d_E added,
-    the k nearest kept (nearest first, equal distances by row number). d_E is computed in
-    the candidates' order and only as far as it can still matter
-    (:func:`napari_pfsdm.core.elastic.elastic_nearest`); rows whose own or a candidate's
-    signature is not finite, or with NaN distances (objects without features), get every
-    candidate's d_E, as :func:`elastic_distance_between` gives it (NaN totals last)."""
-    from ..core.elastic import elastic_distance_between, elastic_nearest
-
-    sig = np.asarray(signatures, float)
-    ok = np.isfinite(sig).all(axis=(1, 2))
-    cand = np.where(idx >= 0, idx, -1)
-    plain = (~ok | (~ok[np.maximum(cand, 0)] & (cand >= 0)).any(axis=1)
-             | np.isnan(dist).any(axis=1))
-    out_i = np.full((len(idx), k), -1, np.int64)
-    out_d = np.full((len(idx), k), np.inf)
-    fast = np.flatnonzero(~plain)
-    if fast.size:
-        # the kernel reads each object's signature by number: NaN rows zeroed (never used)
-        sig0 = np.where(ok[:, None, None], sig, 0.0)
-        sub_i = np.full((len(idx), cand.shape[1]), -1, np.int64)
-        sub_i[fast] = cand[fast]
-        base = np.where(sub_i >= 0, dist, np.inf)
-        i_all, d_all, _, _ = elastic_nearest(sig0, sub_i, base, mu, k)
-        out_i[fast], out_d[fast] = i_all[fast], d_all[fast]
-    slow = np.flatnonzero(plain)
-    if slow.size:
-        sub, dsub = idx[slow], dist[slow]
-        rows, cols = np.nonzero(sub >= 0)
-        total = dsub.astype(float).copy()
-        if rows.size:
-            total[rows, cols] += mu * elastic_distance_between(sig, slow[rows],
-                                                               sub[rows, cols])
-        total = np.where(sub >= 0, total, np.where(np.isnan(dsub), np.nan, np.inf))
-        key = np.where(np.isnan(total), np.inf, total)
-        order = np.lexsort((sub, key), axis=1)[:, :k]
-        out_i[slow] = np.take_along_axis(sub, order, 1)
-        out_d[slow] = np.take_along_axis(total, order, 1)
-    return out_i, out_d
-
-
-def _search_block(index: NeighbourIndex, rows: np.ndarray, k: int,
-                  method: str) -> tuple[np.ndarray, np.ndarray]:
-    """One dask task / thread: a block of queries with BLAS on one thread."""
+def _search_block(index, rows: np.ndarray, k: int, method: str, elastic: tuple = ()):
+    """One dask task / thread: a block of queries with BLAS on one thread; ``method``
+    "elastic": with the elastic term (``index`` an ElasticIndex, ``elastic`` (μ, pool,
+    candidates)), its d_E on this thread."""
     from ..core.threads import one_blas_thread
 
     with one_blas_thread():
+        if method == "elastic":
+            from ..core.elastic_neighbours import search_rows as elastic_rows
+
+            return elastic_rows(index, rows, k, *elastic, here=True)
         return search_rows(index, rows, k, method)
 
 
-def _run_threads(index, parts, k, method, n_jobs):
+def _run_threads(index, parts, k, method, n_jobs, elastic=()):
     n_jobs = max(1, min(int(n_jobs or os.cpu_count() or 1), len(parts)))
     if n_jobs == 1:
-        return [_search_block(index, rows, k, method) for rows in parts]
+        return [_search_block(index, rows, k, method, elastic) for rows in parts]
     with ThreadPoolExecutor(n_jobs) as pool:
-        return list(pool.map(lambda rows: _search_block(index, rows, k, method), parts))
+        return list(pool.map(lambda rows: _search_block(index, rows, k, method, elastic),
+                             parts))
 
 
-def _run_dask(index, parts, k, method, scheduler, client):
+def _run_dask(index, parts, k, method, scheduler, client, elastic=()):
     from .schedulers import available_cores, client_for, process_pool, resolve_scheduler
 
     kind, obj = resolve_scheduler(scheduler, client)
@@ -277,7 +365,7 @@ def _run_dask(index, parts, k, method, scheduler, client):
         import dask
 
         shared = dask.delayed(index, traverse=False)
-        tasks = [dask.delayed(_search_block, pure=False)(shared, rows, k, method)
+        tasks = [dask.delayed(_search_block, pure=False)(shared, rows, k, method, elastic)
                  for rows in parts]
         if obj != "processes":
             return list(dask.compute(*tasks, scheduler=obj))
@@ -287,7 +375,7 @@ def _run_dask(index, parts, k, method, scheduler, client):
     with client_for(kind, obj) as handle:  # opens a client for a scheduler address
         shared = handle.scatter(index, broadcast=True)
         tag = os.urandom(4).hex()
-        futures = [handle.submit(_search_block, shared, rows, k, method, pure=False,
+        futures = [handle.submit(_search_block, shared, rows, k, method, elastic, pure=False,
                                  key=f"pfsdm-neighbours-{i}-{tag}")
                    for i, rows in enumerate(parts)]
         try:

@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from .._version import __version__
+from ..core.distances import check_elastic_weight
 from ..core.params import DERIVED, WEIGHT_OPTIONS, option
 from ..core.table_options import carry_options, table_options
 from ..core.table_schema import NO_TRACK, TRACK_COLUMN
@@ -53,6 +54,8 @@ REPORT_COLUMNS = ("area", "circularity", "solidity", "intensity_mean")
 GALLERY = 3
 #: Components explained, drawn and shown in the gallery.
 N_PCS = 3
+#: Objects whose nearest shapes the report shows (spread along PC1), and how many each.
+NEAREST_QUERIES, NEAREST_SHOWN = 4, 5
 #: At most this many objects' trajectories per panel (every k-th beyond).
 MAX_LINES = 200
 #: At most this many groups get a trajectory panel (the first, by name).
@@ -548,6 +551,50 @@ def _gallery_section(scores: pd.DataFrame, masks: _Masks, several: bool, n_pcs: 
     return "".join(out)
 
 
+def _nearest_section(measured: pd.DataFrame, scores: pd.DataFrame, masks: _Masks,
+                     several: bool, elastic_weight: float) -> str:
+    """A few objects spread along PC1 and their nearest shapes among all measured objects
+    (:class:`~napari_pfsdm.analysis.neighbours.NeighbourSearch`: the PF-SDM distance, with the
+    elastic outline term when ``elastic_weight`` > 0), drawn as outlines (the labels given)
+    or listed."""
+    from .neighbours import NeighbourSearch
+
+    n = len(measured)
+    k = min(NEAREST_SHOWN, n - 1)
+    order = np.argsort(scores["shape_PC1"].to_numpy(float), kind="stable")
+    picks = np.unique(order[np.linspace(0, n - 1, min(NEAREST_QUERIES, n)).round().astype(int)])
+    found = NeighbourSearch(measured, elastic_weight=elastic_weight).rows(picks, k)
+    term = (f"the PF-SDM distance with the elastic outline term (μ = {elastic_weight:g})"
+            if elastic_weight else "the PF-SDM distance")
+    note = (f'<p class="note">{len(picks)} objects spread along PC1 (first column) and their '
+            f"{k} nearest shapes among the {n:,} measured objects, under {term}, with the "
+            "distances.")
+    if not found.exact:
+        note += (" With the elastic term the search is approximate: "
+                 f"{found.certified.mean():.0%} of these rows are certified those of the "
+                 "full distance matrix, the others the nearest among each object's candidates.")
+    out = [note + "</p>"]
+    for q, idx, dist in zip(picks, found.indices, found.distances, strict=True):
+        rows = [(measured.iloc[int(q)].to_dict(), None)]
+        rows += [(measured.iloc[int(j)].to_dict(), d) for j, d in zip(idx, dist, strict=True)
+                 if j >= 0]
+        if not masks:
+            out.append(_table_html([[_where(r, several), "" if d is None else f"{d:.4g}"]
+                                    for r, d in rows], ["object", "distance"]))
+            continue
+        out.append('<div class="gallery">')
+        for r, d in rows:
+            fig = _figure(1.3, 1.3)
+            _draw_mask(fig.subplots(), masks.mask(r),
+                       colour="tab:red" if d is None else "0.25")
+            where = _where(r, several)
+            text = "this one" if d is None else f"d = {d:.3g}"
+            out.append(f"<figure>{_img(fig, where)}<figcaption>{_e(where)}<br>{text}"
+                       "</figcaption></figure>")
+        out.append("</div>")
+    return "".join(out)
+
+
 # ------------------------------------------------------------------------------- the page
 def report_html(
     table: pd.DataFrame,
@@ -560,6 +607,7 @@ def report_html(
     columns: Sequence[str] = REPORT_COLUMNS,
     source: str | None = None,
     findings: Sequence[tuple[str, str | float]] | None = None,
+    elastic_weight: float | None = None,
 ) -> str:
     """The report of a run as one self-contained HTML text (no links out, no script): the
     findings first (what differs between the groups, the prediction), then the trajectories,
@@ -590,6 +638,10 @@ def report_html(
     findings : sequence of (measure, summary or time), optional
         The measures tested between the groups (:func:`~napari_pfsdm.analysis.findings.
         default_findings` when not given; ``shape_PC1`` is the report's own PCA).
+    elastic_weight : float, optional
+        μ of the elastic outline term in the distance of the "Nearest shapes" section (default
+        0: the PF-SDM distance; :data:`napari_pfsdm.RECOMMENDED_ELASTIC_WEIGHT` for retrieval
+        among articulated or detailed outlines; the table must carry the signatures).
 
     Returns
     -------
@@ -643,6 +695,9 @@ def report_html(
                          _pc_section(table, measured, space, scores, masks, several)))
         sections.append(("gallery", "Gallery: the most extreme objects per PC",
                          _gallery_section(scores, masks, several, n_pcs)))
+        sections.append(("nearest", "Nearest shapes",
+                         _nearest_section(measured, scores, masks, several,
+                                          check_elastic_weight(elastic_weight))))
     else:
         sections.append(("over-time", "Measures over time", _over_time_section(measured,
                                                                                columns)))

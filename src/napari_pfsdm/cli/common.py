@@ -292,6 +292,45 @@ def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
+def _add_elastic(p: argparse.ArgumentParser, more: str) -> None:
+    """``--elastic [W]``: the elastic outline term in the distance (``elastic_weight``; the
+    recommended weight when given alone); ``more``: what it changes in this command."""
+    from ..core.distances import RECOMMENDED_ELASTIC_WEIGHT
+    from ..core.params import option
+
+    elastic = option("elastic_weight")
+    p.add_argument("--elastic", nargs="?", dest="elastic_weight", type=_option_type(elastic),
+                   const=RECOMMENDED_ELASTIC_WEIGHT, default=elastic.default, metavar="W",
+                   help="add the elastic outline term, weight W (default when given "
+                        f"{RECOMMENDED_ELASTIC_WEIGHT:g}, the weight that retrieves best): "
+                        "for articulated or detailed outlines and retrieval; not for round "
+                        "nuclei or clustering silhouettes (docs/method.md). Needs a table "
+                        f"measured with --elastic-signature table; about 3x the time; {more}")
+
+
+def _check_elastic(table, args: argparse.Namespace) -> None:
+    """``--elastic`` needs the outline signatures in the table: say how to measure them."""
+    from ..core.table_schema import has_signature
+
+    if args.elastic_weight and not has_signature(table.columns)[0]:
+        raise UserError(
+            f"--elastic compares the objects' outline signatures, and {args.features} has "
+            "none (no elastic_* columns): measure the movies again with "
+            "'pfsdm measure ... --elastic-signature table', or leave --elastic out")
+
+
+def _elastic_notice(args: argparse.Namespace):
+    """With ``--elastic``: numba's first compile of the term's kernels said on stderr (unless
+    ``-q``); else nothing."""
+    import contextlib
+
+    if not getattr(args, "elastic_weight", 0):
+        return contextlib.nullcontext()
+    from ..core.compiled import compile_notice
+
+    return compile_notice(lambda message: _note(message, args.quiet))
+
+
 def _add_force(p: argparse.ArgumentParser) -> None:
     """``--force``: replace output files pfsdm did not write."""
     p.add_argument("--force", action="store_true",

@@ -12,8 +12,11 @@ from typing import Any
 from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
 from .common import (
     UserError,
+    _add_elastic,
     _add_force,
     _add_groups,
+    _check_elastic,
+    _elastic_notice,
     _note,
     _option_type,
     _say,
@@ -54,7 +57,7 @@ def _nearest(table, k: int, args: argparse.Namespace):
 
     return nearest_neighbours(
         table, k=k, intensity_weight=args.intensity_weight,
-        boundary_weight=args.boundary_weight)
+        boundary_weight=args.boundary_weight, elastic_weight=args.elastic_weight)
 
 
 def _graph_of_matrix(matrix, k: int):
@@ -80,7 +83,8 @@ def _median_distance(table, args: argparse.Namespace, size: int = 400) -> float:
     pick = np.sort(rng.choice(len(table), size=min(size, len(table)), replace=False))
     sub = carry_options(table, table.iloc[pick].reset_index(drop=True))
     d = distance_matrix(sub, intensity_weight=args.intensity_weight,
-                        boundary_weight=args.boundary_weight)
+                        boundary_weight=args.boundary_weight,
+                        elastic_weight=args.elastic_weight)
     return float(np.median(d[~np.eye(len(d), dtype=bool)]))
 
 
@@ -99,7 +103,8 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 
             with _Step(f"computing the {n:,} x {n:,} distances of the map", args.quiet):
                 matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
-                                         boundary_weight=args.boundary_weight)
+                                         boundary_weight=args.boundary_weight,
+                                         elastic_weight=args.elastic_weight)
                 if args.rerank:
                     from ..analysis.rerank import rerank
 
@@ -127,7 +132,13 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map."""
+    """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map; with
+    ``--elastic``, numba's first compile of the term's kernels said on stderr."""
+    with _elastic_notice(args):
+        return _compare(args)
+
+
+def _compare(args: argparse.Namespace) -> int:
     import numpy as np
     import pandas as pd
 
@@ -144,6 +155,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise UserError("--rerank transduction needs the full matrix (it inverts an n x n "
                         "matrix); with --neighbours use --rerank diffusion or mutual")
     table = load_features(args.features)
+    _check_elastic(table, args)
     rows = pd.Series(np.arange(len(table)), index=table.index, name=_FILE_ROW)
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
@@ -164,7 +176,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         )
     with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
         matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
-                                 boundary_weight=args.boundary_weight)
+                                 boundary_weight=args.boundary_weight,
+                                 elastic_weight=args.elastic_weight)
     if args.rerank:
         from ..analysis.rerank import rerank
 
@@ -174,6 +187,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
+    opts["elastic_weight"] = args.elastic_weight
     opts["rerank"] = args.rerank or "none"
     if args.rerank:
         opts["rerank_k"] = min(args.rerank_k, n - 1)
@@ -206,8 +220,15 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     if args.mds and n > FULL_MATRIX_LIMIT:
         k_graph = max(k_graph, min(n - 1, MAP_NEIGHBOURS))
     with _Step(f"finding the {k_graph} nearest neighbours of {n:,} objects", args.quiet):
-        idx, dist = _nearest(table, k_graph, args)
+        found = _nearest(table, k_graph, args)
+    idx, dist = found
     extra: dict[str, Any] = {}
+    if not found.exact:  # the elastic term's search
+        _note(f"the neighbours with the elastic term are {found.describe()}", args.quiet)
+        extra.update(neighbours_exact=False,
+                     neighbours_certified_share=float(found.certified.mean()),
+                     neighbours_searched=dict(zip(("pool", "candidates"), found.depth,
+                                                  strict=True)))
     graph = (idx, dist)
     m = max(k, min(n - 1, MAP_NEIGHBOURS)) if args.mds and n > FULL_MATRIX_LIMIT else k
     if args.rerank:
@@ -229,6 +250,7 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     opts = table_options(table)
     opts["intensity_weight"] = args.intensity_weight
     opts["boundary_weight"] = args.boundary_weight
+    opts["elastic_weight"] = args.elastic_weight
     opts["rerank"] = args.rerank or "none"
     if args.rerank:
         opts["rerank_k"] = rk
@@ -259,14 +281,19 @@ position, size, rotation or mirror image. Writes a square CSV (rows and columns 
 movie/t<frame>/l<label>) and, with --mds, a 2-D map where close points are similar shapes.
 
 The default distance adds the pushed-forward SDF term and the boundary (outline) term;
---boundary-weight 0 keeps the SDF term alone. --rerank re-ranks the distances by the
-collection's neighbourhoods: it helps retrieval in large collections (tens of objects per
-kind), and can hurt with few objects per kind or when only the single nearest match counts.
+--boundary-weight 0 keeps the SDF term alone. --elastic adds the elastic outline term, which
+lets the outlines' correspondence bend: it helps retrieval among articulated or detailed
+outlines (limbs, notches, appendages), does nothing for round nuclei and can hurt clustering of
+whole silhouettes (the table measured with --elastic-signature table). --rerank re-ranks the
+distances by the collection's neighbourhoods: it helps retrieval in large collections (tens of
+objects per kind), and can hurt with few objects per kind or when only the single nearest
+match counts.
 
 examples:
   pfsdm compare features.csv --frames 0 -o distances.csv --mds mds.png
   pfsdm compare features.csv --frames 20-24 --intensity-weight 0.5 -o d.csv --groups groups.csv
   pfsdm compare features.csv -o reranked.csv --rerank --mds map.png
+  pfsdm compare features.csv --elastic -o elastic.csv
   pfsdm compare features.csv --neighbours 10 -o edges.csv --mds map.png
   pfsdm compare features.parquet --neighbours 10 --rerank -o edges.parquet
 
@@ -303,6 +330,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
         p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
                        metavar="W", help=f"{opt.help} (default {opt.default:g}; "
                                          f"{opt.allowed()})")
+    _add_elastic(p, "--neighbours: the search is approximate and says so")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "

@@ -6,7 +6,17 @@ import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
-from .common import UserError, _add_groups_link_force_quiet, _note, _say, _Step, file_argument
+from .common import (
+    UserError,
+    _add_elastic,
+    _add_groups_link_force_quiet,
+    _check_elastic,
+    _elastic_notice,
+    _note,
+    _say,
+    _Step,
+    file_argument,
+)
 from .tables import _follow_objects, _with_groups
 
 
@@ -48,6 +58,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UserError(f"the report {out} is one HTML file: give a name ending in .html, "
                         "e.g. -o report.html")
     table = load_features(args.features)
+    _check_elastic(table, args)
     table = _follow_objects(table, args.link, args.quiet, command="report")
     if args.groups:
         table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
@@ -75,10 +86,11 @@ def cmd_report(args: argparse.Namespace) -> int:
         if not info.get("curve"):
             _note(f"{args.predictions} has no accuracy curve in its .json sidecar: the "
                   "report shows the probabilities' summary only", args.quiet)
-    with _Step(f"writing the report of {len(table):,} rows", args.quiet):
+    with _Step(f"writing the report of {len(table):,} rows", args.quiet), \
+            _elastic_notice(args):
         write_report(out, table, labels=labels, predictions=predictions,
                      prediction_info=info, title=args.title, source=str(args.features),
-                     force=args.force)
+                     force=args.force, elastic_weight=args.elastic_weight)
     size = out.stat().st_size
     _say(f"wrote {out} ({size / 1e6:.1f} MB; one file, opens offline in any browser)",
          args.quiet)
@@ -97,8 +109,10 @@ Write one HTML file that opens offline in any browser and can be mailed as it is
 options (with what each means), the counts (objects, frames, tracks, rows left out and why),
 each object's trajectory in the PCA plane per group, a few measures over time (each group's
 mean ± sd), what PC1 … PC3 mean (the classic measure each follows, their loadings, the real
-objects at -2σ … +2σ), the prediction curve with --predictions, and a gallery of the most
-extreme objects per PC. Figures are inside the file; nothing is fetched from the internet.
+objects at -2σ … +2σ), the prediction curve with --predictions, a gallery of the most
+extreme objects per PC, and a few objects' nearest shapes (with --elastic: under the distance
+with the elastic outline term). Figures are inside the file; nothing is fetched from the
+internet.
 The outlines of objects need the label movie (--labels).
 
 examples:
@@ -116,5 +130,6 @@ examples:
                    help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
                         "curve)")
     p.add_argument("--title", metavar="TEXT", help="the report's title")
+    _add_elastic(p, "in the report's nearest shapes")
     _add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_report)

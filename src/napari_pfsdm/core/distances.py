@@ -390,16 +390,20 @@ def check_elastic_weight(weight: float | None) -> float:
     return check_weight("elastic_weight", weight)
 
 
+#: What a user is told when the elastic term meets objects without their outline signatures.
+NO_SIGNATURES = ("the elastic outline term (elastic_weight > 0) compares the objects' outline "
+                 "signatures, and these objects have none (a table has its elastic_* columns "
+                 "only when measured with elastic_signature='table'): measure again with it "
+                 "(the plugin: More options; pfsdm measure --elastic-signature table), or "
+                 "leave the term off")
+
+
 def signatures_of(items) -> np.ndarray:
     """The outline signatures (n, channels, points) of results or :class:`Embeddings`, for the
     elastic term; ``ValueError`` when embeddings carry none."""
     if isinstance(items, Embeddings):
         if items.signature is None:
-            raise InputError(
-                "elastic_weight > 0 needs the objects' outline signatures, and these "
-                "embeddings carry none (a table has elastic_* columns only when measured with "
-                "elastic_signature='table'). Measure again with it, or leave elastic_weight "
-                "at 0.")
+            raise InputError(NO_SIGNATURES)
         return np.asarray(items.signature)
     return np.stack([r.signature for r in items])
 

@@ -90,7 +90,7 @@ class AnalysisEvents(SignalGroup):
     identity = Signal(str)
     #: Object → group name.
     groups = Signal(dict)
-    #: Distances were computed for this key (frame or None, weight, re-ranked).
+    #: Distances were computed for this key (frame or None, weight, re-ranked, elastic weight).
     comparison = Signal(tuple)
     #: A prediction was made; the table has its ``p_<group>`` columns.
     prediction = Signal(object)
@@ -298,7 +298,7 @@ class Analysis:
         self.events.groups.emit(self.groups)
 
     def set_comparison(self, what: tuple, result: Any) -> None:
-        """Keep the distances computed for ``what`` (frame or all, weight, re-ranked)."""
+        """Keep the distances computed for ``what`` (frame or all, weight, re-ranked, μ)."""
         self.comparison[what] = result
         self.events.comparison.emit(what)
 

@@ -1,11 +1,11 @@
 """The plots dock's "Similar" tab: the objects most like the selected one, as a gallery.
 
 For the selected object, its nearest shapes among every measured object of every frame under
-the PF-SDM distance (:func:`napari_pfsdm.analysis.neighbours.neighbour_index` and
-:func:`napari_pfsdm.core.neighbours.search_rows`: one object against all, never an n × n
-matrix), each drawn as its outline with its frame, label and distance. Computed in a worker
-(the index of the run kept for the next selections); a click on a thumbnail moves napari to
-that object and frame.
+the PF-SDM distance, with the elastic outline term when "elastic" is ticked
+(:class:`napari_pfsdm.analysis.neighbours.NeighbourSearch`: one object against all, never an
+n × n matrix), each drawn as its outline with its frame, label and distance. Computed in a
+worker (the search of the run kept for the next selections); a click on a thumbnail moves
+napari to that object and frame.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 from magicgui.widgets import SpinBox
 from napari.qt.threading import thread_worker
 
+from ._elastic import elastic_box, notice, weight_of
 from ._model import REGISTRY, Analysis
 from ._plot_base import Plot, outline_of
 
@@ -22,20 +23,22 @@ SHOWN = 8
 
 
 @thread_worker(start_thread=False)
-def _similar(analysis: Analysis, index, row: int, k: int):
-    """The ``k`` nearest objects of the measured row ``row`` (the index of the analysis's
-    measured rows made when missing), with their outlines."""
-    from ..analysis.neighbours import neighbour_index
-    from ..core.neighbours import search_rows
+def _similar(analysis: Analysis, index, row: int, k: int, elastic: float = 0.0, say=None):
+    """The ``k`` nearest objects of the measured row ``row`` (the search of the analysis's
+    measured rows made when missing; ``elastic``: μ of the elastic term), with their
+    outlines."""
+    from ..analysis.neighbours import NeighbourSearch
+    from ..core.compiled import compile_notice
 
     rows = np.flatnonzero(analysis.measured)
     table = analysis.table.iloc[rows]
     weight = float(analysis.options.get("intensity_weight", 0.0)) if "intensity" in \
         analysis.pca else 0.0
-    if index is None:
-        index = neighbour_index(table, intensity_weight=weight)
     at = int(np.searchsorted(rows, row))
-    idx, dist = search_rows(index, np.array([at]), min(k, len(rows) - 1))
+    with compile_notice(say or (lambda _message: None)):
+        if index is None:
+            index = NeighbourSearch(table, intensity_weight=weight, elastic_weight=elastic)
+        idx, dist = index.rows([at], min(k, len(rows) - 1))
     keep = idx[0] >= 0
     found = np.concatenate([[row], rows[idx[0][keep]]])
     distances = np.concatenate([[0.0], dist[0][keep]])
@@ -54,8 +57,9 @@ class SimilarPlot(Plot):
     def __init__(self, viewer) -> None:
         self.count = SpinBox(value=SHOWN - 1, min=1, max=24,
                              tooltip="How many of the nearest objects are shown.")
-        super().__init__(viewer, [self.count])
-        self.index = None  # (analysis key, neighbour index) of the last run searched
+        self.elastic = elastic_box()
+        super().__init__(viewer, [self.count, self.elastic])
+        self.index = None  # ((analysis key, elastic weight), search) of the last run searched
         self.result = None  # (selection, k, frames, labels, distances, outlines)
         self.worker = None
         self.thumbs: list = []
@@ -63,13 +67,14 @@ class SimilarPlot(Plot):
 
     def draw(self) -> None:
         a = self.analysis
-        self.asked = (a.key, a.selection, self.count.value)  # what this drawing is of
+        mu = weight_of(self.elastic)
+        self.asked = (a.key, a.selection, self.count.value, mu)  # what this drawing is of
         if a.ndim == 3:
             raise ValueError("The gallery is drawn for 2-D objects.")
         if a.selection is None or a.row_of(*a.selection) is None \
                 or not a.measured[a.row_of(*a.selection)]:
             raise ValueError("Select an object with features to see the objects like it.")
-        want = (a.key, a.selection, self.count.value)
+        want = (a.key, a.selection, self.count.value, mu)
         if self.result is None or self.result[0] != want:
             self._compute(a, want)
             self.info.value = "Finding the nearest shapes in the background…"
@@ -88,25 +93,29 @@ class SimilarPlot(Plot):
             ax.set_title(f"{where}l{lab}" + ("  (this one)" if i == 0 else f"  d={d:.3g}"),
                          fontsize=7)
             self.thumbs.append((ax, int(t), int(lab)))
+        term = " with the elastic term" if mu else ""
         self.info.value = (f"The {n - 1} objects nearest in shape to the selected one (PF-SDM "
-                           "distance, every frame). Click one to go there.")
+                           f"distance{term}, every frame). Click one to go there.")
 
     def highlight(self) -> None:
         """A new selection: its own gallery (the selected object is what the tab shows)."""
         a = self.analysis
-        if a is not None and (a.key, a.selection, self.count.value) != self.asked:
+        if a is not None and (a.key, a.selection, self.count.value,
+                              weight_of(self.elastic)) != self.asked:
             self.redraw()
 
     def _compute(self, a: Analysis, want) -> None:
         if self.worker is not None:  # the one running ends, then this one starts
             return
-        index = self.index[1] if self.index is not None and self.index[0] == a.key else None
+        mu = want[3]
+        index = self.index[1] if self.index is not None and self.index[0] == (a.key, mu) \
+            else None
         self.worker = worker = _similar(a, index, a.row_of(*a.selection), self.count.value,
-                                        _ignore_errors=True)
+                                        mu, notice(self.info), _ignore_errors=True)
 
         def done(result):
             index, *rest = result
-            self.index = (a.key, index)
+            self.index = ((a.key, mu), index)
             self.result = (want, *rest)
 
         def failed(err):

@@ -25,6 +25,7 @@ from ..analysis.reduction import FULL_MATRIX_LIMIT as GRAPH_ROWS
 from ..analysis.reduction import MAP_NEIGHBOURS as GRAPH_K
 from ..analysis.tables import key_rows
 from ..core.table_schema import pc_columns
+from ._elastic import elastic_box, notice, weight_of
 from ._model import REGISTRY, Analysis, current_frame
 from ._plot_base import Plot, outline_of
 from ._plot_similar import SimilarPlot
@@ -191,7 +192,16 @@ class TrajectoryPlot(Plot):
 
 
 @thread_worker(start_thread=False)
-def _distances(table, rows, weight: float, reranked: bool):
+def _distances(table, rows, weight: float, reranked: bool, elastic: float = 0.0, say=None):
+    from ..core.compiled import compile_notice
+
+    if not elastic:
+        return (yield from _distances_of(table, rows, weight, reranked, elastic))
+    with compile_notice(say or (lambda _message: None)):
+        return (yield from _distances_of(table, rows, weight, reranked, elastic))
+
+
+def _distances_of(table, rows, weight: float, reranked: bool, elastic: float):
     from ..analysis.reduction import mds_coordinates
     from ..analysis.tables import distance_matrix
 
@@ -201,14 +211,15 @@ def _distances(table, rows, weight: float, reranked: bool):
         from ..analysis.reduction import graph_coordinates
 
         yield "nearest neighbours"
-        idx, dist = nearest_neighbours(sub, GRAPH_K, intensity_weight=weight)
+        idx, dist = nearest_neighbours(sub, GRAPH_K, intensity_weight=weight,
+                                       elastic_weight=elastic)
         if reranked:
             from ..analysis.rerank import rerank_neighbours
 
             idx, dist = rerank_neighbours(idx, dist, "diffusion")[:2]
         yield "map"
         return {"graph": (idx, dist), "xy": graph_coordinates(idx, dist, "spectral")}
-    d = np.asarray(distance_matrix(sub, intensity_weight=weight))
+    d = np.asarray(distance_matrix(sub, intensity_weight=weight, elastic_weight=elastic))
     yield "distances"
     if reranked and len(d) >= 3:
         from ..analysis.rerank import RERANK_K, rerank
@@ -225,8 +236,9 @@ class ComparisonPlot(Plot):
                               tooltip="Compare the objects of the frame shown, or of all.")
         self.rerank = CheckBox(text="re-rank", value=False,
                                tooltip="Re-rank by the collection (retrieval; opt-in).")
+        self.elastic = elastic_box()
         self.cancel_button = PushButton(text="Cancel", visible=False)
-        super().__init__(viewer, [self.which, self.rerank])
+        super().__init__(viewer, [self.which, self.rerank, self.elastic])
         self.controls.append(self.cancel_button)
         self.cancel_button.changed.connect(self.cancel)
         self.worker = None
@@ -234,7 +246,8 @@ class ComparisonPlot(Plot):
         # (the plots dock follows the time slider for it: ComparisonPlot._on_step)
 
     def what(self) -> tuple:
-        """(key, rows) of what is compared now: key = (frame or None, weight, re-ranked)."""
+        """(key, rows) of what is compared now: key = (frame or None, weight, re-ranked,
+        elastic weight)."""
         a = self.analysis
         keep = a.measured  # a new array at each call
         shown = None
@@ -247,7 +260,7 @@ class ComparisonPlot(Plot):
             rows = rows[np.isfinite(a.table.filter(like="intensity_r").to_numpy()[rows]).all(1)]
         if len(rows) < 2:
             raise ValueError("Fewer than two measured objects here: nothing to compare.")
-        return (shown, w, bool(self.rerank.value)), rows
+        return (shown, w, bool(self.rerank.value), weight_of(self.elastic)), rows
 
     def _on_step(self, event=None) -> None:
         if self.analysis is not None and self.which.value == "current frame" \
@@ -277,7 +290,8 @@ class ComparisonPlot(Plot):
             ax_m, ax_p = self.figure.add_subplot(121), self.figure.add_subplot(122)
             im = ax_m.imshow(result["d"], cmap="viridis", interpolation="nearest")
             self.figure.colorbar(im, ax=ax_m, fraction=0.046, pad=0.02).set_label(
-                "re-ranked distance" if key[2] else "PF-SDM distance", fontsize=7)
+                ("re-ranked distance" if key[2] else "PF-SDM distance")
+                + (" (+ elastic term)" if key[3] else ""), fontsize=7)
             ticks = [str(lab) for _f, lab in keys] if len(rows) <= 20 else []  # labels
             ax_m.set_xticks(range(len(ticks)), ticks, fontsize=6, rotation=90)
             ax_m.set_yticks(range(len(ticks)), ticks, fontsize=6)
@@ -302,7 +316,8 @@ class ComparisonPlot(Plot):
     def _compute(self, a: Analysis, key, rows) -> None:
         if self.worker is not None:
             self.worker.quit()
-        self.worker = worker = _distances(a.table, rows, *key[1:], _ignore_errors=True)
+        self.worker = worker = _distances(a.table, rows, *key[1:], say=notice(self.info),
+                                          _ignore_errors=True)
         self.cancel_button.visible = True
 
         def done(result):
