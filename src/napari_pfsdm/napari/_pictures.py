@@ -49,13 +49,21 @@ def _cells(layer) -> dict[str, tuple[float, float, float]]:
 
 
 def _layer(viewer, name: str, kind, make):
-    """The viewer's layer ``name`` of class ``kind``, made by ``make()`` when missing."""
+    """The viewer's layer ``name`` of class ``kind``, made by ``make()`` when missing.
+
+    The layers the user selected stay selected, and no one is told of the new layer's passing
+    selection (napari selects a layer it adds): a plotter that follows the selection would
+    otherwise start plotting a picture layer, and hear of its every change."""
     if name in viewer.layers and isinstance(viewer.layers[name], kind):
         return viewer.layers[name]
-    active = viewer.layers.selection.active
-    layer = make()
-    if active is not None:  # the user's layer stays the active one
-        viewer.layers.selection.active = active
+    selection = viewer.layers.selection
+    chosen, active = set(selection), selection.active
+    with selection.events.blocker_all():
+        layer = make()
+        selection.active = None
+        selection.update(chosen)
+        if active is not None:
+            selection.active = active
     return layer
 
 
@@ -125,26 +133,32 @@ def caption(viewer, layer, where: list, texts: list[str]) -> None:
 
     The layer always holds :data:`SLOTS` points (unused ones at the first point, with no
     text): a new caption then changes only napari's texts, where a new number of points would
-    make napari rebuild the layer's points and texts."""
+    make napari rebuild the layer's points and texts. The texts are the layer's text array, not
+    its ``features``: a features table would be offered to plotters as a column of words, and
+    rewritten at every selection."""
     name = picture_names(layer.name)["captions"]
     data = np.asarray(where, float)
     data = data.reshape(-1, data.shape[-1])
     data = np.concatenate([data, np.repeat(data[:1], SLOTS - len(data), axis=0)])
     texts = list(texts) + [""] * (SLOTS - len(texts))
-    text = {"string": "{text}", "color": "white", "size": 8, "anchor": "upper_left"}
     if name in viewer.layers and viewer.layers[name].ndim != data.shape[1]:
         viewer.layers.remove(name)  # the layer was analysed with another first axis
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
         data, name=name, size=0.01, face_color="transparent", border_color="transparent",
-        features={"text": texts}, text=text))
+        text={"string": texts, "color": "white", "size": 8, "anchor": "upper_left"}))
     if not np.array_equal(pts.data, data):
         pts.data = data
-    if list(pts.features["text"]) != texts:
-        pts.features = {"text": texts}  # napari refreshes the texts from the features
+    if caption_texts(pts) != texts:
+        pts.text.string = texts
     _set(pts, visible=True)
     top = len(viewer.layers) - 1
     if viewer.layers.index(pts) != top:  # over the pictures
         viewer.layers.move(viewer.layers.index(pts), top + 1)
+
+
+def caption_texts(captions) -> list[str]:
+    """The texts a captions layer shows (its unused slots as "")."""
+    return [str(t) for t in captions.text.values]
 
 
 def _above(cell) -> tuple[float, float]:

@@ -244,7 +244,7 @@ def reporter_problem(intensity) -> str:
 
 def run_message(fields: dict, labels, reporter_note: str = "") -> str:
     """What a Run found, in few words (the status line): identity, what PC1 follows, the
-    objects to look at twice, empty frames, the reporter, where the whole table is."""
+    objects to look at twice, empty frames, the reporter."""
     from ..analysis.features import warnings_summary
 
     table, time_lapse = fields["table"], fields["axes"].startswith("t")
@@ -260,7 +260,6 @@ def run_message(fields: dict, labels, reporter_note: str = "") -> str:
         if empty:
             msg.append(f"No objects in frame{'s' if len(empty) > 1 else ''} "
                        f"{', '.join(map(str, empty[:10]))}{' …' if len(empty) > 10 else ''}.")
-        msg.append(FEATURES_NOTE)
     msg.append(reporter_note)
     return " ".join(m for m in msg if m)
 
@@ -286,11 +285,6 @@ def left_out_words(table: pd.DataFrame, options: dict) -> str:
     n = border + warned
     return (f"{n} object{'s' if n > 1 else ''} left out of PCA, comparison and prediction: "
             f"{', '.join(w for w in why if w)}.")
-
-
-#: Where a time-lapse's rows are (napari's features table holds one row per label).
-FEATURES_NOTE = ("The layer's features hold the frame shown; every frame: Export CSV… or "
-                 "Layer for plotters.")
 
 
 def explain(pca: dict, measures: pd.DataFrame | None, channel: str = "shape") -> list[str]:
