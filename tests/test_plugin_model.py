@@ -391,3 +391,24 @@ def test_the_neighbours_export_names_each_objects_row_in_the_features_file(tmp_p
     want = [d[pos[a], pos[b]] for a, b in zip(edges["label"], edges["neighbour_label"],
                                                 strict=True)]
     np.testing.assert_allclose(edges["distance"], want, rtol=1e-9)
+
+
+def test_an_analysis_saves_itself_and_reads_back_with_its_files_and_names(tmp_path):
+    """Saving goes through the model (no dock): the table, PCA, groups, the layers' names and
+    the labels' file come back from the folder."""
+    from napari_pfsdm.napari._results import saved_fields
+    from napari_pfsdm.saved import open_analysis
+
+    labels, _ = _untracked_movie()
+    fields = _measured(labels)
+    a = Registry().new_run("A", {**fields, "sources": {"labels": "nuclei"},
+                                 "paths": {"labels": "/data/nuclei.tif"}})
+    a.set_groups({1: "x", 2: "y"})
+    a.save(tmp_path)
+    saved = open_analysis(tmp_path, labels=labels)
+    again = saved_fields(saved, labels)
+    pd.testing.assert_frame_equal(again["table"], a.table, check_dtype=False)
+    np.testing.assert_allclose(again["pca"]["shape"]["shape_PC1"], a.pca["shape"]["shape_PC1"])
+    assert again["groups"] == {1: "x", 2: "y"}
+    assert again["sources"] == {"labels": "nuclei"}
+    assert again["paths"] == {"labels": "/data/nuclei.tif"}

@@ -47,15 +47,15 @@ def test_run_measures_what_measure_measures_and_fills_the_layer_features(qtbot, 
         viewer.dims.set_current_step(0, frame)
         labels.selected_label = 4
     assert writes == []
-    # napari's status bar shows the label's row that its index finds: its first line says which
-    # frame's row that is, and the numbers are that row's
+    # napari's status bar (one line, cut at the window's edge) shows the label's row that its
+    # index finds: it says first which frame's row that is, and the numbers are that row's
     row = expected[(expected["frame"] == 2) & (expected["label"] == 4)].iloc[0]
     status = labels.get_status((2, row["centroid_y"], row["centroid_x"]), world=True)
-    lines = status["coordinates"].split("\n")
-    assert lines[1].startswith("frame: "), lines
-    shown = int(lines[1].split(": ")[1])
+    shown_row = status["coordinates"].split("; ", 1)[1].split(", ")
+    assert shown_row[0].startswith("frame: "), shown_row
+    shown = int(shown_row[0].split(": ")[1])
     want = expected[(expected["frame"] == shown) & (expected["label"] == 4)].iloc[0]
-    assert f"area: {want['area']}" in lines, lines
+    assert f"area: {want['area']}" in shown_row, shown_row
     assert shown == expected.loc[expected["label"] == 4, "frame"].max()
     assert "72 objects" in w.status.value and "PC1" in w.status.value
 
@@ -233,11 +233,11 @@ def test_cancel_keeps_nothing(qtbot, make_napari_viewer_proxy):
 
 def test_a_run_shows_napari_progress_counting_its_objects(qtbot, viewer_widget, monkeypatch):
     """napari's progress bar counts a Run's objects to the last one and closes."""
-    from napari_pfsdm.napari import _analysis
+    from napari_pfsdm.napari import _jobs
 
     bars = []
 
-    class Recorded(_analysis.progress):
+    class Recorded(_jobs.progress):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             self.closed_at = None
@@ -247,7 +247,7 @@ def test_a_run_shows_napari_progress_counting_its_objects(qtbot, viewer_widget, 
             self.closed_at = (self.n, self.total)
             super().close()
 
-    monkeypatch.setattr(_analysis, "progress", Recorded)
+    monkeypatch.setattr(_jobs, "progress", Recorded)
     _viewer, w = viewer_widget
     n = len(run_and_wait(qtbot, w).table)
     assert n == 72 and len(bars) == 1 and bars[0].closed_at == (n, n)

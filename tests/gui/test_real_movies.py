@@ -422,3 +422,85 @@ def test_the_report_button_writes_the_runs_page(qtbot, viewer_widget, tmp_path):
     assert "gastruloids" in page and "http://" not in page and "https://" not in page
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', page)
     assert len(images) > 5 and all(base64.b64decode(i)[:4] == b"\x89PNG" for i in images)
+
+
+def test_a_dock_opened_during_a_run_shows_it_and_its_cancel_stops_it(qtbot,
+                                                                      make_napari_viewer_proxy):
+    from napari_helpers import many_objects
+
+    from napari_pfsdm.napari._jobs import JOBS
+    from napari_pfsdm.napari._model import REGISTRY
+
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(np.stack([many_objects()] * 4), name="many")
+    dock_widget, w = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    assert w.run() is not None
+    viewer.window.remove_dock_widget(dock_widget)
+    again = dock(viewer)  # while the Run goes on
+    assert "Measuring the objects of 'many'" in again.status.value, again.status.value
+    assert not again.run_button.enabled and again.cancel_button.enabled
+    again.cancel()
+    qtbot.waitUntil(lambda: not JOBS.of(layer.unique_id), timeout=120_000)
+    assert again.status.value == "Cancelled: nothing was kept."
+    assert again.run_button.enabled and not again.cancel_button.enabled
+    assert REGISTRY.get(layer.unique_id) is None
+
+
+def test_a_layer_removed_during_a_run_clears_the_dock_and_shows_the_image_again(
+        qtbot, make_napari_viewer_proxy):
+    from napari_helpers import many_objects
+
+    viewer = make_napari_viewer_proxy()
+    image = viewer.add_image(np.stack([many_objects()] * 4), name="mask.tif")  # File ▸ Open
+    w = dock(viewer)
+    assert w.run() is not None
+    assert not image.visible and "mask.tif labels" in viewer.layers  # the Run made the labels
+    w.hover.value = "Selected: frame 0 · label 1"  # a line left by an earlier run
+    viewer.layers.remove("mask.tif labels")
+    qtbot.waitUntil(lambda: w.worker is None, timeout=120_000)
+    assert image.visible  # what the Run hid is shown again
+    assert w.status.value == ("The Labels layer 'mask.tif labels' was removed during the Run: "
+                              "nothing was kept.")
+    assert w.hover.value == "" and w.run_button.enabled and not w.cancel_button.enabled
+
+
+def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
+        qtbot, make_napari_viewer_proxy, tmp_path, monkeypatch):
+    """Saved from a label TIFF that napari opened as an image; reopened in another viewer
+    where File ▸ Open made it an Image layer again (found by its data, not its name), and in
+    one where nothing is open (read from the file it recorded). The words say opened."""
+    import tifffile
+    from napari.layers import Labels
+
+    from napari_pfsdm.napari import _jobs
+
+    labels, _ = untracked_movie(3)
+    path = tmp_path / "mask.tif"
+    tifffile.imwrite(path, labels)
+    viewer = make_napari_viewer_proxy()
+    viewer.open(str(path))  # napari's own reader: an Image layer 'mask'
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    assert analysis.paths == {"labels": str(path)}
+    assert w.save(tmp_path / "kept") is not None
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=60_000)
+    said = []
+    monkeypatch.setattr(_jobs, "show_info", said.append)
+    for opened_first in (True, False):
+        other = make_napari_viewer_proxy()
+        if opened_first:
+            other.open(str(path))
+            other.layers[0].name = "renamed"  # found by its data
+        w2 = dock(other)
+        assert w2.open(tmp_path / "kept") is not None
+        qtbot.waitUntil(lambda w2=w2: w2.worker is None, timeout=60_000)
+        assert w2.bound is not None, w2.status.value
+        again = w2.bound[1]
+        np.testing.assert_array_equal(np.asarray(again.labels), labels)
+        assert len(again.table) == len(analysis.table) == 12
+        assert w2.status.value.startswith(f"Opened the analysis saved in {tmp_path / 'kept'}: "
+                                          "12 objects, nothing measured.")
+        assert said[-1] == "PF-SDM: 12 objects opened."
+        made = "renamed labels" if opened_first else "mask labels"
+        assert w2.bound[0].name == made and isinstance(other.layers[made], Labels)
+        assert not opened_first or not other.layers["renamed"].visible

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -136,6 +137,8 @@ class Analysis:
         Object (track id or label) → group name (at a Run: the layer's ``metadata["groups"]``).
     sources : dict
         The layers' names: ``{"labels": …, "reporter": …}`` (what a saved analysis names).
+    paths : dict
+        The files the layers came from, where napari knows them: ``{"labels": …}``.
     selection : (frame, label) or None
         The object looked at; label 0 when the selected object is not in that frame.
     selected_object : int or None
@@ -165,6 +168,7 @@ class Analysis:
     sentences: dict = field(default_factory=dict, repr=False)
     groups: dict = field(default_factory=dict)
     sources: dict = field(default_factory=dict)
+    paths: dict = field(default_factory=dict)
     selection: tuple[int, int] | None = None
     selected_object: int | None = None
     comparison: dict = field(default_factory=dict, repr=False)
@@ -239,6 +243,13 @@ class Analysis:
         """The label that object ``obj`` has in ``frame`` (None when it is not there)."""
         return self._where.get((int(frame) if self.time_lapse else 0, int(obj)))
 
+    def touches_border(self, frame: int, label: int) -> bool:
+        """Whether the (frame, label) object touches the image's border (False when absent or
+        unknown)."""
+        i = self.row_of(frame, label)
+        return bool(i is not None and "touches_border" in self.table
+                    and self.table["touches_border"].iloc[i])
+
     def group_of_rows(self) -> np.ndarray:
         """Each row's group name ("" when its object has none)."""
         if not self.groups:
@@ -250,6 +261,15 @@ class Analysis:
         if self.features is None:
             self.features = layer_features(self.table, self.pca, self.measures)
         return self.features
+
+    def save(self, folder) -> Path:
+        """Keep this analysis in ``folder`` (:func:`napari_pfsdm.saved.save_analysis`): its
+        table, PCA, groups, boxes, the layers' names and files, the data's fingerprints."""
+        from ..saved import save_analysis
+
+        return save_analysis(folder, self.table, labels=self.labels, intensity=self.intensity,
+                             pca=self.pca, groups=self.groups, boxes=self.boxes,
+                             names=self.sources, paths=self.paths)
 
     # ------------------------------------------------------------------ changing
     def select(self, frame: int, label: int) -> None:

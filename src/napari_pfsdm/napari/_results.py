@@ -398,4 +398,5 @@ def saved_fields(saved, labels, intensity=None) -> dict:
             "intensity": intensity, "boxes": saved.boxes, "pca": pca,
             "measures": None if "z" in axes else table_measures(table),
             "groups": dict(saved.groups),
-            "sources": {k: v.get("name") for k, v in saved.sources.items()}}
+            "sources": {k: v.get("name") for k, v in saved.sources.items()},
+            "paths": {k: v.get("path") for k, v in saved.sources.items() if v.get("path")}}
