@@ -371,8 +371,7 @@ def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_
 
     dock_of(w).raise_()  # the analysis tab in front
     qtbot.wait(200)
-    for button in (w.run_button, w.export_button):
-        native = button.native
+    for native in (w.labels.native, w.run_button.native, w.cancel_button.native, w.status):
         top_left = native.mapTo(window, native.rect().topLeft())
         assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
     shot = viewer.screenshot(canvas_only=True)[..., :3]

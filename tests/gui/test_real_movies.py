@@ -176,46 +176,6 @@ def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widg
     assert any(f"midline (cyan) {m.length:.0f} px" in t for t in texts)
 
 
-def test_every_dock_and_the_clusters_plotter_fit_1280_by_800(qtbot, make_napari_viewer,
-                                                            sample_layers):
-    """At 1280 × 800 with the plugin's docks and napari-clusters-plotter docked: the window
-    stays on screen, the plotter's plot keeps ≥ 200 px, and the status line shows whole."""
-    pytest.importorskip("napari_clusters_plotter")
-    viewer = make_napari_viewer(show=True)
-    window = viewer.window._qt_window  # the test measures the window; the plugin never does
-    window.resize(1280, 800)
-    for data, kwargs, kind in sample_layers:
-        getattr(viewer, f"add_{kind}")(data, **kwargs)
-    w = dock(viewer)
-    run_and_wait(qtbot, w)
-    qtbot.wait(300)
-
-    def status_whole() -> bool:
-        label = w.status.native
-        seen = label.visibleRegion().boundingRect().height()
-        return label.isVisible() and seen == label.height() >= label.heightForWidth(
-            label.width())
-
-    assert status_whole() and window.height() <= 800  # one dock
-    w.open_plots()
-    dock(viewer, PREDICTION)
-    _dock, plotter = viewer.window.add_plugin_dock_widget("napari-clusters-plotter",
-                                                          "Plot & select features")
-    qtbot.wait(500)
-    canvas = plotter.plotting_widget.canvas
-    assert window.height() <= 800 and canvas.height() >= 200, (window.height(),
-                                                               canvas.height())
-    from napari_pfsdm.napari._widgets import dock_of
-
-    dock_of(w).raise_()  # the analysis tab in front
-    qtbot.wait(200)
-    assert status_whole()
-    for button in (w.run_button, w.export_button):
-        native = button.native
-        top_left = native.mapTo(window, native.rect().topLeft())
-        assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
-
-
 def packed_movie(side: int = 5, frames: int = 4, cell: int = 24, seed: int = 0):
     """Cells that fill the field (each pixel to its nearest centre on a jittered lattice),
     ids shuffled in every frame."""

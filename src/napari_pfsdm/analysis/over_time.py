@@ -116,6 +116,7 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
     4
     """
     import matplotlib
+    import matplotlib.ticker
 
     lines, per_group = over_time(table, column, groups)
     objects = lines["object"].unique()
@@ -139,6 +140,10 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
                     zorder=4)
     ax.set_xlabel("frame")
     ax.set_ylabel(column)
+    if len(lines):  # every frame of the table, also when only some objects' lines are drawn
+        first, last = int(table["frame"].min()), int(table["frame"].max())
+        ax.set_xlim(first - 0.5, last + 0.5)
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     if len(per_group):
         ax.legend(fontsize=7, loc="best")
     return lines

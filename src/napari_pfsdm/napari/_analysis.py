@@ -15,7 +15,7 @@ from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButto
 from napari.layers import Image, Labels, Tracks
 from napari.utils.notifications import show_error
 from qtpy.QtCore import Qt
-from qtpy.QtWidgets import QFileDialog, QSizePolicy
+from qtpy.QtWidgets import QFileDialog, QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QWidget
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams, option
@@ -31,7 +31,7 @@ from ._results import (
     reporter_channels,
     row_glossary,
 )
-from ._widgets import PluginDock, scrolled, stack
+from ._widgets import PluginDock, StatusLine, scrolled, shrinkable, stack
 
 _data = layer_data
 #: The status line with nothing run yet.
@@ -84,6 +84,17 @@ def option_widget(option) -> object:
                         max=float(high), **kw)
 
 
+class Status(StatusLine):
+    """The analysis dock's status line: what the Run found or what is being done."""
+
+    TIP = ("What the Run found. Select a label or move the time slider: the object's pictures "
+           "show beside the image and its row below.")
+
+    def set_text(self, text: str, error: bool = False) -> None:
+        super().set_text(text, error)
+        self.setToolTip(f"{text}\n\n{self.TIP}" if text else self.TIP)
+
+
 class AnalysisWidget(PluginDock):
     """Dock: run PF-SDM on a Labels layer (and a reporter), then look at each object."""
 
@@ -106,8 +117,8 @@ class AnalysisWidget(PluginDock):
         self.intensity_weight = option_widget(option("intensity_weight"))
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
         more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
-        self.form = Container(widgets=[self.labels, self.first_axis, self.reporter,
-                                       self.not_offered, self.identity, *basic])
+        self.form = Container(widgets=[self.first_axis, self.reporter, self.not_offered,
+                                       self.identity, *basic])
         self.more = Container(widgets=[*more, self.intensity_weight])
         self.run_button = PushButton(text="Run")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
@@ -119,33 +130,36 @@ class AnalysisWidget(PluginDock):
                                       tooltip=TIPS["save"])
         self.open_button = PushButton(text="Open analysis…", tooltip=TIPS["open"])
         self.report_button = PushButton(text="Report…", enabled=False, tooltip=TIPS["report"])
-        self.status = Label(value=READY)
-        self.status.native.setToolTip(
-            "What the Run found. Select a label or move the time slider: the object's "
-            "pictures show beside the image and its row below.")
+        self.status = Status(READY)
         self.hover = Label(value="")
-        for label in (self.status, self.hover, self.not_offered):
+        for label in (self.hover, self.not_offered):
             label.native.setWordWrap(True)
             label.native.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        buttons = Container(widgets=[self.run_button, self.cancel_button, self.export_button],
-                            layout="horizontal", labels=False)
-        after = Container(widgets=[self.plots_button, self.objects_button],
-                          layout="horizontal", labels=False)
-        kept = Container(widgets=[self.save_button, self.open_button, self.report_button],
-                         layout="horizontal", labels=False)
-        for c in (buttons, after, kept):
-            c.margins = (0, 0, 0, 0)
-        self.status.native.setContentsMargins(6, 0, 6, 0)
-        self.status.native.setSizePolicy(QSizePolicy.Policy.Expanding,  # the dock's width
-                                         QSizePolicy.Policy.Preferred)
+            label.native.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        for combo in (self.labels, self.first_axis, self.reporter, self.identity,
+                      *(w for w in self.options.values() if isinstance(w, ComboBox))):
+            shrinkable(combo.native)
 
+        # the layer, Run and Cancel, and the status stay on screen at their natural height;
+        # the rest scrolls (the plugin's docks leave room for other plugins' docks below)
+        head = QWidget()
+        row = QHBoxLayout(head)
+        row.setContentsMargins(4, 2, 2, 0)
+        row.addWidget(QLabel("Labels"))
+        row.addWidget(self.labels.native, 1)
+        row.addWidget(self.run_button.native)
+        row.addWidget(self.cancel_button.native)
+        after = QWidget()
+        grid = QGridLayout(after)
+        grid.setContentsMargins(0, 0, 0, 0)
+        for i, button in enumerate((self.export_button, self.save_button, self.open_button,
+                                    self.report_button, self.plots_button,
+                                    self.objects_button)):
+            grid.addWidget(button.native, i // 2, i % 2)
         collapsible = QCollapsible("More options (the defaults are fine)")
         collapsible.addWidget(self.more.native)
-        # Run, Export and the status line stay on screen, at their natural height; the rest
-        # scrolls (the plugin's docks leave room for other plugins' docks below them)
-        stack(self, buttons.native, self.status.native,
-              scrolled(after.native, kept.native, self.form.native, collapsible,
-                       self.hover.native,
+        stack(self, head, self.status,
+              scrolled(self.hover.native, self.form.native, collapsible, after,
                        minimum=24, margins=True))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
 
@@ -187,16 +201,6 @@ class AnalysisWidget(PluginDock):
     def export_worker(self):
         """The napari worker of the save, export or report shown, None when none runs."""
         return self.file_job.worker if self.file_job is not None else None
-
-    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
-        """The status line keeps the height its words need at the dock's width (a dock made
-        short scrolls its form instead)."""
-        super().resizeEvent(event)
-        self._fit_status()
-
-    def _fit_status(self) -> None:
-        label = self.status.native
-        label.setMinimumHeight(label.heightForWidth(max(label.width(), 1)))
 
     # ----------------------------------------------------------------- choices
     def _labels_choices(self, _widget=None) -> list:
@@ -242,6 +246,7 @@ class AnalysisWidget(PluginDock):
                                          if isinstance(lay, Tracks)]
 
     def _refresh_choices(self, event=None) -> None:
+        self.labels.reset_choices()
         self.form.reset_choices()
         if self.reporter.value is None and len(self.reporter.choices) > 1:
             self.reporter.value = self.reporter.choices[1]  # the first fitting image
@@ -299,9 +304,7 @@ class AnalysisWidget(PluginDock):
     # -------------------------------------------------------------------- run
     def say(self, text: str, error: bool = False) -> None:
         """Show ``text`` in the status line (in red for an error)."""
-        self.status.value = text
-        self.status.native.setStyleSheet("color: #e05050;" if error else "")
-        self._fit_status()
+        self.status.set_text(text, error)
 
     def refuse(self, text: str) -> None:
         """Say why nothing was done, in the status line and napari's notification."""

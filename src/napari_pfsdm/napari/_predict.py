@@ -15,11 +15,11 @@ from functools import partial
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
-from qtpy.QtWidgets import QFileDialog, QSizePolicy
+from qtpy.QtWidgets import QFileDialog, QHBoxLayout, QLabel, QSizePolicy, QWidget
 
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
-from ._widgets import PluginDock, analysed_layers, scrolled, stack
+from ._widgets import PluginDock, StatusLine, analysed_layers, scrolled, shrinkable, stack
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -87,15 +87,24 @@ class PredictionWidget(PluginDock):
         self.run_button = PushButton(text="Predict")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
         self.classes = Label(value="No classes yet.")
-        self.status = Label(value="")
-        for label in (self.classes, self.status):
-            label.native.setWordWrap(True)
-        buttons = Container(widgets=[self.run_button, self.cancel_button], layout="horizontal",
-                            labels=False)
-        self.form = Container(widgets=[self.layer_choice, self.class_name, self.give, self.csv,
-                                       self.first, self.last, self.classes, buttons])
-        self.canvas.setFixedHeight(200)  # the status above may wrap: no new layout for that
-        stack(self, scrolled(self.form.native, self.status.native, self.plot, minimum=120))
+        self.classes.native.setWordWrap(True)
+        self.classes.native.setSizePolicy(QSizePolicy.Policy.Ignored,
+                                          QSizePolicy.Policy.Preferred)
+        self.status = StatusLine()
+        self.form = Container(widgets=[self.class_name, self.give, self.csv, self.first,
+                                       self.last, self.classes])
+        self.canvas.setFixedHeight(200)
+        shrinkable(self.layer_choice.native)
+        # the layer, Predict and Cancel, and the status stay on screen; the rest scrolls
+        head = QWidget()
+        row = QHBoxLayout(head)
+        row.setContentsMargins(4, 2, 2, 0)
+        row.addWidget(QLabel("Layer"))
+        row.addWidget(self.layer_choice.native, 1)
+        row.addWidget(self.run_button.native)
+        row.addWidget(self.cancel_button.native)
+        stack(self, head, self.status, scrolled(self.form.native, self.plot, minimum=24,
+                                                margins=True))
         # a plots dock beside gets the room this one does not need (its content scrolls)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.worker = None
@@ -110,7 +119,7 @@ class PredictionWidget(PluginDock):
         self._refresh()
 
     def _refresh(self, *args) -> None:
-        self.form.reset_choices()
+        self.layer_choice.reset_choices()
         self._show_classes()
 
     @property
