@@ -310,8 +310,11 @@ def test_any_measure_over_time_follows_tracks_and_groups(qtbot, make_napari_view
     assert viewer.dims.current_step[0] == 4 and layer.selected_label == truth[4][1]
 
 
-def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_there(
+def test_objects_like_the_selected_one_are_other_objects_and_a_click_goes_there(
         qtbot, viewer_widget):
+    """The Similar tab shows by default other objects, each once in its frame nearest the
+    selected shape (on a time-lapse the nearest rows are mostly the object itself in other
+    frames); its own frames and any object and frame are choices."""
     viewer, w = viewer_widget
     analysis = run_and_wait(qtbot, w)
     plots = dock(viewer, PLOTS)
@@ -320,17 +323,29 @@ def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_t
     labels = viewer.layers["gastruloids"]
     viewer.dims.set_current_step(0, 3)
     labels.selected_label = 2
-    qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 8,
-                    timeout=60_000)
     measured = pf.drop_failed(analysis.table)
     d = pf.distance_matrix(measured)  # the record's intensity weight: 0
     me = int(np.flatnonzero((measured["frame"] == 3) & (measured["label"] == 2))[0])
-    order = np.argsort(d[me])[:8]  # itself first (distance 0), then the 7 nearest
-    want = list(zip(measured["frame"].to_numpy()[order], measured["label"].to_numpy()[order],
-                    strict=True))
-    assert [(f, lab) for _ax, f, lab in gallery.thumbs] == [(int(f), int(lab))
-                                                            for f, lab in want]
-    np.testing.assert_allclose(gallery.result[3], d[me][order], rtol=1e-9)
+    order = [i for i in np.argsort(d[me], kind="stable") if i != me]
+    track = measured["track_id"].to_numpy()
+    others, seen = [], set()
+    for i in order:  # each other object's nearest row
+        if track[i] != track[me] and track[i] not in seen:
+            seen.add(track[i])
+            others.append(i)
+    own = [i for i in order if track[i] == track[me]]
+    for which, rows in (("others", others[:7]), ("own", own[:7]), ("any", order[:7])):
+        gallery.which.value = which
+        qtbot.waitUntil(lambda rows=rows: gallery.worker is None
+                        and len(gallery.thumbs) == len(rows) + 1, timeout=60_000)
+        want = [(3, 2)] + [(int(measured["frame"].iat[i]), int(measured["label"].iat[i]))
+                           for i in rows]
+        assert [(f, lab) for _ax, f, lab in gallery.thumbs] == want, which
+        np.testing.assert_allclose(gallery.result[3], [0, *d[me][rows]], rtol=1e-9)
+    assert len(others) == 5  # the sample: six objects
+    gallery.which.value = "others"
+    qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 6,
+                    timeout=60_000)
     ax, frame, label = gallery.thumbs[3]
 
     class Click:  # what matplotlib hands the canvas's click handler

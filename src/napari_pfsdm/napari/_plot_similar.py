@@ -1,17 +1,19 @@
 """The plots dock's "Similar" tab: the objects most like the selected one, as a gallery.
 
-For the selected object, its nearest shapes among every measured object of every frame under
-the PF-SDM distance (:func:`napari_pfsdm.analysis.neighbours.neighbour_index` and
+For the selected object, its nearest shapes under the PF-SDM distance
+(:func:`napari_pfsdm.analysis.neighbours.neighbour_index` and
 :func:`napari_pfsdm.core.neighbours.search_rows`: one object against all, never an n × n
-matrix), each drawn as its outline with its frame, label and distance. Computed in a worker
-(the index of the run kept for the next selections); a click on a thumbnail moves napari to
-that object and frame.
+matrix), each drawn as its outline with its frame, label and distance: by default other
+objects, each once, in its frame nearest the selected shape (:func:`pick`; the object itself in
+other frames is what a time-lapse's nearest rows mostly are); its own frames, or any object and
+frame, are choices. Computed in a worker (the index of the run kept for the next selections); a
+click on a thumbnail moves napari to that object and frame.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from magicgui.widgets import SpinBox
+from magicgui.widgets import ComboBox, SpinBox
 from napari.qt.threading import thread_worker
 
 from ._model import REGISTRY, Analysis
@@ -19,12 +21,38 @@ from ._plot_base import Plot, outline_of
 
 #: Thumbnails shown by default (the selected object first).
 SHOWN = 8
+#: Which objects the gallery shows, in the form's words → :func:`pick`'s.
+WHICH = {"other objects": "others", "its own frames": "own", "any object and frame": "any"}
+
+
+def pick(order: np.ndarray, objects: np.ndarray, me: int, which: str, k: int) -> np.ndarray:
+    """Positions in ``order`` (rows nearest first, the selected one left out) of the ``k``
+    shown: ``"others"`` the nearest row of each other object (its best frame), ``"own"`` the
+    selected object's own rows (object ``me``), ``"any"`` the nearest rows. An object below 0
+    (no track) is its row alone.
+
+    >>> objects = np.array([5, 5, 7, 7, 9, -1, -1])
+    >>> order = np.array([1, 2, 3, 0, 4, 5, 6])  # rows nearest first; row 0 is another frame
+    >>> pick(order, objects, 5, "others", 4).tolist(), pick(order, objects, 5, "own", 4).tolist()
+    ([1, 4, 5, 6], [0, 3])
+    """
+    obj = objects[order]
+    if which == "own":
+        keep = obj == me
+    elif which == "others":
+        key = np.where(obj >= 0, obj, -1 - np.arange(len(obj)))  # no track: each row alone
+        first = np.zeros(len(obj), bool)
+        first[np.unique(key, return_index=True)[1]] = True
+        keep = first & (obj != me)
+    else:
+        keep = np.ones(len(obj), bool)
+    return np.flatnonzero(keep)[:k]
 
 
 @thread_worker(start_thread=False)
-def _similar(analysis: Analysis, index, row: int, k: int):
+def _similar(analysis: Analysis, index, row: int, k: int, which: str = "others"):
     """The ``k`` nearest objects of the measured row ``row`` (the index of the analysis's
-    measured rows made when missing), with their outlines."""
+    measured rows made when missing; ``which``: :func:`pick`'s), with their outlines."""
     from ..analysis.neighbours import neighbour_index
     from ..core.neighbours import search_rows
 
@@ -35,10 +63,12 @@ def _similar(analysis: Analysis, index, row: int, k: int):
     if index is None:
         index = neighbour_index(table, intensity_weight=weight)
     at = int(np.searchsorted(rows, row))
-    idx, dist = search_rows(index, np.array([at]), min(k, len(rows) - 1))
-    keep = idx[0] >= 0
-    found = np.concatenate([[row], rows[idx[0][keep]]])
-    distances = np.concatenate([[0.0], dist[0][keep]])
+    idx, dist = search_rows(index, np.array([at]), len(rows) - 1)  # all, nearest first
+    valid = idx[0] >= 0
+    order, dist = rows[idx[0][valid]], dist[0][valid]
+    chosen = pick(order, analysis.objects(), int(analysis.objects()[row]), which, k)
+    found = np.concatenate([[row], order[chosen]])
+    distances = np.concatenate([[0.0], dist[chosen]])
     frames = analysis.table["frame"].to_numpy()[found].astype(int)
     labels = analysis.table["label"].to_numpy()[found].astype(int)
     outlines = []
@@ -56,22 +86,26 @@ class SimilarPlot(Plot):
     def __init__(self, viewer) -> None:
         self.count = SpinBox(value=SHOWN - 1, min=1, max=24,
                              tooltip="How many of the nearest objects are shown.")
-        super().__init__(viewer, [self.count])
+        self.which = ComboBox(choices=list(WHICH.items()), value="others",
+                              tooltip="Other objects, each in its frame nearest this shape; "
+                                      "this object in its other frames; or any object and "
+                                      "frame.")
+        super().__init__(viewer, [self.count, self.which])
         self.index = None  # (analysis key, neighbour index) of the last run searched
         self.result = None  # (selection, k, frames, labels, distances, outlines)
         self.worker = None
         self.thumbs: list = []
-        self.asked = None  # (run, selection, count) of the last drawing
+        self.asked = None  # (run, selection, count, which) of the last drawing
 
     def draw(self) -> None:
         a = self.analysis
-        self.asked = (a.key, a.selection, self.count.value)  # what this drawing is of
+        self.asked = self._wanted(a)  # what this drawing is of
         if a.ndim == 3:
             raise ValueError("The gallery is drawn for 2-D objects.")
         if a.selection is None or a.row_of(*a.selection) is None \
                 or not a.measured[a.row_of(*a.selection)]:
             raise ValueError("Select an object with features to see the objects like it.")
-        want = (a.key, a.selection, self.count.value)
+        want = self._wanted(a)
         if self.result is None or self.result[0] != want:
             self._compute(a, want)
             self.info.value = "Finding the nearest shapes in the background…"
@@ -90,13 +124,21 @@ class SimilarPlot(Plot):
             ax.set_title(f"{where}l{lab}" + ("  (this one)" if i == 0 else f"  d={d:.3g}"),
                          fontsize=7)
             self.thumbs.append((ax, int(t), int(lab)))
-        self.info.value = (f"The {n - 1} objects nearest in shape to the selected one (PF-SDM "
-                           "distance, every frame). Click one to go there.")
+        what = {"others": "other objects nearest in shape to the selected one, each in its "
+                          "nearest frame",
+                "own": "frames of the selected object nearest its shape here",
+                "any": "objects and frames nearest in shape to the selected one"}
+        self.info.value = (f"The {n - 1} {what[self.which.value]} (PF-SDM distance). Click one "
+                           "to go there.")
+
+    def _wanted(self, a: Analysis) -> tuple:
+        """What a gallery shows: (run, selection, count, which)."""
+        return a.key, a.selection, self.count.value, self.which.value
 
     def highlight(self) -> None:
         """A new selection: its own gallery (the selected object is what the tab shows)."""
         a = self.analysis
-        if a is not None and (a.key, a.selection, self.count.value) != self.asked:
+        if a is not None and self._wanted(a) != self.asked:
             self.redraw()
 
     def _compute(self, a: Analysis, want) -> None:
@@ -104,6 +146,7 @@ class SimilarPlot(Plot):
             return
         index = self.index[1] if self.index is not None and self.index[0] == a.key else None
         self.worker = worker = _similar(a, index, a.row_of(*a.selection), self.count.value,
+                                        self.which.value,
                                         _ignore_errors=True)
 
         def done(result):
