@@ -577,3 +577,34 @@ def test_cancelled_distances_say_so_and_a_new_request_computes_them(qtbot, shown
     comp.rerank.value = True  # something else asked: computed
     qtbot.waitUntil(lambda: len(comp.keys) == 72, timeout=60_000)
     assert not comp.cancel_button.visible and "72 objects" in comp.info.value
+
+
+def test_words_count_right_and_the_first_selection_is_away_from_the_border(
+        qtbot, make_napari_viewer_proxy, monkeypatch):
+    """"1 object", not "1 objects"; the object selected after a Run does not touch the border;
+    the background of a still image selects no object (no word of tracks)."""
+    from napari_pfsdm.napari import _jobs
+
+    said = []
+    monkeypatch.setattr(_jobs, "show_info", said.append)
+    labels = np.zeros((64, 96), np.uint16)
+    labels[0:20, 0:24] = 1  # on the border: napari's selected label at first
+    labels[30:52, 40:70] = 2
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(labels, name="cells")
+    assert layer.selected_label == 1
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    assert w.status.value.startswith("2 objects measured in ") and said == [
+        "PF-SDM: 2 objects measured."]
+    assert layer.selected_label == 2 and analysis.selection == (0, 2)
+    wait_pictures(qtbot, w)
+    layer.selected_label = 0  # a click on the background
+    wait_pictures(qtbot, w)
+    text = " ".join(caption_texts(viewer.layers["cells captions"]))
+    assert "no object selected" in text and "track" not in text
+    assert w.hover.value == "Selected: no object (the background)."
+    layer.data = np.where(labels == 2, 2, 0).astype(np.uint16)  # one object
+    run_and_wait(qtbot, w)
+    assert w.status.value.startswith("1 object measured in ")
+    assert said[-1] == "PF-SDM: 1 object measured."

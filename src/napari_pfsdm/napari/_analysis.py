@@ -456,7 +456,9 @@ class AnalysisWidget(PluginDock):
         if analysis is None or analysis.selection is None:
             return
         frame, label = analysis.selection
-        if label == 0 and analysis.selected_object is not None:
+        if label == 0 and analysis.selected_object is None:
+            self.hover.value = "Selected: no object (the background)."
+        elif label == 0 and analysis.time_lapse:
             self.hover.value = (f"Selected: object {analysis.selected_object} is not in frame "
                                 f"{frame}.")
         else:

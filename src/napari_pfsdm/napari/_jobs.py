@@ -29,6 +29,7 @@ from napari.utils.notifications import show_error, show_info, show_warning
 from psygnal import Signal, SignalGroup
 
 from ._model import REGISTRY, Analysis, current_frame
+from ._results import plural
 
 #: Seconds between two counts of a Run's objects in the words a dock shows.
 SAY_EVERY = 1.0
@@ -37,15 +38,6 @@ SAY_EVERY = 1.0
 def layer_data(layer):
     """A layer's data at full resolution (the first level of a multiscale one)."""
     return layer.data[0] if getattr(layer, "multiscale", False) else layer.data
-
-
-def plural(n: int, word: str) -> str:
-    """``n`` and ``word``, in the plural when ``n`` is not 1, with thousands separated.
-
-    >>> plural(1, "object"), plural(3271, "object")
-    ('1 object', '3,271 objects')
-    """
-    return f"{n:,} {word}{'' if n == 1 else 's'}"
 
 
 class JobEvents(SignalGroup):
@@ -265,7 +257,7 @@ def _select_first(viewer, labels, analysis: Analysis) -> None:
     selects, then objects away from the border."""
     frame = current_frame(viewer.dims, labels, analysis.time_lapse)
     present = [lab for lab in analysis.labels_in(frame) if not analysis.error_of(frame, lab)]
-    if labels.selected_label not in present and present:
-        inside = [lab for lab in present if not analysis.touches_border(frame, lab)]
+    inside = [lab for lab in present if not analysis.touches_border(frame, lab)]
+    if present and labels.selected_label not in (inside or present):
         labels.selected_label = int((inside or present)[0])
     analysis.select(frame, labels.selected_label)

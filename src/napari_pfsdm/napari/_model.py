@@ -273,11 +273,10 @@ class Analysis:
 
     # ------------------------------------------------------------------ changing
     def select(self, frame: int, label: int) -> None:
-        """Make (frame, label) the object looked at (one signal when it changed)."""
+        """Make (frame, label) the object looked at (one signal when it changed); label 0 (the
+        background) selects no object."""
         new = (int(frame) if self.time_lapse else 0, int(label))
-        obj = self.object_of(*new)
-        if obj is not None or label:
-            self.selected_object = obj
+        self.selected_object = self.object_of(*new)
         if new != self.selection:
             self.selection = new
             self.events.selection.emit(new)

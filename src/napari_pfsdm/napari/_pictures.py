@@ -315,7 +315,9 @@ class PictureView:
         self.wanted = (layer, analysis, key)
         error = analysis.error_of(frame, label)
         where = f"frame {frame}, " if analysis.time_lapse else ""
-        if error is None and label == 0 and analysis.selected_object is not None:
+        if label == 0 and analysis.selected_object is None:
+            self._say("no object selected (the background)", key)
+        elif error is None and label == 0 and analysis.time_lapse:
             self._say(f"object {analysis.selected_object} (track) is not in frame {frame}", key)
         elif error is None:
             self._say(f"{where}label {label}: not in this frame, no pictures", key)

@@ -14,6 +14,7 @@ from magicgui.widgets import ComboBox
 from ..analysis.over_time import numeric_columns, plot_over_time
 from ..analysis.reduction import object_ids
 from ._plot_base import Plot
+from ._results import plural
 
 
 class OverTimePlot(Plot):
@@ -51,7 +52,7 @@ class OverTimePlot(Plot):
         self.xy = self.lines[["frame", "value"]].to_numpy(float)
         self.keys = self.lines[["frame", "label"]].to_numpy().astype(np.int64)
         n = self.lines["object"].nunique()
-        self.info.value = (f"{n:,} objects; " + ("thick lines: each group's mean ± sd; "
+        self.info.value = (f"{plural(n, 'object')}; " + ("thick lines: each group's mean ± sd; "
                                                   if a.groups else "")
                            + "red: the selected object. Click a point to go there.")
 

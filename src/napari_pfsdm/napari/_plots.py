@@ -35,7 +35,7 @@ from ._model import REGISTRY, Analysis, current_frame
 from ._plot_base import Plot, outline_of
 from ._plot_similar import SimilarPlot
 from ._plot_time import OverTimePlot
-from ._results import explanation
+from ._results import explanation, plural
 from ._widgets import (
     PluginDock,
     analysed_layers,
@@ -279,7 +279,7 @@ class ComparisonPlot(Plot):
                 raise ValueError("Cancelled: no distances. Change the frame or an option to "
                                  "compute them.")
             self._compute(a, key, rows)
-            self.info.value = f"Computing the distances of {len(rows):,} objects in the " \
+            self.info.value = f"Computing the distances of {plural(len(rows), 'object')} in the " \
                               "background…"
             return
         keys = a.table[["frame", "label"]].to_numpy().astype(np.int64)[rows]
@@ -307,7 +307,7 @@ class ComparisonPlot(Plot):
         ax_p.set_title(title, fontsize=9)
         ax_p.set(xticks=[], yticks=[])
         self.points_axes, self.xy, self.keys = ax_p, xy, keys
-        self.info.value = (f"{len(rows):,} objects, {where}"
+        self.info.value = (f"{plural(len(rows), 'object')}, {where}"
                            + (", colour = frame" if key[0] is None else "")
                            + ". On the map, close = similar.")
 

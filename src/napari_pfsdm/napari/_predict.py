@@ -19,6 +19,7 @@ from qtpy.QtWidgets import QFileDialog, QHBoxLayout, QLabel, QSizePolicy, QWidge
 
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
+from ._results import plural
 from ._widgets import PluginDock, StatusLine, analysed_layers, scrolled, shrinkable, stack
 
 
@@ -162,7 +163,8 @@ class PredictionWidget(PluginDock):
     def _show_classes(self, *args) -> None:
         a = self.analysis
         counts = Counter(a.groups.values() if a is not None else [])
-        self.classes.value = ", ".join(f"{g}: {n} objects" for g, n in sorted(counts.items())) \
+        self.classes.value = ", ".join(f"{g}: {plural(n, 'object')}"
+                                       for g, n in sorted(counts.items())) \
             or "No classes yet: give classes or read a groups CSV."
 
     def run(self, *args):

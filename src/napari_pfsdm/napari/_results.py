@@ -31,6 +31,15 @@ IDENTITY = {"auto (link when ids jump)": "auto", "label ids": "labels",
 MAX_CHANNELS = 16
 
 
+def plural(n: int, word: str) -> str:
+    """``n`` and ``word``, in the plural when ``n`` is not 1, with thousands separated.
+
+    >>> plural(1, "object"), plural(3271, "object")
+    ('1 object', '3,271 objects')
+    """
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
+
+
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
     """Refuse label and reporter arrays the analysis cannot use; return the labels' axes
     (``first_axis``: what a 3-D layer's first axis is, ``"time"`` or ``"z"``).
@@ -161,7 +170,8 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
         n = len(np.unique(ids[ids != NO_TRACK]))
         return add_track_ids(table, ids), (
             f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
-            + (f"; {missed} objects that no track point reaches are left out of the "
+            + (f"; {missed} object{'s' if missed > 1 else ''} that no track point reaches "
+               "are left out of the "
                "trajectories." if missed else "."))
     out, check, used = link_movie(table, labels, "none" if mode == "labels" else mode)
     if used:

@@ -18,8 +18,9 @@ from napari.layers import Image, Labels
 from napari.qt.threading import thread_worker
 
 from ..saved import ANALYSIS_FILE
-from ._jobs import JOBS, Job, layer_data, plural, take_result
+from ._jobs import JOBS, Job, layer_data, take_result
 from ._model import Analysis, is_picture, layer_shape
+from ._results import plural
 
 
 # ------------------------------------------------------------------------- writing files
