@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from napari.layers import Labels
 from napari_helpers import PLOTS, PREDICTION, dock, run_and_wait, wait_pictures
 
 import napari_pfsdm as pf
@@ -102,19 +103,25 @@ def test_removing_the_layer_removes_its_pictures(qtbot, viewer_widget):
     assert w.bound is None and not w.export_button.enabled
 
 
-def test_a_label_image_opened_as_an_image_is_offered_and_made_a_labels_layer(
+def test_a_label_image_opened_as_an_image_is_shown_as_labels_once_chosen(
         qtbot, make_napari_viewer_proxy):
+    """A label TIFF napari opened as an Image layer (grey, black on small ids) is offered and,
+    once chosen, shown as a Labels layer of the same data; a raw intensity image of whole
+    numbers and a float image are not offered as labels."""
     labels, _ = untracked_movie(3)
     viewer = make_napari_viewer_proxy()
-    viewer.add_image(labels, name="mask.tif")  # File ▸ Open of a label TIFF
+    viewer.add_image(np.random.default_rng(0).poisson(300, labels.shape).astype(np.uint16),
+                     name="raw")  # a microscope image: whole numbers, but noise
     viewer.add_image(labels.astype(float) * 0.5, name="photo")  # not whole numbers
-    w = dock(viewer)
-    assert w.labels.choices == ("mask.tif",)
-    assert "made a Labels layer" in w.labels.native.currentText()
-    analysis = run_and_wait(qtbot, w)
+    image = viewer.add_image(labels, name="mask.tif")  # File ▸ Open of a label TIFF
+    w = dock(viewer)  # the only label image: chosen, so shown as labels at once
     made = viewer.layers["mask.tif labels"]
-    assert made.data is viewer.layers["mask.tif"].data  # the same array, not a copy
-    assert w.labels.value == "mask.tif labels" and len(analysis.table) == 12
+    assert isinstance(made, Labels) and made.data is image.data  # the same array, no copy
+    assert not image.visible and w.labels.value == "mask.tif labels"
+    assert w.labels.choices == ("mask.tif labels",)
+    assert w.reporter.value == ("raw", None)  # the raw image is a reporter
+    analysis = run_and_wait(qtbot, w)
+    assert len(analysis.table) == 12
 
 
 def test_a_reporter_is_offered_by_channel_and_an_unfit_one_is_named(qtbot,
@@ -445,7 +452,6 @@ def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
     where File ▸ Open made it an Image layer again (found by its data, not its name), and in
     one where nothing is open (read from the file it recorded). The words say opened."""
     import tifffile
-    from napari.layers import Labels
 
     from napari_pfsdm.napari import _jobs
 
@@ -453,7 +459,7 @@ def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
     path = tmp_path / "mask.tif"
     tifffile.imwrite(path, labels)
     viewer = make_napari_viewer_proxy()
-    viewer.open(str(path))  # napari's own reader: an Image layer 'mask'
+    viewer.open(str(path), plugin="napari")  # napari's own reader: an Image layer 'mask'
     w = dock(viewer)
     analysis = run_and_wait(qtbot, w)
     assert analysis.paths == {"labels": str(path)}
@@ -464,7 +470,7 @@ def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
     for opened_first in (True, False):
         other = make_napari_viewer_proxy()
         if opened_first:
-            other.open(str(path))
+            other.open(str(path), plugin="napari")
             other.layers[0].name = "renamed"  # found by its data
         w2 = dock(other)
         assert w2.open(tmp_path / "kept") is not None
@@ -479,3 +485,32 @@ def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
         made = "renamed labels" if opened_first else "mask labels"
         assert w2.bound[0].name == made and isinstance(other.layers[made], Labels)
         assert not opened_first or not other.layers["renamed"].visible
+
+
+def test_label_files_open_as_labels_with_the_plugins_reader(qtbot, make_napari_viewer_proxy,
+                                                             tmp_path):
+    """napari offers the plugin's reader for label TIFFs and Zarr stores (File ▸ Open, drag and
+    drop) under the plugin's name; it opens whole numbers as a Labels layer with the file's
+    values, and leaves other images to napari's own reader."""
+    import tifffile
+    import zarr
+    from napari.plugins._npe2 import get_readers
+
+    labels, _ = untracked_movie(3)
+    tif, floats = tmp_path / "nuclei.tif", tmp_path / "photo.tif"
+    tifffile.imwrite(tif, labels)
+    tifffile.imwrite(floats, labels.astype(np.float32))
+    store = tmp_path / "nuclei.zarr"
+    zarr.save_array(str(store), labels)
+    viewer = make_napari_viewer_proxy()
+    for path in (tif, store):
+        assert get_readers(path)["napari-pfsdm"] == "PF-SDM morphometrics"
+        (layer,) = viewer.open(str(path), plugin="napari-pfsdm")
+        assert isinstance(layer, Labels) and layer.name.startswith("nuclei")  # the file's name
+        np.testing.assert_array_equal(np.asarray(layer.data), labels)
+        assert layer.source.path == str(path)
+    from napari_pfsdm.napari._reader import get_reader
+
+    assert get_reader(str(floats)) is None  # napari's own reader opens it
+    (image,) = viewer.open(str(floats), plugin="napari")
+    assert not isinstance(image, Labels)

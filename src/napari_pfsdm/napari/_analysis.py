@@ -27,6 +27,7 @@ from ._results import (
     IDENTITY,
     check_layers,
     identify,
+    label_like,
     object_line,
     reporter_channels,
     row_glossary,
@@ -65,9 +66,9 @@ TIPS = {
 }
 
 
-def _whole_numbers(layer) -> bool:
-    dtype = np.dtype(_data(layer).dtype)
-    return bool(np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.bool_))
+def _label_image(layer) -> bool:
+    """Whether an Image layer holds a label image (whole numbers, in flat patches)."""
+    return not getattr(layer, "rgb", False) and label_like(_data(layer))
 
 
 def option_widget(option) -> object:
@@ -171,18 +172,18 @@ class AnalysisWidget(PluginDock):
         self.save_button.changed.connect(self._save_dialog)
         self.open_button.changed.connect(self._open_dialog)
         self.report_button.changed.connect(self._report_dialog)
-        self.labels.changed.connect(self._on_labels_choice)
+        self.labels.changed.connect(self._on_chosen)
         self.identity.changed.connect(self._on_identity)
         self.options["sdf"].changed.connect(self._show_relevant_options)
         self.first_axis.changed.connect(self._show_relevant_options)
         layers = napari_viewer.layers
         for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
-            self.follow(event, self._refresh_choices)
+            self.follow(event, self._on_labels_choice)  # (a removed layer's choice goes)
         self.follow(napari_viewer.cursor.events.position, self._on_hover)
         self.follow(REGISTRY.updated, self._on_registry)
         self.follow(JOBS.started, self._on_job_started)
         self._refresh_choices()
-        self._on_labels_choice()  # a reopened dock shows the layer's last run
+        self._on_chosen()  # a reopened dock shows the layer's last run
 
     def release(self) -> None:
         """Closed: let go of the viewer, the registry, the model and the jobs (which go on)."""
@@ -204,13 +205,13 @@ class AnalysisWidget(PluginDock):
 
     # ----------------------------------------------------------------- choices
     def _labels_choices(self, _widget=None) -> list:
-        """Labels layers, then whole-number Image layers (a label image opened as an image:
-        the Run makes it a Labels layer)."""
+        """Labels layers, then Image layers that hold label images (a label image napari
+        opened as an image: once chosen, it is shown as a Labels layer)."""
         out = [(lay.name, lay.name) for lay in self.viewer.layers if isinstance(lay, Labels)
                and not is_picture(lay) and not lay.name.endswith(" objects")]
-        out += [(f"{lay.name} (image of whole numbers: made a Labels layer at Run)", lay.name)
+        out += [(f"{lay.name} (a label image: shown as labels once chosen)", lay.name)
                 for lay in self.viewer.layers if isinstance(lay, Image) and not is_picture(lay)
-                and not getattr(lay, "rgb", False) and _whole_numbers(lay)
+                and _label_image(lay)
                 and not any(_same_pixels(lay, other) for other in self.viewer.layers
                             if isinstance(other, Labels))]
         return out
@@ -246,7 +247,8 @@ class AnalysisWidget(PluginDock):
                                          if isinstance(lay, Tracks)]
 
     def _refresh_choices(self, event=None) -> None:
-        self.labels.reset_choices()
+        with self.labels.changed.blocked():  # a choice left for a removed layer is no choice
+            self.labels.reset_choices()
         self.form.reset_choices()
         if self.reporter.value is None and len(self.reporter.choices) > 1:
             self.reporter.value = self.reporter.choices[1]  # the first fitting image
@@ -340,6 +342,8 @@ class AnalysisWidget(PluginDock):
             self.refuse(str(err))
             return None
         labels, hidden = self._as_labels(chosen)
+        hidden = hidden or next((lay for lay in self.viewer.layers if isinstance(lay, Image)
+                                 and _data(lay) is _data(labels) and not lay.visible), None)
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         weight = self.intensity_weight.value if image is not None else 0.0
         job = start_run(self.viewer, labels, RunInput(
@@ -417,6 +421,14 @@ class AnalysisWidget(PluginDock):
         self.pictures.clear()
         if analysis.selection is not None:
             self._on_selection()
+
+    def _on_chosen(self, *args) -> None:
+        """A layer was chosen (or the dock opened): a label image opened as an Image layer is
+        shown as a Labels layer of the same data."""
+        labels = self.labels_layer
+        if labels is not None and not isinstance(labels, Labels):
+            self._as_labels(labels)  # chooses the Labels layer made
+        self._on_labels_choice()
 
     def _on_labels_choice(self, *args) -> None:
         """Show the chosen layer: its analysis, and its jobs while they run."""

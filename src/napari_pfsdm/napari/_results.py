@@ -40,6 +40,25 @@ def plural(n: int, word: str) -> str:
     return f"{n:,} {word}{'' if n == 1 else 's'}"
 
 
+def label_like(data, rows: int = 512) -> bool:
+    """Whether an array looks like a label image: whole numbers (or booleans) in flat patches,
+    at least half of the neighbouring pixels of its first frame equal (a raw intensity image's
+    noise makes them differ).
+
+    >>> labels = np.zeros((64, 64), np.uint16); labels[8:40, 8:30] = 3
+    >>> noise = np.random.default_rng(0).poisson(400, (64, 64)).astype(np.uint16)
+    >>> label_like(labels), label_like(noise), label_like(labels.astype(float))
+    (True, False, False)
+    """
+    dtype = np.dtype(data.dtype)
+    if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_) or data.ndim < 2 \
+            or min(data.shape[-2:]) < 2:
+        return False
+    plane = data[(0,) * (data.ndim - 2)]
+    plane = np.asarray(plane[::max(1, plane.shape[0] // rows)])  # at most ~rows rows
+    return bool(np.mean(plane[:, 1:] == plane[:, :-1]) >= 0.5)
+
+
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
     """Refuse label and reporter arrays the analysis cannot use; return the labels' axes
     (``first_axis``: what a 3-D layer's first axis is, ``"time"`` or ``"z"``).
