@@ -514,3 +514,66 @@ def test_label_files_open_as_labels_with_the_plugins_reader(qtbot, make_napari_v
     assert get_reader(str(floats)) is None  # napari's own reader opens it
     (image,) = viewer.open(str(floats), plugin="napari")
     assert not isinstance(image, Labels)
+
+
+def _shown(viewer) -> np.ndarray:
+    """What the canvas shows (RGB), as a mask of lit pixels."""
+    return viewer.screenshot(canvas_only=True, flash=False)[..., :3].max(axis=-1) > 60
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (900, 640)])
+def test_captions_never_overlap_the_pictures_or_each_other_in_the_fit_view(
+        qtbot, make_napari_viewer, size):
+    """A folded three-armed object with a reporter: every caption (titles, the object, the
+    colour bars' numbers, the folded samples' words, the midline note) drawn alone in napari's
+    fit view lies apart from the pictures and from every other caption, at two window sizes;
+    the SDF's colours span the object's depth, the disk's its own values."""
+    from scipy import ndimage
+
+    from napari_pfsdm.data.shapes import rasterize, three_armed
+    from napari_pfsdm.napari._pictures import caption_texts
+
+    labels = rasterize(three_armed() * 140 + 160, (320, 320)).astype(np.uint16)
+    reporter = ndimage.gaussian_filter(np.random.default_rng(0).uniform(0, 1, labels.shape),
+                                       20) * 1000
+    viewer = make_napari_viewer(show=True)
+    viewer.window._qt_window.resize(*size)
+    viewer.add_image(reporter, name="reporter", visible=False)
+    viewer.add_labels(labels, name="arms")
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    wait_pictures(qtbot, w)
+    viewer.reset_view()  # napari's fit
+    qtbot.wait(300)
+    a = analysis.table.iloc[0]
+    sdf, disk = viewer.layers["arms SDF"], viewer.layers["arms PF-SDF disk"]
+    depth = float(-sdf.data[:, :128].min())
+    assert sdf.contrast_limits == [-depth, depth] and sdf.data.max() > 2 * depth
+    assert disk.contrast_limits[1] == pytest.approx(np.abs(disk.data[:, :128]).max())
+    captions = viewer.layers["arms captions"]
+    texts = caption_texts(captions)
+    assert f"red: {100 * a['folded_fraction']:.1f} % of the samples lie" in texts
+    assert any(t.startswith("midline (cyan)") for t in texts) and "reporter (× mean)" in texts
+    for lay in viewer.layers:
+        lay.visible = lay.name.startswith("arms ") and lay is not captions
+    pictures = ndimage.binary_dilation(_shown(viewer), iterations=1)
+    boxes = []
+    for i, text in enumerate(texts):
+        if not text:
+            continue
+        captions.text.string = [t if k == i else "" for k, t in enumerate(texts)]
+        for lay in viewer.layers:
+            lay.visible = lay is captions
+        qtbot.wait(50)
+        lit = _shown(viewer)
+        assert lit.any(), text
+        rows, cols = np.flatnonzero(lit.any(1)), np.flatnonzero(lit.any(0))
+        box = (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1)
+        assert not pictures[box[0]:box[1], box[2]:box[3]].any(), (text, size)
+        assert box[0] > 0 and box[2] > 0 and box[1] < lit.shape[0] and box[3] < lit.shape[1]
+        boxes.append((text, box))
+    for k, (t1, b1) in enumerate(boxes):
+        for t2, b2 in boxes[k + 1:]:
+            apart = b1[1] <= b2[0] or b2[1] <= b1[0] or b1[3] <= b2[2] or b2[3] <= b1[2]
+            assert apart, (t1, t2, size)
+    assert len(boxes) >= 12
