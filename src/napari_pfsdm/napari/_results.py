@@ -18,8 +18,11 @@ from ..core.params import PFSDMParams
 from ..core.table_options import carry_options
 from ._model import Analysis
 
-#: Seconds between two progress reports of a Run (and its last one).
-PROGRESS_EVERY = 0.1
+#: Seconds between two progress reports of a Run (and its last one): each moves napari's
+#: progress bar, and every repaint of the window competes with the measuring processes (at ten
+#: reports a second a Run of 3,300 nuclei took 2.3 × measure, at two 0.95 ×; benchmarks/plugin.py
+#: --run-only).
+PROGRESS_EVERY = 0.5
 #: What the first axis of a 3-D Labels layer is, in the form's words → in the analysis's.
 FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
 #: How objects keep their identity through time, in the form's words → the mode: link when
