@@ -15,7 +15,7 @@ from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButto
 from napari.layers import Image, Labels, Tracks
 from napari.utils.notifications import show_error
 from qtpy.QtCore import Qt
-from qtpy.QtWidgets import QFileDialog, QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QWidget
+from qtpy.QtWidgets import QFileDialog, QGridLayout, QSizePolicy, QWidget
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams, option
@@ -32,7 +32,7 @@ from ._results import (
     reporter_channels,
     row_glossary,
 )
-from ._widgets import PluginDock, StatusLine, scrolled, shrinkable, stack
+from ._widgets import PluginDock, StatusLine, head_row, scrolled, shrinkable, stack
 
 _data = layer_data
 #: The status line with nothing run yet.
@@ -143,13 +143,7 @@ class AnalysisWidget(PluginDock):
 
         # the layer, Run and Cancel, and the status stay on screen at their natural height;
         # the rest scrolls (the plugin's docks leave room for other plugins' docks below)
-        head = QWidget()
-        row = QHBoxLayout(head)
-        row.setContentsMargins(4, 2, 2, 0)
-        row.addWidget(QLabel("Labels"))
-        row.addWidget(self.labels.native, 1)
-        row.addWidget(self.run_button.native)
-        row.addWidget(self.cancel_button.native)
+        head = head_row("Labels", self.labels, self.run_button, self.cancel_button)
         after = QWidget()
         grid = QGridLayout(after)
         grid.setContentsMargins(0, 0, 0, 0)

