@@ -66,9 +66,15 @@ TIPS = {
 }
 
 
-def _label_image(layer) -> bool:
-    """Whether an Image layer holds a label image (whole numbers, in flat patches)."""
-    return not getattr(layer, "rgb", False) and label_like(_data(layer))
+def _label_image(layer, seen: dict) -> bool:
+    """Whether an Image layer holds a label image (whole numbers, in flat patches); ``seen``
+    keeps the answer for each layer's data (the choices are made again at every layer event,
+    and a lazy image would read its first frame each time)."""
+    data = _data(layer)
+    key = (layer.unique_id, id(data))
+    if key not in seen:
+        seen[key] = not getattr(layer, "rgb", False) and label_like(data)
+    return seen[key]
 
 
 def option_widget(option) -> object:
@@ -105,6 +111,7 @@ class AnalysisWidget(PluginDock):
         self.file_job: Job | None = None  # the save, export or report of the layer shown
         self.pictures = _pictures.PictureView(napari_viewer)
         self.bound: tuple | None = None  # (labels layer, analysis) shown by this dock
+        self._label_images: dict = {}  # (layer id, data id) → holds a label image
         self.labels = ComboBox(label="Labels", choices=self._labels_choices,
                                tooltip=TIPS["labels"])
         self.first_axis = ComboBox(label="First axis", choices=list(FIRST_AXIS.items()),
@@ -205,7 +212,7 @@ class AnalysisWidget(PluginDock):
                and not is_picture(lay) and not lay.name.endswith(" objects")]
         out += [(f"{lay.name} (a label image: shown as labels once chosen)", lay.name)
                 for lay in self.viewer.layers if isinstance(lay, Image) and not is_picture(lay)
-                and _label_image(lay)
+                and _label_image(lay, self._label_images)
                 and not any(_same_pixels(lay, other) for other in self.viewer.layers
                             if isinstance(other, Labels))]
         return out
