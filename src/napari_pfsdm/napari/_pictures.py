@@ -34,18 +34,18 @@ SKELETON, OUTLINE = "#ffd000", "#202020"
 #: The midline (anterior end first) and its cross-sections (one per profile bin).
 MIDLINE, SECTIONS = "#00e5ff", "#7fd8e6"
 #: Points of the captions layer: five texts, the two ends of three colour bars, two lines on
-#: the disk's folded samples, and a point right of them (the view made to fit the layers then
-#: holds the texts too).
-SLOTS = 14
+#: the disk's folded samples, and two points without text at the corners of them all (the view
+#: made to fit the layers then holds the texts too).
+SLOTS = 15
 #: Height of a caption's letters as a fraction of a picture cell's side. The captions are
 #: sized in the pictures' own (world) units, like the pictures: whatever the zoom, they keep
 #: their places beside them and never run into them or into each other. napari writes a
 #: caption above and right of its point (the point is its text's lower left corner).
-TEXT = 0.07
+TEXT = 0.08
 #: Lines of captions (in letter heights): from one line's foot to the next; the foot of a line
 #: over a picture above its top edge (room for descenders); the foot of the first line under a
 #: picture below its bottom edge (room for the line and its ascenders).
-LINE, GAP_ABOVE, BELOW = 1.35, 0.45, 1.6
+LINE, GAP_ABOVE, BELOW = 1.5, 0.5, 1.9
 #: napari's text size that gives letters one world unit high (its sizes are points, 1/72 in,
 #: at 96 dots per inch).
 POINTS_PER_UNIT = 0.75
@@ -112,6 +112,8 @@ def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
         translate=(top, left), interpolation2d="nearest"))
     layer.data = data
+    if layer.colormap.name != colormap:  # (a blank picture made first may have another)
+        layer.colormap = colormap
     _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True,
          opacity=1.0)
     _set(layer.colorbar, visible=False)
@@ -145,7 +147,7 @@ def number(value: float) -> str:
 
 
 def _bar_ends(cell, limits, rows: int = SIZE, height: float = 1.0) -> tuple[list, list]:
-    """Where the numbers at the two ends of a cell's colour bar go (over its top, level with
+    """Where the numbers at the two ends of a cell's colour bar go (over its top, a line under
     the cell's title, and under its bottom), and their texts. ``rows``: the picture's longer
     side in pixels; ``height``: the picture's height over its longer side."""
     top, left, side = cell
@@ -254,7 +256,7 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     axis = [f"midline (cyan) {p.midline.length:.0f} px"] if p.midline is not None else []
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
              "reporter (× mean)" if p.intensity_disk is not None else "",
-             "; ".join(axis + p.notes), ""]
+             "; ".join(axis + p.notes), "", ""]
     spots = _spots_2d(layer)
     for key, lim in limits.items():
         ends, numbers = _bar_ends(cells[key], lim)
@@ -280,17 +282,18 @@ def folded_words(analysis: Analysis, p: ObjectPictures) -> list[str]:
 
 
 def _spots_2d(layer) -> list[tuple[float, float]]:
-    """Where a 2-D object's captions go (each text runs right and down from its spot): over
-    the SDF, over the disk, over both (the object), over the reporter's disk, and under the
-    reporter's disk (notes: its place whether or not there is a reporter, clear of the disk's
-    words); and a point with no text far right of them, so that napari's fit of the view holds
-    every caption."""
+    """Where a 2-D object's captions go (each text runs right and up from its spot): over the
+    SDF, over the disk, over both (the object), over the reporter's disk (each a line over the
+    numbers at the top of their colour bars), and under the reporter's disk (notes: its place
+    whether or not there is a reporter, clear of the disk's words); and two points with no text
+    at the far corners of them all, so that napari's fit of the view holds every caption."""
     cells = _cells(layer)
     top, left, side = cells["sdf"]
     rtop, rleft, rside = cells["intensity_disk"]
-    return [_above(cells["sdf"]), _above(cells["disk"]), _above(cells["sdf"], lines=2),
-            _above(cells["intensity_disk"]), (rtop + rside + (BELOW + LINE) * TEXT * rside, rleft),
-            (top + 2.7 * side, left + 3.4 * side)]
+    return [_above(cells["sdf"], lines=2), _above(cells["disk"], lines=2),
+            _above(cells["sdf"], lines=3), _above(cells["intensity_disk"], lines=2),
+            (rtop + rside + (BELOW + LINE) * TEXT * rside, rleft),
+            (top + 2.7 * side, left + 3.4 * side), (top - 5.0 * TEXT * side, left)]
 
 
 def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
@@ -406,7 +409,8 @@ class PictureView:
         keys = ["sdf", "disk"] + (["intensity_disk"] if analysis.intensity is not None else [])
         for key in keys:
             if n[key] not in self.viewer.layers:
-                _image(self.viewer, n[key], blank, cells[key], "bwr", (-1.0, 1.0))
+                _image(self.viewer, n[key], blank, cells[key],
+                       "magma" if key == "intensity_disk" else "bwr", (-1.0, 1.0))
         _layer(self.viewer, n["lines"], Shapes, lambda: self.viewer.add_shapes(
             name=n["lines"], ndim=2, face_color="transparent"))
         _restyle(self.viewer, layer.name, PICTURES, opacity=DIMMED)
