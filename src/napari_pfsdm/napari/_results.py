@@ -21,8 +21,11 @@ from ..core.params import LINK_OPTION, PFSDMParams
 from ..core.table_options import carry_options
 from ._model import Analysis
 
-#: Seconds between two progress reports of a Run (and its last one).
-PROGRESS_EVERY = 0.1
+#: Seconds between two progress reports of a Run (and its last one): each moves napari's
+#: progress bar, and every repaint of the window competes with the measuring processes (at ten
+#: reports a second a Run of 3,300 nuclei took 2.3 × measure, at two 0.95 ×; benchmarks/plugin.py
+#: --run-only).
+PROGRESS_EVERY = 0.5
 #: What the first axis of a 3-D Labels layer is, in the form's words → in the analysis's.
 FIRST_AXIS = {"time (frames of a movie)": "time", "Z (slices of 3-D objects)": "z"}
 #: How objects keep their identity through time, in the form's words → the mode: link when
@@ -32,6 +35,34 @@ IDENTITY = {f"{name}: {words}": name for name, words in (
     ("auto", "link when ids jump"), ("labels", "the label ids"),
     ("centroid", "link by centroids"), ("overlap", "link by overlap"),
     ("laptrack", "link with laptrack")) if name in LINK_OPTION.choices}
+
+
+def plural(n: int, word: str) -> str:
+    """``n`` and ``word``, in the plural when ``n`` is not 1, with thousands separated.
+
+    >>> plural(1, "object"), plural(3271, "object")
+    ('1 object', '3,271 objects')
+    """
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
+
+
+def label_like(data, rows: int = 512) -> bool:
+    """Whether an array looks like a label image: whole numbers (or booleans) in flat patches,
+    at least half of the neighbouring pixels of its first frame equal (a raw intensity image's
+    noise makes them differ).
+
+    >>> labels = np.zeros((64, 64), np.uint16); labels[8:40, 8:30] = 3
+    >>> noise = np.random.default_rng(0).poisson(400, (64, 64)).astype(np.uint16)
+    >>> label_like(labels), label_like(noise), label_like(labels.astype(float))
+    (True, False, False)
+    """
+    dtype = np.dtype(data.dtype)
+    if not (np.issubdtype(dtype, np.integer) or dtype == np.bool_) or data.ndim < 2 \
+            or min(data.shape[-2:]) < 2:
+        return False
+    plane = data[(0,) * (data.ndim - 2)]
+    plane = np.asarray(plane[::max(1, plane.shape[0] // rows)])  # at most ~rows rows
+    return bool(np.mean(plane[:, 1:] == plane[:, :-1]) >= 0.5)
 
 
 def check_layers(labels, intensity, first_axis: str = "time") -> str:
@@ -165,7 +196,8 @@ def identify(table: pd.DataFrame, labels, time_lapse: bool, mode: str = "auto",
         n = len(np.unique(ids[ids != NO_TRACK]))
         return add_track_ids(table, ids), (
             f"Objects follow the Tracks layer '{tracks_name}': {n} tracks"
-            + (f"; {missed} objects that no track point reaches are left out of the "
+            + (f"; {missed} object{'s' if missed > 1 else ''} that no track point reaches "
+               "are left out of the "
                "trajectories." if missed else "."))
     out, check, used = link_movie(table, labels, mode)
     if used:
@@ -221,7 +253,7 @@ def reporter_problem(intensity) -> str:
 
 def run_message(fields: dict, labels, reporter_note: str = "") -> str:
     """What a Run found, in few words (the status line): identity, what PC1 follows, the
-    objects to look at twice, empty frames, the reporter, where the whole table is."""
+    objects to look at twice, empty frames, the reporter."""
     from ..analysis.features import warnings_summary
 
     table, time_lapse = fields["table"], fields["axes"].startswith("t")
@@ -237,7 +269,6 @@ def run_message(fields: dict, labels, reporter_note: str = "") -> str:
         if empty:
             msg.append(f"No objects in frame{'s' if len(empty) > 1 else ''} "
                        f"{', '.join(map(str, empty[:10]))}{' …' if len(empty) > 10 else ''}.")
-        msg.append(FEATURES_NOTE)
     msg.append(reporter_note)
     return " ".join(m for m in msg if m)
 
@@ -263,11 +294,6 @@ def left_out_words(table: pd.DataFrame, options: dict) -> str:
     n = border + warned
     return (f"{n} object{'s' if n > 1 else ''} left out of PCA, comparison and prediction: "
             f"{', '.join(w for w in why if w)}.")
-
-
-#: Where a time-lapse's rows are (napari's features table holds one row per label).
-FEATURES_NOTE = ("The layer's features hold the frame shown; every frame: Export CSV… or "
-                 "Layer for plotters.")
 
 
 def explain(pca: dict, measures: pd.DataFrame | None, channel: str = "shape") -> list[str]:
@@ -381,4 +407,5 @@ def saved_fields(saved, labels, intensity=None) -> dict:
             "intensity": intensity, "boxes": saved.boxes, "pca": pca,
             "measures": None if "z" in axes else table_measures(table),
             "groups": dict(saved.groups),
-            "sources": {k: v.get("name") for k, v in saved.sources.items()}}
+            "sources": {k: v.get("name") for k, v in saved.sources.items()},
+            "paths": {k: v.get("path") for k, v in saved.sources.items() if v.get("path")}}

@@ -6,11 +6,17 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from qtpy.QtCore import QEvent, QSize, Qt
+from qtpy.QtGui import QFontMetrics, QTextLayout
 from qtpy.QtWidgets import (
+    QComboBox,
     QDockWidget,
     QFrame,
+    QHBoxLayout,
+    QLabel,
     QLayout,
     QScrollArea,
+    QSizePolicy,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -46,6 +52,115 @@ def stack(dock: QWidget, *rows: QWidget) -> None:
     outer.setContentsMargins(0, 0, 0, 0)
     for row in rows:
         outer.addWidget(row, int(isinstance(row, QScrollArea)))
+
+
+def first_lines(text: str, font, width: int, n: int) -> tuple[str, bool]:
+    """``text`` wrapped at ``width`` pixels in ``font``, cut to its first ``n`` lines (the last
+    one ending in "…" when more would follow); returns (the lines joined by newlines, whether
+    it was cut)."""
+    if not text:
+        return "", False
+    layout = QTextLayout(text, font)
+    layout.beginLayout()
+    lines = []
+    while True:
+        line = layout.createLine()
+        if not line.isValid():
+            break
+        line.setLineWidth(max(width, 1))
+        lines.append(text[line.textStart():line.textStart() + line.textLength()].rstrip())
+    layout.endLayout()
+    if len(lines) <= n:
+        return "\n".join(lines), False
+    last = " ".join(lines[n - 1:])
+    last = QFontMetrics(font).elidedText(last, Qt.TextElideMode.ElideRight, max(width, 1))
+    return "\n".join([*lines[:n - 1], last]), True
+
+
+class StatusLine(QWidget):
+    """A few lines of words (at most :attr:`LINES`, the last cut with "…"), the whole text a
+    click away: "more" shows it all ("less" folds it again), and it is the tooltip."""
+
+    LINES = 3
+
+    def __init__(self, text: str = "") -> None:
+        super().__init__()
+        self.label = QLabel()
+        self.label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+        self.toggle = QToolButton(text="more", autoRaise=True)
+        self.toggle.setToolTip("Show the whole text (or fold it again).")
+        self.toggle.clicked.connect(self._flip)
+        keep = self.toggle.sizePolicy()
+        keep.setRetainSizeWhenHidden(True)  # the words keep their width with or without it
+        self.toggle.setSizePolicy(keep)
+        row = QHBoxLayout(self)
+        row.setContentsMargins(6, 0, 2, 0)
+        row.addWidget(self.label, 1)
+        row.addWidget(self.toggle, 0, Qt.AlignmentFlag.AlignBottom)
+        self.text, self.error, self.expanded = "", False, False
+        self.set_text(text)
+
+    def set_text(self, text: str, error: bool = False) -> None:
+        self.text, self.error, self.expanded = text, error, False
+        self.label.setStyleSheet("color: #e05050;" if error else "")
+        self.setToolTip(text)
+        self._lay_out()
+
+    @property
+    def value(self) -> str:
+        """The whole text (what the line shows may be cut)."""
+        return self.text
+
+    @value.setter
+    def value(self, text: str) -> None:
+        self.set_text(text)
+
+    def shown_lines(self) -> int:
+        """How many lines are on show."""
+        return self.label.text().count("\n") + 1 if self.label.text() else 0
+
+    def _flip(self) -> None:
+        self.expanded = not self.expanded
+        self._lay_out()
+
+    def _lay_out(self) -> None:
+        width = self.label.contentsRect().width()
+        if width <= 1:  # not laid out yet: the dock's width
+            width = max(self.width() - self.toggle.sizeHint().width() - 12, 100)
+        shown, cut = first_lines(self.text, self.label.font(), width,
+                                 10**6 if self.expanded else self.LINES)
+        self.label.setText(shown)
+        self.toggle.setText("less" if self.expanded else "more")
+        self.toggle.setVisible(cut or self.expanded)
+        lines = shown.count("\n") + 1 if shown else 1
+        self.label.setFixedHeight(lines * QFontMetrics(self.label.font()).lineSpacing() + 2)
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        super().resizeEvent(event)
+        self._lay_out()
+
+
+def shrinkable(combo: QComboBox, characters: int = 10) -> None:
+    """Let a combo box be narrower than its longest choice (shown whole in its list): a dock
+    at its default width never cuts a control at its right."""
+    combo.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon)
+    combo.setMinimumContentsLength(characters)
+    combo.setSizePolicy(QSizePolicy.Policy.Expanding, combo.sizePolicy().verticalPolicy())
+
+
+def head_row(name: str, choice, *buttons) -> QWidget:
+    """A dock's first row, always on screen: ``name``, the layer ``choice`` (a magicgui combo
+    box, narrower than its longest choice when the dock is) and its ``buttons`` (Run, Cancel…)."""
+    head = QWidget()
+    row = QHBoxLayout(head)
+    row.setContentsMargins(4, 2, 2, 0)
+    row.addWidget(QLabel(name))
+    row.addWidget(choice.native, 1)
+    for button in buttons:
+        row.addWidget(button.native)
+    shrinkable(choice.native)
+    return head
 
 
 def analysed_layers(viewer, _widget=None) -> list[str]:
