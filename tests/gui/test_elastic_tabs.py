@@ -16,6 +16,7 @@ def test_similar_with_the_elastic_term_is_the_nearest_under_the_full_elastic_dis
     plots = dock(viewer, PLOTS)
     plots.tabs.setCurrentIndex(4)
     gallery = plots.made[4]
+    gallery.which.value = "any"  # the nearest rows, as the matrix orders them
     labels = viewer.layers["gastruloids"]
     viewer.dims.set_current_step(0, 3)
     labels.selected_label = 2
@@ -24,7 +25,7 @@ def test_similar_with_the_elastic_term_is_the_nearest_under_the_full_elastic_dis
     plain = [(f, lab) for _ax, f, lab in gallery.thumbs]
     gallery.elastic.value = True  # computed again, with the term
     qtbot.waitUntil(lambda: gallery.worker is None and gallery.result is not None
-                    and gallery.result[0][3] > 0 and len(gallery.thumbs) == 8,
+                    and gallery.result[0][4] > 0 and len(gallery.thumbs) == 8,
                     timeout=120_000)
     measured = pf.drop_failed(analysis.table)
     d = pf.distance_matrix(measured, elastic_weight=pf.RECOMMENDED_ELASTIC_WEIGHT)

@@ -280,7 +280,8 @@ atexit.register(shutdown_pool)
 # --------------------------------------------------------------------------- the rows
 def iter_blocks(
     labels, intensity=None, *, params: PFSDMParams, axes: str, spacing=None,
-    workers: int | None = None, total: int | None = None,
+    workers: int | None = None, total: int | None = None, pixel_size=None,
+    space_unit: str | None = None,
 ) -> Generator[tuple[int, int, int, int], None, list[RowBlock]]:
     """The rows of every object as blocks (:mod:`~napari_pfsdm.analysis.row_blocks`), on
     ``workers`` processes; a generator.
@@ -299,6 +300,9 @@ def iter_blocks(
         process.
     total : int, optional
         The number of objects, if already counted (progress says ``done / total``).
+    pixel_size, space_unit : optional
+        The physical size of a pixel (or voxel) and its unit: the table's sizes in that unit
+        (:meth:`~napari_pfsdm.analysis.measuring.ObjectMeasurer.of`).
 
     Yields
     ------
@@ -324,7 +328,8 @@ def iter_blocks(
     where = {"axes": axes, "spacing": spacing} if volume else {"axes": axes}
     measurer = ObjectMeasurer.of(params, ndim=3 if volume else 2,
                                  with_intensity=intensity is not None, axes=axes,
-                                 spacing=voxel_spacing(axes, spacing))
+                                 spacing=voxel_spacing(axes, spacing), pixel_size=pixel_size,
+                                 space_unit=space_unit)
     pooled = total >= MIN_OBJECTS or (pool_ready(workers)
                                       and total >= workers * MIN_TASK_OBJECTS)
     if workers <= 1 or not pooled:

@@ -11,7 +11,15 @@ selected object's row and its pictures (:mod:`._pictures`).
 from __future__ import annotations
 
 import numpy as np
-from magicgui.widgets import ComboBox, Container, FloatSpinBox, Label, PushButton, SpinBox
+from magicgui.widgets import (
+    ComboBox,
+    Container,
+    FloatSpinBox,
+    Label,
+    LineEdit,
+    PushButton,
+    SpinBox,
+)
 from napari.layers import Image, Labels, Tracks
 from napari.utils.notifications import show_error
 from qtpy.QtCore import Qt
@@ -22,6 +30,7 @@ from ..core.params import OPTIONS, PFSDMParams, option
 from . import _pictures, _saving
 from ._jobs import JOBS, Job, RunInput, layer_data, start_run
 from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
+from ._physical import SPACE_UNITS, TIME_UNITS, layer_pixel_size, physical_options, times_text
 from ._results import (
     FIRST_AXIS,
     IDENTITY,
@@ -53,6 +62,13 @@ TIPS = {
                 "their label ids do not follow them (per-frame segmentation, e.g. cellpose): by "
                 "overlap where objects touch (packed cells), else by centroids; 'label ids' "
                 "trusts the ids; or link by centroids or overlap; or follow a Tracks layer.",
+    "pixel_size": "The size of a pixel (or of a voxel: Z, Y, X), from the layer's scale: the "
+                  "areas, lengths and widths are then in its unit (µm², µm). 'pixels' keeps "
+                  "them in pixels. A scale without a unit is taken to be in µm: change it "
+                  "here if it is not.",
+    "times": "Each frame's time, in frame order (e.g. 2, 5, 8, 10, 12, 12 for uneven days, "
+             "a day imaged twice): the plots then put time on their axis, and the table "
+             "gets a 'time' column. Blank: frames. Filled from the file when it says.",
     "save": "Keep this analysis in a folder (tables, PCA, groups, predictions, the data's "
             "fingerprints) to open it again later, here or on another computer.",
     "report": "Write one HTML file to share (it opens offline in any browser): the options, "
@@ -121,12 +137,19 @@ class AnalysisWidget(PluginDock):
                                  tooltip=TIPS["reporter"])
         self.identity = ComboBox(label="Identity", choices=self._identity_choices,
                                  tooltip=TIPS["identity"])
+        self.pixel_size = LineEdit(label="Pixel size", tooltip=TIPS["pixel_size"])
+        self.space_unit = ComboBox(label="Size unit", choices=list(SPACE_UNITS),
+                                   tooltip=TIPS["pixel_size"])
+        self.times = LineEdit(label="Times", tooltip=TIPS["times"])
+        self.time_unit = ComboBox(label="Time unit", choices=[("(frames)", "")] + [
+            (u, u) for u in TIME_UNITS if u], tooltip=TIPS["times"])
         self.options = {o.name: option_widget(o) for o in OPTIONS}
         self.intensity_weight = option_widget(option("intensity_weight"))
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
         more = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if not o.basic]
         self.form = Container(widgets=[self.first_axis, self.reporter, self.not_offered,
-                                       self.identity, *basic])
+                                       self.identity, self.pixel_size, self.space_unit,
+                                       self.times, self.time_unit, *basic])
         self.more = Container(widgets=[*more, self.intensity_weight])
         self.run_button = PushButton(text="Run")
         self.cancel_button = PushButton(text="Cancel", enabled=False)
@@ -145,6 +168,7 @@ class AnalysisWidget(PluginDock):
             label.native.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
             label.native.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         for combo in (self.labels, self.first_axis, self.reporter, self.identity,
+                      self.space_unit, self.time_unit,
                       *(w for w in self.options.values() if isinstance(w, ComboBox))):
             shrinkable(combo.native)
 
@@ -177,6 +201,7 @@ class AnalysisWidget(PluginDock):
         self.identity.changed.connect(self._on_identity)
         self.options["sdf"].changed.connect(self._show_relevant_options)
         self.first_axis.changed.connect(self._show_relevant_options)
+        self.first_axis.changed.connect(self._fill_physical)
         layers = napari_viewer.layers
         for event in (layers.events.inserted, layers.events.removed, layers.events.reordered):
             self.follow(event, self._on_labels_choice)  # (a removed layer's choice goes)
@@ -339,6 +364,14 @@ class AnalysisWidget(PluginDock):
             image = self.reporter_image()
             check_layers(_data(chosen), image, first_axis)
             params = self.params()
+            n_spatial = 3 if first_axis == "z" or chosen.ndim == 4 else 2
+            physical = physical_options(self.pixel_size.value, self.space_unit.value,
+                                        self.times.value, self.time_unit.value, n_spatial)
+            if "times" in physical:
+                from ..core.units import check_times
+
+                check_times(physical["times"], chosen.data.shape[0]
+                            if first_axis == "time" and chosen.ndim >= 3 else 1)
         except ValueError as err:  # InputError is a ValueError
             self.refuse(str(err))
             return None
@@ -346,11 +379,15 @@ class AnalysisWidget(PluginDock):
         hidden = hidden or next((lay for lay in self.viewer.layers if isinstance(lay, Image)
                                  and _data(lay) is _data(labels) and not lay.visible), None)
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
+        if "pixel_size" in physical and n_spatial == 3:  # the voxel size as the panel says
+            from ..core.units import check_pixel_size
+
+            spacing = physical["pixel_size"] = check_pixel_size(physical["pixel_size"], 3)
         weight = self.intensity_weight.value if image is not None else 0.0
         job = start_run(self.viewer, labels, RunInput(
             image, params, first_axis, spacing, self.identity_mode(), weight,
             names={"reporter": self.reporter.value[0] if image is not None else None},
-            paths={"labels": _saving.source_path(labels)}), hidden)
+            paths={"labels": _saving.source_path(labels)}, physical=physical), hidden)
         return job.worker
 
     def cancel(self, *args) -> None:
@@ -429,7 +466,20 @@ class AnalysisWidget(PluginDock):
         labels = self.labels_layer
         if labels is not None and not isinstance(labels, Labels):
             self._as_labels(labels)  # chooses the Labels layer made
+        self._fill_physical()
         self._on_labels_choice()
+
+    def _fill_physical(self, *args) -> None:
+        """The chosen layer's pixel size (its scale and units) and times (the reader's)."""
+        labels = self.labels_layer
+        if labels is None:
+            return
+        n_spatial = 3 if labels.ndim == 4 or (labels.ndim == 3
+                                              and self.first_axis.value == "z") else 2
+        self.pixel_size.value, self.space_unit.value = layer_pixel_size(labels, n_spatial)
+        times, unit = times_text(labels)
+        self.times.value = times
+        self.time_unit.value = unit if unit in TIME_UNITS else ""
 
     def _on_labels_choice(self, *args) -> None:
         """Show the chosen layer: its analysis, and its jobs while they run."""

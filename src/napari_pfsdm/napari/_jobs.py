@@ -142,14 +142,16 @@ JOBS = Jobs()
 
 # ------------------------------------------------------------------------------------- Run
 @thread_worker(start_thread=False)
-def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight):
+def _run_worker(labels, intensity, params, first_axis, spacing, identity, weight,
+                physical=None):
     """Measure, find the identities, and make what the GUI thread shows first (the viewer
     stays free meanwhile): the fields of the :class:`Analysis`, with its layer features and
     its words."""
     from ._features import layer_features
     from ._results import explain, identify, reporter_problem, run_analysis, run_message
 
-    fields = yield from run_analysis(labels, intensity, params, first_axis, spacing)
+    fields = yield from run_analysis(labels, intensity, params, first_axis, spacing,
+                                     **(physical or {}))
     fields["options"]["intensity_weight"] = weight
     mode, tracks, name = identity
     try:
@@ -177,6 +179,8 @@ class RunInput:
     #: The layers' names (``{"reporter": …}``) and the files they came from (``{"labels": …}``).
     names: dict = field(default_factory=dict)
     paths: dict = field(default_factory=dict)
+    #: ``pixel_size``, ``space_unit``, ``times``, ``time_unit`` (:func:`run_analysis`'s).
+    physical: dict = field(default_factory=dict)
 
 
 def start_run(viewer, labels, run: RunInput, hidden=None) -> Job:
@@ -185,7 +189,8 @@ def start_run(viewer, labels, run: RunInput, hidden=None) -> Job:
     Run hid (the image ``labels`` was made from), shown again when ``labels`` is removed
     before the Run ends (the Run then stops)."""
     worker = _run_worker(layer_data(labels), run.intensity, run.params, run.first_axis,
-                         run.spacing, run.identity, run.weight, _ignore_errors=True)
+                         run.spacing, run.identity, run.weight, run.physical,
+                         _ignore_errors=True)
     job = Job(labels.unique_id, "run", worker)
     start = time.perf_counter()
     bar = progress(total=0, desc="PF-SDM")

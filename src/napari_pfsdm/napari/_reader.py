@@ -54,12 +54,39 @@ def read_labels(path) -> list[tuple]:
     meta = {"name": name, "metadata": {"source_path": str(path)}}
     if scale is not None:
         meta["scale"] = scale
+    meta = _with_calibration(path, levels[0], meta)
     if len(levels) > 1:
         return [(levels, {**meta, "multiscale": True}, "labels")]
     data = levels[0]
     if isinstance(data, np.ndarray) and data.dtype == np.bool_:
         data = data.astype(np.uint8)  # napari's Labels want whole numbers
     return [(data, meta, "labels")]
+
+
+def _with_calibration(path: Path, data, meta: dict) -> dict:
+    """``meta`` with the pixel size (``scale``, ``units``) and the frames' times
+    (``metadata["times"]``, ``["time_unit"]``) that the file declares
+    (:func:`napari_pfsdm.batch.metadata.read_metadata`): a 3-D file is a time-lapse, a 4-D
+    one a time-lapse of Z-stacks (the analysis panel's defaults)."""
+    from ..batch.metadata import read_metadata
+
+    ndim = len(data.shape)
+    if ndim < 2:
+        return meta
+    n_frames = data.shape[0] if ndim >= 3 else 1
+    found = read_metadata(path, n_frames, volume=ndim == 4)
+    meta = {**meta, "metadata": dict(meta["metadata"])}
+    if found.pixel_size is not None and "scale" not in meta:
+        size = list(found.pixel_size)
+        meta["scale"] = [1.0] * (ndim - len(size)) + size
+        if found.space_unit:
+            unit = {"µm": "micrometer", "nm": "nanometer", "mm": "millimeter",
+                    "cm": "centimeter", "m": "meter"}[found.space_unit]
+            meta["units"] = ["pixel"] * (ndim - len(size)) + [unit] * len(size)
+    if found.times is not None and ndim >= 3:
+        meta["metadata"]["times"] = list(found.times)
+        meta["metadata"]["time_unit"] = found.time_unit
+    return meta
 
 
 def _levels(path: Path) -> tuple[list, list | None]:

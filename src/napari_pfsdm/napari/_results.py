@@ -117,9 +117,14 @@ def pca_scores(table: pd.DataFrame, channel: str = "shape") -> pd.DataFrame:
 
 
 def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
-                 first_axis: str = "time", spacing=None, workers: int | None = None
-                 ) -> Generator[tuple[int, int], None, dict]:
+                 first_axis: str = "time", spacing=None, workers: int | None = None, *,
+                 pixel_size=None, space_unit: str | None = None, times=None,
+                 time_unit: str | None = None) -> Generator[tuple[int, int], None, dict]:
     """Measure every (frame, label) object as :func:`napari_pfsdm.measure` does; a generator.
+
+    ``pixel_size`` and ``space_unit`` (the layer's scale and units) put the sizes in physical
+    units; ``times`` (one per frame, in ``time_unit``) gives the table its ``time`` column, as
+    :func:`napari_pfsdm.measure`'s same keywords do. Both are checked before any work.
 
     Yields ``(done, total)`` as objects are measured; returns the fields of an
     :class:`~._model.Analysis` (``table``, ``options``, ``params``, ``axes``, ``spacing``,
@@ -130,18 +135,23 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
     from ..analysis.interpretation import table_measures
     from ..analysis.label_images import count_objects
     from ..analysis.parallel import iter_blocks
+    from ..analysis.physical import add_times
     from ..analysis.row_blocks import BoxLookup, join_blocks
+    from ..core.units import check_times
 
     params = params or PFSDMParams()
     axes = check_layers(labels, intensity, first_axis)
     volume = "z" in axes
     spacing = tuple(float(v) for v in spacing) if volume and spacing is not None else None
+    if times is not None:
+        times = check_times(times, labels.shape[0] if axes.startswith("t") else 1)
     total = count_objects(labels, axes)
     if not total:
         raise ValueError("The Labels layer has no objects (all pixels are 0): paint or load a "
                          "segmentation first.")
     steps = iter_blocks(labels, intensity, params=params, axes=axes, spacing=spacing,
-                        workers=workers, total=total)
+                        workers=workers, total=total, pixel_size=pixel_size,
+                        space_unit=space_unit)
     said = 0.0
     try:
         while True:
@@ -156,6 +166,8 @@ def run_analysis(labels, intensity=None, params: PFSDMParams | None = None,
         steps.close()  # a closed run stops its processes
     joined = join_blocks(blocks)
     table = with_leave_out(joined.table, params)
+    if times is not None:
+        table = add_times(table, times, time_unit)
     pca = {"shape": pca_scores(table, "shape")}
     if intensity is not None:
         pca["intensity"] = pca_scores(table, "intensity")
