@@ -129,9 +129,9 @@ def main(argv=None) -> int:
             return proc.returncode
         children_maxrss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
 
-        from napari_pfsdm.io import read_table_csv
+        from napari_pfsdm.io import read_table
 
-        tab = read_table_csv(table)
+        tab = read_table(table)
         n_err = int(tab["error"].ne("").sum())
         result = {
             "frames": n_frames, "frame_size": args.size, "objects_per_frame": args.objects,

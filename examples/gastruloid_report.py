@@ -65,7 +65,7 @@ from napari_pfsdm.analysis import classification as cl
 from napari_pfsdm.core.table_options import carry_options
 from napari_pfsdm.core.table_schema import pc_column
 from napari_pfsdm.data.gastruloids import GastruloidParams, GastruloidSet, make_gastruloids
-from napari_pfsdm.io import save_figure, write_table_csv
+from napari_pfsdm.io import save_figure, write_table
 
 __all__ = [
     "build_data", "explain_ranking", "format_seeds_table", "format_table", "main",
@@ -655,10 +655,10 @@ def run(
         rows += method_rows
         say(message)
     results = pd.DataFrame(rows)
-    write_table_csv(results, out / "gastruloid_results.csv", {}, table_type="results")
+    write_table(results, out / "gastruloid_results.csv", {}, table_type="results")
     fused = score_fused(data, sel, seed=seed, n_repeats=n_repeats,
                         measure_options=measure_options)
-    write_table_csv(fused, out / "gastruloid_fused.csv", {}, table_type="results")
+    write_table(fused, out / "gastruloid_fused.csv", {}, table_type="results")
     say(f"predict_outcome (PF-SDM + classic measures): {fused['time_s'].iloc[0]:.1f} s")
     say("\n" + format_table(results))
     say(format_table(fused).split("\n", 2)[2]
@@ -771,7 +771,7 @@ def run_seeds(out_dir: str | Path, seeds: Sequence[int], **kwargs) -> pd.DataFra
         per_seed.append(res.assign(seed=k))
     allres = pd.concat(per_seed, ignore_index=True)
     summary = seeds_summary(allres)
-    write_table_csv(summary, out / "gastruloid_seeds.csv", {}, table_type="results")
+    write_table(summary, out / "gastruloid_seeds.csv", {}, table_type="results")
     say(format_seeds_table(allres, summary, seeds))
     say(f"wrote {out / 'gastruloid_seeds.csv'}")
     return summary

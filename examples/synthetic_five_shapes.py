@@ -50,7 +50,7 @@ from napari_pfsdm.analysis.retrieval import loo_1nn_fraction
 from napari_pfsdm.core import DEFAULTS, distance_matrix, pfsdm
 from napari_pfsdm.data.shapes import base_shapes, make_benchmark_set
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import save_figure, write_table_csv
+from napari_pfsdm.io import save_figure, write_table
 
 __all__ = [
     "DEFAULT_LABEL", "pfsdm_variants", "scores", "nn_accuracy", "mds_embedding", "run", "summary",
@@ -473,7 +473,7 @@ def write_outputs(
         The files written.
     """
     written = [out / OUTPUT_FILES[0]]
-    write_table_csv(table, written[0], {}, table_type="benchmark")
+    write_table(table, written[0], {}, table_type="benchmark")
     if plot:
         written.append(out / OUTPUT_FILES[1])
         _plot_mds(written[1], table.attrs["matrices"], labels_by_set, names, sets, seed)

@@ -45,11 +45,11 @@ def csv_text(table: pd.DataFrame) -> str:
     """The table as the package writes it (plain CSV, exact floats)."""
     import tempfile
 
-    from napari_pfsdm.io.tables import write_table_csv
+    from napari_pfsdm.io.tables import write_table
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "t.csv"
-        write_table_csv(table, path, table.attrs.get("pfsdm") or {})
+        write_table(table, path, table.attrs.get("pfsdm") or {})
         return path.read_text()
 
 

@@ -19,7 +19,7 @@ from napari_pfsdm.batch import Movie, find_movies, measure_dask, open_movie, pai
 from napari_pfsdm.batch import run as run_module
 from napari_pfsdm.batch import tasks as tasks_module
 from napari_pfsdm.batch.io import check_labels
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table, write_table
 from unguarded_script import run_once
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
@@ -90,19 +90,19 @@ def test_table_csv_round_trip_is_exact(tmp_path):
     })
     options = {"n_fourier": 10, "mapping": "harmonic", "radii": np.linspace(0.1, 0.9, 5),
                "weights": np.full(5, 0.2), "viscosity": np.float64(0.05)}
-    path = write_table_csv(df, tmp_path / "t.csv", options)
+    path = write_table(df, tmp_path / "t.csv", options)
     assert path.read_text().startswith("movie,frame,label,")  # plain CSV, no comment line
     side = json.loads((tmp_path / "t.csv.json").read_text())
     assert side["options"]["n_fourier"] == 10 and side["written_by"].startswith("napari-pfsdm")
-    back = read_table_csv(path)
+    back = read_table(path)
     pd.testing.assert_frame_equal(back, df, check_exact=True)
     assert back.attrs["pfsdm"]["radii"] == pytest.approx(np.linspace(0.1, 0.9, 5).tolist(),
                                                          rel=0, abs=0)
     assert back.attrs["pfsdm"]["mapping"] == "harmonic"
     # options default to df.attrs["pfsdm"]
     df.attrs["pfsdm"] = {"n_radii": 8}
-    write_table_csv(df, tmp_path / "u.csv")
-    assert read_table_csv(tmp_path / "u.csv").attrs["pfsdm"] == {"n_radii": 8}
+    write_table(df, tmp_path / "u.csv")
+    assert read_table(tmp_path / "u.csv").attrs["pfsdm"] == {"n_radii": 8}
 
 
 def test_table_csv_is_atomic(tmp_path, monkeypatch):
@@ -116,12 +116,12 @@ def test_table_csv_is_atomic(tmp_path, monkeypatch):
 
     monkeypatch.setattr(pd.DataFrame, "to_csv", broken)
     with pytest.raises(RuntimeError):
-        write_table_csv(df, target, {"a": 1})
+        write_table(df, target, {"a": 1})
     assert target.read_text() == "old content\n"
     assert sorted(os.listdir(tmp_path)) == ["features.csv"]  # no temp file left
     monkeypatch.undo()
     with pytest.raises(ValueError, match="does not exist"):
-        write_table_csv(df, tmp_path / "missing" / "t.csv")
+        write_table(df, tmp_path / "missing" / "t.csv")
 
 
 # ------------------------------------------------------------------------------------------
@@ -382,7 +382,7 @@ def test_run_batch_resumes_after_a_failure(tmp_path, monkeypatch):
     assert log[0].startswith("skipped a") and log[1].startswith("measured b")
     n = len(napari_pfsdm.measure(labels, n_fourier=5))
     assert n == 7 and table["movie"].tolist() == ["a"] * n + ["b"] * n
-    back = read_table_csv(out)
+    back = read_table(out)
     assert back.attrs["pfsdm"]["n_fourier"] == 5
     pd.testing.assert_frame_equal(back, table, check_exact=False)
 

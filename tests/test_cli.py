@@ -14,7 +14,7 @@ import tifffile
 
 import napari_pfsdm
 from napari_pfsdm.cli import main
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table, write_table
 
 zarr = pytest.importorskip("zarr")  # the [batch] extra
 
@@ -63,7 +63,7 @@ def test_measure_tiff_round_trip(tmp_path):
     rc = main(["measure", str(tmp_path / "emb_labels.tif"),
                "--intensity", str(tmp_path / "emb_reporter.tif"), "-o", str(out), *OPTS])
     assert rc == 0
-    got = read_table_csv(out)
+    got = read_table(out)
     ref = napari_pfsdm.measure(labels, intensity, **KW)
     assert got["movie"].unique().tolist() == ["emb_labels"]
     assert len(got) == len(ref) == 6
@@ -80,7 +80,7 @@ def test_measure_zarr_folder_then_trajectories_and_compare(tmp_path, capsys):
     write_zarr(movies / "b.zarr", labels[:, ::-1, :])  # mirror image: same shapes
     out = tmp_path / "features.csv"
     assert main(["measure", str(movies), "-o", str(out), *OPTS]) == 0
-    table = read_table_csv(out)
+    table = read_table(out)
     assert table["movie"].tolist() == ["a"] * 6 + ["b"] * 6
     ref = napari_pfsdm.measure(labels, **KW)
     features_close(table[table.movie == "a"].drop(columns="movie").reset_index(drop=True), ref)
@@ -90,7 +90,7 @@ def test_measure_zarr_folder_then_trajectories_and_compare(tmp_path, capsys):
     pca, png = tmp_path / "pca.csv", tmp_path / "pca.png"
     assert main(["trajectories", str(out), "-o", str(pca), "--plot", str(png),
                  "--groups", str(groups), "-q"]) == 0
-    scores = read_table_csv(pca)
+    scores = read_table(pca)
     assert len(scores) == 12 and {"shape_PC1", "shape_PC2", "group"} <= set(scores.columns)
     assert png.stat().st_size > 10_000
     assert scores.loc[scores.label == 1, "group"].eq("round").all()
@@ -98,7 +98,7 @@ def test_measure_zarr_folder_then_trajectories_and_compare(tmp_path, capsys):
     dist, mds = tmp_path / "d.csv", tmp_path / "mds.png"
     assert main(["compare", str(out), "--frames", "0", "-o", str(dist),
                  "--mds", str(mds), "-q"]) == 0
-    d = read_table_csv(dist, index_col=0)
+    d = read_table(dist, index_col=0)
     assert d.shape == (4, 4) and d.index.tolist()[0] == "a/t0/l1"
     m = d.to_numpy()
     np.testing.assert_allclose(m, m.T)
@@ -126,7 +126,7 @@ def test_classify_prints_scores(tmp_path, capsys):
     # a table without its options (no f.csv.json) is refused, not guessed
     assert main(["classify", str(feats), "--groups", str(groups), "--frames", "0-1"]) == 2
     assert "does not say how it was measured" in capsys.readouterr().err
-    write_table_csv(pd.DataFrame(rows), feats, {"n_fourier": 2, "weights": [1.0]})
+    write_table(pd.DataFrame(rows), feats, {"n_fourier": 2, "weights": [1.0]})
     groups.write_text("movie,group\n" + "".join(
         f"m{o:02d},{'multi' if o % 2 else 'single'}\n" for o in range(16)))
     out = tmp_path / "scores.csv"
@@ -135,7 +135,7 @@ def test_classify_prints_scores(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "16 objects with a group (8 multi, 8 single)" in printed
     assert "fused (weights chosen inside each training split)" in printed
-    scores = read_table_csv(out).set_index("family")
+    scores = read_table(out).set_index("family")
     assert scores.loc["shape", "balanced_accuracy"] > 0.9  # separable by construction
 
 
@@ -189,7 +189,7 @@ def test_entry_point_and_module_in_a_subprocess(tmp_path):
                          "--scheduler", "processes", "--workers", "2", *KW_ARGS],
                         capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
-    features_close(read_table_csv(out).drop(columns="movie"),
+    features_close(read_table(out).drop(columns="movie"),
                    napari_pfsdm.measure(labels, **KW))
     bad = subprocess.run([sys.executable, "-m", "napari_pfsdm", "measure",
                           str(tmp_path / "nope.zarr"), "-o", str(tmp_path / "g.csv")],
@@ -209,6 +209,6 @@ def test_demo_quick(tmp_path):
     for name in ("features.csv", "pca.csv", "pca.png", "distances.csv", "mds.png",
                  "groups.csv", "montage_labels.tif"):
         assert (out / name).exists(), name
-    table = read_table_csv(out / "features.csv")
+    table = read_table(out / "features.csv")
     assert table["frame"].nunique() > 1 and table["label"].nunique() > 1
     assert any(c.startswith("intensity_r") for c in table.columns)

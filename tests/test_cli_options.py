@@ -13,7 +13,7 @@ import pytest
 import tifffile
 
 from napari_pfsdm.cli import main
-from napari_pfsdm.io import read_table_csv
+from napari_pfsdm.io import read_table
 
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
 
@@ -45,7 +45,7 @@ def features(tmp_path_factory):
 def compare(features, tmp_path, *options: str) -> pd.DataFrame:
     out = tmp_path / f"d{len(list(tmp_path.iterdir()))}.csv"
     assert main(["compare", str(features), "-o", str(out), "-q", *options]) == 0
-    return read_table_csv(out, index_col=0)
+    return read_table(out, index_col=0)
 
 
 def test_boundary_weight_scales_the_boundary_term(features, tmp_path):
@@ -107,11 +107,11 @@ def test_trajectories_channel_and_components(features, tmp_path):
     out = tmp_path / "p.csv"
     assert main(["trajectories", str(features), "-o", str(out), "--components", "2",
                  "--channel", "intensity", "-q"]) == 0
-    scores = read_table_csv(out)
+    scores = read_table(out)
     assert [c for c in scores.columns if "PC" in c] == ["intensity_PC1", "intensity_PC2"]
     assert main(["trajectories", str(features), "-o", str(out), "--components", "4",
                  "-q", "--force"]) == 0
-    cols = [c for c in read_table_csv(out).columns if c.startswith("shape_PC")]
+    cols = [c for c in read_table(out).columns if c.startswith("shape_PC")]
     assert cols == [f"shape_PC{i}" for i in range(1, 5)]
 
 
@@ -149,7 +149,7 @@ def test_each_method_option_reaches_the_table(tmp_path, option, value, key):
     if key == "mode_exponent":
         np.testing.assert_allclose(options["mode_weights"], (1.0 + n) ** 0.5, rtol=1e-15)
         return
-    a, b = read_table_csv(out), read_table_csv(default)
+    a, b = read_table(out), read_table(default)
     cols = [c for c in b.columns if c.startswith("shape_")]
     if key in ("n_fourier", "n_radii"):
         assert [c for c in a.columns if c.startswith("shape_")] != cols
@@ -171,7 +171,7 @@ def test_components_and_min_area_decide_which_objects_are_described(tmp_path):
         out = tmp_path / "f.csv"
         assert main(["measure", str(tmp_path / "m.tif"), "-o", str(out), "--force",
                      *options, *base]) == 0
-        table = read_table_csv(out)
+        table = read_table(out)
         return dict(zip(table["label"].tolist(), table["error"].tolist(), strict=True))
 
     default = errors()

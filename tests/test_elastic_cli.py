@@ -9,7 +9,7 @@ import tifffile
 
 import napari_pfsdm as pf
 from napari_pfsdm.cli import main
-from napari_pfsdm.io import read_table_csv
+from napari_pfsdm.io import read_table
 
 
 def _lobes(n_frames: int = 3) -> np.ndarray:
@@ -46,19 +46,19 @@ def test_compare_elastic_is_the_default_distance_plus_the_recommended_weight_tim
     from napari_pfsdm.core.elastic import elastic_distance_matrix
 
     features, _ = measured
-    table = read_table_csv(features)
+    table = read_table(features)
     want_default = pf.distance_matrix(table.drop(columns="movie"))
     d_e = elastic_distance_matrix(signatures_from_table(table))
     for flag, mu in ((["--elastic"], pf.RECOMMENDED_ELASTIC_WEIGHT), (["--elastic", "1.5"], 1.5)):
         out = tmp_path / f"d{mu}.csv"
         assert main(["compare", str(features), "-o", str(out), "-q", *flag]) == 0
-        got = read_table_csv(out, index_col=0)
+        got = read_table(out, index_col=0)
         assert np.allclose(got.to_numpy(float), want_default + mu * d_e, atol=1e-9)
         assert got.attrs["pfsdm"]["elastic_weight"] == mu
     assert pf.RECOMMENDED_ELASTIC_WEIGHT == 0.375
     out = tmp_path / "plain.csv"
     assert main(["compare", str(features), "-o", str(out), "-q"]) == 0
-    got = read_table_csv(out, index_col=0)
+    got = read_table(out, index_col=0)
     assert np.allclose(got.to_numpy(float), want_default, atol=1e-9)
     assert got.attrs["pfsdm"]["elastic_weight"] == 0.0
 
@@ -92,10 +92,10 @@ def test_compare_elastic_neighbours_say_they_are_approximate(tmp_path, capsys):
                  "-o", str(out)]) == 0
     err = capsys.readouterr().err
     assert "approximate" in err
-    edges = read_table_csv(out)
+    edges = read_table(out)
     extra = edges.attrs["pfsdm"]
     assert extra["elastic_weight"] == pf.RECOMMENDED_ELASTIC_WEIGHT
-    table = pf.drop_failed(read_table_csv(features))
+    table = pf.drop_failed(read_table(features))
     found = pf.nearest_neighbours(table, 5, elastic_weight=pf.RECOMMENDED_ELASTIC_WEIGHT)
     assert not found.exact
     got = edges.sort_values(["row", "rank"])["neighbour"].to_numpy().reshape(-1, 5)
@@ -139,7 +139,7 @@ def test_the_report_s_nearest_shapes_are_under_the_elastic_distance(measured, tm
     import re
 
     features, _ = measured
-    table = pf.drop_failed(read_table_csv(features))
+    table = pf.drop_failed(read_table(features))
     keys = list(zip(table["frame"], table["label"], strict=True))
     for flag, mu in (([], 0.0), (["--elastic"], pf.RECOMMENDED_ELASTIC_WEIGHT)):
         out = tmp_path / f"report{mu}.html"

@@ -474,25 +474,25 @@ def test_a_planted_symlink_never_redirects_a_write(tmp_path):
 def test_a_sidecar_from_another_write_is_refused_in_plain_words(tmp_path):
     import shutil
 
-    from napari_pfsdm.io import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table, write_table
 
     a, b = tmp_path / "a.csv", tmp_path / "b" / "a.csv"
     b.parent.mkdir()
     df = pd_frame()
-    write_table_csv(df, a, {"v": 1})
-    write_table_csv(df.assign(area=df["area"] * 2), b, {"v": 2})
+    write_table(df, a, {"v": 1})
+    write_table(df.assign(area=df["area"] * 2), b, {"v": 2})
     shutil.copy(b.with_name("a.csv.json"), a.with_name("a.csv.json"))  # v2's sidecar by v1's
     with pytest.raises(ValueError, match="do not belong together"):
-        read_table_csv(a)
+        read_table(a)
     # under another name too: the sidecar's file name does not make a pair, the content does
     shutil.copy(a, tmp_path / "copy.csv")
     shutil.copy(tmp_path / "b" / "a.csv.json", tmp_path / "copy.csv.json")
     with pytest.raises(ValueError, match="do not belong together.*other values in column "
                                          "area"):
-        read_table_csv(tmp_path / "copy.csv")
+        read_table(tmp_path / "copy.csv")
     # a copy of a table with its own sidecar, under another name, is that table
     shutil.copy(b, tmp_path / "copy.csv")
-    assert read_table_csv(tmp_path / "copy.csv").attrs["pfsdm"] == {"v": 2}
+    assert read_table(tmp_path / "copy.csv").attrs["pfsdm"] == {"v": 2}
 
 
 def pd_frame():
@@ -504,11 +504,11 @@ def pd_frame():
 def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
     import threading
 
-    from napari_pfsdm.io import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table, write_table
 
     out = tmp_path / "t.csv"
     base = pd_frame()
-    write_table_csv(base.assign(v=0), out, {"v": 0})
+    write_table(base.assign(v=0), out, {"v": 0})
     stop = threading.Event()
 
     def writer() -> None:
@@ -516,7 +516,7 @@ def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
         while not stop.is_set():
             v += 1
             rows = base.assign(v=v) if v % 2 else base.iloc[:2].assign(v=v)
-            write_table_csv(rows, out, {"v": v})
+            write_table(rows, out, {"v": v})
 
     thread = threading.Thread(target=writer)
     thread.start()
@@ -524,7 +524,7 @@ def test_a_reader_beside_a_writer_never_pairs_two_writes(tmp_path):
     try:
         for _ in range(60):
             try:
-                got = read_table_csv(out)
+                got = read_table(out)
             except ValueError as exc:
                 assert "do not belong together" in str(exc)
                 refused += 1
@@ -839,16 +839,16 @@ def test_a_worker_killed_during_a_pool_run_stops_it_in_plain_words():
 def test_a_table_edited_in_place_is_read_with_a_warning(tmp_path):
     import os
 
-    from napari_pfsdm.io import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table, write_table
 
     path = tmp_path / "t.csv"
-    write_table_csv(pd_frame(), path, {"v": 1})
+    write_table(pd_frame(), path, {"v": 1})
     text = path.read_text().replace("10.5", "10.75")  # a cell corrected by hand
     path.write_text(text)
     side = path.with_name("t.csv.json").stat()
     os.utime(path, ns=(side.st_atime_ns, side.st_mtime_ns + 10**9))  # saved after the .json
     with pytest.warns(UserWarning, match="changed after pfsdm wrote it"):
-        back = read_table_csv(path)
+        back = read_table(path)
     assert back["area"].tolist() == [10.75, 11.0, 9.25] and back.attrs["pfsdm"] == {"v": 1}
 
 

@@ -65,19 +65,19 @@ FORMULA_NAMES = ["=1+1", "+SUM(A1)", "-2+3", "@cmd", "\tx", "\rx", "'=quoted"]
 
 @pytest.mark.parametrize("name", FORMULA_NAMES)
 def test_a_text_cell_is_never_a_formula_and_reads_back_the_same(tmp_path, name):
-    from napari_pfsdm.io import read_table_csv, write_table_csv
+    from napari_pfsdm.io import read_table, write_table
 
     df = pd.DataFrame({"movie": [name, "e1"], "group": ["a", name], "frame": [0, 1],
                        "x": [-1.5, 2.0], "n": [-3, 4]})
     out = tmp_path / "t.csv"
-    write_table_csv(df, out, {})
+    write_table(df, out, {})
     rows = cells(out)
     header, first, second = rows[0], rows[1], rows[2]
     for cell in (first[header.index("movie")], second[header.index("group")]):
         assert cell[0] not in "=+-@\t\r", repr(cell)  # a spreadsheet shows it as text
     # negative numbers are numbers, not escaped
     assert first[header.index("x")] == "-1.5" and first[header.index("n")] == "-3"
-    back = read_table_csv(out)
+    back = read_table(out)
     assert back["movie"].tolist() == [name, "e1"] and back["group"].tolist() == ["a", name]
     assert back["x"].tolist() == [-1.5, 2.0] and back["n"].tolist() == [-3, 4]
 

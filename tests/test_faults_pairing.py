@@ -23,7 +23,7 @@ import tifffile
 import napari_pfsdm as pf
 from napari_pfsdm.cli import main
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table, write_table
 
 FAST = {"n_fourier": 4, "n_radii": 4}
 
@@ -50,8 +50,8 @@ def pair(tmp_path_factory):
     assert list(a.columns) == list(b.columns)
     (folder / "a").mkdir()
     (folder / "b").mkdir()
-    write_table_csv(a, folder / "a" / "f.csv")
-    write_table_csv(b, folder / "b" / "g.csv")
+    write_table(a, folder / "a" / "f.csv")
+    write_table(b, folder / "b" / "g.csv")
     return folder, a, b
 
 
@@ -79,7 +79,7 @@ def test_another_runs_sidecar_beside_a_table_is_refused_whatever_it_names(pair, 
     os.utime(tmp_path / "f.csv.json", ns=(t, t))
     with pytest.raises(InputError, match="do not belong together: the table has other "
                                          "values in columns"):
-        read_table_csv(tmp_path / "f.csv")
+        read_table(tmp_path / "f.csv")
 
 
 def test_through_the_command_line_the_pair_is_refused_naming_both(pair, tmp_path, capsys):
@@ -102,7 +102,7 @@ def test_an_older_sidecar_of_another_run_is_never_used_silently(pair, tmp_path):
     os.utime(tmp_path / "f.csv.json", ns=(0, 0))
     with pytest.warns(UserWarning, match="changed after pfsdm wrote it .*other values in "
                                          "columns"):
-        read_table_csv(tmp_path / "f.csv")
+        read_table(tmp_path / "f.csv")
 
 
 @pytest.mark.parametrize("how", ["pandas with its index", "pandas without", "spreadsheet",
@@ -123,8 +123,8 @@ def test_the_same_table_written_again_is_its_sidecars(pair, tmp_path, how):
     _copy(folder / "a" / "f.csv.json", tmp_path / "copy.csv.json")
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # not even a warning: it is the same table
-        back = read_table_csv(copy)
-    pd.testing.assert_frame_equal(back, read_table_csv(src))
+        back = read_table(copy)
+    pd.testing.assert_frame_equal(back, read_table(src))
     np.testing.assert_array_equal(pf.distance_matrix(back), pf.distance_matrix(a))
 
 
@@ -150,21 +150,21 @@ def test_an_edited_copy_with_a_copied_sidecar_is_refused_saying_what_changed(pai
     t.to_csv(tmp_path / "f.csv", index=False)
     _copy(folder / "a" / "f.csv.json", tmp_path / "f.csv.json")
     with pytest.raises(InputError, match=f"do not belong together: the table has .*{words}"):
-        read_table_csv(tmp_path / "f.csv")
+        read_table(tmp_path / "f.csv")
     # saved after its sidecar (edited in place): read, with a warning saying what changed
     os.utime(tmp_path / "f.csv.json", ns=(0, 0))
     with pytest.warns(UserWarning, match=f"changed after pfsdm wrote it .*{words}"):
-        read_table_csv(tmp_path / "f.csv")
+        read_table(tmp_path / "f.csv")
 
 
 def test_parquet_tables_are_paired_by_content_too(pair, tmp_path):
     pytest.importorskip("pyarrow")
     folder, a, b = pair
-    write_table_csv(a, tmp_path / "a.parquet")
-    write_table_csv(b, tmp_path / "b.parquet")
+    write_table(a, tmp_path / "a.parquet")
+    write_table(b, tmp_path / "b.parquet")
     _copy(tmp_path / "b.parquet.json", tmp_path / "a.parquet.json")
     with pytest.raises(InputError, match="do not belong together"):
-        read_table_csv(tmp_path / "a.parquet")
+        read_table(tmp_path / "a.parquet")
 
 
 # --------------------------------------------------------------------------------------------

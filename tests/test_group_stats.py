@@ -14,7 +14,7 @@ from napari_pfsdm.analysis.group_stats import compare_groups, holm, object_value
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_options import set_options
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import write_table_csv
+from napari_pfsdm.io import write_table
 
 DAYS = [2.0, 5.0, 8.0, 12.0, 12.0, 16.0]  # one day imaged twice
 
@@ -87,7 +87,7 @@ def test_two_groups_use_mann_whitney():
 
 def test_pfsdm_stats_prints_the_findings_and_writes_the_table(tmp_path, capsys):
     table = study().drop(columns=["group", "clone", "lab"])
-    write_table_csv(table, tmp_path / "f.csv", table.attrs["pfsdm"], table_type="features")
+    write_table(table, tmp_path / "f.csv", table.attrs["pfsdm"], table_type="features")
     pd.DataFrame({"movie": [f"{m}.tif" for m in table["movie"].unique()],
                   "clone": [m.split("_")[0] for m in table["movie"].unique()],
                   "lab": "LabA"}).to_csv(tmp_path / "groups.csv", index=False)

@@ -10,7 +10,7 @@ import pytest
 
 from napari_pfsdm.batch.run import _read_part, _write_part
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import read_table_csv, sidecar_path, write_table_csv
+from napari_pfsdm.io import read_table, sidecar_path, write_table
 
 
 def awkward() -> pd.DataFrame:
@@ -30,8 +30,8 @@ def awkward() -> pd.DataFrame:
 
 def test_awkward_values_round_trip_exactly(tmp_path):
     df = awkward()
-    write_table_csv(df, tmp_path / "t.csv", {"n_fourier": 6})
-    back = read_table_csv(tmp_path / "t.csv")
+    write_table(df, tmp_path / "t.csv", {"n_fourier": 6})
+    back = read_table(tmp_path / "t.csv")
     assert back["movie"].tolist() == ["001", "NA", "None", "", "nan", "1e3", "007"]
     assert back["group"].tolist() == ["1", "", "a", "01", "NA", "x", "null"]
     assert back["error"].tolist()[1:3] == ["boom, with a comma", 'a "quoted" word']
@@ -46,16 +46,16 @@ def test_awkward_values_round_trip_exactly(tmp_path):
 
 def test_a_copy_resaved_by_pandas_with_its_index_reads_the_same(tmp_path):
     df = awkward()
-    write_table_csv(df, tmp_path / "t.csv", {})
-    read_table_csv(tmp_path / "t.csv").to_csv(tmp_path / "copy.csv")  # index 0, 1, 2, ...
+    write_table(df, tmp_path / "t.csv", {})
+    read_table(tmp_path / "t.csv").to_csv(tmp_path / "copy.csv")  # index 0, 1, 2, ...
     shutil.copy(tmp_path / "t.csv.json", tmp_path / "copy.csv.json")
-    pd.testing.assert_frame_equal(read_table_csv(tmp_path / "copy.csv"), df)
+    pd.testing.assert_frame_equal(read_table(tmp_path / "copy.csv"), df)
 
 
 def test_numbers_still_read_missing_words_as_nan(tmp_path):
     # a table edited by hand: "NA" in a number column is missing, in a name column a name
     (tmp_path / "t.csv").write_text("movie,area,track_id\nNA,NA,\n002,1.5,3\n")
-    back = read_table_csv(tmp_path / "t.csv")
+    back = read_table(tmp_path / "t.csv")
     assert back["movie"].tolist() == ["NA", "002"]
     assert np.isnan(back["area"][0]) and back["area"][1] == 1.5
     assert back["track_id"].tolist() == [-1, 3]
@@ -65,8 +65,8 @@ def test_a_distance_table_keeps_its_row_names(tmp_path):
     names = ["001:0:1", "NA:0:2", "None:1:1"]
     d = pd.DataFrame([[0.0, 0.5, 1.0], [0.5, 0.0, 0.25], [1.0, 0.25, 0.0]],
                      index=pd.Index(names, name="object"), columns=names)
-    write_table_csv(d, tmp_path / "d.csv", {}, index=True)
-    back = read_table_csv(tmp_path / "d.csv", index_col=0)
+    write_table(d, tmp_path / "d.csv", {}, index=True)
+    back = read_table(tmp_path / "d.csv", index_col=0)
     assert back.index.tolist() == names and back.columns.tolist() == names
     np.testing.assert_array_equal(back.to_numpy(), d.to_numpy())
 
@@ -88,7 +88,7 @@ def test_a_table_written_in_small_chunks_is_the_file_pandas_writes_whole(tmp_pat
     df.insert(0, "label", np.arange(1, 24))
     df["name"] = [f"cell {i}" for i in range(23)]
     monkeypatch.setattr(tables, "CSV_CHUNK_CELLS", 15)  # two rows per chunk: 12 chunks
-    path = tables.write_table_csv(df, tmp_path / "t.csv", {})
+    path = tables.write_table(df, tmp_path / "t.csv", {})
     assert path.read_text() == df.to_csv(index=False, lineterminator="\n")
     pd.testing.assert_frame_equal(pd.read_csv(path), df)
 
@@ -101,13 +101,13 @@ def test_a_table_of_several_mebibytes_is_paired_with_its_sidecar(tmp_path):
 
     rng = np.random.default_rng(0)
     df = pd.DataFrame(rng.normal(size=(20_000, 8)), columns=[f"c{i}" for i in range(8)])
-    path = write_table_csv(df, tmp_path / "big.csv", {})
+    path = write_table(df, tmp_path / "big.csv", {})
     data = path.read_bytes()
     assert len(data) > 2 * 2**20  # three blocks
     side = json.loads(sidecar_path(path).read_text())
     assert side["table_bytes"] == len(data)
     assert side["table_sha256"] == hashlib.sha256(data).hexdigest()
-    pd.testing.assert_frame_equal(read_table_csv(path, strict=True), df)
+    pd.testing.assert_frame_equal(read_table(path, strict=True), df)
 
 
 @pytest.mark.parametrize("text", ['{"written_by": "napari-pfsdm 0.1"}', "[1, 2]", '"options"'])
@@ -116,4 +116,4 @@ def test_a_json_file_that_is_no_sidecar_is_refused_in_plain_words(tmp_path, text
     pd.DataFrame({"a": [1.0]}).to_csv(path, index=False)
     sidecar_path(path).write_text(text)
     with pytest.raises(InputError, match="is not a napari-pfsdm sidecar"):
-        read_table_csv(path)
+        read_table(path)

@@ -15,7 +15,7 @@ import napari_pfsdm as P
 from napari_pfsdm.analysis.rerank import rerank
 from napari_pfsdm.cli import compare as compare_command
 from napari_pfsdm.cli import main
-from napari_pfsdm.io import read_table_csv
+from napari_pfsdm.io import read_table
 from test_cli_options import three_objects
 
 FAST = ["--n-fourier", "6", "--n-radii", "8", "--scheduler", "sync", "-q"]
@@ -52,7 +52,7 @@ def features(tmp_path_factory):
 
 
 def _full(features):
-    table = read_table_csv(features)
+    table = read_table(features)
     return table, P.distance_matrix(table)
 
 

@@ -71,11 +71,11 @@ def test_pfsdm_plot_draws_the_column_and_writes_what_it_drew(tmp_path, capsys):
     from PIL import Image
 
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io import write_table_csv
+    from napari_pfsdm.io import write_table
 
     table = _table()
     path = tmp_path / "t.csv"
-    write_table_csv(table.drop(columns="group"), path, table_type="features")
+    write_table(table.drop(columns="group"), path, table_type="features")
     pd.DataFrame({"track_id": [1, 2, 3, 4, 5, 6],
                   "group": ["up"] * 3 + ["down"] * 3}).to_csv(tmp_path / "g.csv", index=False)
     png, values = tmp_path / "area.png", tmp_path / "v.csv"

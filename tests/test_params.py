@@ -24,7 +24,7 @@ from napari_pfsdm.core.descriptor3d import DEFAULTS_3D, pfsdm3d
 from napari_pfsdm.core.morphometric import mode_weights, ring_radii, ring_weights
 from napari_pfsdm.core.params import CHOICES, OPTIONS, PFSDMParams, check_record, option
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import read_table_csv, sidecar_path, write_table_csv
+from napari_pfsdm.io import read_table, sidecar_path, write_table
 
 
 def labels():
@@ -172,11 +172,11 @@ def test_the_sidecar_door_carries_every_option_as_the_record_says(tmp_path):
     """A table's sidecar holds every option of the record, defaults and changed values alike,
     and gives back the same PFSDMParams: what a table was measured with is never lost."""
     for params in (PFSDMParams(), PFSDMParams(**CHANGED)):
-        path = write_table_csv(pd.DataFrame({"area": [1.0]}), tmp_path / "t.csv",
+        path = write_table(pd.DataFrame({"area": [1.0]}), tmp_path / "t.csv",
                                params.record())
         written = json.loads(sidecar_path(path).read_text())["options"]
         assert {o.name for o in OPTIONS} <= set(written)
-        back = read_table_csv(path).attrs["pfsdm"]
+        back = read_table(path).attrs["pfsdm"]
         # the rings are recorded as their radii (a placement's name becomes its numbers)
         assert back["radii"] == ring_radii(params.n_radii, params.radii).tolist()
         assert all(back[o.name] == getattr(params, o.name) for o in OPTIONS
@@ -211,8 +211,8 @@ def test_a_bad_value_gets_the_same_words_at_every_door(name, value, tmp_path, ca
     }
     # a table's sidecar naming the value: refused when the table is read, before any row
     table = tmp_path / "t.csv"
-    write_table_csv(pd.DataFrame({"area": [1.0]}), table, {name: value})
-    doors["a table's sidecar"] = lambda: read_table_csv(table)
+    write_table(pd.DataFrame({"area": [1.0]}), table, {name: value})
+    doors["a table's sidecar"] = lambda: read_table(table)
     for door, call in doors.items():
         with pytest.raises(InputError) as info:
             call()
@@ -249,7 +249,7 @@ def test_wrong_types_are_refused_in_plain_words_not_as_internal_errors():
 @pytest.fixture(scope="module")
 def written(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("sidecar") / "features.csv"
-    write_table_csv(P.measure(labels()), path)
+    write_table(P.measure(labels()), path)
     return path
 
 
@@ -311,14 +311,14 @@ def test_a_damaged_record_is_refused_before_any_work(written, tmp_path, capsys, 
     damage(side["options"])
     sidecar_path(path).write_text(json.dumps(side))
     with pytest.raises(InputError) as info:
-        read_table_csv(path)
+        read_table(path)
     assert words in str(info.value) and str(path) in str(info.value)
     assert main(["compare", str(path), "-o", str(tmp_path / "d.csv"), "-q"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("pfsdm: error: the options of ") and words in err
     assert not (tmp_path / "d.csv").exists()
     # the same record carried in memory is refused by the distances too
-    table = read_table_csv(written)
+    table = read_table(written)
     damage(table.attrs["pfsdm"])
     with pytest.raises(InputError, match=re.escape(words)):
         P.distance_matrix(table)
@@ -327,7 +327,7 @@ def test_a_damaged_record_is_refused_before_any_work(written, tmp_path, capsys, 
 def test_a_record_that_belongs_to_another_table_is_refused(written, tmp_path):
     """Without n_radii and radii to count against, 4 weights on a 16-ring table would use the
     first 4 rings only: the extra feature columns give it away."""
-    table = read_table_csv(written)
+    table = read_table(written)
     for key in ("n_radii", "radii"):
         del table.attrs["pfsdm"][key]
     table.attrs["pfsdm"]["weights"] = table.attrs["pfsdm"]["weights"][:4]
@@ -340,18 +340,18 @@ def test_a_record_that_belongs_to_another_table_is_refused(written, tmp_path):
     shutil.copy(written, path)
     sidecar_path(path).write_text(json.dumps(side))
     with pytest.raises(InputError, match="are not a set of named options"):
-        read_table_csv(path)
+        read_table(path)
 
 
 def test_a_table_in_memory_with_a_damaged_dimension_is_refused_in_plain_words(written):
-    table = read_table_csv(written)
+    table = read_table(written)
     table.attrs["pfsdm"]["ndim"] = "abc"
     with pytest.raises(InputError, match="ndim 'abc': it must be 2 or 3"):
         P.distance_matrix(table)
 
 
 def test_a_good_record_reads_as_written(written):
-    table = read_table_csv(written)
+    table = read_table(written)
     check_record(table.attrs["pfsdm"])
     assert PFSDMParams.from_options(table.attrs["pfsdm"]).options()["n_fourier"] == 10
     assert np.isfinite(P.distance_matrix(table)).all()

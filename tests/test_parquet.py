@@ -16,7 +16,7 @@ import tifffile
 import napari_pfsdm as P
 from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_options import plain
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table, write_table
 from test_cli_options import three_objects
 
 #: Writing and reading Parquet needs pyarrow (the [parquet] extra); the message given without
@@ -37,10 +37,10 @@ def test_a_measured_table_reads_back_identically(tmp_path):
     table = P.measure(_movie(), n_fourier=6, n_radii=8)
     table["movie"] = "001"  # text that a CSV reader could take for a number
     table["track_id"] = np.int64(-1)
-    out = write_table_csv(table, tmp_path / "f.parquet", table_type="features")
-    back = read_table_csv(out)
+    out = write_table(table, tmp_path / "f.parquet", table_type="features")
+    back = read_table(out)
     pd.testing.assert_frame_equal(plain(back), plain(table))  # dtypes included
-    as_csv = read_table_csv(write_table_csv(table, tmp_path / "f.csv"))
+    as_csv = read_table(write_table(table, tmp_path / "f.csv"))
     assert back.attrs["pfsdm"] == as_csv.attrs["pfsdm"]  # the same sidecar options
     assert back.attrs["pfsdm"]["n_fourier"] == 6
     pd.testing.assert_frame_equal(pd.read_parquet(out), plain(table))  # plain pandas too
@@ -57,11 +57,11 @@ def test_odd_columns_round_trip(tmp_path):
         "x": [0.1, np.nan, 1e-300], "flag": [True, False, True],
         "movie": ["NA", "", "None"], "error": ["", "too small", ""],
     })
-    p = write_table_csv(df, tmp_path / "t.parquet", {"a": 1})
-    pd.testing.assert_frame_equal(plain(read_table_csv(p)), df)
+    p = write_table(df, tmp_path / "t.parquet", {"a": 1})
+    pd.testing.assert_frame_equal(plain(read_table(p)), df)
     d = pd.DataFrame(np.eye(2), index=pd.Index(["a", "b"], name="object"), columns=["a", "b"])
-    p = write_table_csv(d, tmp_path / "d.parquet", {}, index=True)
-    pd.testing.assert_frame_equal(plain(read_table_csv(p, index_col=0)), d)
+    p = write_table(d, tmp_path / "d.parquet", {}, index=True)
+    pd.testing.assert_frame_equal(plain(read_table(p, index_col=0)), d)
 
 
 @needs_pyarrow
@@ -70,7 +70,7 @@ def test_measure_writes_parquet_that_every_reader_takes(tmp_path):
     for name in ("f.csv", "f.parquet"):
         assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / name),
                      "--link", "labels", *FAST]) == 0
-    csv, pq = read_table_csv(tmp_path / "f.csv"), read_table_csv(tmp_path / "f.parquet")
+    csv, pq = read_table(tmp_path / "f.csv"), read_table(tmp_path / "f.parquet")
     assert pq.attrs["pfsdm"] == csv.attrs["pfsdm"]
     pd.testing.assert_frame_equal(plain(pq), plain(csv))  # dtypes included
     # compare and trajectories read it: the same numbers as from the CSV
@@ -89,7 +89,7 @@ def test_without_pyarrow_a_plain_message_and_no_file(tmp_path, monkeypatch, caps
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow -> ImportError
     df = pd.DataFrame({"frame": [0], "label": [1]})
     with pytest.raises(ValueError, match=r'pip install "napari-pfsdm\[parquet\]"'):
-        write_table_csv(df, tmp_path / "t.parquet", {})
+        write_table(df, tmp_path / "t.parquet", {})
     assert list(tmp_path.iterdir()) == []
     tifffile.imwrite(tmp_path / "m.tif", _movie(1), photometric="minisblack")
     assert main(["measure", str(tmp_path / "m.tif"), "-o", str(tmp_path / "f.parquet"),
@@ -102,7 +102,7 @@ def test_without_pyarrow_a_plain_message_and_no_file(tmp_path, monkeypatch, caps
 @needs_pyarrow
 def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
     df = pd.DataFrame({"frame": [0, 1], "label": [1, 1]})
-    write_table_csv(df, tmp_path / "t.parquet", {"v": 1})
+    write_table(df, tmp_path / "t.parquet", {"v": 1})
     before = (tmp_path / "t.parquet").read_bytes()
 
     def broken(self, handle, **kw):
@@ -111,7 +111,7 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path, monkeypatch):
 
     monkeypatch.setattr(pd.DataFrame, "to_parquet", broken)
     with pytest.raises(OSError, match="No space"):
-        write_table_csv(df.assign(x=1.0), tmp_path / "t.parquet", {"v": 2})
+        write_table(df.assign(x=1.0), tmp_path / "t.parquet", {"v": 2})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.parquet", "t.parquet.json"]
     assert (tmp_path / "t.parquet").read_bytes() == before
     assert json.loads((tmp_path / "t.parquet.json").read_text())["options"] == {"v": 1}

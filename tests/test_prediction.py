@@ -183,10 +183,10 @@ def test_the_command_line_writes_each_objects_probabilities(two_sizes, tmp_path,
     import json
 
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io import write_table_csv
+    from napari_pfsdm.io import write_table
 
     table, groups = two_sizes
-    write_table_csv(table, tmp_path / "features.csv", table.attrs["pfsdm"],
+    write_table(table, tmp_path / "features.csv", table.attrs["pfsdm"],
                     table_type="features")
     (tmp_path / "groups.csv").write_text(
         "label,group\n" + "".join(f"{k},{g}\n" for k, g in groups.items() if k <= 16))

@@ -24,7 +24,7 @@ from napari_pfsdm import measure
 from napari_pfsdm.cli import main
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import write_table_csv
+from napari_pfsdm.io import write_table
 from napari_pfsdm.report import write_report
 
 #: A group name a person could type, that HTML must not read as markup.
@@ -51,7 +51,7 @@ def files(run, tmp_path_factory):
 
     labels, table, groups = run
     d = tmp_path_factory.mktemp("report")
-    write_table_csv(table, d / "features.csv", table.attrs["pfsdm"], table_type="features")
+    write_table(table, d / "features.csv", table.attrs["pfsdm"], table_type="features")
     pd.DataFrame({"label": list(groups), "group": list(groups.values())}).to_csv(
         d / "groups.csv", index=False)
     tifffile.imwrite(d / "labels.tif", labels)

@@ -119,12 +119,12 @@ def test_shape_modes_pick_the_objects_nearest_mean_plus_sigmas():
 
 def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, capsys):
     from napari_pfsdm.cli import main
-    from napari_pfsdm.io import write_table_csv
+    from napari_pfsdm.io import write_table
 
     reference, other = tables
-    write_table_csv(reference, tmp_path / "control.csv", reference.attrs["pfsdm"],
+    write_table(reference, tmp_path / "control.csv", reference.attrs["pfsdm"],
                     table_type="features")
-    write_table_csv(other, tmp_path / "treated.csv", other.attrs["pfsdm"],
+    write_table(other, tmp_path / "treated.csv", other.attrs["pfsdm"],
                     table_type="features")
     rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
                str(tmp_path / "control.csv"), "-o", str(tmp_path / "pca.csv"),
@@ -137,7 +137,7 @@ def test_cli_trajectories_projects_into_a_reference_space(tables, tmp_path, caps
     np.testing.assert_allclose(np.abs(got), np.abs(expected), atol=1e-6)
     # a reference measured otherwise: refused, exit 2, in words
     coarse = measure(_ellipses([1.5, 2.5, 2.0]), n_fourier=6)
-    write_table_csv(coarse, tmp_path / "coarse.csv", coarse.attrs["pfsdm"],
+    write_table(coarse, tmp_path / "coarse.csv", coarse.attrs["pfsdm"],
                     table_type="features")
     rc = main(["trajectories", str(tmp_path / "treated.csv"), "--reference",
                str(tmp_path / "coarse.csv"), "-o", str(tmp_path / "pca2.csv"),

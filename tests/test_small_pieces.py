@@ -21,7 +21,7 @@ from napari_pfsdm.core.medial_axis import branch_paths
 from napari_pfsdm.core.pushforward import FourierMap
 from napari_pfsdm.core.sph_harm import legendre_table
 from napari_pfsdm.errors import InputError
-from napari_pfsdm.io import read_table_csv
+from napari_pfsdm.io import read_table
 
 
 def disk(radius: float, size: int = 96) -> np.ndarray:
@@ -183,7 +183,7 @@ def test_a_parquet_file_given_as_a_table_is_named(tmp_path):
                         "(the [parquet] extra)")
     (tmp_path / "t.csv").write_bytes(b"PAR1" + b"\x15\x04" * 40)
     with pytest.raises(InputError, match="is not a readable Parquet table"):
-        read_table_csv(tmp_path / "t.csv")
+        read_table(tmp_path / "t.csv")
 
 
 def test_a_character_cut_at_the_end_of_the_first_block_is_still_text(tmp_path):
@@ -192,11 +192,11 @@ def test_a_character_cut_at_the_end_of_the_first_block_is_still_text(tmp_path):
     head = "movie,area\n"
     filler = "a" * (2047 - len(head) - len(",1\n"))  # "é" starts at byte 2047
     (tmp_path / "ok.csv").write_text(head + filler + ",1\né,2\n", encoding="utf-8")
-    back = read_table_csv(tmp_path / "ok.csv")
+    back = read_table(tmp_path / "ok.csv")
     assert back["movie"].tolist() == [filler, "é"]
     (tmp_path / "bad.csv").write_bytes(b"movie,area\n\xff\xfe,1\n" + b"x,2\n" * 600)
     with pytest.raises(InputError, match="not a UTF-8 text file"):
-        read_table_csv(tmp_path / "bad.csv")
+        read_table(tmp_path / "bad.csv")
 
 
 def test_leading_singleton_axes_are_dropped_down_to_a_time_lapse(tmp_path):

@@ -18,7 +18,7 @@ from napari_pfsdm.cli import main
 from napari_pfsdm.core.table_schema import NO_TRACK, TRACK_COLUMN
 from napari_pfsdm.data.moving_blobs import centroid_table as centroids
 from napari_pfsdm.data.moving_blobs import make_moving_blobs, relabel
-from napari_pfsdm.io import read_table_csv, write_table_csv
+from napari_pfsdm.io import read_table, write_table
 
 
 @pytest.fixture(scope="module")
@@ -317,8 +317,8 @@ def test_track_id_round_trips_through_csv(tmp_path, movie):
     table = tk.link(centroids(relabel(movie.labels, "shuffled")), method="centroid")
     table.loc[3, TRACK_COLUMN] = NO_TRACK
     path = tmp_path / "t.csv"
-    write_table_csv(table, path, {"n_fourier": 4})
-    back = read_table_csv(path)
+    write_table(table, path, {"n_fourier": 4})
+    back = read_table(path)
     assert back[TRACK_COLUMN].dtype == np.int64
     np.testing.assert_array_equal(back[TRACK_COLUMN], table[TRACK_COLUMN])
     assert pd.read_csv(path)[TRACK_COLUMN].dtype == np.int64  # plain pandas too
@@ -327,7 +327,7 @@ def test_track_id_round_trips_through_csv(tmp_path, movie):
     cells = text[1].split(",")
     cells[list(table.columns).index(TRACK_COLUMN)] = ""
     path.write_text("\n".join([text[0], ",".join(cells), *text[2:]]) + "\n")
-    back = read_table_csv(path)
+    back = read_table(path)
     assert back[TRACK_COLUMN].dtype == np.int64 and back[TRACK_COLUMN].iloc[0] == NO_TRACK
 
 
@@ -376,7 +376,7 @@ def test_cli_warns_refuses_and_links(cli_movie, capsys):
                  "--link", "labels", *CLI_OPTS]) == 0
     err = capsys.readouterr().err
     assert "do not follow objects" in err and "--link auto" in err
-    assert TRACK_COLUMN not in read_table_csv(d / "plain.csv").columns
+    assert TRACK_COLUMN not in read_table(d / "plain.csv").columns
     # trajectories by label would be meaningless: refused, in one plain line
     assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -385,7 +385,7 @@ def test_cli_warns_refuses_and_links(cli_movie, capsys):
     # ... unless linked from the table, or drawn by label on purpose
     assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca.csv"),
                  "--link", "centroid", "--plot", str(d / "pca.png")]) == 0
-    pca = read_table_csv(d / "pca.csv")
+    pca = read_table(d / "pca.csv")
     assert TRACK_COLUMN in pca.columns and (d / "pca.png").is_file()
     assert main(["trajectories", str(d / "plain.csv"), "-o", str(d / "pca_l.csv"), "--force",
                  "--link", "labels"]) == 0
@@ -406,7 +406,7 @@ def test_cli_measure_links_untracked_labels_by_default(cli_movie, capsys):
                  *CLI_OPTS]) == 0
     out = capsys.readouterr().out
     assert "linked by centroid" in out
-    table = read_table_csv(d / "linked.csv")
+    table = read_table(d / "linked.csv")
     assert list(table.columns[:4]) == ["movie", "frame", "label", TRACK_COLUMN]
     truth = truth_ids(movie, shuffled, table)
     # every track is one object and every object one track (no division here)
@@ -414,13 +414,13 @@ def test_cli_measure_links_untracked_labels_by_default(cli_movie, capsys):
     assert pd.crosstab(table[TRACK_COLUMN], truth).gt(0).sum(axis=1).max() == 1
     assert table[TRACK_COLUMN].nunique() == len(set(truth))
     assert main(["trajectories", str(d / "linked.csv"), "-o", str(d / "pca2.csv")]) == 0
-    pca = read_table_csv(d / "pca2.csv")
+    pca = read_table(d / "pca2.csv")
     measured = table["error"] == ""  # an object entering in the last frame is too small
     assert object_ids(pca).nunique() == table.loc[measured, TRACK_COLUMN].nunique() == 5
     # tracked labels: nothing to link, no track_id column (the labels are the identities)
     assert main(["measure", str(d / "tracked.tif"), "-o", str(d / "tracked.csv"),
                  *CLI_OPTS]) == 0
-    assert TRACK_COLUMN not in read_table_csv(d / "tracked.csv").columns
+    assert TRACK_COLUMN not in read_table(d / "tracked.csv").columns
 
 
 def test_the_check_counts_steps_jumps_and_switches_worked_by_hand():

@@ -30,7 +30,7 @@ __getattr__, __dir__, __all__ = lazy_names(__name__, {
     "analysis.neighbours": ["nearest_neighbours"],
     "analysis.tracking": ["check_tracking", "link", "track_ids_from_tracks"],
     "analysis.rerank": ["rerank"],
-    "io": ["read_table_csv as read_table", "write_table_csv as write_table"],
+    "io": ["read_table", "write_table"],
 })
 __all__ = ["__version__", *__all__]
 
@@ -45,5 +45,4 @@ if TYPE_CHECKING:  # pragma: no cover - the same names, for type checkers and ID
     from .core.descriptor3d import PFSDM3DResult, shell_maps, surface_mesh  # noqa: F401
     from .core.distances import RECOMMENDED_ELASTIC_WEIGHT, distance  # noqa: F401
     from .core.medial_axis import Skeleton, skeleton  # noqa: F401
-    from .io import read_table_csv as read_table  # noqa: F401
-    from .io import write_table_csv as write_table  # noqa: F401
+    from .io import read_table, write_table  # noqa: F401

@@ -137,7 +137,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
     ValueError
         A file of the folder exists and napari-pfsdm did not write it (without ``force``).
     """
-    from .io import atomic_write, check_overwrite, write_table_csv, writer_name
+    from .io import atomic_write, check_overwrite, write_table, writer_name
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -150,13 +150,13 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
     if manifest_path.exists() and not force and not _written_by_us(manifest_path):
         raise InputError(f"{manifest_path} exists and napari-pfsdm did not write it; nothing "
                          "was saved. Choose another folder, or remove that file")
-    write_table_csv(table, folder / files["features"], table_type="features")
+    write_table(table, folder / files["features"], table_type="features")
     for channel, scores in pca.items():
         ratios = [float(r) for r in scores.attrs.get("explained_variance_ratio", [])]
-        write_table_csv(scores, folder / files[f"pca_{channel}"],
+        write_table(scores, folder / files[f"pca_{channel}"],
                         {"explained_variance_ratio": ratios, "pca_features": channel},
                         table_type="pca")
-    write_table_csv(pd.DataFrame({"object": list((groups or {}).keys()),
+    write_table(pd.DataFrame({"object": list((groups or {}).keys()),
                                   "group": list((groups or {}).values())}),
                     folder / files["groups"], table_type="groups")
     keys = list(boxes or {})
@@ -168,7 +168,7 @@ def save_analysis(folder: str | os.PathLike, table: pd.DataFrame, *, labels: Any
     ndim = max((len(r) - 2 for r in rows), default=0)
     cols = ["frame", "label"] + [f"start{i}" for i in range(ndim // 2)] + \
         [f"stop{i}" for i in range(ndim // 2)]
-    write_table_csv(pd.DataFrame([r + [-1] * (len(cols) - len(r)) for r in rows],
+    write_table(pd.DataFrame([r + [-1] * (len(cols) - len(r)) for r in rows],
                                  columns=cols), folder / files["boxes"], table_type="boxes")
     sources = {}
     for key, array in (("labels", labels), ("reporter", intensity)):
@@ -200,7 +200,7 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         Not an analysis folder, a file of it missing, or data that changed (what differs and
         what to do, in words).
     """
-    from .io import read_table_csv
+    from .io import read_table
 
     folder = Path(folder)
     manifest_path = folder / ANALYSIS_FILE
@@ -247,7 +247,7 @@ def open_analysis(folder: str | os.PathLike, *, labels: Any = None,
         raise InputError(f"{folder} lacks {', '.join(missing)}: the analysis is incomplete; "
                          "save it again")
     _warn_changed(folder, manifest)
-    table = _read(folder / files["features"], read_table_csv)
+    table = _read(folder / files["features"], read_table)
     from .analysis.tables import check_table_cells
     from .core.table_schema import check_feature_table
 
@@ -370,9 +370,9 @@ def _whole(df: pd.DataFrame, cols: list[str], path: Path) -> None:
 
 def _read_scores(path: Path, table: pd.DataFrame) -> tuple[pd.DataFrame, list[float]]:
     """A channel's PCA scores: rows of the table's objects, numbers in every PC column."""
-    from .io import read_table_csv
+    from .io import read_table
 
-    scores = _read(path, read_table_csv)
+    scores = _read(path, read_table)
     _whole(scores, [c for c in ("frame", "label") if c in table.columns], path)
     if _keys(scores).has_duplicates:
         raise InputError(f"{path} has two rows of scores for one object (an edited file?); "
@@ -403,9 +403,9 @@ def _read_groups(path: Path, table: pd.DataFrame) -> dict:
     import warnings
 
     from .core.table_schema import TRACK_COLUMN
-    from .io import read_table_csv
+    from .io import read_table
 
-    g = _read(path, read_table_csv)
+    g = _read(path, read_table)
     if not len(g):
         return {}
     _whole(g, ["object"], path)
@@ -427,9 +427,9 @@ def _read_boxes(path: Path, table: pd.DataFrame, labels: Any) -> dict:
     """``(frame, label)`` → bounding box, for the table's objects, inside the labels."""
     import warnings
 
-    from .io import read_table_csv
+    from .io import read_table
 
-    b = _read(path, read_table_csv)
+    b = _read(path, read_table)
     starts = [c for c in b.columns if str(c).startswith("start")]
     _whole(b, ["frame", "label", *starts, *("stop" + str(c)[5:] for c in starts)], path)
     known = set(zip(table["frame"].astype(int), table["label"].astype(int), strict=True))

@@ -168,8 +168,10 @@ def test_at_1280_by_800_beside_the_plotter_the_layer_run_cancel_and_status_are_w
     dock_of(plots).raise_()
     for i in range(len(plots.kinds)):
         plots.tabs.setCurrentIndex(i)
-        qtbot.wait(300)
         plot = plots.plot(i)
+        # the layout settles (a loaded machine takes longer than 0.3 s)
+        qtbot.waitUntil(lambda p=plot: p.small or p.canvas.height() >= p.READABLE[1],
+                        timeout=5_000)
         if plot.small:
             assert FLOAT in plot.info.value and not plot.canvas.isVisible()
             assert _whole(plot.info.native) and _whole(plots.float_button.native)

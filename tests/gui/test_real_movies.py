@@ -238,7 +238,9 @@ def test_thousands_of_tracks_draw_a_sample_of_paths_and_the_selected_one(
     np.testing.assert_allclose(np.column_stack(path.get_data()), traj.xy[i])
     assert path.get_zorder() > traj.artists["paths"].get_zorder()
     # the row's numbers with their meanings, as a tooltip of the selected object's line
-    assert "area = " in w.hover.native.toolTip() and "area in pixels" in w.hover.native.toolTip()
+    area_line = next(line for line in w.hover.native.toolTip().splitlines()
+                     if line.startswith("area = "))
+    assert area_line.endswith("(pixels)")  # the value, what it means and its unit
 
 
 def test_a_dock_opened_and_closed_leaves_no_callback_on_the_viewer(qtbot, viewer_widget):

@@ -22,7 +22,7 @@ from ..analysis.reduction import object_ids
 from ..analysis.tables import check_table_cells
 from ..core.table_schema import check_feature_table, pc_column
 from ..errors import InputError
-from ..io import read_table_csv, save_figure
+from ..io import read_table, save_figure
 
 __all__ = ["load_features", "plot_mds", "plot_trajectories"]
 
@@ -172,7 +172,7 @@ def load_features(path: str | os.PathLike) -> pd.DataFrame:
     a table missing some feature columns, and a table with no rows.
     """
     try:
-        table = read_table_csv(path)
+        table = read_table(path)
     except ValueError as exc:
         raise InputError(
             f"{exc}; give the table written by 'pfsdm measure' (e.g. pfsdm measure "

@@ -41,12 +41,12 @@ from ..errors import InputError, RunFault
 from ..io import (
     is_parquet,
     output_lock,
-    read_table_csv,
+    read_table,
     remove_leftovers,
     require_pyarrow,
     sidecar_path,
     to_jsonable,
-    write_table_csv,
+    write_table,
     written_by_pfsdm,
 )
 from ..io.sidecar import is_pfsdm_sidecar
@@ -107,16 +107,16 @@ def _part_name(movie: Movie, params: PFSDMParams, axes: str | None = None,
 def _write_part(table: pd.DataFrame, path: Path, options: dict) -> None:
     """Write a movie's part with its sidecar (the options, the part's size and SHA-256), each
     atomically through a temporary file of a unique name created exclusively in the parts
-    folder (:func:`~napari_pfsdm.io.write_table_csv`: no planted file or symbolic link is
+    folder (:func:`~napari_pfsdm.io.write_table`: no planted file or symbolic link is
     written through). The sidecar comes first: the part appearing marks the movie as done."""
-    write_table_csv(table, path, options, table_type="part")
+    write_table(table, path, options, table_type="part")
 
 
 def _read_part(path: Path) -> pd.DataFrame:
     """A movie's part as written by :func:`_write_part`, checked against its sidecar (the one
-    reader of the package, :func:`napari_pfsdm.io.read_table_csv`: exact floats, text
+    reader of the package, :func:`napari_pfsdm.io.read_table`: exact floats, text
     columns as written); any mismatch with the sidecar is damage."""
-    return read_table_csv(path, strict=True)
+    return read_table(path, strict=True)
 
 
 def _resumed(part: Path, name: str, say: Callable[[str], None]) -> pd.DataFrame | None:
@@ -427,7 +427,7 @@ def _run_batch_locked(
              "missing_chunks": missing, "link": link,
              "linked": {k: v for k, v in methods.items() if v != "labels"},
              "calibration": {k: c.source for k, c in cal.items() if c.source}}
-    write_table_csv(result, output, attrs, table_type="features", extra=extra)
+    write_table(result, output, attrs, table_type="features", extra=extra)
     return result
 
 

@@ -7,17 +7,17 @@ import argparse
 
 from .common import (
     UserError,
-    _add_force,
-    _add_groups,
-    _fraction,
-    _note,
-    _say,
-    _seed,
-    _whole,
+    add_force,
+    add_groups,
     file_argument,
+    fraction_number,
+    note,
+    say,
+    seed_number,
     selected_frames,
+    whole_number,
 )
-from .tables import _follow_objects, _with_groups
+from .tables import follow_objects, with_groups
 
 
 def _prepared(args: argparse.Namespace, path: str, command: str = "predict"):
@@ -26,10 +26,10 @@ def _prepared(args: argparse.Namespace, path: str, command: str = "predict"):
     from ..batch.reports import load_features
 
     table = load_features(path)
-    table, groups = _with_groups(table, args.groups, args.quiet, args.group_column)
+    table, groups = with_groups(table, args.groups, args.quiet, args.group_column)
     frames = selected_frames(args.frames, table) if args.frames else None
     if frames is None or len(frames) > 1:  # one object over several frames: its id follows it
-        table = _follow_objects(table, None, args.quiet, command=command)
+        table = follow_objects(table, None, args.quiet, command=command)
     return table, groups, frames
 
 
@@ -44,7 +44,7 @@ def _object_groups(table) -> dict[str, str]:
 def _ticker(what: str, quiet: bool):
     def tick(done: int, total: int) -> None:
         if done == total or done % max(1, total // 5) == 0:
-            _note(f"{what}: step {done}/{total}", quiet)
+            note(f"{what}: step {done}/{total}", quiet)
 
     return tick
 
@@ -81,7 +81,7 @@ def _print_scores(pred, quiet: bool, table) -> None:
     from ..analysis.outcome import FAMILY_WORDS
 
     counts = pred.probabilities.loc[pred.probabilities["group"] != "", "group"].value_counts()
-    _say(f"{pred.n_scored} objects with a group ("
+    say(f"{pred.n_scored} objects with a group ("
          + ", ".join(f"{counts.get(g, 0)} {g}" for g in pred.groups)
          + f"), frames {', '.join(map(str, pred.frames))}{_times_of(table, pred.frames)}, "
          f"{int(pred.summary.loc['fused', 'n_splits'])} stratified splits, each object with "
@@ -91,10 +91,10 @@ def _print_scores(pred, quiet: bool, table) -> None:
             else FAMILY_WORDS.get(method.replace(" alone", ""), method) + (
                 " alone" if method.endswith("alone") else "")
         sd = f" ± {row['std']:.2f}" if method != "chance" else ""
-        _say(f"  {words:>52}: balanced accuracy {row['mean']:.2f}{sd}", quiet)
-    _say("confusion matrix of the fused model (rows: true group, columns: predicted; counts "
+        say(f"  {words:>52}: balanced accuracy {row['mean']:.2f}{sd}", quiet)
+    say("confusion matrix of the fused model (rows: true group, columns: predicted; counts "
          "over the test splits):", quiet)
-    _say(pred.confusion.to_string(), quiet)
+    say(pred.confusion.to_string(), quiet)
 
 
 def _family_rows(pred):
@@ -115,18 +115,18 @@ def _family_rows(pred):
 def cmd_classify(args: argparse.Namespace) -> int:
     """Run ``pfsdm classify``: how well each feature family and their fusion tell the groups
     apart (balanced accuracy, confusion matrix)."""
-    from ..io import write_table_csv
+    from ..io import write_table
 
     table, groups, frames = _prepared(args, args.features, command="classify")
     pred = _evaluation(args, table, frames, what="classifying", curve=False)
     _print_scores(pred, args.quiet, table)
     if args.output:
-        write_table_csv(_family_rows(pred), args.output, {}, table_type="classification",
+        write_table(_family_rows(pred), args.output, {}, table_type="classification",
                         extra={"features": str(args.features), "groups": str(args.groups),
                                "group_column": args.group_column, "frames": pred.frames,
                                "confusion": {"groups": list(pred.groups),
                                              "counts": pred.confusion.to_numpy().tolist()}})
-        _say(f"wrote {args.output}: one row per family with its balanced_accuracy", args.quiet)
+        say(f"wrote {args.output}: one row per family with its balanced_accuracy", args.quiet)
     return 0
 
 
@@ -134,7 +134,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
     """Run ``pfsdm predict``: each object's probability of every group, out of fold; or, with
     ``--on``, of another table's objects from a model of this table's."""
     from ..core.table_options import table_options
-    from ..io import write_table_csv
+    from ..io import write_table
 
     out = args.output  # checked with the inputs before the command ran (cli.main)
     table, groups, frames = _prepared(args, args.features)
@@ -144,14 +144,14 @@ def cmd_predict(args: argparse.Namespace) -> int:
     _print_scores(pred, args.quiet, table)
     summary = pred.summary.reset_index().rename(columns={"index": "method"})
     probs = _with_keys(pred.probabilities, table)
-    write_table_csv(probs, out, table_options(table), table_type="predictions",
+    write_table(probs, out, table_options(table), table_type="predictions",
                     extra={"features": str(args.features), "groups": str(args.groups),
                            "frames": pred.frames, "channels": pred.channels,
                            "balanced_accuracy": summary.to_dict("records"),
                            "confusion": {"groups": list(pred.groups),
                                          "counts": pred.confusion.to_numpy().tolist()},
                            "curve": pred.curve.to_dict("records")})
-    _say(f"wrote {out}: predicted and {', '.join(pred.columns())} for {len(probs)} objects "
+    say(f"wrote {out}: predicted and {', '.join(pred.columns())} for {len(probs)} objects "
          "(out-of-fold for those with a group)", args.quiet)
     return 0
 
@@ -173,7 +173,7 @@ def _predict_other(args: argparse.Namespace, table, frames, out) -> int:
     from ..analysis.outcome import fit_outcome
     from ..batch.reports import load_features
     from ..core.table_options import table_options
-    from ..io import write_table_csv
+    from ..io import write_table
 
     try:
         model = fit_outcome(table, _object_groups(table), frames, seed=args.seed)
@@ -181,17 +181,17 @@ def _predict_other(args: argparse.Namespace, table, frames, out) -> int:
         raise UserError(str(exc)) from None
     other = load_features(args.on)
     if len(model.frames) > 1:
-        other = _follow_objects(other, None, args.quiet, command="predict")
+        other = follow_objects(other, None, args.quiet, command="predict")
     try:
-        got = model.predict(other, say=lambda m: _note(f"warning: {m}"))
+        got = model.predict(other, say=lambda m: note(f"warning: {m}"))
     except ValueError as exc:
         raise UserError(f"{args.on}: {exc}") from None
-    write_table_csv(got, out, table_options(other), table_type="predictions", extra={
+    write_table(got, out, table_options(other), table_type="predictions", extra={
         "trained_on": str(args.features), "groups": str(args.groups),
         "predicted": str(args.on), "frames": model.frames, "channels": model.channels,
         "weights": list(model.weights)})
     counts = got["predicted"].value_counts()
-    _say(f"wrote {out}: {len(got)} objects of {args.on} predicted by the model of "
+    say(f"wrote {out}: {len(got)} objects of {args.on} predicted by the model of "
          f"{args.features} (" + ", ".join(f"{counts.get(g, 0)} {g}" for g in model.groups)
          + ")", args.quiet)
     return 0
@@ -203,13 +203,13 @@ def _add_common(p: argparse.ArgumentParser, frames_required: bool) -> None:
     p.add_argument("--frames", required=frames_required, metavar="RANGE",
                    help="frames whose features are used, e.g. 0-5 or 0,5,10"
                         + ("" if frames_required else " (default: all)"))
-    p.add_argument("--splits", type=_whole("--splits", 2, 1000), default=5,
+    p.add_argument("--splits", type=whole_number("--splits", 2, 1000), default=5,
                    help="splits per repeat (default 5)")
-    p.add_argument("--repeats", type=_whole("--repeats", 1, 1000), default=2,
+    p.add_argument("--repeats", type=whole_number("--repeats", 1, 1000), default=2,
                    help="repeats (default 2)")
-    p.add_argument("--test-size", type=_fraction("--test-size"), default=0.2,
+    p.add_argument("--test-size", type=fraction_number("--test-size"), default=0.2,
                    help="the share of the objects each split tests (default 0.2)")
-    p.add_argument("--seed", type=_seed, default=0,
+    p.add_argument("--seed", type=seed_number, default=0,
                    help="seed of the random splits (default 0)")
 
 
@@ -233,11 +233,11 @@ example:
       -o scores.csv
 """)
     _add_common(p, frames_required=True)
-    _add_groups(p, required=True)
+    add_groups(p, required=True)
     file_argument(p, "-o", "--output", role="output", kind="table", metavar="SCORES.csv",
                   help="also write the scores: one row per family with its balanced_accuracy "
                        "(the confusion matrix in SCORES.csv.json)")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_classify)
 
@@ -263,11 +263,11 @@ examples:
       --on labB.csv -o labB_predicted.csv
 """)
     _add_common(p, frames_required=False)
-    _add_groups(p, required=True, use="objects without a group are predicted only")
+    add_groups(p, required=True, use="objects without a group are predicted only")
     file_argument(p, "--on", role="input", kind="table", name="--on", metavar="OTHER.csv",
                   help="predict this table's objects with a model of FEATURES.csv's")
     file_argument(p, "-o", "--output", role="output", kind="table", required=True,
                   metavar="PREDICTIONS.csv")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_predict)

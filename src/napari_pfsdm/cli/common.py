@@ -37,34 +37,34 @@ BUG_REPORT = ("please report it on the issue tracker of the napari-pfsdm reposit
 # messages
 # --------------------------------------------------------------------------------------------
 
-def _say(msg: str, quiet: bool = False) -> None:
+def say(msg: str, quiet: bool = False) -> None:
     """A result or summary on stdout."""
     if not quiet:
         print(msg, flush=True)
 
 
-def _note(msg: str, quiet: bool = False) -> None:
+def note(msg: str, quiet: bool = False) -> None:
     """A message about the run (progress, rows left out) on stderr."""
     if not quiet:
         print(f"pfsdm: {msg}", file=sys.stderr, flush=True)
 
 
-class _Step:
+class Step:
     """Says on stderr what a step is doing and, when it took more than a second, how long:
     every step that can pass a few seconds on a large table is announced."""
 
     def __init__(self, what: str, quiet: bool):
         self.what, self.quiet = what, quiet
 
-    def __enter__(self) -> _Step:
+    def __enter__(self) -> Step:
         self.t0 = time.perf_counter()
-        _note(f"{self.what} …", self.quiet)
+        note(f"{self.what} …", self.quiet)
         return self
 
     def __exit__(self, kind, *rest) -> None:
         dt = time.perf_counter() - self.t0
         if kind is None and dt > 1.0:
-            _note(f"{self.what}: done in {dt:.1f} s", self.quiet)
+            note(f"{self.what}: done in {dt:.1f} s", self.quiet)
 
 
 # --------------------------------------------------------------------------------------------
@@ -147,7 +147,7 @@ def check_command_files(args: argparse.Namespace) -> None:
     check_outputs(outputs, inputs, force=bool(getattr(args, "force", False)))
 
 
-def _check_parts(parts: Path) -> None:
+def check_parts(parts: Path) -> None:
     """Refuse a parts folder name that is taken by something other than a folder."""
     if (parts.exists() or parts.is_symlink()) and not parts.is_dir():
         raise UserError(
@@ -160,7 +160,7 @@ def _check_parts(parts: Path) -> None:
 # options and their types
 # --------------------------------------------------------------------------------------------
 
-def _option_type(opt: Any) -> Callable[[str], Any]:
+def option_type(opt: Any) -> Callable[[str], Any]:
     """argparse's ``type`` of a method option: the text parsed and checked by the record, so
     that a bad value gets the same words as from Python (``Option.message``)."""
     def parse(text: str) -> Any:
@@ -173,7 +173,7 @@ def _option_type(opt: Any) -> Callable[[str], Any]:
     return parse
 
 
-def _whole(flag: str, low: int, high: int | None = None,
+def whole_number(flag: str, low: int, high: int | None = None,
            why: str = "") -> Callable[[str], int]:
     """argparse's ``type`` of a count: a whole number from ``low`` to ``high`` (no upper bound
     when None), else one line saying so (``--workers 0`` was once taken as the default
@@ -193,7 +193,7 @@ def _whole(flag: str, low: int, high: int | None = None,
     return parse
 
 
-def _seed(text: str) -> int:
+def seed_number(text: str) -> int:
     """argparse's ``type`` of ``--seed``: a whole number from 0 to
     :data:`napari_pfsdm.analysis.prediction.MAX_SEED` (scikit-learn's range, less the seeds
     the splits add to it)."""
@@ -209,12 +209,12 @@ def _seed(text: str) -> int:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _workers(flag: str = "--workers") -> Callable[[str], int]:
+def worker_count(flag: str = "--workers") -> Callable[[str], int]:
     """argparse's ``type`` of a number of local workers: at least 1, at most the cores this
     process may use (:func:`napari_pfsdm.analysis.schedulers.check_workers`)."""
     from ..analysis.schedulers import check_workers
 
-    count = _whole(flag, 1)
+    count = whole_number(flag, 1)
 
     def parse(text: str) -> int:
         value = count(text)
@@ -227,7 +227,7 @@ def _workers(flag: str = "--workers") -> Callable[[str], int]:
     return parse
 
 
-def _real(flag: str, low: float, high: float) -> Callable[[str], float]:
+def real_number(flag: str, low: float, high: float) -> Callable[[str], float]:
     """argparse's ``type`` of a finite number from ``low`` to ``high``."""
     def parse(text: str) -> float:
         try:
@@ -243,7 +243,7 @@ def _real(flag: str, low: float, high: float) -> Callable[[str], float]:
     return parse
 
 
-def _fraction(flag: str) -> Callable[[str], float]:
+def fraction_number(flag: str) -> Callable[[str], float]:
     """argparse's ``type`` of a fraction strictly between 0 and 1."""
     def parse(text: str) -> float:
         try:
@@ -259,7 +259,7 @@ def _fraction(flag: str) -> Callable[[str], float]:
     return parse
 
 
-def _add_groups(p: argparse.ArgumentParser, required: bool = False, use: str = "") -> None:
+def add_groups(p: argparse.ArgumentParser, required: bool = False, use: str = "") -> None:
     """``--groups`` and ``--group-column``, as every command that reads groups takes them."""
     file_argument(p, "--groups", role="input", kind="file", metavar="GROUPS.csv",
                   required=required,
@@ -284,22 +284,22 @@ def selected_frames(text: str, table) -> list[int]:
         raise UserError(f"--frames {text}: {exc}") from None
 
 
-def _add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
+def add_groups_link_force_quiet(p: argparse.ArgumentParser) -> None:
     """``--groups``, ``--link``, ``--force`` and ``-q`` as the table-reading commands take them."""
-    _add_groups(p)
+    add_groups(p)
     p.add_argument("--link", choices=TABLE_LINKS, help="as for 'pfsdm trajectories'")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
-def _add_elastic(p: argparse.ArgumentParser, more: str) -> None:
+def add_elastic(p: argparse.ArgumentParser, more: str) -> None:
     """``--elastic [W]``: the elastic outline term in the distance (``elastic_weight``; the
     recommended weight when given alone); ``more``: what it changes in this command."""
     from ..core.distances import RECOMMENDED_ELASTIC_WEIGHT
     from ..core.params import option
 
     elastic = option("elastic_weight")
-    p.add_argument("--elastic", nargs="?", dest="elastic_weight", type=_option_type(elastic),
+    p.add_argument("--elastic", nargs="?", dest="elastic_weight", type=option_type(elastic),
                    const=RECOMMENDED_ELASTIC_WEIGHT, default=elastic.default, metavar="W",
                    help="add the elastic outline term, weight W (default when given "
                         f"{RECOMMENDED_ELASTIC_WEIGHT:g}, the weight that retrieves best): "
@@ -308,7 +308,7 @@ def _add_elastic(p: argparse.ArgumentParser, more: str) -> None:
                         f"measured with --elastic-signature table; about 3x the time; {more}")
 
 
-def _check_elastic(table, args: argparse.Namespace) -> None:
+def check_elastic(table, args: argparse.Namespace) -> None:
     """``--elastic`` needs the outline signatures in the table: say how to measure them."""
     from ..core.table_schema import has_signature
 
@@ -319,7 +319,7 @@ def _check_elastic(table, args: argparse.Namespace) -> None:
             "'pfsdm measure ... --elastic-signature table', or leave --elastic out")
 
 
-def _elastic_notice(args: argparse.Namespace):
+def elastic_notice(args: argparse.Namespace):
     """With ``--elastic``: numba's first compile of the term's kernels said on stderr (unless
     ``-q``); else nothing."""
     import contextlib
@@ -328,10 +328,10 @@ def _elastic_notice(args: argparse.Namespace):
         return contextlib.nullcontext()
     from ..core.compiled import compile_notice
 
-    return compile_notice(lambda message: _note(message, args.quiet))
+    return compile_notice(lambda message: note(message, args.quiet))
 
 
-def _add_force(p: argparse.ArgumentParser) -> None:
+def add_force(p: argparse.ArgumentParser) -> None:
     """``--force``: replace output files pfsdm did not write."""
     p.add_argument("--force", action="store_true",
                    help="replace output files even when pfsdm did not write them (by default "

@@ -11,20 +11,20 @@ from typing import Any
 # line and the plugin (napari_pfsdm.analysis.reduction)
 from ..analysis.reduction import FULL_MATRIX_LIMIT, MAP_NEIGHBOURS, TSNE_SLOW
 from .common import (
+    Step,
     UserError,
-    _add_elastic,
-    _add_force,
-    _add_groups,
-    _check_elastic,
-    _elastic_notice,
-    _note,
-    _option_type,
-    _say,
-    _Step,
-    _whole,
+    add_elastic,
+    add_force,
+    add_groups,
+    check_elastic,
+    elastic_notice,
     file_argument,
+    note,
+    option_type,
+    say,
+    whole_number,
 )
-from .tables import _measured, _with_groups
+from .tables import measured_rows, with_groups
 
 #: Column that carries a row's position in the feature file through the selections.
 _FILE_ROW = "_pfsdm_file_row"
@@ -101,7 +101,7 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
         if matrix is None:
             from ..analysis.tables import distance_matrix
 
-            with _Step(f"computing the {n:,} x {n:,} distances of the map", args.quiet):
+            with Step(f"computing the {n:,} x {n:,} distances of the map", args.quiet):
                 matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
                                          boundary_weight=args.boundary_weight,
                                          elastic_weight=args.elastic_weight)
@@ -109,9 +109,9 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
                     from ..analysis.rerank import rerank
 
                     matrix = rerank(matrix, args.rerank, k=min(args.rerank_k, n - 1))
-        with _Step(f"drawing the 2-D MDS map of {n:,} objects", args.quiet):
+        with Step(f"drawing the 2-D MDS map of {n:,} objects", args.quiet):
             plot_mds(mds_coordinates(matrix), table, args.mds)
-        _say(f"wrote {args.mds} (classical MDS of the full matrix)", args.quiet)
+        say(f"wrote {args.mds} (classical MDS of the full matrix)", args.quiet)
         return
     k = min(MAP_NEIGHBOURS, n - 1)
     if graph is None:
@@ -119,14 +119,14 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
     idx, dist = graph[0][:, :k], graph[1][:, :k]
     name = _MAP_NAMES[args.map]
     if args.map == "tsne" and n > TSNE_SLOW:
-        _note(f"t-SNE of {n:,} objects takes minutes (50,000: ~8 min here); --map umap "
+        note(f"t-SNE of {n:,} objects takes minutes (50,000: ~8 min here); --map umap "
               "draws it in under a minute (pip install \"napari-pfsdm[umap]\")", args.quiet)
-    with _Step(f"drawing the 2-D map of {n:,} objects from their {k} nearest neighbours "
+    with Step(f"drawing the 2-D map of {n:,} objects from their {k} nearest neighbours "
                f"({name})", args.quiet):
         coords = graph_coordinates(idx, dist, args.map)
         plot_mds(coords, table, args.mds, axis_name=name.split()[0],
                  title=f"PF-SDM {k}-nearest-neighbour graph, {name}")
-    _say(f"wrote {args.mds}: a {name} map of the {k}-nearest-neighbour graph, not MDS "
+    say(f"wrote {args.mds}: a {name} map of the {k}-nearest-neighbour graph, not MDS "
          f"(above {FULL_MATRIX_LIMIT:,} objects the map is drawn from the neighbours, "
          "without the full matrix)", args.quiet)
 
@@ -134,7 +134,7 @@ def _draw_map(args, table, n: int, *, matrix=None, graph=None) -> None:
 def cmd_compare(args: argparse.Namespace) -> int:
     """Run ``pfsdm compare``: the distance matrix (or the neighbours) and the map; with
     ``--elastic``, numba's first compile of the term's kernels said on stderr."""
-    with _elastic_notice(args):
+    with elastic_notice(args):
         return _compare(args)
 
 
@@ -146,7 +146,7 @@ def _compare(args: argparse.Namespace) -> int:
     from ..analysis.tables import distance_matrix
     from ..batch.reports import load_features
     from ..core.table_options import carry_options, table_options
-    from ..io import write_table_csv
+    from ..io import write_table
 
     out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
     if args.neighbours is not None and args.neighbours < 1:
@@ -155,14 +155,14 @@ def _compare(args: argparse.Namespace) -> int:
         raise UserError("--rerank transduction needs the full matrix (it inverts an n x n "
                         "matrix); with --neighbours use --rerank diffusion or mutual")
     table = load_features(args.features)
-    _check_elastic(table, args)
+    check_elastic(table, args)
     rows = pd.Series(np.arange(len(table)), index=table.index, name=_FILE_ROW)
     table = carry_options(table, pd.concat([table, rows], axis=1))  # one step: no fragments
     table = _select_frames(table, args.frames).reset_index(drop=True)
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
+        table, _ = with_groups(table, args.groups, args.quiet, args.group_column)
     channels = ["shape"] + (["intensity"] if args.intensity_weight else [])
-    table, left = _measured(table, channels, "objects", args.quiet)
+    table, left = measured_rows(table, channels, "objects", args.quiet)
     n = len(table)
     if args.rerank and n < 3:
         raise UserError(f"--rerank needs at least 3 objects, the table has {n}")
@@ -174,14 +174,14 @@ def _compare(args: argparse.Namespace) -> int:
             f"with --frames (e.g. --frames 0), ask for each object's nearest neighbours "
             f"instead (--neighbours 10: no matrix, any size), or raise --max-objects"
         )
-    with _Step(f"computing {n:,} x {n:,} distances", args.quiet):
+    with Step(f"computing {n:,} x {n:,} distances", args.quiet):
         matrix = distance_matrix(table, intensity_weight=args.intensity_weight,
                                  boundary_weight=args.boundary_weight,
                                  elastic_weight=args.elastic_weight)
     if args.rerank:
         from ..analysis.rerank import rerank
 
-        with _Step(f"re-ranking them ({args.rerank})", args.quiet):
+        with Step(f"re-ranking them ({args.rerank})", args.quiet):
             matrix = rerank(matrix, args.rerank, k=min(args.rerank_k, n - 1))
     dist = distance_table(table, matrix)
     opts = table_options(table)
@@ -191,11 +191,11 @@ def _compare(args: argparse.Namespace) -> int:
     opts["rerank"] = args.rerank or "none"
     if args.rerank:
         opts["rerank_k"] = min(args.rerank_k, n - 1)
-    with _Step(f"writing {out}", args.quiet):
-        write_table_csv(dist, out, opts, index=True, table_type="distances",
+    with Step(f"writing {out}", args.quiet):
+        write_table(dist, out, opts, index=True, table_type="distances",
                         extra={"features": str(args.features),
                                "left_out": left.to_dict("records")})
-    _say(f"wrote {out}: {n} x {n} PF-SDM distances", args.quiet)
+    say(f"wrote {out}: {n} x {n} PF-SDM distances", args.quiet)
     if args.mds:
         _draw_map(args, table, n, matrix=matrix)
     return 0
@@ -206,7 +206,7 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     graph with --rerank), never the n x n matrix."""
     from ..analysis.reduction import neighbour_table
     from ..core.table_options import table_options
-    from ..io import write_table_csv
+    from ..io import write_table
 
     n = len(table)
     k = args.neighbours
@@ -219,12 +219,12 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
         k_graph = max(k_graph, min(n - 1, 3 * rk))
     if args.mds and n > FULL_MATRIX_LIMIT:
         k_graph = max(k_graph, min(n - 1, MAP_NEIGHBOURS))
-    with _Step(f"finding the {k_graph} nearest neighbours of {n:,} objects", args.quiet):
+    with Step(f"finding the {k_graph} nearest neighbours of {n:,} objects", args.quiet):
         found = _nearest(table, k_graph, args)
     idx, dist = found
     extra: dict[str, Any] = {}
     if not found.exact:  # the elastic term's search
-        _note(f"the neighbours with the elastic term are {found.describe()}", args.quiet)
+        note(f"the neighbours with the elastic term are {found.describe()}", args.quiet)
         extra.update(neighbours_exact=False,
                      neighbours_certified_share=float(found.certified.mean()),
                      neighbours_searched=dict(zip(("pool", "candidates"), found.depth,
@@ -235,12 +235,12 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
         from ..analysis.rerank import rerank_neighbours
 
         scale = _median_distance(table, args)
-        with _Step(f"re-ranking them ({args.rerank}, k = {rk}) on the neighbour graph",
+        with Step(f"re-ranking them ({args.rerank}, k = {rk}) on the neighbour graph",
                    args.quiet):
             ridx, rdist, exact = rerank_neighbours(
                 idx, dist, args.rerank, k=rk, scale=scale, n_neighbours=m, return_exact=True)
         share = float(exact.mean())
-        _note(f"re-ranked on the {k_graph}-neighbour graph: for {share:.0%} of the objects "
+        note(f"re-ranked on the {k_graph}-neighbour graph: for {share:.0%} of the objects "
               "the neighbours are provably those of re-ranking the full matrix", args.quiet)
         extra.update(rerank_graph_neighbours=k_graph, rerank_scale=scale,
                      rerank_certified_share=share)
@@ -255,12 +255,12 @@ def _compare_neighbours(args: argparse.Namespace, table, left, out: Path) -> int
     if args.rerank:
         opts["rerank_k"] = rk
     opts["neighbours"] = k
-    with _Step(f"writing {out}", args.quiet):
-        write_table_csv(edges, out, opts, table_type="neighbours", extra={
+    with Step(f"writing {out}", args.quiet):
+        write_table(edges, out, opts, table_type="neighbours", extra={
             "features": str(args.features),
             "row": "the object's row in the features table (0 = its first data row)",
             "left_out": left.to_dict("records"), **extra})
-    _say(f"wrote {out}: the {k} nearest neighbours of each of {n:,} objects "
+    say(f"wrote {out}: the {k} nearest neighbours of each of {n:,} objects "
          f"({len(edges):,} rows{', re-ranked' if args.rerank else ''})", args.quiet)
     if args.mds:
         _draw_map(args, table, n, graph=graph)
@@ -307,7 +307,7 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
                   metavar="DISTANCES.csv",
                    help="the square distance table, or with --neighbours the edge list "
                         "(.parquet: written as Parquet)")
-    p.add_argument("--neighbours", type=_whole("--neighbours", 1), metavar="K",
+    p.add_argument("--neighbours", type=whole_number("--neighbours", 1), metavar="K",
                    help="write each object's K nearest neighbours as an edge list (columns "
                         "row, neighbour, rank, distance and the frame/label keys of both "
                         "ends) instead of the n x n matrix: any number of objects")
@@ -327,28 +327,28 @@ says so. With --neighbours, --rerank re-ranks on the graph (diffusion or mutual)
 
     for name in ("intensity_weight", "boundary_weight"):  # ranges: core.params.WEIGHT_OPTIONS
         opt = option(name)
-        p.add_argument(opt.flag, dest=name, type=_option_type(opt), default=opt.default,
+        p.add_argument(opt.flag, dest=name, type=option_type(opt), default=opt.default,
                        metavar="W", help=f"{opt.help} (default {opt.default:g}; "
                                          f"{opt.allowed()})")
-    _add_elastic(p, "--neighbours: the search is approximate and says so")
+    add_elastic(p, "--neighbours: the search is approximate and says so")
     p.add_argument("--rerank", nargs="?", const="diffusion", default=None,
                    choices=RERANK_METHODS, metavar="METHOD",
                    help="re-rank the distances (and the map) by the collection's "
                         f"neighbourhoods: {', '.join(RERANK_METHODS)} (default when given: "
                         "diffusion); for large collections, see 'pfsdm compare -h'")
-    p.add_argument("--rerank-k", dest="rerank_k", type=_whole("--rerank-k", 1),
+    p.add_argument("--rerank-k", dest="rerank_k", type=whole_number("--rerank-k", 1),
                    default=RERANK_K, metavar="K",
                    help=f"neighbours per object for --rerank (default {RERANK_K}: about the "
                         "number of objects per kind, at most); with --neighbours the graph "
                         "holds 3 K")
-    _add_groups(p, use="the map coloured by group")
-    p.add_argument("--max-objects", type=_whole("--max-objects", 1, _matrix_limit(),
+    add_groups(p, use="the map coloured by group")
+    p.add_argument("--max-objects", type=whole_number("--max-objects", 1, _matrix_limit(),
                                                 " (a larger matrix and its work would not "
                                                 "fit in this machine's memory; use "
                                                 "--neighbours K)"),
                    default=5000, metavar="N",
                    help="refuse larger matrices (default 5000, at most what this machine's "
                         "memory holds; --neighbours has no limit)")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_compare)

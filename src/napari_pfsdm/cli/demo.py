@@ -18,7 +18,7 @@ from pathlib import Path
 from types import ModuleType
 
 from . import compare, trajectories
-from .common import UserError, _add_force, _say, check_command_files, file_argument
+from .common import UserError, add_force, check_command_files, file_argument, say
 
 #: The reports the demo runs first: (title, module of the checkout's ``examples/`` folder).
 EXAMPLES = (
@@ -103,10 +103,10 @@ def _run_examples(out: Path) -> list[str]:
         try:
             mod = load_example(name)
         except ImportError as exc:
-            _say(f"== {title} ==")
-            _say(f"   skipped: examples/{name}.py is not available ({exc})")
+            say(f"== {title} ==")
+            say(f"   skipped: examples/{name}.py is not available ({exc})")
             continue
-        _say(f"== {title} (examples/{name}.py) ==")
+        say(f"== {title} (examples/{name}.py) ==")
         try:
             mod.run(out, quick=True)
         except Exception as exc:  # keep going: the other parts of the demo still run
@@ -135,7 +135,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """Run ``pfsdm demo``: the reports, then the time-lapse measured, traced and compared."""
     import pandas as pd
 
-    from ..io import check_outputs, save_tiff, write_table_csv
+    from ..io import check_outputs, save_tiff, write_table
 
     out = Path(args.output)
     if (out.exists() or out.is_symlink()) and not out.is_dir():
@@ -149,7 +149,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     check_outputs(demo_outputs(out, not args.quick_only), force=args.force)
     failed = [] if args.quick_only else _run_examples(out)
 
-    _say("== synthetic gastruloid time-lapse: measure, trajectories, distances ==")
+    say("== synthetic gastruloid time-lapse: measure, trajectories, distances ==")
     try:
         from ..data.gastruloids import make_timelapse_montage
     except ImportError as exc:
@@ -157,9 +157,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     labels, intensity, groups = make_timelapse_montage(seed=0)
     save_tiff(out / "montage_labels.tif", labels, compression="zlib")
     save_tiff(out / "montage_intensity.tif", intensity, compression="zlib")
-    write_table_csv(pd.DataFrame({"label": list(groups), "group": list(groups.values())}),
+    write_table(pd.DataFrame({"label": list(groups), "group": list(groups.values())}),
                     out / "groups.csv", {}, table_type="groups")
-    _say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
+    say(f"   wrote {out / 'montage_labels.tif'}, {out / 'montage_intensity.tif'} "
          f"({labels.shape[0]} frames, {len(groups)} objects) and {out / 'groups.csv'}")
     common = (["--quiet"] if args.quiet else []) + (["--force"] if args.force else [])
     # what 'pfsdm measure montage_labels.tif --intensity montage_intensity.tif' does, with a
@@ -168,7 +168,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from ..batch.run import run_batch
 
     n_frames, per_frame = int(labels.shape[0]), len(groups)
-    _say(f"measuring {out / 'montage_labels.tif'} with its reporter -> {out / 'features.csv'}",
+    say(f"measuring {out / 'montage_labels.tif'} with its reporter -> {out / 'features.csv'}",
          args.quiet)
     bar = None
     if not args.quiet:
@@ -188,11 +188,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
         table = run_batch([Movie("montage", out / "montage_labels.tif",
                                  out / "montage_intensity.tif")], out / "features.csv",
                           scheduler=args.scheduler, frames_per_task=2, progress=objects_done,
-                          log=lambda m: _say("  " + m, args.quiet), link="auto")
+                          log=lambda m: say("  " + m, args.quiet), link="auto")
     finally:
         if bar is not None:
             bar.close()
-    _say(f"wrote {out / 'features.csv'} (options in features.csv.json): {len(table)} objects "
+    say(f"wrote {out / 'features.csv'} (options in features.csv.json): {len(table)} objects "
          f"in {time.perf_counter() - t0:.1f} s", args.quiet)
     last = n_frames - 1
     rc = _run_command(trajectories, [
@@ -218,9 +218,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
              out / "mds.png",
              title=f"PF-SDM distances (shape + 0.5 × intensity), 2-D MDS\n"
                    f"frame {last} (the last) of the time-lapse, {len(shown)} objects")
-    _say(f"wrote {out / 'mds.png'} (classical MDS of frame {last}'s distances)", args.quiet)
+    say(f"wrote {out / 'mds.png'} (classical MDS of frame {last}'s distances)", args.quiet)
     files = sorted(p.name for p in out.iterdir() if p.is_file())
-    _say(f"demo done: {out} holds {', '.join(files)}")
+    say(f"demo done: {out} holds {', '.join(files)}")
     if failed:
         print(f"pfsdm: error: demo parts failed: {', '.join(failed)}", file=sys.stderr)
         return 1
@@ -246,6 +246,6 @@ time-lapse measured from TIFF files -> features.csv, pca.csv/pca.png, distances.
                    help="as for 'pfsdm measure' (default processes)")
     p.add_argument("--quick-only", action="store_true",
                    help="skip the two benchmark reports; only the time-lapse part")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_demo)

@@ -11,16 +11,16 @@ from typing import Any
 from ..core.params import LINK_OPTION
 from .common import (
     UserError,
-    _add_force,
-    _check_parts,
-    _option_type,
-    _real,
-    _say,
-    _whole,
-    _workers,
+    add_force,
+    check_parts,
     file_argument,
+    option_type,
+    real_number,
+    say,
+    whole_number,
+    worker_count,
 )
-from .tables import _warn_untracked
+from .tables import warn_untracked
 
 #: Frames of one task at most (--frames-per-task): more than any movie holds.
 MAX_FRAMES = 1_000_000
@@ -79,7 +79,7 @@ def _add_method_options(p: argparse.ArgumentParser) -> None:
     )
     only = {"2d": "2-D only: ", "3d": "3-D only: ", "both": ""}
     for opt in OPTIONS:
-        kw: dict[str, Any] = {"dest": opt.name, "type": _option_type(opt),
+        kw: dict[str, Any] = {"dest": opt.name, "type": option_type(opt),
                               "help": f"{only[opt.dims]}{opt.help} (default {opt.default})"}
         if opt.choices:
             kw["choices"] = opt.choices
@@ -94,10 +94,10 @@ def _add_compute_options(p: argparse.ArgumentParser) -> None:
                    help="'processes' (default: one process per core of this machine), "
                         "'threads', 'sync' (one at a time, for debugging), or the address of a "
                         "dask scheduler to run on a cluster, e.g. tcp://10.0.0.5:8786")
-    g.add_argument("--workers", type=_workers("--workers"), metavar="N",
+    g.add_argument("--workers", type=worker_count("--workers"), metavar="N",
                    help="local workers, at most the number of cores (default: one per core)")
     g.add_argument("--frames-per-task", dest="frames_per_task",
-                   type=_whole("--frames-per-task", 1, MAX_FRAMES), metavar="N",
+                   type=whole_number("--frames-per-task", 1, MAX_FRAMES), metavar="N",
                    help="whole frames measured per task (default: tasks planned by objects, "
                         "as the local process pool plans them)")
 
@@ -143,9 +143,9 @@ def cmd_measure(args: argparse.Namespace) -> int:
     labels = find_movies(args.labels)
     intensity = find_movies(args.intensity) if args.intensity else None
     out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
-    _check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
+    check_parts(Path(args.parts) if args.parts else default_parts_dir(out))
     movies = pair_movies(labels, intensity)
-    _say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
+    say(f"measuring {len(movies)} movie(s) -> {out}", args.quiet)
     t0 = time.perf_counter()
     progress = _progress_printer(args.quiet)
     try:
@@ -154,15 +154,15 @@ def cmd_measure(args: argparse.Namespace) -> int:
         if progress is not None:
             progress("close", 0, 0, "")
     dt = time.perf_counter() - t0
-    _say(f"wrote {out} (options in {out.name}.json): {rows_words(table)} from "
+    say(f"wrote {out} (options in {out.name}.json): {rows_words(table)} from "
          f"{len(movies)} movie(s) in {dt:.1f} s", args.quiet)
     summary = warnings_summary(table)
     if summary:
-        _say(summary[0].upper() + summary[1:], args.quiet)
+        say(summary[0].upper() + summary[1:], args.quiet)
     if args.link == "labels":
-        _warn_untracked(table, args.quiet)
+        warn_untracked(table, args.quiet)
     parts = Path(args.parts) if args.parts else default_parts_dir(out)
-    _say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
+    say(f"per-movie parts kept in {parts} (a re-run skips finished movies)", args.quiet)
     return 0
 
 
@@ -176,7 +176,7 @@ def _measured_table(args: argparse.Namespace, movies, out: Path, params, progres
         frames_per_task=args.frames_per_task,
         parts_dir=args.parts,
         progress=progress,
-        log=lambda m: _say("  " + m, args.quiet),
+        log=lambda m: say("  " + m, args.quiet),
         allow_empty=args.allow_empty,
         params=params,
         link=args.link,
@@ -214,7 +214,7 @@ def _reporter_channel(text: str) -> int:
     (``analysis.label_images.MAX_CHANNELS``, the plugin's)."""
     from ..analysis.label_images import MAX_CHANNELS
 
-    return _whole("--reporter-channel", 0, MAX_CHANNELS - 1)(text)
+    return whole_number("--reporter-channel", 0, MAX_CHANNELS - 1)(text)
 
 
 def _series_index(text: str) -> int:
@@ -286,7 +286,7 @@ examples:
                    help="the image series to read from TIFF files that hold several (OME-TIFF "
                         "positions, a thumbnail beside the image; 0 = the first); such a file "
                         "is refused without it")
-    _add_force(p)
+    add_force(p)
     p.add_argument("--link", choices=LINK_OPTION.choices, default=LINK_OPTION.default,
                    help=LINK_OPTION.help + " (a track_id column that trajectories follow; "
                         "'laptrack' needs pip install laptrack; with 'labels' a warning says "
@@ -304,7 +304,7 @@ examples:
     gu.add_argument("--time-unit", metavar="UNIT",
                     help="the times' unit: s, min, h or day (the files' times are converted "
                          "to it)")
-    gu.add_argument("--pixel-size", nargs="+", type=_real("--pixel-size", 1e-6, 1e6),
+    gu.add_argument("--pixel-size", nargs="+", type=real_number("--pixel-size", 1e-6, 1e6),
                     metavar="SIZE",
                     help="the size of a pixel (one number: square pixels; Z Y X for "
                          "Z-stacks): areas, lengths, widths and perimeters are then in "

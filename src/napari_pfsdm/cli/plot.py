@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .common import UserError, _add_groups_link_force_quiet, _say, file_argument
-from .tables import _follow_objects, _with_groups
+from .common import UserError, add_groups_link_force_quiet, file_argument, say
+from .tables import follow_objects, with_groups
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
@@ -18,13 +18,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     from ..analysis.over_time import numeric_columns, plot_over_time
     from ..analysis.plot_text import plot_text
-    from ..io import read_table_csv, save_figure, write_table_csv
+    from ..io import read_table, save_figure, write_table
 
     out = args.output  # checked with the inputs before the command ran (cli.main)
     if not Path(args.table).is_file():
         raise UserError(f"{args.table}: no such table")
     try:
-        table = read_table_csv(args.table)
+        table = read_table(args.table)
     except ValueError as exc:
         raise UserError(f"{args.table}: {exc}") from None
     if "frame" not in table.columns or "label" not in table.columns:
@@ -33,9 +33,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.column not in numeric_columns(table, raw=True):
         raise UserError(f"{args.table} has no column of numbers called {args.column!r}; "
                         f"columns that can be drawn: {', '.join(numeric_columns(table)[:25])}")
-    table = _follow_objects(table, args.link, args.quiet, command="plot")
+    table = follow_objects(table, args.link, args.quiet, command="plot")
     if args.groups:
-        table, _groups = _with_groups(table, args.groups, args.quiet, args.group_column)
+        table, _groups = with_groups(table, args.groups, args.quiet, args.group_column)
     fig = plt.figure(figsize=(7, 4.5))
     ax = fig.add_subplot()
     lines = plot_over_time(ax, table, args.column, selected=args.objects or ())
@@ -48,11 +48,11 @@ def cmd_plot(args: argparse.Namespace) -> int:
     fig.tight_layout()
     save_figure(fig, out, dpi=120)
     plt.close(fig)
-    _say(f"wrote {out}", args.quiet)
+    say(f"wrote {out}", args.quiet)
     if args.values:
-        write_table_csv(lines, args.values, table_type="over_time",
+        write_table(lines, args.values, table_type="over_time",
                         extra={"table": str(args.table), "column": args.column})
-        _say(f"wrote {args.values}: {len(lines):,} rows", args.quiet)
+        say(f"wrote {args.values}: {len(lines):,} rows", args.quiet)
     return 0
 
 
@@ -82,5 +82,5 @@ examples:
                         "movie/track3 with several movies; a label without track_id)")
     file_argument(p, "--values", role="output", kind="table", metavar="CSV",
                   help="also write the values drawn")
-    _add_groups_link_force_quiet(p)
+    add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_plot)

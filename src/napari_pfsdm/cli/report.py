@@ -7,17 +7,17 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .common import (
+    Step,
     UserError,
-    _add_elastic,
-    _add_groups_link_force_quiet,
-    _check_elastic,
-    _elastic_notice,
-    _note,
-    _say,
-    _Step,
+    add_elastic,
+    add_groups_link_force_quiet,
+    check_elastic,
+    elastic_notice,
     file_argument,
+    note,
+    say,
 )
-from .tables import _follow_objects, _with_groups
+from .tables import follow_objects, with_groups
 
 
 def _report_labels(paths: Sequence[str], table, quiet: bool):
@@ -38,7 +38,7 @@ def _report_labels(paths: Sequence[str], table, quiet: bool):
                             "; give the label movies the table was measured from")
         missing = sorted(set(movies) - set(opened))
         if missing:
-            _note(f"no --labels for {len(missing)} movie(s) ({', '.join(missing[:3])}"
+            note(f"no --labels for {len(missing)} movie(s) ({', '.join(missing[:3])}"
                   f"{' …' if len(missing) > 3 else ''}): their objects are drawn as "
                   "'not in the labels'", quiet)
         return opened
@@ -50,7 +50,7 @@ def _report_labels(paths: Sequence[str], table, quiet: bool):
 def cmd_report(args: argparse.Namespace) -> int:
     """Write one self-contained HTML report of a feature table."""
     from ..batch.reports import load_features
-    from ..io import read_sidecar, read_table_csv
+    from ..io import read_sidecar, read_table
     from ..report import write_report
 
     out = Path(args.output)  # checked with the inputs before the command ran (cli.main)
@@ -58,10 +58,10 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UserError(f"the report {out} is one HTML file: give a name ending in .html, "
                         "e.g. -o report.html")
     table = load_features(args.features)
-    _check_elastic(table, args)
-    table = _follow_objects(table, args.link, args.quiet, command="report")
+    check_elastic(table, args)
+    table = follow_objects(table, args.link, args.quiet, command="report")
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
+        table, _ = with_groups(table, args.groups, args.quiet, args.group_column)
     labels = None
     if args.labels:
         from ..analysis.report import check_labels
@@ -76,7 +76,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         if not Path(args.predictions).is_file():
             raise UserError(f"{args.predictions}: no such predictions file")
         try:
-            predictions = read_table_csv(args.predictions)
+            predictions = read_table(args.predictions)
         except ValueError as exc:
             raise UserError(f"{args.predictions}: {exc}") from None
         if not any(str(c).startswith("p_") for c in predictions.columns):
@@ -84,15 +84,15 @@ def cmd_report(args: argparse.Namespace) -> int:
                             "written by 'pfsdm predict'")
         info = read_sidecar(args.predictions) or {}
         if not info.get("curve"):
-            _note(f"{args.predictions} has no accuracy curve in its .json sidecar: the "
+            note(f"{args.predictions} has no accuracy curve in its .json sidecar: the "
                   "report shows the probabilities' summary only", args.quiet)
-    with _Step(f"writing the report of {len(table):,} rows", args.quiet), \
-            _elastic_notice(args):
+    with Step(f"writing the report of {len(table):,} rows", args.quiet), \
+            elastic_notice(args):
         write_report(out, table, labels=labels, predictions=predictions,
                      prediction_info=info, title=args.title, source=str(args.features),
                      force=args.force, elastic_weight=args.elastic_weight)
     size = out.stat().st_size
-    _say(f"wrote {out} ({size / 1e6:.1f} MB; one file, opens offline in any browser)",
+    say(f"wrote {out} ({size / 1e6:.1f} MB; one file, opens offline in any browser)",
          args.quiet)
     return 0
 
@@ -130,6 +130,6 @@ examples:
                    help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
                         "curve)")
     p.add_argument("--title", metavar="TEXT", help="the report's title")
-    _add_elastic(p, "in the report's nearest shapes")
-    _add_groups_link_force_quiet(p)
+    add_elastic(p, "in the report's nearest shapes")
+    add_groups_link_force_quiet(p)
     p.set_defaults(func=cmd_report)

@@ -6,8 +6,8 @@ import argparse
 import math
 from pathlib import Path
 
-from .common import UserError, _add_force, _add_groups, _say, file_argument
-from .tables import _follow_objects, _with_groups
+from .common import UserError, add_force, add_groups, file_argument, say
+from .tables import follow_objects, with_groups
 
 
 def cmd_stats(args: argparse.Namespace) -> int:
@@ -15,30 +15,30 @@ def cmd_stats(args: argparse.Namespace) -> int:
     table."""
     from ..analysis.group_stats import compare_groups, object_values, value_words
     from ..analysis.groups import group_columns
-    from ..io import read_table_csv, write_table_csv
+    from ..io import read_table, write_table
 
     out = args.output  # checked with the inputs before the command ran (cli.main)
     if not Path(args.table).is_file():
         raise UserError(f"{args.table}: no such table")
-    table = read_table_csv(args.table)
-    table = _follow_objects(table, None, args.quiet, command="stats")
-    table, groups = _with_groups(table, args.groups, args.quiet, args.group_column)
+    table = read_table(args.table)
+    table = follow_objects(table, None, args.quiet, command="stats")
+    table, groups = with_groups(table, args.groups, args.quiet, args.group_column)
     summary = None if args.at is not None else (args.summary or "mean")
     keep = [c for c in group_columns(groups) if c != "group"]
     values = object_values(table, args.measure, at=args.at, summary=summary, keep=keep)
     what = value_words(table, args.measure, summary or "at", args.at)
     test = compare_groups(values, what=what)
     for line in test.sentences():
-        _say(line, args.quiet)
-    write_table_csv(test.table(), out, {}, table_type="group_statistics", extra={
+        say(line, args.quiet)
+    write_table(test.table(), out, {}, table_type="group_statistics", extra={
         "table": str(args.table), "groups": str(args.groups), "group_column": args.group_column,
         "measure": args.measure, "at": args.at, "summary": summary, "value": what})
-    _say(f"wrote {out}: the test between all groups, every pair (Holm-corrected) and every "
+    say(f"wrote {out}: the test between all groups, every pair (Holm-corrected) and every "
          "group's median", args.quiet)
     if args.objects:
-        write_table_csv(values, args.objects, {}, table_type="object_values",
+        write_table(values, args.objects, {}, table_type="object_values",
                         extra={"table": str(args.table), "value": what})
-        _say(f"wrote {args.objects}: one row per object ({len(values)})", args.quiet)
+        say(f"wrote {args.objects}: one row per object ({len(values)})", args.quiet)
     return 0
 
 
@@ -87,11 +87,11 @@ examples:
                       help="the objects' values at this time (the table's time unit)")
     when.add_argument("--summary", choices=SUMMARIES,
                       help="a summary of each object's time course (default mean)")
-    _add_groups(p, required=True)
+    add_groups(p, required=True)
     file_argument(p, "-o", "--output", role="output", kind="table", required=True,
                   metavar="STATS.csv", help="the tests and the groups' medians")
     file_argument(p, "--objects", role="output", kind="table", metavar="VALUES.csv",
                   help="also write each object's value")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_stats)

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from .common import UserError, _note, _Step
+from .common import Step, UserError, note
 
 
-def _with_groups(table, path: str, quiet: bool = False, column: str | None = None):
+def with_groups(table, path: str, quiet: bool = False, column: str | None = None):
     """The table with its ``group`` column (the groups file's ``column``) and the file's other
     grouping columns, from the groups file at ``path``, and the groups; rows of the file that
     were left out or match no object are named on stderr (even with ``-q``: they are
@@ -23,7 +23,7 @@ def _with_groups(table, path: str, quiet: bool = False, column: str | None = Non
         out = attach_groups(table, groups)
     for w in said:
         if issubclass(w.category, UserWarning):
-            _note(f"warning: {path}: {w.message}")
+            note(f"warning: {path}: {w.message}")
         else:  # pragma: no cover - not ours: shown as Python shows it
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     return out, groups
@@ -37,11 +37,11 @@ def _left_out_note(left, total: int, what: str, quiet: bool) -> None:
              f"{' of ' + r['movie'] if r.get('movie') else ''} ({r['reason']})"
              for r in left.head(3).to_dict("records")]
     more = f" and {len(left) - 3} more" if len(left) > 3 else ""
-    _note(f"left out {len(left)} of {total} {what} without features: {'; '.join(shown)}{more}"
+    note(f"left out {len(left)} of {total} {what} without features: {'; '.join(shown)}{more}"
           " (all listed in the output's .json file)", quiet)
 
 
-def _measured(table, channels, what: str, quiet: bool, need: int = 2):
+def measured_rows(table, channels, what: str, quiet: bool, need: int = 2):
     """The rows with ``channels`` features, the rows left out; refuses fewer than ``need``."""
     from ..analysis.features import split_failed
 
@@ -82,17 +82,17 @@ def _which_movies(bad: list[tuple[str, Any]]) -> str:
     return f"{len(bad)} movies ({names}); in {bad[0][0]}: "
 
 
-def _warn_untracked(table, quiet: bool) -> None:
+def warn_untracked(table, quiet: bool) -> None:
     """Say on stderr which movies' labels are not tracked (measure --link none)."""
     bad = _untracked_movies(table)
     if bad:
         first = bad[0][1].message.split(". Link")[0]
-        _note(f"warning: {_which_movies(bad)}{first}. "
+        note(f"warning: {_which_movies(bad)}{first}. "
               "Trajectories by label would be meaningless: measure again with --link auto, or "
               "link the table with 'pfsdm trajectories --link centroid'", quiet)
 
 
-def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajectories"):
+def follow_objects(table, link: str | None, quiet: bool, command: str = "trajectories"):
     """The table whose object ids follow objects over time: its ``track_id`` when it has one,
     a linked copy with ``--link centroid|laptrack``; refuses untracked labels otherwise."""
     from ..analysis.tracking import link as link_table
@@ -100,15 +100,15 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
 
     if link in ("centroid", "laptrack") or (link == "auto" and _untracked_movies(table)):
         link = "centroid" if link == "auto" else link
-        with _Step(f"linking {len(table):,} objects into tracks ({link})", quiet):
+        with Step(f"linking {len(table):,} objects into tracks ({link})", quiet):
             table = link_table(table, method=link)
         n = table.loc[table[TRACK_COLUMN] != NO_TRACK, TRACK_COLUMN].nunique()
-        _note(f"linked by {link}: {n} tracks; trajectories follow them", quiet)
+        note(f"linked by {link}: {n} tracks; trajectories follow them", quiet)
         return table
     if TRACK_COLUMN in table.columns:
         n_off = int((table[TRACK_COLUMN] == NO_TRACK).sum())
         if n_off:
-            _note(f"left out {n_off} of {len(table)} rows that belong to no track "
+            note(f"left out {n_off} of {len(table)} rows that belong to no track "
                   f"({TRACK_COLUMN} = {NO_TRACK})", quiet)
         return table[table[TRACK_COLUMN] != NO_TRACK].reset_index(drop=True) \
             if n_off else table
@@ -118,7 +118,7 @@ def _follow_objects(table, link: str | None, quiet: bool, command: str = "trajec
     first = bad[0][1].message.split(". Link")[0]
     where = _which_movies(bad)
     if link == "labels":
-        _note(f"warning: {where}{first}; drawing by label anyway (--link labels)", quiet)
+        note(f"warning: {where}{first}; drawing by label anyway (--link labels)", quiet)
         return table
     if command == "classify":
         raise UserError(

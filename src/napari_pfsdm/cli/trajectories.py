@@ -7,15 +7,15 @@ import argparse
 
 from .common import (
     TABLE_LINKS,
+    Step,
     UserError,
-    _add_force,
-    _add_groups,
-    _say,
-    _Step,
-    _whole,
+    add_force,
+    add_groups,
     file_argument,
+    say,
+    whole_number,
 )
-from .tables import _follow_objects, _measured, _with_groups
+from .tables import follow_objects, measured_rows, with_groups
 
 
 def cmd_trajectories(args: argparse.Namespace) -> int:
@@ -26,7 +26,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     from ..batch.reports import load_features, plot_trajectories
     from ..core.table_options import table_options
     from ..core.table_schema import has_channel, pc_columns
-    from ..io import write_table_csv
+    from ..io import write_table
 
     out = args.output  # checked with the inputs before the command ran (cli.main)
     if args.plot:
@@ -35,25 +35,25 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
                             f"--components {args.components}; show components from 1 to "
                             f"{args.components}, or raise --components")
     table = load_features(args.features)
-    table = _follow_objects(table, args.link, args.quiet)
+    table = follow_objects(table, args.link, args.quiet)
     if args.groups:
-        table, _ = _with_groups(table, args.groups, args.quiet, args.group_column)
+        table, _ = with_groups(table, args.groups, args.quiet, args.group_column)
     has_int = has_channel(table.columns, "intensity")
     channels = {"shape": ["shape"], "intensity": ["intensity"],
                 "both": ["shape", "intensity"] if has_int else ["shape"]}[args.channel]
     if "intensity" in channels and not has_int:
         raise UserError("the table has no intensity features; measure with --intensity IMAGE")
-    table, left = _measured(table, list(dict.fromkeys(["shape", *channels])), "rows",
+    table, left = measured_rows(table, list(dict.fromkeys(["shape", *channels])), "rows",
                             args.quiet)
     scores = None
     explained = {}
     reference = None
     if args.reference:  # a fitted shape space: the reference's axes (analysis.shape_space)
         reference = load_features(args.reference)
-        reference, _ = _measured(reference, list(dict.fromkeys(["shape", *channels])),
+        reference, _ = measured_rows(reference, list(dict.fromkeys(["shape", *channels])),
                                  "reference rows", args.quiet)
     what = f" in the space of {args.reference}" if args.reference else ""
-    with _Step(f"PCA of {len(table):,} rows ({', '.join(channels)}){what}", args.quiet):
+    with Step(f"PCA of {len(table):,} rows ({', '.join(channels)}){what}", args.quiet):
         for ch in channels:
             space = ShapePCA(n_components=args.components, channel=ch).fit(
                 table if reference is None else reference)
@@ -67,7 +67,7 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
             scores = s if scores is None else pd.concat(
                 [scores, s[pc_columns(s.columns, ch)]], axis=1)
     opts = table_options(table)
-    write_table_csv(scores, out, opts, table_type="pca", extra={
+    write_table(scores, out, opts, table_type="pca", extra={
         "features": str(args.features),
         **({"reference": str(args.reference)} if args.reference else {}),
         "explained_variance": {ch: ev.tolist() for ch, ev in explained.items()},
@@ -75,12 +75,12 @@ def cmd_trajectories(args: argparse.Namespace) -> int:
     ev_txt = ", ".join(
         f"{ch}: " + " ".join(f"{100 * v:.2g}%" for v in ev) for ch, ev in explained.items()
     )
-    _say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
+    say(f"wrote {out}: {len(scores)} rows; variance explained by the PCs: {ev_txt}", args.quiet)
     if args.plot:
-        with _Step(f"drawing {args.plot}", args.quiet):
+        with Step(f"drawing {args.plot}", args.quiet):
             plot_trajectories(scores, args.plot, components=tuple(args.show),
                               explained=explained, time_unit=opts.get("time_unit"))
-        _say(f"wrote {args.plot}", args.quiet)
+        say(f"wrote {args.plot}", args.quiet)
     return 0
 
 
@@ -114,16 +114,17 @@ examples:
                   metavar="PCA.csv")
     file_argument(p, "--plot", role="output", kind="plot", metavar="PNG",
                   help="draw the trajectories")
-    _add_groups(p, use="trajectories coloured by group")
+    add_groups(p, use="trajectories coloured by group")
     p.add_argument("--channel", choices=("shape", "intensity", "both"), default="both",
                    help="features to analyse (default both when the table has reporter ones)")
-    p.add_argument("--components", type=_whole("--components", 1), default=3, metavar="K",
+    p.add_argument("--components", type=whole_number("--components", 1), default=3, metavar="K",
                    help="principal components to keep (default 3)")
     file_argument(p, "--reference", role="input", kind="table", metavar="REFERENCE.csv",
                    help="a feature table (e.g. a control movie's) whose PCA gives the axes: "
                         "FEATURES.csv is projected into that space; both must be measured "
                         "with the same options")
-    p.add_argument("--show", type=_whole("--show", 1), nargs=2, default=(1, 2), metavar=("X", "Y"),
+    p.add_argument("--show", type=whole_number("--show", 1), nargs=2, default=(1, 2),
+                   metavar=("X", "Y"),
                    help="components drawn on the plot (default 1 2)")
     p.add_argument("--link", choices=TABLE_LINKS,
                    help="how objects keep their identity: 'centroid' or 'laptrack' (when "
@@ -131,6 +132,6 @@ examples:
                         "labels do not follow them, 'labels' draws by label anyway. Default: "
                         "follow the table's track_id, or its labels when they follow the "
                         "objects; refuse untracked labels")
-    _add_force(p)
+    add_force(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_trajectories)

@@ -4,7 +4,7 @@ The package's ``__init__`` says once where each public name lives::
 
     __getattr__, __dir__, __all__ = lazy_names(__name__, {
         "descriptor": ["pfsdm", "render_disk"],
-        "io": ["read_table_csv as read_table"],
+        "io": ["read_table_from as read_table"],
     })
 
 The same form as scikit-image's ``lazy_loader.attach`` (submodule -> names), with

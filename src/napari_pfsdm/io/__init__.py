@@ -1,12 +1,12 @@
 """Reading and writing napari-pfsdm's files: tables with their sidecars, atomically, safely.
 
-A table written by :func:`write_table_csv` is two files::
+A table written by :func:`write_table` is two files::
 
     features.csv        a plain CSV: pandas.read_csv(path), Excel or R read it as it is
     features.csv.json   {"written_by": "napari-pfsdm 0.1.0", "table": "features",
                          "options": {"n_fourier": 10, "weights": [...], ...}, ...}
 
-and :func:`read_table_csv` reads it back with the options in ``df.attrs["pfsdm"]``. The rooms:
+and :func:`read_table` reads it back with the options in ``df.attrs["pfsdm"]``. The rooms:
 
 :mod:`.tables`
     the table reader and writer (CSV and Parquet), the text columns, the chunked writing;
@@ -47,7 +47,7 @@ from .sidecar import (
     sidecar_path,
     to_jsonable,
 )
-from .tables import PARQUET_INSTALL, is_parquet, read_table_csv, require_pyarrow, write_table_csv
+from .tables import PARQUET_INSTALL, is_parquet, read_table, require_pyarrow, write_table
 
 __all__ = [
     "HEADER_PREFIX",
@@ -66,7 +66,7 @@ __all__ = [
     "output_lock",
     "read_options",
     "read_sidecar",
-    "read_table_csv",
+    "read_table",
     "remove_leftovers",
     "require_pyarrow",
     "save_figure",
@@ -75,7 +75,7 @@ __all__ = [
     "sidecar_path",
     "to_jsonable",
     "unescape_formulas",
-    "write_table_csv",
+    "write_table",
     "writer_name",
     "written_by_pfsdm",
 ]

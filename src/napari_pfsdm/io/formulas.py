@@ -19,7 +19,7 @@ __all__ = ["ESCAPE_KEY", "FORMULA_STARTS", "escape_formulas", "has_carriage_retu
 
 #: A text cell that a spreadsheet would run as a formula starts with one of these (OWASP's
 #: "CSV injection"); such a cell is written with a single quote in front, which a spreadsheet
-#: shows as text and :func:`read_table_csv` removes again.
+#: shows as text and :func:`read_table` removes again.
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 #: A cell written with the quote: the quote(s), then a formula's first character. A name that
 #: already starts with quotes before such a character gets one more, so that reading back

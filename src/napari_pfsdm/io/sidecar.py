@@ -80,7 +80,7 @@ PAIR_TRIES, PAIR_WAIT = 10, 0.1
 def paired_bytes(path: Path, strict: bool = False) -> tuple[bytes, dict[str, Any] | None, bool]:
     """The bytes of a table, its sidecar, and whether the bytes are those the sidecar records.
 
-    The sidecar of a table written by :func:`write_table_csv` records the table's size and
+    The sidecar of a table written by :func:`write_table` records the table's size and
     SHA-256; when they do not match the file, another run may be replacing the two right now:
     both are read again, up to :data:`PAIR_TRIES` times. A sidecar without them (older
     tables) is taken as it is. Whether a table that still differs belongs to its sidecar is
@@ -225,7 +225,7 @@ def changed_after(path: Path) -> bool:
 
 
 def read_options(path: str | os.PathLike) -> dict[str, Any] | None:
-    """The options a table was written with (checked as :func:`read_table_csv` checks them):
+    """The options a table was written with (checked as :func:`read_table` checks them):
     from its sidecar, else from the comment line of an older table; None when neither is
     there."""
     side = read_sidecar(path)

@@ -1,8 +1,8 @@
 """Tables as plain CSV (or Parquet) files, with what they need to be read correctly in a sidecar.
 
-:func:`write_table_csv` writes a table and its sidecar (:mod:`.sidecar`) atomically
+:func:`write_table` writes a table and its sidecar (:mod:`.sidecar`) atomically
 (:mod:`.atomic`), text that a spreadsheet would run escaped (:mod:`.formulas`);
-:func:`read_table_csv` reads it back with the sidecar's options in ``df.attrs["pfsdm"]``,
+:func:`read_table` reads it back with the sidecar's options in ``df.attrs["pfsdm"]``,
 checked first (numbers round-trip exactly; an option out of its range is refused in plain
 words before the table is read). A copy of the table re-saved by pandas (``df.to_csv(path)``,
 even with its index) reads back the same, as long as the sidecar travels with it. A name
@@ -40,8 +40,8 @@ from .sidecar import (
     to_jsonable,
 )
 
-__all__ = ["CSV_CHUNK_CELLS", "PARQUET_INSTALL", "TEXT_COLUMNS", "is_parquet", "read_table_csv",
-           "require_pyarrow", "write_table_csv"]
+__all__ = ["CSV_CHUNK_CELLS", "PARQUET_INSTALL", "TEXT_COLUMNS", "is_parquet", "read_table",
+           "require_pyarrow", "write_table"]
 
 # pandas < 3 needs float_precision="round_trip" to read floats back exactly; pandas 3 does
 # it by default and deprecates the argument.
@@ -86,7 +86,7 @@ def require_pyarrow(path: Path, doing: str) -> Any:
 CSV_CHUNK_CELLS = 10_000
 
 
-def write_table_csv(
+def write_table(
     df: pd.DataFrame,
     path: str | os.PathLike,
     options: Mapping[str, Any] | None = None,
@@ -98,7 +98,7 @@ def write_table_csv(
     """Write a table as plain CSV (or Parquet) plus its JSON sidecar (``path + ".json"``).
 
     A ``path`` ending in ``.parquet`` writes Apache Parquet (pyarrow, the ``parquet`` extra)
-    with the same sidecar; :func:`read_table_csv` reads either back.
+    with the same sidecar; :func:`read_table` reads either back.
 
     Parameters
     ----------
@@ -127,8 +127,8 @@ def write_table_csv(
     >>> import pandas as pd, tempfile, os
     >>> df = pd.DataFrame({"frame": [0, 1], "label": [1, 1], "area": [10.5, 12.25]})
     >>> p = os.path.join(tempfile.mkdtemp(), "t.csv")
-    >>> _ = write_table_csv(df, p, {"n_fourier": 10})
-    >>> read_table_csv(p).attrs["pfsdm"]
+    >>> _ = write_table(df, p, {"n_fourier": 10})
+    >>> read_table(p).attrs["pfsdm"]
     {'n_fourier': 10}
     >>> list(pd.read_csv(p).columns)
     ['frame', 'label', 'area']
@@ -210,9 +210,9 @@ _NA_WORDS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan
              "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"]
 
 
-def read_table_csv(path: str | os.PathLike, *, index_col: int | None = None,
+def read_table(path: str | os.PathLike, *, index_col: int | None = None,
                    strict: bool = False) -> pd.DataFrame:
-    """Read a table written by :func:`write_table_csv` (or by pandas from one).
+    """Read a table written by :func:`write_table` (or by pandas from one).
 
     A Parquet table (a ``.parquet`` name, or a file starting with Parquet's magic bytes) is read
     with pyarrow: every column and dtype as written (``index_col`` is not needed: the index a

@@ -21,7 +21,7 @@ from ..analysis.features import split_failed
 from ..analysis.glossary import glossary
 from ..analysis.reduction import distance_table, neighbour_table
 from ..core.table_schema import has_channel
-from ..io import Output, check_outputs, write_table_csv
+from ..io import Output, check_outputs, write_table
 from ..io.outputs import file_name_part
 from ._model import Analysis
 
@@ -59,13 +59,13 @@ def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
                 f"{MAX_DISTANCE_ROWS:,}; {names[-1]} lists each object's {NEIGHBOURS} "
                 "nearest shapes instead (exact; row and neighbour are rows of the features "
                 "file).")
-    paths = [write_table_csv(table, folder / names[0], opts, table_type="features",
+    paths = [write_table(table, folder / names[0], opts, table_type="features",
                              extra={"distances": note} if note else None),
-             write_table_csv(pd.DataFrame(glossary(table.columns), columns=["column", "meaning"]),
+             write_table(pd.DataFrame(glossary(table.columns), columns=["column", "meaning"]),
                              folder / names[1], table_type="glossary")]
     for channel, scores in analysis.pca.items():
         ratios = [float(r) for r in scores.attrs.get("explained_variance_ratio", [])]
-        paths.append(write_table_csv(scores, folder / f"{prefix}_pca_{channel}.csv",
+        paths.append(write_table(scores, folder / f"{prefix}_pca_{channel}.csv",
                                      dict(opts, pca_features=channel,
                                           explained_variance_ratio=ratios), table_type="pca"))
     rows = key_rows(measured["frame"], measured["label"], table["frame"], table["label"])
@@ -73,10 +73,10 @@ def export(analysis: Analysis, folder, prefix: str) -> tuple[list[Path], str]:
         k = min(NEIGHBOURS, len(measured) - 1)
         idx, dist = nearest_neighbours(measured, k, intensity_weight=w)
         edges = neighbour_table(measured, idx, dist, rows=rows)
-        paths.append(write_table_csv(edges, folder / names[-1], opts, table_type="neighbours"))
+        paths.append(write_table(edges, folder / names[-1], opts, table_type="neighbours"))
     elif len(measured) >= 2:
         d = np.asarray(distance_matrix(measured, intensity_weight=w))
-        paths.append(write_table_csv(distance_table(measured, d), folder / names[-1], opts,
+        paths.append(write_table(distance_table(measured, d), folder / names[-1], opts,
                                      index=True, table_type="distances",
                                      extra={"left_out": left_out.to_dict("records")}))
     return paths, note

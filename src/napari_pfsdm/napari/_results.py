@@ -362,7 +362,7 @@ def row_glossary(analysis: Analysis, frame: int, label: int) -> str:
 
     >>> t = pd.DataFrame({"frame": [0], "label": [4], "area": [50], "error": [""]})
     >>> print(row_glossary(Analysis("id", 1, t, {}, axes="tyx"), 0, 4).splitlines()[2])
-    area = 50: area in pixels
+    area = 50: area of the object's labelled pixels (pixels)
     """
     from ..analysis.glossary import describe_column
 
