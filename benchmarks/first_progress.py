@@ -16,14 +16,17 @@ not one per movie).
 from __future__ import annotations
 
 import argparse
+import fcntl
 import os
 import pty
 import re
 import select
 import statistics
+import struct
 import subprocess
 import sys
 import tempfile
+import termios
 import time
 from pathlib import Path
 
@@ -34,6 +37,7 @@ PFSDM = Path(sys.executable).with_name("pfsdm")
 def one_run(folder: Path, out: Path) -> dict[str, float]:
     """Seconds from the start to the first bar, the first counted frame, and the end."""
     master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))  # a terminal's size
     start = time.perf_counter()
     proc = subprocess.Popen([str(PFSDM), "measure", str(folder), "-o", str(out), "--force"],
                             stdout=subprocess.DEVNULL, stderr=slave, close_fds=True)
