@@ -46,7 +46,7 @@ def test_installed_plugin_is_discovered():
     pm = npe2.PluginManager.instance()
     pm.discover()
     mf = pm.get_manifest("napari-pfsdm")
-    assert len(mf.contributions.widgets) == 3
+    assert len(mf.contributions.widgets) == 4
 
 
 def test_sample_data_is_deterministic_and_small():

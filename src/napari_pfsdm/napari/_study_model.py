@@ -95,7 +95,7 @@ def _is_number(text: str) -> bool:
 def times_per_movie(file_times: Mapping[str, Mapping[int, float]],
                     frames: Mapping[str, int]) -> dict[str, list[float]]:
     """Each movie's times from a times file (``{movie: {frame: time}}``,
-    :func:`napari_pfsdm.batch.calibration.read_times_file`), its movie names matched to the
+    :func:`napari_pfsdm.io.times_file.read_times_file`), its movie names matched to the
     layers' as a groups file's are (with or without folder and extension); refused in words
     when a movie or a frame has no time."""
     from ..analysis.groups import match_movies
