@@ -158,3 +158,46 @@ def test_bad_times_are_refused_in_words(study_viewer):
     w.time_unit.value = "day"
     assert w.run() is None
     assert "'x' is not a number" in w.status.value
+
+
+def test_prediction_tab_scores_the_groups(qtbot, study_viewer):
+    _viewer, w = study_viewer
+    _choose_all(w)
+    _run(qtbot, w)
+    tab = w.plots[3]
+    w.tabs.setCurrentIndex(3)
+    assert list(tab.frames.choices) == [0, 1, 2, 3]
+    tab.frames.value = [3]
+    assert tab.start() is not None
+    qtbot.waitUntil(lambda: tab.worker is None, timeout=RUN_TIMEOUT_MS)
+    assert tab.prediction is not None, tab.info.value
+    assert tab.prediction.frames == [3]
+    assert "fused balanced accuracy" in tab.info.value
+    assert len(tab.figure.axes) >= 2  # the scores and the confusion matrix
+
+
+def test_every_dock_at_1280x800_leaves_the_study_form_whole(qtbot, make_napari_viewer_proxy):
+    from napari_helpers import ANALYSIS, PLOTS, PREDICTION
+
+    from napari_pfsdm.napari._widgets import dock_of
+
+    viewer = make_napari_viewer_proxy(show=True)
+    viewer.window.resize(1280, 800)
+    for name, data in MOVIES.items():
+        viewer.add_labels(data, name=name)
+    for name in (ANALYSIS, PLOTS, PREDICTION):
+        dock(viewer, name)
+    w = dock(viewer, STUDY)
+    dock_of(w).raise_()
+    _choose_all(w)
+    qtbot.wait(300)
+    form = w.form.native
+    assert form.height() >= form.sizeHint().height()  # no row squeezed
+    inside = w.rect()
+    for widget in (w.movies, w.reporters, w.times, w.times_file, w.space_unit, w.groups_file,
+                   w.group_column, w.name_rule, w.run_button, w.cancel_button):
+        box = widget.native.rect().translated(widget.native.mapTo(w, widget.native.rect()
+                                                                  .topLeft()))
+        assert inside.contains(box), widget.label
+        assert widget.native.isVisible()
+    assert w.tabs.height() >= 250  # the plots keep room under the form

@@ -34,6 +34,7 @@ from ._study_model import (
     StudyInput,
     pixel_size_of,
     reporter_for,
+    reporter_words,
     run_study,
 )
 from ._study_plots import OverTimeTab, PredictionTab, SimilarTab, TrajectoryTab
@@ -161,6 +162,9 @@ class StudyWidget(PluginDock):
                             layout="horizontal", labels=False)
         for row in (time_row, group_row, space_row, buttons):
             row.margins = (0, 0, 0, 0)
+        for row in (time_row, group_row):  # the text and the file get the room
+            row.native.layout().setStretch(0, 3)
+            row.native.layout().setStretch(1, 2)
         self.form = Container(widgets=[self.movies, self.reporters, time_row, self.times_file,
                                        space_row, group_row, self.name_rule, buttons])
         self.form.margins = (4, 2, 4, 0)
@@ -220,14 +224,11 @@ class StudyWidget(PluginDock):
 
     def _on_movies(self, *args) -> None:
         found = self.reporter_names()
-        if not found:
-            self.reporters.value = "(choose movies)"
-        else:
-            self.reporters.value = "; ".join(f"{m} ← {r}" if r else f"{m}: none"
-                                             for m, r in found.items())
+        self.reporters.value = reporter_words(found)
         self.reporters.tooltip = ("Each movie's reporter: an Image layer named like the movie "
                                   "(e.g. 'org01 reporter') with its shape; never another "
-                                  "movie's.\n" + self.reporters.value)
+                                  "movie's.\n" + "\n".join(f"{m} ← {r or 'none'}"
+                                                            for m, r in found.items()))
         self.pixel_words.value = self._pixel_words()
 
     def _pixel_words(self) -> str:

@@ -37,7 +37,9 @@ import pandas as pd
 from ..errors import InputError
 
 #: How groups are taken from the movies' names (the form's words → :func:`name_groups`').
-NAME_RULES = {"none": "none", "name before the first _ or space": "prefix"}
+NAME_RULES = {"none": "none", "first word of the name": "prefix"}
+#: Up to this many movies the form names each one's reporter; beyond, it counts them.
+NAMED_REPORTERS = 4
 #: What separates a movie's name from the word that makes an Image layer its reporter.
 SEPARATORS = (" ", "_", "-")
 #: The measures offered first in the Over time tab (then every other number).
@@ -71,6 +73,25 @@ def reporter_for(movie: str, shape: Sequence[int], images: Sequence[tuple[str, S
             if tuple(int(n) for n in s) == tuple(int(n) for n in shape) and owner(name) == movie]
     hits.sort(key=lambda n: "reporter" not in n.lower())
     return hits[0] if hits else None
+
+
+def reporter_words(found: Mapping[str, str | None]) -> str:
+    """What the form says of the movies' reporters: each one's (``org01 ← org01 reporter``,
+    ``org02: none``), or beyond :data:`NAMED_REPORTERS` movies how many have one.
+
+    >>> reporter_words({"a": "a reporter", "b": None})
+    'a ← a reporter; b: none'
+    >>> reporter_words({f"m{i}": (f"m{i} gfp" if i < 2 else None) for i in range(6)})
+    '2 of 6 movies have a reporter: m0 ← m0 gfp; m1 ← m1 gfp (hover for each)'
+    """
+    if not found:
+        return "(choose movies)"
+    if len(found) <= NAMED_REPORTERS:
+        return "; ".join(f"{m} ← {r}" if r else f"{m}: none" for m, r in found.items())
+    have = {m: r for m, r in found.items() if r}
+    named = "; ".join(f"{m} ← {r}" for m, r in list(have.items())[:2])
+    return (f"{len(have)} of {len(found)} movies have a reporter"
+            + (f": {named}{' …' if len(have) > 2 else ''}" if have else "") + " (hover for each)")
 
 
 def parse_times(text: str) -> list[float]:
@@ -165,7 +186,10 @@ def run_study(given: StudyInput, progress: Callable[[int, int, str], None] | Non
     if given.groups is not None:
         table = attach_groups(table, given.groups)
     elif given.name_groups:
-        table["group"] = table["movie"].map(given.name_groups).fillna("").astype(str)
+        from ..core.table_options import carry_options
+
+        table = carry_options(table, table.assign(
+            group=table["movie"].map(given.name_groups).fillna("").astype(str)))
     return Study(table, dict(given.movies))
 
 
