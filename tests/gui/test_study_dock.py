@@ -137,6 +137,14 @@ def test_groups_file_with_another_column_and_a_click_shows_the_object(qtbot, stu
     assert viewer.dims.current_step[0] == 2
     assert layer.selected_label == 1
     assert w.selection == ("big_a", 2, 1)
+    # napari's selected label moves the study's selection (the Similar tab follows it)
+    layer.selected_label = 2
+    assert w.selection == ("big_a", 2, 2)
+    w.tabs.setCurrentIndex(2)
+    similar = w.plots[2]
+    qtbot.waitUntil(lambda: similar.worker is None and bool(similar.thumbs), timeout=RUN_TIMEOUT_MS)
+    assert similar.thumbs[0][1] == ("big_a", 2, 2)
+    assert {key[0] for _ax, key in similar.thumbs[1:]} - {"big_a"}  # other movies' shapes
 
 
 def test_removing_a_layer_during_the_run_ends_it_cleanly(qtbot, study_viewer):
@@ -149,6 +157,17 @@ def test_removing_a_layer_during_the_run_ends_it_cleanly(qtbot, study_viewer):
     assert w.study is None
     assert "removed during the Run" in w.status.value
     assert "small_b" not in w.movies.choices
+
+
+def test_cancel_keeps_nothing(qtbot, study_viewer):
+    _viewer, w = study_viewer
+    _choose_all(w)
+    assert w.run() is not None
+    w.cancel()
+    qtbot.waitUntil(lambda: w.worker is None, timeout=RUN_TIMEOUT_MS)
+    assert w.study is None
+    assert "Cancelled" in w.status.value
+    assert w.run_button.enabled
 
 
 def test_bad_times_are_refused_in_words(study_viewer):

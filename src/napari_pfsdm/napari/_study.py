@@ -117,6 +117,7 @@ class StudyWidget(PluginDock):
                         napari_viewer.layers.events.moved):
             self.follow(emitter, self._on_layers)
         self._renames: list = []
+        self._labels_followed: list = []  # (layer, callback) of napari's selected label
         self._on_layers()
 
     # ------------------------------------------------------------------ the form
@@ -207,6 +208,7 @@ class StudyWidget(PluginDock):
 
     def release(self) -> None:
         super().release()
+        self._unfollow_labels()
         for layer, cb in self._renames:
             try:
                 layer.events.name.disconnect(cb)
@@ -399,10 +401,18 @@ class StudyWidget(PluginDock):
             self.worker.quit()
 
     def take(self, study: Study, ids: dict[str, str]) -> None:
-        """A finished Run: its results shown, each movie's rows in its layer's features."""
+        """A finished Run: its results shown, each movie's rows in its layer's features (once),
+        napari's selected label of each movie followed."""
+        self._unfollow_labels()
         self.study, self.layer_ids, self.selection = study, dict(ids), None
         for movie, layer in self._study_layers().items():
             layer.features = study.layer_features(movie)
+
+            def picked(event=None, _movie=movie, _layer=layer) -> None:
+                self._on_label(_movie, _layer)
+
+            layer.events.selected_label.connect(picked)
+            self._labels_followed.append((layer, picked))
         self.plots[3].set_frames(study.frames())
         self.plots[2].result = None
         self.export_button.enabled = True
@@ -415,6 +425,27 @@ class StudyWidget(PluginDock):
         """Movie → its Labels layer (those still in the viewer)."""
         by_id = {lay.unique_id: lay for lay in self.viewer.layers}
         return {m: by_id[i] for m, i in self.layer_ids.items() if i in by_id}
+
+    def _unfollow_labels(self) -> None:
+        for layer, cb in self._labels_followed:
+            try:
+                layer.events.selected_label.disconnect(cb)
+            except (RuntimeError, ValueError, TypeError):
+                pass
+        self._labels_followed = []
+
+    def _on_label(self, movie: str, layer) -> None:
+        """napari's selected label of a study layer changed: it becomes the selection (the
+        Similar tab shows the shapes nearest it)."""
+        from ._model import current_frame
+
+        frame = current_frame(self.viewer.dims, layer, layer.ndim == 3)
+        key = (movie, frame, int(layer.selected_label))
+        if self.study is None or key == self.selection or self.study.row_of(*key) is None:
+            return
+        self.selection = key
+        current = self.plots[self.tabs.currentIndex()]
+        current.redraw() if isinstance(current, SimilarTab) else current.highlight()
 
     # ------------------------------------------------------------------ a click
     def show_object(self, movie: str, frame: int, label: int) -> None:

@@ -215,6 +215,7 @@ class SimilarTab(StudyPlot):
         self.result = None  # ((key, k), [(movie, frame, label, distance, outline)…])
         self.thumbs: list = []
         self.worker = None
+        self.failure = ""  # why the last search found nothing
 
     def draw(self) -> None:
         sel = self.dock.selection
@@ -228,6 +229,8 @@ class SimilarTab(StudyPlot):
             self.info.value = "Finding the nearest shapes in the background…"
             return
         found = self.result[1]
+        if not found:
+            raise InputError(self.failure or "No object has features to compare with.")
         n = len(found)
         cols = min(4, n)
         rows = -(-n // cols)
@@ -249,16 +252,15 @@ class SimilarTab(StudyPlot):
 
         def done(result):
             key_, found = result
-            self.result = ((key_, k), found)
+            self.result, self.failure = ((key_, k), found), ""
 
         def failed(err):
             self.result = ((key, k), [])
-            self.info.value = f"The nearest shapes could not be found: {err}"
+            self.failure = f"The nearest shapes could not be found: {err}"
 
         def finished():
             self.worker = None
-            if self.isVisible():
-                self.redraw()
+            self.redraw()  # drawn on screen when shown (PlotCanvas)
 
         self.worker.returned.connect(done)
         self.worker.errored.connect(failed)
