@@ -163,9 +163,10 @@ class StudyWidget(PluginDock):
                             layout="horizontal", labels=False)
         for row in (time_row, group_row, space_row, buttons):
             row.margins = (0, 0, 0, 0)
-        for row in (time_row, group_row):  # the text and the file get the room
+        self.group_column.native.setMaximumWidth(90)  # a column's name; the file gets the room
+        for row, share in ((time_row, 2), (group_row, 1)):  # the text and the file: the room
             row.native.layout().setStretch(0, 3)
-            row.native.layout().setStretch(1, 2)
+            row.native.layout().setStretch(1, share)
         self.form = Container(widgets=[self.movies, self.reporters, time_row, self.times_file,
                                        space_row, group_row, self.name_rule, buttons])
         self.form.margins = (4, 2, 4, 0)
