@@ -220,3 +220,21 @@ def test_every_dock_at_1280x800_leaves_the_study_form_whole(qtbot, make_napari_v
         assert inside.contains(box), widget.label
         assert widget.native.isVisible()
     assert w.tabs.height() >= 250  # the plots keep room under the form
+
+
+def test_units_from_napari_export_and_renamed_layers(qtbot, study_viewer, tmp_path):
+    viewer, w = study_viewer
+    for name in ("small_a", "big_a"):
+        viewer.layers[name].units = ("pixel", "nm", "nm")
+    w.movies.value = ["small_a", "big_a"]
+    assert w.gather().space_unit == "nm"  # napari's unit wins over the form's µm
+    study = _run(qtbot, w)
+    assert "sizes in nm" in w.status.value
+    out = w.export(tmp_path / "study.csv")
+    back = pd.read_csv(out)
+    assert back[["movie", "frame", "label"]].values.tolist() == \
+        study.table[["movie", "frame", "label"]].values.tolist()
+    assert "shape_PC1" in back
+    # a renamed layer is renamed in the list
+    viewer.layers["big_a"].name = "big_z"
+    assert "big_z" in w.movies.choices and "big_a" not in w.movies.choices
