@@ -79,7 +79,8 @@ def test_the_plugins_model_imports_no_gui_toolkit():
     """The plugin's model and results (``napari._model``, ``napari._results``) are plain
     Python: they run and are tested without Qt or napari."""
     pytest.importorskip("psygnal")
-    code = SCRIPT.format(names=["napari_pfsdm.napari._model", "napari_pfsdm.napari._results"],
+    code = SCRIPT.format(names=["napari_pfsdm.napari._model", "napari_pfsdm.napari._results",
+                                "napari_pfsdm.napari._study_model"],
                          forbidden=set(FORBIDDEN), examples=str(EXAMPLES))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300, env={"PATH": "/usr/bin:/bin", "QT_API": "pyqt6"})

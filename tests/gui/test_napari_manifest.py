@@ -23,7 +23,7 @@ def test_manifest_is_valid_and_its_commands_import():
     mf.validate_imports()
     assert mf.name == "napari-pfsdm"
     widgets = {w.display_name for w in mf.contributions.widgets}
-    assert widgets == {"PF-SDM analysis", "PF-SDM plots", "PF-SDM prediction"}
+    assert widgets == {"PF-SDM analysis", "PF-SDM plots", "PF-SDM prediction", "PF-SDM study"}
     assert [s.key for s in mf.contributions.sample_data] == ["gastruloids", "five_shapes"]
     menus = mf.contributions.menus
     assert {"napari/layers/measure", "napari/layers/visualize", "napari/layers/classify"} \
@@ -32,6 +32,9 @@ def test_manifest_is_valid_and_its_commands_import():
     (reader,) = mf.contributions.readers
     assert reader.command == "napari-pfsdm.read_labels" and reader.accepts_directories
     assert {"*.tif", "*.tiff", "*.zarr"} <= set(reader.filename_patterns)
+    # several movies measured as one study: beside the analysis, Layers > Measure
+    assert [m.command for m in menus["napari/layers/measure"]] == [
+        "napari-pfsdm.analysis_widget", "napari-pfsdm.study"]
     # prediction is a classifier: napari's Layers > Classify
     assert [m.command for m in menus["napari/layers/classify"]] == ["napari-pfsdm.prediction"]
     # the package's copy is the same file (a symlink in the source tree)
@@ -43,7 +46,7 @@ def test_installed_plugin_is_discovered():
     pm = npe2.PluginManager.instance()
     pm.discover()
     mf = pm.get_manifest("napari-pfsdm")
-    assert len(mf.contributions.widgets) == 3
+    assert len(mf.contributions.widgets) == 4
 
 
 def test_sample_data_is_deterministic_and_small():

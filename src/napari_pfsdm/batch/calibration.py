@@ -8,11 +8,8 @@ then mix frames with days, or pixels with micrometres.
 
 from __future__ import annotations
 
-import csv
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from ..core.units import (
@@ -24,6 +21,7 @@ from ..core.units import (
     time_unit,
 )
 from ..errors import InputError
+from ..io.times_file import read_times_file
 from .metadata import MovieMetadata
 
 __all__ = ["Calibration", "calibrate", "read_times_file"]
@@ -49,34 +47,6 @@ class Calibration:
     pixel_size: tuple[float, ...] | None
     space_unit: str | None
     source: str
-
-
-def read_times_file(path: str | Path) -> dict[str, dict[int, float]]:
-    """``{movie: {frame: time}}`` from a CSV with the columns ``movie``, ``frame`` and
-    ``time`` (any others are ignored), refused in words when a column is missing or a cell is
-    not a number."""
-    path = Path(path)
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        raise InputError(f"{path} holds no rows: give one row per movie and frame (movie, "
-                         "frame, time)")
-    missing = [c for c in ("movie", "frame", "time") if c not in rows[0]]
-    if missing:
-        raise InputError(f"{path} has no {', '.join(missing)} column: a times file has one "
-                         "row per movie and frame with the columns movie, frame, time "
-                         f"(its columns: {', '.join(rows[0])})")
-    out: dict[str, dict[int, float]] = {}
-    for i, row in enumerate(rows, start=2):
-        try:
-            frame, value = int(str(row["frame"]).strip()), float(str(row["time"]).strip())
-        except ValueError:
-            raise InputError(f"{path}, line {i}: frame must be a whole number and time a "
-                             f"number; got frame {row['frame']!r}, time {row['time']!r}") from None
-        if not math.isfinite(value):
-            raise InputError(f"{path}, line {i}: time {row['time']!r} is not a finite number")
-        out.setdefault(str(row["movie"]).strip(), {})[frame] = value
-    return out
 
 
 def _given_times(name: str, n_frames: int, times: Any,

@@ -16,8 +16,8 @@ from typing import Any
 from ..core.units import LENGTHS, TIMES, space_unit, time_unit
 from ..errors import InputError
 
-__all__ = ["PIXELS", "SPACE_UNITS", "TIME_UNITS", "layer_pixel_size", "physical_options",
-           "times_text"]
+__all__ = ["PIXELS", "SPACE_UNITS", "TIME_UNITS", "layer_pixel_size", "parse_numbers",
+           "physical_options", "times_text"]
 
 #: The space unit of a layer whose sizes are in pixels.
 PIXELS = "pixels"
@@ -78,11 +78,11 @@ def physical_options(pixel_text: str, unit: str, times: str, unit_of_time: str,
     """
     out: dict[str, Any] = {}
     if unit and unit != PIXELS:
-        out["pixel_size"] = _numbers(pixel_text, "the pixel size", "3.165 (or 2, 0.5, 0.5 for "
+        out["pixel_size"] = parse_numbers(pixel_text, "the pixel size", "3.165 (or 2, 0.5, 0.5 for "
                                      "Z, Y, X)")
         out["space_unit"] = space_unit(unit)[0]
     if times.strip():
-        out["times"] = _numbers(times, "the times", "2, 5, 8, 10 (one per frame)")
+        out["times"] = parse_numbers(times, "the times", "2, 5, 8, 10 (one per frame)")
         out["time_unit"] = time_unit(unit_of_time)[0] if unit_of_time else None
     elif unit_of_time:
         raise InputError(f"a time unit ({unit_of_time}) was chosen without times: write each "
@@ -90,12 +90,21 @@ def physical_options(pixel_text: str, unit: str, times: str, unit_of_time: str,
     return out
 
 
-def _numbers(text: str, what: str, example: str) -> tuple[float, ...]:
+def parse_numbers(text: str, what: str, example: str) -> tuple[float, ...]:
+    """The numbers written in a form's field, separated by commas, semicolons or spaces;
+    refused in words, naming the word that is not a number.
+
+    >>> parse_numbers("2,5 ,8;10 12", "the times", "2, 5, 8")
+    (2.0, 5.0, 8.0, 10.0, 12.0)
+    """
     words = [w for w in re.split(r"[,;\s]+", str(text).strip()) if w]
-    try:
-        values = tuple(float(w) for w in words)
-    except ValueError:
-        values = ()
+    values = []
+    for word in words:
+        try:
+            values.append(float(word))
+        except ValueError:
+            raise InputError(f"{what} must be numbers separated by commas (e.g. {example}); "
+                             f"{word!r} is not a number") from None
     if not values:
-        raise InputError(f"{what} {text!r} cannot be read as numbers: write e.g. {example}")
-    return values
+        raise InputError(f"{what} {text!r} holds no number: write e.g. {example}")
+    return tuple(values)
