@@ -12,10 +12,10 @@ import tifffile
 from skimage.measure import perimeter, regionprops_table
 
 import napari_pfsdm as pf
-from napari_pfsdm.batch.metadata import read_metadata
 from napari_pfsdm.cli import main
 from napari_pfsdm.data.gastruloids import make_timelapse_montage
 from napari_pfsdm.errors import InputError
+from napari_pfsdm.io.metadata import read_metadata
 
 
 @pytest.fixture(scope="module")

@@ -21,8 +21,8 @@ from ..core.units import (
     time_unit,
 )
 from ..errors import InputError
+from ..io.metadata import MovieMetadata
 from ..io.times_file import read_times_file
-from .metadata import MovieMetadata
 
 __all__ = ["Calibration", "calibrate", "read_times_file"]
 

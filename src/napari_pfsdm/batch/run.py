@@ -49,6 +49,7 @@ from ..io import (
     write_table,
     written_by_pfsdm,
 )
+from ..io.metadata import read_metadata
 from ..io.sidecar import is_pfsdm_sidecar
 from .calibration import Calibration, calibrate
 from .fingerprint import data_fingerprint
@@ -60,7 +61,6 @@ from .io import (
     open_movie,
     refuse_missing_chunks,
 )
-from .metadata import read_metadata
 from .movies import Movie
 from .tasks import environment_fault, measure_dask
 

@@ -27,10 +27,9 @@ from qtpy.QtWidgets import QFileDialog, QGridLayout, QSizePolicy, QWidget
 from superqt import QCollapsible
 
 from ..core.params import OPTIONS, PFSDMParams, option
-from . import _pictures, _saving
+from . import _physical, _pictures, _saving
 from ._jobs import JOBS, Job, RunInput, layer_data, start_run
 from ._model import REGISTRY, Analysis, current_frame, is_picture, layer_shape
-from ._physical import SPACE_UNITS, TIME_UNITS, layer_pixel_size, physical_options, times_text
 from ._results import (
     FIRST_AXIS,
     IDENTITY,
@@ -62,13 +61,6 @@ TIPS = {
                 "their label ids do not follow them (per-frame segmentation, e.g. cellpose): by "
                 "overlap where objects touch (packed cells), else by centroids; 'label ids' "
                 "trusts the ids; or link by centroids or overlap; or follow a Tracks layer.",
-    "pixel_size": "The size of a pixel (or of a voxel: Z, Y, X), from the layer's scale: the "
-                  "areas, lengths and widths are then in its unit (µm², µm). 'pixels' keeps "
-                  "them in pixels. A scale without a unit is taken to be in µm: change it "
-                  "here if it is not.",
-    "times": "Each frame's time, in frame order (e.g. 2, 5, 8, 10, 12, 12 for uneven days, "
-             "a day imaged twice): the plots then put time on their axis, and the table "
-             "gets a 'time' column. Blank: frames. Filled from the file when it says.",
     "save": "Keep this analysis in a folder (tables, PCA, groups, predictions, the data's "
             "fingerprints) to open it again later, here or on another computer.",
     "report": "Write one HTML file to share (it opens offline in any browser): the options, "
@@ -137,12 +129,12 @@ class AnalysisWidget(PluginDock):
                                  tooltip=TIPS["reporter"])
         self.identity = ComboBox(label="Identity", choices=self._identity_choices,
                                  tooltip=TIPS["identity"])
-        self.pixel_size = LineEdit(label="Pixel size", tooltip=TIPS["pixel_size"])
-        self.space_unit = ComboBox(label="Size unit", choices=list(SPACE_UNITS),
-                                   tooltip=TIPS["pixel_size"])
-        self.times = LineEdit(label="Times", tooltip=TIPS["times"])
+        self.pixel_size = LineEdit(label="Pixel size", tooltip=_physical.TIPS["pixel_size"])
+        self.space_unit = ComboBox(label="Size unit", choices=list(_physical.SPACE_UNITS),
+                                   tooltip=_physical.TIPS["pixel_size"])
+        self.times = LineEdit(label="Times", tooltip=_physical.TIPS["times"])
         self.time_unit = ComboBox(label="Time unit", choices=[("(frames)", "")] + [
-            (u, u) for u in TIME_UNITS if u], tooltip=TIPS["times"])
+            (u, u) for u in _physical.TIME_UNITS if u], tooltip=_physical.TIPS["times"])
         self.options = {o.name: option_widget(o) for o in OPTIONS}
         self.intensity_weight = option_widget(option("intensity_weight"))
         basic = [w for o, w in zip(OPTIONS, self.options.values(), strict=True) if o.basic]
@@ -365,8 +357,9 @@ class AnalysisWidget(PluginDock):
             check_layers(_data(chosen), image, first_axis)
             params = self.params()
             n_spatial = 3 if first_axis == "z" or chosen.ndim == 4 else 2
-            physical = physical_options(self.pixel_size.value, self.space_unit.value,
-                                        self.times.value, self.time_unit.value, n_spatial)
+            physical = _physical.physical_options(
+                self.pixel_size.value, self.space_unit.value, self.times.value,
+                self.time_unit.value, n_spatial)
             if "times" in physical:
                 from ..core.units import check_times
 
@@ -476,10 +469,10 @@ class AnalysisWidget(PluginDock):
             return
         n_spatial = 3 if labels.ndim == 4 or (labels.ndim == 3
                                               and self.first_axis.value == "z") else 2
-        self.pixel_size.value, self.space_unit.value = layer_pixel_size(labels, n_spatial)
-        times, unit = times_text(labels)
+        self.pixel_size.value, self.space_unit.value = _physical.layer_pixel_size(labels, n_spatial)
+        times, unit = _physical.times_text(labels)
         self.times.value = times
-        self.time_unit.value = unit if unit in TIME_UNITS else ""
+        self.time_unit.value = unit if unit in _physical.TIME_UNITS else ""
 
     def _on_labels_choice(self, *args) -> None:
         """Show the chosen layer: its analysis, and its jobs while they run."""

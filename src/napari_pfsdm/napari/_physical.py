@@ -3,7 +3,7 @@
 napari keeps a layer's pixel size as its ``scale`` (one number per axis) and its unit as its
 ``units`` (``pixel`` when nothing is known); the plugin's reader sets both, and the frames'
 times (``metadata["times"]``, ``metadata["time_unit"]``), from what the file declares
-(:func:`napari_pfsdm.batch.metadata.read_metadata`). These functions turn them into what
+(:func:`napari_pfsdm.io.metadata.read_metadata`). These functions turn them into what
 :func:`napari_pfsdm.measure` takes (``pixel_size``, ``space_unit``, ``times``, ``time_unit``).
 No Qt here.
 """
@@ -25,6 +25,16 @@ PIXELS = "pixels"
 SPACE_UNITS = (PIXELS, *LENGTHS)
 #: The time units offered: frames (no time), then :data:`~napari_pfsdm.core.units.TIMES`'.
 TIME_UNITS = ("", *TIMES)
+#: The fields' tooltips.
+TIPS = {
+    "pixel_size": "The size of a pixel (or of a voxel: Z, Y, X), from the layer's scale: the "
+                  "areas, lengths and widths are then in its unit (µm², µm). 'pixels' keeps "
+                  "them in pixels. A scale without a unit is taken to be in µm: change it "
+                  "here if it is not.",
+    "times": "Each frame's time, in frame order (e.g. 2, 5, 8, 10, 12, 12 for uneven days, "
+             "a day imaged twice): the plots then put time on their axis, and the table "
+             "gets a 'time' column. Blank: frames. Filled from the file when it says.",
+}
 
 
 def layer_pixel_size(layer, n_axes: int = 2) -> tuple[str, str]:

@@ -66,9 +66,9 @@ def read_labels(path) -> list[tuple]:
 def _with_calibration(path: Path, data, meta: dict) -> dict:
     """``meta`` with the pixel size (``scale``, ``units``) and the frames' times
     (``metadata["times"]``, ``["time_unit"]``) that the file declares
-    (:func:`napari_pfsdm.batch.metadata.read_metadata`): a 3-D file is a time-lapse, a 4-D
+    (:func:`napari_pfsdm.io.metadata.read_metadata`): a 3-D file is a time-lapse, a 4-D
     one a time-lapse of Z-stacks (the analysis panel's defaults)."""
-    from ..batch.metadata import read_metadata
+    from ..io.metadata import read_metadata
 
     ndim = len(data.shape)
     if ndim < 2:
