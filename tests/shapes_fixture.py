@@ -38,3 +38,18 @@ BASE_SHAPES = {
 }
 
 
+
+
+def drifting_ellipses(n_frames: int = 3, n: int = 8, dtype=np.uint16, ids=None) -> np.ndarray:
+    """A label movie (n_frames × 96 × 160) of ``n`` ellipses of two kinds (round, long)
+    drifting right one pixel a frame, four to a row; ``ids`` their labels (default 1 … n),
+    which follow them."""
+    ids = list(range(1, n + 1)) if ids is None else ids
+    yy, xx = np.mgrid[:96, :160]
+    out = np.zeros((n_frames, 96, 160), dtype)
+    for t in range(n_frames):
+        for i, lab in enumerate(ids):
+            cy, cx = 22 + 48 * (i // 4), 18 + 36 * (i % 4) + t
+            a, b = (9, 9) if i % 2 else (13, 6)
+            out[t][((yy - cy) / a) ** 2 + ((xx - cx) / b) ** 2 < 1] = lab
+    return out

@@ -25,6 +25,7 @@ from skimage import data, filters, measure, segmentation
 import napari_pfsdm as pf
 from napari_pfsdm.cli import main
 from napari_pfsdm.errors import InputError
+from shapes_fixture import drifting_ellipses
 
 FAST = {"n_fourier": 4, "n_radii": 4}
 CLI_FAST = ["--n-fourier", "4", "--n-radii", "4", "--link", "labels", "-q", "--scheduler",
@@ -40,14 +41,7 @@ def error_line(capsys) -> str:
 
 
 def ellipses(n_frames: int = 3, n: int = 6) -> np.ndarray:
-    yy, xx = np.mgrid[:96, :160]
-    out = np.zeros((n_frames, 96, 160), np.uint16)
-    for t in range(n_frames):
-        for i in range(n):
-            cy, cx = 22 + 48 * (i // 4), 18 + 36 * (i % 4) + t
-            a, b = (9, 9) if i % 2 else (13, 6)
-            out[t][((yy - cy) / a) ** 2 + ((xx - cx) / b) ** 2 < 1] = i + 1
-    return out
+    return drifting_ellipses(n_frames, n)
 
 
 def features(table: pd.DataFrame, channel: str) -> np.ndarray:

@@ -20,6 +20,7 @@ from matplotlib.text import Text
 
 import napari_pfsdm as pf
 from napari_pfsdm.cli import main
+from shapes_fixture import drifting_ellipses
 
 matplotlib.use("Agg")
 
@@ -52,14 +53,7 @@ def drawn(monkeypatch):
 
 
 def ellipses(n_frames: int, n: int) -> np.ndarray:
-    yy, xx = np.mgrid[:96, :160]
-    out = np.zeros((n_frames, 96, 160), np.uint16)
-    for t in range(n_frames):
-        for i in range(n):
-            cy, cx = 22 + 48 * (i // 4), 18 + 36 * (i % 4) + t
-            a, b = (9, 9) if i % 2 else (13, 6)
-            out[t][((yy - cy) / a) ** 2 + ((xx - cx) / b) ** 2 < 1] = i + 1
-    return out
+    return drifting_ellipses(n_frames, n)
 
 
 @pytest.fixture(scope="module")

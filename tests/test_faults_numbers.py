@@ -25,21 +25,14 @@ import tifffile
 import napari_pfsdm as pf
 from napari_pfsdm.cli import build_parser, main
 from napari_pfsdm.errors import InputError
+from shapes_fixture import drifting_ellipses
 
 FAST = ["--n-fourier", "4", "--n-radii", "4", "--scheduler", "sync"]
 
 
 def ellipses(n_frames: int = 4, n: int = 8, dtype=np.uint16, ids=None) -> np.ndarray:
     """``n`` ellipses of two kinds drifting right; ``ids`` their labels (default 1 … n)."""
-    ids = list(range(1, n + 1)) if ids is None else ids
-    yy, xx = np.mgrid[:96, :160]
-    out = np.zeros((n_frames, 96, 160), dtype)
-    for t in range(n_frames):
-        for i, lab in enumerate(ids):
-            cy, cx = 22 + 48 * (i // 4), 18 + 36 * (i % 4) + t
-            a, b = (9, 9) if i % 2 else (13, 6)
-            out[t][((yy - cy) / a) ** 2 + ((xx - cx) / b) ** 2 < 1] = lab
-    return out
+    return drifting_ellipses(n_frames, n, dtype, ids)
 
 
 @pytest.fixture(scope="module")

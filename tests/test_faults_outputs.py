@@ -24,6 +24,7 @@ import tifffile
 
 from napari_pfsdm.cli import build_parser, main
 from napari_pfsdm.cli.common import declared_files
+from shapes_fixture import drifting_ellipses
 
 FAST = ["--n-fourier", "4", "--n-radii", "4", "--scheduler", "sync"]
 MINE = b"my own notes, not pfsdm's\n"
@@ -31,14 +32,7 @@ MINE = b"my own notes, not pfsdm's\n"
 
 def ellipses(n_frames: int = 3, n: int = 8) -> np.ndarray:
     """``n`` ellipses (two kinds: round and long) drifting right, ids that follow them."""
-    yy, xx = np.mgrid[:96, :160]
-    out = np.zeros((n_frames, 96, 160), np.uint16)
-    for t in range(n_frames):
-        for i in range(n):
-            cy, cx = 22 + 48 * (i // 4), 18 + 36 * (i % 4) + t
-            a, b = (9, 9) if i % 2 else (13, 6)
-            out[t][((yy - cy) / a) ** 2 + ((xx - cx) / b) ** 2 < 1] = i + 1
-    return out
+    return drifting_ellipses(n_frames, n)
 
 
 @pytest.fixture(scope="module")
