@@ -1,9 +1,17 @@
 """The distances' small matrix products run on one BLAS thread, large ones on the machine's
-(``core/threads.py``): what OpenBLAS reports while the functions that hold the products run."""
+(``core/threads.py``): what OpenBLAS reports while the functions that hold the products run.
+
+The tests run in a Python process of their own (:func:`test_in_a_process_of_their_own`):
+after a napari viewer's Run in the same process, OpenBLAS no longer takes a limit of its
+threads from threadpoolctl at all (seen in the full suite), which says nothing of the
+distances."""
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,10 +43,27 @@ def objects():
     return _blobs(40)
 
 
+#: Set in the process of their own, where the tests below run.
+FRESH = "PFSDM_BLAS_TESTS_FRESH"
+def test_in_a_process_of_their_own():
+    if os.environ.get(FRESH):
+        pytest.skip("this is the process of their own")
+    run = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:xvfb", "-p",
+                          "no:cacheprovider", "-q", "-rs", str(Path(__file__))],
+                         env={**os.environ, FRESH: "1"}, capture_output=True, text=True,
+                         cwd=Path(__file__).parent)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    if "this BLAS cannot run two threads" in run.stdout:
+        pytest.skip("this BLAS cannot run two threads")
+    assert "\n4 passed" in run.stdout, run.stdout[-1000:]
+
+
 @pytest.fixture
 def two_blas_threads():
     """The machine's default made two BLAS threads (as on any machine with two cores), or a
     skip when OpenBLAS cannot have them."""
+    if not os.environ.get(FRESH):
+        pytest.skip("run in a process of their own (test_in_a_process_of_their_own)")
     import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS too)
 
     with threadpool_limits(2, user_api="blas"):
@@ -105,3 +130,17 @@ def test_the_distances_do_not_depend_on_the_machines_blas_threads(two_blas_threa
     with threadpool_limits(1, user_api="blas"):
         d_one = pf.distance_matrix(objects, invariance="combined")
     assert np.array_equal(d_default, d_one)
+
+
+def test_a_suspended_measurement_leaves_the_machines_threads(two_blas_threads):
+    # iter_objects yields object by object: between two objects (a caller that computes, or
+    # stops early) the caller's own products have the machine's BLAS threads
+    yy, xx = np.mgrid[:64, :64]
+    labels = np.zeros((2, 64, 64), np.uint16)
+    for k in range(6):
+        labels[:, ((yy - 10 - 9 * k) ** 2 + (xx - 32) ** 2) < 16] = k + 1
+    objects = pf.iter_objects(labels)
+    first = next(objects)
+    assert first.label == 1 and _blas_threads() == 2
+    objects.close()
+    assert _blas_threads() == 2
