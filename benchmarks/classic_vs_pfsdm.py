@@ -331,7 +331,7 @@ def run_gastruloids(n_objects: int, n_frames: int, frames: str, n_repeats: int,
         (shape + intensity) and the fusion of all three.
     """
     from napari_pfsdm.analysis import classification as cl
-    from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.outcome import predict_outcome
     from napari_pfsdm.data.gastruloids import make_gastruloids
 
     data = make_gastruloids(n_objects=n_objects, n_frames=n_frames, size=128, seed=seed)

@@ -407,7 +407,7 @@ def measure_dataset(name: str, repeats: int, run_repeats: int, plotter: bool = F
 
     import napari_pfsdm as pf
     from napari_pfsdm.analysis.features import split_failed
-    from napari_pfsdm.analysis.prediction import predict_outcome
+    from napari_pfsdm.analysis.outcome import predict_outcome
     from napari_pfsdm.analysis.reduction import distance_table
     from napari_pfsdm.core.table_schema import has_channel
     from napari_pfsdm.napari._plots import PlotsWidget
