@@ -68,6 +68,9 @@ def test_the_panel_takes_uneven_times_and_refuses_a_wrong_count(make_napari_view
     assert widget.run() is None
     assert "3" in widget.status.value and "time" in widget.status.value
     widget.times.value = "2, 5, 5"  # uneven, a day imaged twice
+    widget.pixel_size.value = "0.5, 0.4"  # not square: refused before any work
+    assert widget.run() is None and "not square" in widget.status.value
+    widget.pixel_size.value = "0.5"
     widget.space_unit.value = "pixels"  # sizes in pixels after all
     table = run_and_wait(qtbot, widget).table
     assert table["time"].tolist() == [[2.0, 5.0, 5.0][f] for f in table["frame"]]

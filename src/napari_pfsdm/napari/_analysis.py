@@ -360,11 +360,13 @@ class AnalysisWidget(PluginDock):
             physical = _physical.physical_options(
                 self.pixel_size.value, self.space_unit.value, self.times.value,
                 self.time_unit.value, n_spatial)
-            if "times" in physical:
-                from ..core.units import check_times
+            from ..core.units import check_pixel_size, check_times
 
+            if "times" in physical:
                 check_times(physical["times"], chosen.data.shape[0]
                             if first_axis == "time" and chosen.ndim >= 3 else 1)
+            if "pixel_size" in physical:  # one per spatial axis; square in 2-D
+                physical["pixel_size"] = check_pixel_size(physical["pixel_size"], n_spatial)
         except ValueError as err:  # InputError is a ValueError
             self.refuse(str(err))
             return None
@@ -373,9 +375,7 @@ class AnalysisWidget(PluginDock):
                                  and _data(lay) is _data(labels) and not lay.visible), None)
         spacing = tuple(float(v) for v in labels.scale[-3:]) if labels.ndim >= 3 else None
         if "pixel_size" in physical and n_spatial == 3:  # the voxel size as the panel says
-            from ..core.units import check_pixel_size
-
-            spacing = physical["pixel_size"] = check_pixel_size(physical["pixel_size"], 3)
+            spacing = physical["pixel_size"]
         weight = self.intensity_weight.value if image is not None else 0.0
         job = start_run(self.viewer, labels, RunInput(
             image, params, first_axis, spacing, self.identity_mode(), weight,
