@@ -313,3 +313,25 @@ def test_the_captions_of_the_objects_along_a_pc_never_overlap():
     for i, a in enumerate(boxes):
         for b in boxes[i + 1:]:
             assert not a.overlaps(b), (a, b)
+
+
+def test_the_trajectories_colour_bar_is_labelled_with_the_time_and_its_unit(run, monkeypatch):
+    # every text of every figure the page draws, as matplotlib lays it out
+    from matplotlib.figure import Figure
+
+    from napari_pfsdm.analysis.physical import add_times
+    from napari_pfsdm.analysis.report import report_html
+
+    labels, table, groups = run
+    days = [2.0 + 3 * t for t in range(int(table["frame"].max()) + 1)]
+    drawn: list[str] = []
+    save = Figure.savefig
+
+    def savefig(fig, *args, **kwargs):
+        drawn.extend(t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text")))
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    report_html(add_times(table, days, "day"), groups=groups)
+    assert "time (day)" in drawn  # the colour bar of the trajectories, among others
+    assert not [t for t in drawn if t.lstrip().startswith("[")]  # never the values' array

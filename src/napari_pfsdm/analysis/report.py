@@ -382,8 +382,8 @@ def _trajectories_figure(scores: pd.DataFrame, explained: np.ndarray, when: str)
                          ).ravel()
     ids = object_ids(scores)
     x, y = scores["shape_PC1"].to_numpy(float), scores["shape_PC2"].to_numpy(float)
-    when = time_values(scores)
-    fmin, fmax = float(when.min()), float(when.max())
+    times = time_values(scores)
+    fmin, fmax = float(times.min()), float(times.max())
     sc = None
     for ax, name in zip(axes, panels, strict=False):
         ax.scatter(x, y, s=4, color="0.88", zorder=0)  # every object, for reference
