@@ -335,3 +335,15 @@ def test_the_trajectories_colour_bar_is_labelled_with_the_time_and_its_unit(run,
     report_html(add_times(table, days, "day"), groups=groups)
     assert "time (day)" in drawn  # the colour bar of the trajectories, among others
     assert not [t for t in drawn if t.lstrip().startswith("[")]  # never the values' array
+
+
+def test_pfsdm_report_takes_the_labels_folder_as_measure_does(files, tmp_path):
+    import shutil
+
+    folder = tmp_path / "movies"
+    folder.mkdir()
+    shutil.copy(files / "labels.tif", folder / "labels.tif")  # the folder pfsdm measured
+    out = tmp_path / "r.html"
+    assert main(["report", str(files / "features.csv"), "-o", str(out), "--labels",
+                 str(folder), "-q"]) == 0
+    assert "need the labels" not in out.read_text()  # the outlines are drawn

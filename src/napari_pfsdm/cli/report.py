@@ -65,11 +65,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     labels = None
     if args.labels:
         from ..analysis.report import check_labels
-        from ..batch.movies import movie_name
+        from ..batch.movies import find_movies, movie_name
 
-        labels = _report_labels(args.labels, table, args.quiet)
-        names = ({movie_name(p): p for p in args.labels} if isinstance(labels, dict)
-                 else args.labels[0])
+        paths = [str(p) for p in find_movies(args.labels)]  # files, folders or patterns
+        labels = _report_labels(paths, table, args.quiet)
+        names = ({movie_name(p): p for p in paths} if isinstance(labels, dict) else paths[0])
         check_labels(labels, table, names)  # by content: the objects of every frame
     predictions = info = None
     if args.predictions:
@@ -124,8 +124,9 @@ examples:
     file_argument(p, "-o", "--output", role="output", kind="report", required=True,
                   metavar="REPORT.html")
     file_argument(p, "--labels", role="input", kind="movie", nargs="+", metavar="LABELS.tif",
-                   help="the label movie(s) the table was measured from (TIFF or Zarr), to "
-                        "draw the objects' outlines; several movies are matched by file name")
+                   help="the label movie(s) the table was measured from (TIFF or Zarr files, "
+                        "or a folder of them as 'pfsdm measure' takes it), to draw the objects' "
+                        "outlines; several movies are matched by file name")
     file_argument(p, "--predictions", role="input", kind="table", metavar="PREDICTIONS.csv",
                    help="the table of 'pfsdm predict' (its .json sidecar holds the accuracy "
                         "curve)")
