@@ -343,6 +343,8 @@ class StudyWidget(PluginDock):
 
         def count(value):
             done, total = value
+            if ending["words"] or self.worker is not worker:  # a count after the Run ended
+                return
             if total:
                 bar.total = total
                 bar.update(done - bar.n)
