@@ -191,12 +191,7 @@ class StudyWidget(PluginDock):
 
     def _on_layers(self, event=None) -> None:
         """Layers added, removed, moved or renamed: the movie list follows."""
-        for layer, cb in self._renames:
-            try:
-                layer.events.name.disconnect(cb)
-            except (RuntimeError, ValueError, TypeError):
-                pass
-        self._renames = []
+        self._forget_renames()
         for layer in self.viewer.layers:
             layer.events.name.connect(self._on_layers)
             self._renames.append((layer, self._on_layers))
@@ -210,6 +205,10 @@ class StudyWidget(PluginDock):
     def release(self) -> None:
         super().release()
         self._unfollow_labels()
+        self._forget_renames()
+
+    def _forget_renames(self) -> None:
+        """Stop following the layers' names (the list of layers changed, or the dock closed)."""
         for layer, cb in self._renames:
             try:
                 layer.events.name.disconnect(cb)
